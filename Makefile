@@ -1,0 +1,34 @@
+# imupipe: two everyday commands (make run, make test); everything else is optional.
+VENV   ?= .venv
+PYTHON ?= python3
+CORES  ?= 2
+CONFIG ?= config/config.yaml
+SNAKEMAKE = OPENBLAS_NUM_THREADS=1 $(VENV)/bin/snakemake --cores $(CORES) --configfile $(CONFIG)
+
+.PHONY: env run test test-all bench report clean
+
+$(VENV)/.installed: pyproject.toml setup.py
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install -q --upgrade pip
+	$(VENV)/bin/pip install -q -e ".[test]"
+	touch $@
+
+env: $(VENV)/.installed
+
+run: env  ## the default paper-scale workflow (simulated STIM-300-like data)
+	$(SNAKEMAKE)
+
+test: env  ## the test suite (slow paper-scale checks excluded)
+	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q -m "not slow"
+
+test-all: env  ## every test, paper-scale ones included
+	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q
+
+bench: env  ## speed against error, with allantools in the same run
+	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/python benchmarks/run.py
+
+report: env
+	$(SNAKEMAKE) --report results/report.html
+
+clean:
+	rm -rf results logs .snakemake
