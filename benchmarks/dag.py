@@ -1,0 +1,524 @@
+"""Whole-workflow benchmark: cold run and spec-sheet-only rerun of the Snakemake DAG in a scratch copy.
+
+Used by ``benchmarks/run.py`` (section 4). Steps:
+
+1. copy ``Snakefile``, ``workflow/``, ``config/`` and ``data/`` (without ``data/simulated``) to
+   ``<out>/dag_scratch`` (timestamps kept), hard-link the checkout's ``data/simulated/*`` into it when present,
+   and run ``snakemake --until simulate`` there so that the input data exist (not timed as part of the cold
+   run; its time is reported). The checkout's ``results/`` is never touched.
+2. cold run: remove ``results/``, ``logs/`` and ``benchmarks/`` of the scratch copy, run
+   ``snakemake --cores <cores> --configfile config/config.yaml`` with ``OPENBLAS_NUM_THREADS=1``; wall time.
+   While it runs, a sampler reads every job process's peak resident set (``VmHWM`` of ``/proc/<pid>/status``,
+   a high-water mark, so a late sample still sees an earlier peak) every 50 ms. Snakemake's own
+   ``benchmark:`` files sample memory first at 0 s and then every 0.5 s, so for sub-second jobs their
+   ``max_rss`` mostly shows the launching process; both are reported.
+3. spec-sheet rerun: append a comment line to ``config/specs/stim300.yaml`` (values unchanged, new mtime) and
+   run again; wall time and the jobs Snakemake re-ran.
+4. per rule: jobs, sum/median/max of job wall times and peak memory (benchmark files' ``max_rss`` and the
+   sampler's ``VmHWM``); orchestration: a fresh interpreter's start plus each rule script's imports, times the
+   jobs, against the sum of job wall times; the floor: one ``np.sum`` pass per tau per axis plus decimation and
+   Welch per axis, measured on one ingested axis of the run.
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from timing import Timing, fmt, fmt_s, md_table, timed
+
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+SAMPLE_INTERVAL_S = 0.05
+MB = 1e6
+
+
+# ---------------------------------------------------------------------------------------------
+# parsing Snakemake's output and files
+# ---------------------------------------------------------------------------------------------
+def parse_job_stats(text: str) -> dict:
+    """First 'Job stats' table of a Snakemake log: rule -> count (and 'total')."""
+    out = {}
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        if line.strip() == "Job stats:":
+            for row in lines[i + 3:]:  # header 'job count', a rule of dashes, then rows
+                parts = row.split()
+                if len(parts) != 2 or not parts[1].isdigit():
+                    break
+                out[parts[0]] = int(parts[1])
+            break
+    return out
+
+
+_JOB_HEAD = re.compile(r"^(?:local)?(?:rule|checkpoint) (\S+):\s*$")
+_JOB_FIELD = re.compile(r"^\s{4}(\w+): (.*)$")
+
+
+def parse_jobs(text: str) -> list:
+    """Job blocks of a Snakemake log: [{'rule', 'jobid', 'benchmark', 'wildcards': {...}, ...}]."""
+    jobs, cur = [], None
+    for line in text.splitlines():
+        m = _JOB_HEAD.match(line)
+        if m:
+            cur = {"rule": m.group(1), "wildcards": {}}
+            jobs.append(cur)
+            continue
+        if cur is None:
+            continue
+        f = _JOB_FIELD.match(line)
+        if f:
+            key, val = f.group(1), f.group(2).strip()
+            if key == "wildcards":
+                cur["wildcards"] = dict(kv.split("=", 1) for kv in val.split(", ") if "=" in kv)
+            else:
+                cur[key] = val
+        elif line.strip():
+            cur = None
+    return jobs
+
+
+def read_benchmark_file(path: Path) -> dict:
+    """One Snakemake benchmark file (tab-separated; header s, h:m:s, max_rss, ...); the first data row."""
+    lines = Path(path).read_text().splitlines()
+    header = lines[0].split("\t")
+    row = lines[1].split("\t")
+    out = {}
+    for k, v in zip(header, row):
+        try:
+            out[k] = float(v)
+        except ValueError:
+            out[k] = v
+    return out
+
+
+def rule_scripts(repo: Path) -> dict:
+    """rule name -> script path, from ``script:`` directives in the Snakefile and workflow/rules/*.smk."""
+    files = [repo / "Snakefile"] + sorted((repo / "workflow" / "rules").glob("*.smk"))
+    out = {}
+    for f in files:
+        if not f.is_file():
+            continue
+        rule = None
+        lines = f.read_text().splitlines()
+        for i, line in enumerate(lines):
+            m = re.match(r"^(?:rule|checkpoint)\s+(\w+)\s*:", line)
+            if m:
+                rule = m.group(1)
+                continue
+            s = re.match(r"^\s+script:\s*(.*)$", line)
+            if s and rule:
+                arg = s.group(1).strip() or (lines[i + 1].strip() if i + 1 < len(lines) else "")
+                q = re.search(r"[\"']([^\"']+)[\"']", arg)
+                if q:
+                    out[rule] = (f.parent / q.group(1)).resolve()
+    return out
+
+
+def script_imports(path: Path) -> list:
+    """Top-level module names a script imports anywhere in its body (snakemake excluded)."""
+    tree = ast.parse(Path(path).read_text())
+    mods = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        else:
+            continue
+        for n in names:
+            if not n.startswith("snakemake") and n not in mods and n != "__future__":
+                mods.append(n)
+    return mods
+
+
+# ---------------------------------------------------------------------------------------------
+# peak memory of job processes
+# ---------------------------------------------------------------------------------------------
+def _vmhwm_kb(pid: int):
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+class MemorySampler(threading.Thread):
+    """Samples VmHWM of every descendant process of `root_pid` running a Snakemake script."""
+
+    def __init__(self, root_pid: int, interval: float = SAMPLE_INTERVAL_S):
+        super().__init__(daemon=True)
+        self.root_pid, self.interval = root_pid, interval
+        self.peaks = {}  # (pid, create_time) -> {"script": name, "kb": peak}
+        self._stop = threading.Event()
+
+    def stop(self):
+        self._stop.set()
+        self.join()
+
+    def run(self):
+        try:
+            import psutil
+        except ImportError:
+            return
+        try:
+            root = psutil.Process(self.root_pid)
+        except psutil.Error:
+            return
+        names = {}
+        while not self._stop.is_set():
+            try:
+                children = root.children(recursive=True)
+            except psutil.Error:
+                break
+            for p in children:
+                key = (p.pid, getattr(p, "_create_time", None))
+                if key not in names:
+                    try:
+                        cmd = p.cmdline()
+                    except psutil.Error:
+                        continue
+                    script = next((os.path.basename(c) for c in cmd if ".snakemake/scripts/" in c), None)
+                    names[key] = script
+                if names[key] is None:
+                    continue
+                kb = _vmhwm_kb(p.pid)
+                if kb is not None:
+                    ent = self.peaks.setdefault(key, {"script": names[key], "kb": 0})
+                    ent["kb"] = max(ent["kb"], kb)
+            self._stop.wait(self.interval)
+
+    def per_script(self) -> dict:
+        """script file name (tmpXXXX.<name>.py -> <name>.py) -> list of peak RSS per process, MB."""
+        out = {}
+        for ent in self.peaks.values():
+            name = ent["script"].split(".", 1)[1] if ent["script"].startswith("tmp") else ent["script"]
+            out.setdefault(name, []).append(ent["kb"] * 1024 / MB)
+        return out
+
+
+# ---------------------------------------------------------------------------------------------
+# running Snakemake
+# ---------------------------------------------------------------------------------------------
+def _env():
+    env = dict(os.environ)
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    return env
+
+
+def snakemake(workdir: Path, args: list, log: Path, sample_memory: bool = False):
+    """Run Snakemake in `workdir`; returns (wall s, combined output text, MemorySampler or None)."""
+    cmd = SNAKEMAKE + args
+    with open(log, "w") as fh:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=workdir, stdout=fh, stderr=subprocess.STDOUT, env=_env())
+        sampler = MemorySampler(proc.pid) if sample_memory else None
+        if sampler:
+            sampler.start()
+        rc = proc.wait()
+        wall = time.perf_counter() - t0
+        if sampler:
+            sampler.stop()
+    text = log.read_text()
+    if rc != 0:
+        tail = "\n".join(text.splitlines()[-30:])
+        raise RuntimeError(f"snakemake {' '.join(args)} failed (exit {rc}) in the scratch copy; log {log}:\n{tail}")
+    return wall, text, sampler
+
+
+def make_scratch(repo: Path, scratch: Path) -> Path:
+    """Copy the workflow (not results/) to `scratch`; hard-link the checkout's simulated data if present."""
+    if scratch.exists():
+        shutil.rmtree(scratch)
+    scratch.mkdir(parents=True)
+    shutil.copy2(repo / "Snakefile", scratch / "Snakefile")
+    for d in ("workflow", "config"):
+        if (repo / d).is_dir():
+            shutil.copytree(repo / d, scratch / d, ignore=shutil.ignore_patterns("__pycache__"))
+    if (repo / "data").is_dir():
+        shutil.copytree(repo / "data", scratch / "data", ignore=shutil.ignore_patterns("simulated", "__pycache__"))
+    sim = repo / "data" / "simulated"
+    if sim.is_dir():
+        (scratch / "data" / "simulated").mkdir(parents=True, exist_ok=True)
+        for f in sim.iterdir():
+            if f.is_file():
+                try:
+                    os.link(f, scratch / "data" / "simulated" / f.name)
+                except OSError:
+                    shutil.copy2(f, scratch / "data" / "simulated" / f.name)
+    return scratch
+
+
+def clean_outputs(scratch: Path) -> None:
+    for d in ("results", "logs", "benchmarks"):
+        if (scratch / d).exists():
+            shutil.rmtree(scratch / d)
+
+
+def spec_file(scratch: Path):
+    specs = scratch / "config" / "specs"
+    if (specs / "stim300.yaml").is_file():
+        return specs / "stim300.yaml"
+    found = sorted(specs.glob("*.yaml")) if specs.is_dir() else []
+    return found[0] if found else None
+
+
+# ---------------------------------------------------------------------------------------------
+# measurements derived from a finished run
+# ---------------------------------------------------------------------------------------------
+def collect_jobs(scratch: Path, text: str) -> list:
+    """Jobs of a run with their benchmark-file numbers (when the rule has a benchmark: directive)."""
+    jobs = parse_jobs(text)
+    for j in jobs:
+        b = j.get("benchmark")
+        if b and (scratch / b).is_file():
+            j["bench"] = read_benchmark_file(scratch / b)
+    return jobs
+
+
+def per_rule_summary(jobs: list, sampler_runs: list, scripts: dict) -> dict:
+    """rule -> jobs, wall sum/median/max (s), max_rss (MB, benchmark files), VmHWM peak (MB, sampler)."""
+    by_rule = {}
+    for j in jobs:
+        by_rule.setdefault(j["rule"], []).append(j)
+    hwm = {}
+    for s in sampler_runs:
+        for name, vals in s.per_script().items():
+            hwm.setdefault(name, []).extend(vals)
+    out = {}
+    for rule, js in by_rule.items():
+        walls = [j["bench"]["s"] for j in js if "bench" in j]
+        rss = [j["bench"]["max_rss"] * 2**20 / MB for j in js if "bench" in j and isinstance(j["bench"].get("max_rss"), float)]
+        script = scripts.get(rule)
+        peaks = hwm.get(script.name, []) if script else []
+        out[rule] = {
+            "jobs": len(js),
+            "axis_rule": any("axis" in j.get("wildcards", {}) for j in js),
+            "benchmarked_jobs": len(walls),
+            "sum_s": sum(walls) if walls else float("nan"),
+            "median_s": statistics.median(walls) if walls else float("nan"),
+            "max_s": max(walls) if walls else float("nan"),
+            "bench_max_rss_mb": max(rss) if rss else None,
+            "peak_rss_mb": max(peaks) if peaks else None,
+            "script": script.name if script else None,
+        }
+    return out
+
+
+def import_costs(scripts: dict, repeats: int = 3) -> dict:
+    """Fresh-interpreter start (s) and, per rule script, the time to import what it imports (s)."""
+    t_start, _ = timed(lambda: subprocess.run([sys.executable, "-c", "pass"], env=_env(), check=True), 5)
+    out = {"_python_start": t_start.median}
+    for rule, path in scripts.items():
+        if not path.is_file():
+            continue
+        mods = script_imports(path)
+        code = ("import time\nt = time.perf_counter()\n" + "".join(f"import {m}\n" for m in mods)
+                + "print(time.perf_counter() - t)")
+        vals = []
+        for _ in range(repeats):
+            r = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True, text=True)
+            if r.returncode != 0:
+                break
+            vals.append(float(r.stdout.strip().splitlines()[-1]))
+        out[rule] = {"modules": mods, "import_s": statistics.median(vals) if vals else None}
+    return out
+
+
+def _netcdf_dims(path: Path) -> dict:
+    import netCDF4
+
+    with netCDF4.Dataset(path) as nc:
+        return {k: len(v) for k, v in nc.dimensions.items()}
+
+
+def floor_estimate(scratch: Path, n_axes: int, repeats: int) -> dict:
+    """Floor = axes x (taus x one np.sum pass + decimation + Welch), measured on an ingested axis of the run."""
+    import numpy as np
+
+    from imupipe.spectra import decimate, psd
+
+    series = sorted((scratch / "results" / "series").glob("**/*.nc"))
+    allan = sorted(p for p in (scratch / "results" / "allan").glob("*/*/*.nc"))
+    if not series or not allan:
+        return {"formula": "not measured: no results/series or results/allan/<dataset>/<sensor>/<axis>.nc"}
+    import xarray as xr
+
+    with xr.open_dataset(series[0]) as ds:
+        name = next(v for v in ds.data_vars if ds[v].ndim == 1 and ds[v].size > 1000)
+        x = np.asarray(ds[name].values, dtype=np.float64)
+        rate = float(ds.attrs.get("rate_hz", 0) or 0)
+        if not rate and "time" in ds.coords:
+            rate = 1.0 / float(np.median(np.diff(ds["time"].values[:1000].astype(np.float64))))
+    n_taus = _netcdf_dims(allan[0]).get("tau")
+    t_sum, _ = timed(lambda: np.sum(x), max(21, repeats))
+    low = 1.0 if rate >= 1.0 and abs(rate - round(rate)) < 1e-9 else rate
+    t_dec, (x1, _) = timed(lambda: decimate(x, rate, low), max(11, repeats))
+    window = min(25200.0, 0.7 * x1.size / low)
+    t_psd, _ = timed(lambda: psd(x1, low, window_s=window, step_s=max(window, 36000.0 * window / 25200.0)),
+                     max(11, repeats))
+    per_axis = n_taus * t_sum.median + t_dec.median + t_psd.median
+    total = n_axes * per_axis
+    return {
+        "n_axes": n_axes, "n_taus": n_taus, "n_samples": int(x.size), "rate_hz": rate,
+        "sum_pass_s": t_sum.median, "decimate_s": t_dec.median, "psd_s": t_psd.median, "total_s": total,
+        "raw_mb": x.size * 8 / MB,
+        "formula": (f"{n_axes} axes x ({n_taus} taus x {fmt_s(t_sum.median)} np.sum pass + {fmt_s(t_dec.median)} "
+                    f"decimation to {fmt(low)} Hz + {fmt_s(t_psd.median)} Welch) = {fmt_s(total)} "
+                    f"(one core; axis of {x.size} samples)"),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: bool = False,
+        configfile: str = "config/config.yaml", floor_per_axis=None, spec_name: str | None = None) -> dict:
+    """The DAG section of the benchmark; returns numbers and a markdown block under 'markdown'."""
+    repo, out = Path(repo), Path(out)
+    res = {}
+    missing = [p for p in ("Snakefile", configfile) if not (repo / p).is_file()]
+    if missing:
+        res["skipped"] = f"not measured: {', '.join(missing)} not in the tree yet (workflow not written)"
+        res["markdown"] = res["skipped"]
+        return res
+    scratch = make_scratch(repo, out / "dag_scratch")
+    logs = out / "dag_logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    base = ["--cores", str(cores), "--configfile", configfile]
+    res["scratch"] = "benchmarks/results/dag_scratch (copy of Snakefile, workflow/, config/, data/)"
+    try:
+        t_prep, text, _ = snakemake(scratch, base + ["--until", "simulate"], logs / "prepare.log")
+        res["prepare_s"] = t_prep
+        res["prepare_jobs"] = parse_job_stats(text).get("total", 0)
+        spec = scratch / "config" / "specs" / spec_name if spec_name else spec_file(scratch)
+        res["spec_file"] = str(spec.relative_to(scratch)) if spec else None
+        cold, rerun = Timing(), Timing()
+        all_jobs, samplers, rerun_stats, cold_stats = [], [], [], []
+        floor = None
+        for i in range(repeats):
+            clean_outputs(scratch)
+            wall, text, sampler = snakemake(scratch, base, logs / f"cold_{i}.log", sample_memory=True)
+            cold.values.append(wall)
+            cold_stats.append(parse_job_stats(text))
+            jobs = collect_jobs(scratch, text)
+            all_jobs.append(jobs)
+            samplers.append(sampler)
+            if floor is None:
+                n_axes = sum(1 for j in jobs if j["rule"] == "allan")
+                floor = floor_estimate(scratch, n_axes, 5) if n_axes else {"formula": "no 'allan' jobs found"}
+            if spec is not None:
+                with open(spec, "a") as fh:
+                    fh.write(f"\n# benchmark: spec-sheet rerun {i} (values unchanged)\n")
+                wall, text, _ = snakemake(scratch, base, logs / f"spec_rerun_{i}.log")
+                rerun.values.append(wall)
+                rerun_stats.append(parse_job_stats(text))
+        t_dry, _ = timed(lambda: snakemake(scratch, base + ["-n"], logs / "dry_run.log"), 3)
+        scripts = rule_scripts(scratch)
+        costs = import_costs(scripts)
+    except RuntimeError as exc:
+        res["skipped"] = f"not measured: {exc}"
+        res["markdown"] = "Not measured: the workflow failed in the scratch copy.\n\n```\n" + str(exc) + "\n```"
+        return res
+    finally:
+        if not keep_scratch and scratch.exists() and "skipped" not in res:
+            shutil.rmtree(scratch)
+
+    # aggregate: per rule over the cold runs (the job set is the same in every cold run)
+    flat_jobs = [j for jobs in all_jobs for j in jobs]
+    per_rule = per_rule_summary(flat_jobs, samplers, scripts)
+    for r in per_rule.values():  # sums per run, not over all runs
+        r["sum_s"] /= max(1, len(all_jobs))
+        r["jobs"] //= max(1, len(all_jobs))
+    res.update(cold=cold.to_dict(), spec_rerun=rerun.to_dict() if rerun.values else None,
+               jobs_cold=cold_stats[0], jobs_rerun=rerun_stats[0] if rerun_stats else {}, per_rule=per_rule,
+               dry_run=t_dry.to_dict(), floor=floor, imports=costs)
+    res["spec_rerun_jobs"] = res["jobs_rerun"].get("total", 0)
+
+    # orchestration: interpreter start + script imports per job, against the sum of job wall times
+    start = costs["_python_start"]
+    orch, work = 0.0, 0.0
+    orch_rows = []
+    for rule, r in per_rule.items():
+        imp = (costs.get(rule) or {}).get("import_s")
+        if r["benchmarked_jobs"] == 0 or not (r["sum_s"] == r["sum_s"]):
+            continue
+        per_job = start + (imp or 0.0) if rule in scripts else None
+        if per_job is not None:
+            orch += per_job * r["jobs"]
+        work += r["sum_s"]
+        orch_rows.append([rule, r["jobs"], fmt_s(r["median_s"]), fmt_s(per_job) if per_job is not None else "n/a (no script)",
+                          ", ".join((costs.get(rule) or {}).get("modules", [])[:6])])
+    res["orchestration"] = {"python_start_s": start, "start_plus_imports_s": orch, "sum_job_wall_s": work,
+                            "fraction": orch / work if work else float("nan"),
+                            "outside_jobs_core_s": cold.median * cores - work}
+
+    # axis jobs: peak memory against the raw data size
+    raw_mb = (floor or {}).get("raw_mb")
+    axis_rules = {k: v for k, v in per_rule.items() if v["axis_rule"]}
+    src, peak, prule = None, None, None
+    for rule, v in axis_rules.items():
+        val = v["peak_rss_mb"]
+        if val is not None and (peak is None or val > peak):
+            peak, prule = val, rule
+    if peak is not None:
+        src = f"sampled VmHWM (every {SAMPLE_INTERVAL_S * 1e3:.0f} ms) of the job's script process"
+    else:
+        for rule, v in axis_rules.items():
+            val = v["bench_max_rss_mb"]
+            if val is not None and (peak is None or val > peak):
+                peak, prule = val, rule
+        src = "Snakemake benchmark max_rss (sampled at 0 s then every 0.5 s)"
+    if peak is not None and raw_mb:
+        res["axis_memory"] = {"peak_rss_mb": peak, "raw_mb": raw_mb, "rule": prule, "source": src}
+
+    # markdown
+    lines = []
+    fl = floor or {}
+    lines.append(f"Scratch copy of the workflow; input data prepared by `snakemake --until simulate` "
+                 f"({fmt_s(res['prepare_s'])}, {res['prepare_jobs']} jobs; not part of the cold run). "
+                 f"`snakemake --cores {cores} --configfile {configfile}`, OPENBLAS_NUM_THREADS=1, {repeats} runs each.")
+    lines.append("")
+    lines.append(md_table(
+        ["run", "wall time", "jobs", "note"],
+        [["cold (results empty, data present)", cold.cell(), res["jobs_cold"].get("total", "?"),
+          f"floor {fmt_s(fl.get('total_s'))}: {fl.get('formula', '')}"],
+         ["spec-sheet rerun", rerun.cell() if rerun.values else "n/a", res["spec_rerun_jobs"],
+          f"after appending a comment to {res['spec_file']}; rules: "
+          + ", ".join(f"{k} {v}" for k, v in res["jobs_rerun"].items() if k != "total")],
+         ["dry run, nothing to do", t_dry.cell(), 0, "DAG build + up-to-date check"]],
+    ))
+    lines.append("")
+    lines.append("Per rule (cold run; times from the `benchmark:` files, medians over jobs; memory: max over jobs "
+                 "and runs):")
+    lines.append("")
+    lines.append(md_table(
+        ["rule", "jobs", "sum of job walls", "median job", "max job", "peak RSS (VmHWM sampler)",
+         "max_rss (benchmark file)", "axis job"],
+        [[k, v["jobs"], fmt_s(v["sum_s"]), fmt_s(v["median_s"]), fmt_s(v["max_s"]),
+          f"{fmt(v['peak_rss_mb'], 3)} MB" if v["peak_rss_mb"] else "n/a",
+          f"{fmt(v['bench_max_rss_mb'], 3)} MB" if v["bench_max_rss_mb"] else "n/a (no benchmark:)",
+          "yes" if v["axis_rule"] else ""]
+         for k, v in sorted(per_rule.items(), key=lambda kv: -(kv[1]["sum_s"] if kv[1]["sum_s"] == kv[1]["sum_s"] else 0))],
+    ))
+    o = res["orchestration"]
+    lines.append("")
+    lines.append(
+        f"Orchestration: a fresh interpreter starts in {fmt_s(start)}; start + the script's imports per job "
+        f"(measured in a fresh process per rule) sum to {fmt_s(o['start_plus_imports_s'])} over the jobs, "
+        f"{fmt(100 * o['fraction'], 3)} % of the {fmt_s(o['sum_job_wall_s'])} sum of job wall times. "
+        f"Core-seconds of the cold run outside any job (DAG build, scheduling, idle cores): "
+        f"{fmt_s(o['outside_jobs_core_s'])} of {fmt_s(cold.median * cores)}.")
+    lines.append("")
+    lines.append(md_table(["rule", "jobs", "median job wall", "start + imports per job", "script imports"],
+                          orch_rows))
+    res["markdown"] = "\n".join(lines)
+    return res

@@ -1,0 +1,397 @@
+r"""Kalman-filter export of a noise model: continuous and exactly discretised state-space models.
+
+One axis of the paper's navigation example (Gallon, Joerger, Pervan, ION GNSS+ 2021, eq. 17), for
+an accelerometer measuring :math:`q_m = (1 + s_f) q_t + b + p + \nu_s`:
+
+.. math::
+
+    \frac{d}{dt}\begin{bmatrix} x \\ v \\ b_i \\ p \\ s_f \end{bmatrix} =
+    \begin{bmatrix} 0 & 1 & 0 & 0 & 0 \\ 0 & 0 & -1 & -1 & -q_m^* \\ 0 & 0 & -1/T_i & 0 & 0 \\
+    0 & 0 & 0 & 0 & 0 \\ 0 & 0 & 0 & 0 & 0 \end{bmatrix}
+    \begin{bmatrix} x \\ v \\ b_i \\ p \\ s_f \end{bmatrix}
+    + \begin{bmatrix} 0 \\ 1 \\ 0 \\ 0 \\ 0 \end{bmatrix} q_m
+    + \begin{bmatrix} 0 & 0 & 0 \\ -1 & 0 & 0 \\ 0 & 1 & 0 \\ 0 & 0 & 1 \\ 0 & 0 & 0 \end{bmatrix}
+    \begin{bmatrix} \nu_s \\ \nu_{b,i} \\ \nu_p \end{bmatrix},
+
+with white-noise intensities (two-sided PSDs) :math:`Q_c = \operatorname{diag}(N^2,\ 2\sigma_i^2/T_i,\
+K^2)`: :math:`N^2` for the velocity random walk, :math:`2\sigma^2/T` for a GM of steady-state
+variance :math:`\sigma^2`, :math:`K^2` for the acceleration random walk. The reduced model (eq. 19)
+drops :math:`p`; the scale-factor state :math:`s_f` has no driving noise. A gyro axis has the same
+structure with the attitude angle :math:`\theta` in place of :math:`(x, v)`.
+
+Discretisation is exact (Van Loan 1978): with :math:`M = \begin{bmatrix} -F & G Q_c G^T \\ 0 &
+F^T\end{bmatrix}\Delta t`, :math:`e^{M} = \begin{bmatrix} \cdot & \Phi^{-1} Q_d \\ 0 &
+\Phi^T\end{bmatrix}`. Closed forms it reproduces (tests): GM :math:`\Phi = e^{-\Delta t/T}`,
+:math:`Q_d = \sigma^2(1 - e^{-2\Delta t/T})`; random walk :math:`Q_d = K^2 \Delta t` (driving
+standard deviation :math:`K\sqrt{\Delta t}`, **not** the paper's :math:`\sigma_p = K \Delta t`,
+which agrees only at :math:`\Delta t = 1` s: method.md 2.2); velocity random walk
+:math:`Q_{d,vv} = N^2 \Delta t`; white rate noise as a discrete measurement/input noise
+:math:`N^2/\Delta t` per sample.
+
+References
+----------
+.. [1] E. Gallon, M. Joerger, B. Pervan, "Development of Stochastic IMU Error Models for INS/GNSS
+       Integration", ION GNSS+ 2021, eqs. 14-19.
+.. [2] C. F. Van Loan, "Computing integrals involving the matrix exponential", IEEE Trans.
+       Automatic Control 23(3), 395-404, 1978.
+.. [3] Kalibr wiki, "IMU Noise Model" (ethz-asl/kalibr): noise density and bias random walk
+       convention of ``imu.yaml``.
+.. [4] IEEE Std 952-1997, Annex C (angle random walk N, rate random walk K).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "ContinuousModel",
+    "continuous_model",
+    "discretize",
+    "initial_covariance",
+    "export_kf",
+    "kalibr_yaml",
+]
+
+_RATE_UNIT = {"accel": "m/s^2", "gyro": "rad/s"}
+
+
+class ContinuousModel(NamedTuple):
+    r"""Continuous-time model :math:`\dot X = F X + G w`, :math:`E[w(t) w(s)^T] = Q_c \delta(t-s)`."""
+
+    F: np.ndarray  #: system matrix (n, n), 1/s
+    G: np.ndarray  #: noise input matrix (n, m)
+    Qc: np.ndarray  #: noise intensities (m, m): u^2/Hz (white), u^2/s (GM, random walk)
+    states: list  #: state names
+    noises: list  #: noise names
+
+
+def _resolve_reduced(model, reduced):
+    if reduced is None:
+        return model.random_walk == 0
+    if reduced and model.random_walk > 0:
+        warnings.warn(
+            f"reduced model (eq. 19) requested for a model with random walk K = {model.random_walk:.3g}: "
+            "the random walk is dropped, which the paper allows only when the AV shows none",
+            UserWarning,
+            stacklevel=3,
+        )
+    return bool(reduced)
+
+
+def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, sensor: str = "accel",
+                     scale_factor: bool = True) -> ContinuousModel:
+    r"""One-axis continuous model of Gallon et al. 2021, eq. 17 (eq. 19 when `reduced`).
+
+    States (accelerometer): ``x`` (m), ``v`` (m/s), ``b`` (GM bias, m/s^2; ``b_1``, ``b_2``, ...
+    for several GM terms), ``p`` (random-walk bias, m/s^2; absent when reduced), ``s_f`` (scale
+    factor, 1). Gyro: ``theta`` (rad) instead of ``x, v``. The linearised measurement (eq. 16)
+    :math:`q_t = q_m - b - p - \nu_s - q_m^* s_f` gives the velocity (angle) row
+    :math:`-1, -1, -q_m^*`.
+
+    Noises: ``nu_s`` (white rate noise, intensity :math:`N^2`, enters with -1), ``nu_b``
+    (:math:`2\sigma^2/T` per GM term, so the GM's steady-state variance is :math:`\sigma^2`),
+    ``nu_p`` (:math:`K^2`).
+
+    Parameters
+    ----------
+    model : imupipe.models.NoiseModel
+        SI noise model (white, gauss_markov, random_walk used; flicker, quantization and ramp are
+        not states and are ignored with a warning).
+    reduced : bool or None, optional
+        Drop the random-walk state (eq. 19). None (default): reduced iff the model has no random
+        walk. True with a random walk present warns.
+    q_m : float, optional
+        Nominal measured rate :math:`q_m^*` (u) multiplying the scale-factor state. Default 0.
+    sensor : {"accel", "gyro"}, optional
+        Default ``"accel"``.
+    scale_factor : bool, optional
+        Include ``s_f``. Default True.
+
+    Returns
+    -------
+    ContinuousModel
+        ``(F, G, Qc, states, noises)``.
+    """
+    if sensor not in _RATE_UNIT:
+        raise ValueError(f"sensor must be 'accel' or 'gyro', got {sensor!r}")
+    for name in ("flicker", "quantization", "ramp"):
+        if getattr(model, name, 0.0):
+            warnings.warn(f"{name} is not a Kalman-filter state and is left out of the state-space model",
+                          UserWarning, stacklevel=2)
+    reduced = _resolve_reduced(model, reduced)
+    gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    states = ["x", "v"] if sensor == "accel" else ["theta"]
+    kin = len(states)
+    i_rate = kin - 1  # the row receiving the rate error (v for accel, theta for gyro)
+    b_names = ["b"] if len(gm) == 1 else [f"b_{i + 1}" for i in range(len(gm))]
+    states += b_names
+    if not reduced:
+        states.append("p")
+    if scale_factor:
+        states.append("s_f")
+    n = len(states)
+    idx = {s: i for i, s in enumerate(states)}
+    F = np.zeros((n, n))
+    if sensor == "accel":
+        F[idx["x"], idx["v"]] = 1.0
+    for bn, (_, T) in zip(b_names, gm):
+        F[i_rate, idx[bn]] = -1.0
+        F[idx[bn], idx[bn]] = -1.0 / T
+    if not reduced:
+        F[i_rate, idx["p"]] = -1.0
+    if scale_factor:
+        F[i_rate, idx["s_f"]] = -float(q_m)
+    noises = ["nu_s"] + (["nu_b"] if len(gm) == 1 else [f"nu_b_{i + 1}" for i in range(len(gm))])
+    q = [model.white**2] + [2.0 * s**2 / T for s, T in gm]
+    if not reduced:
+        noises.append("nu_p")
+        q.append(model.random_walk**2)
+    m = len(noises)
+    G = np.zeros((n, m))
+    G[i_rate, 0] = -1.0
+    for j, bn in enumerate(b_names):
+        G[idx[bn], 1 + j] = 1.0
+    if not reduced:
+        G[idx["p"], m - 1] = 1.0
+    return ContinuousModel(F, G, np.diag(np.asarray(q, dtype=np.float64)), states, noises)
+
+
+def discretize(F, G, Qc, dt: float):
+    r"""Exact discretisation by Van Loan's method.
+
+    .. math::
+
+        \exp\!\left(\begin{bmatrix} -F & G Q_c G^T \\ 0 & F^T \end{bmatrix}\Delta t\right)
+        = \begin{bmatrix} \cdot & \Phi^{-1} Q_d \\ 0 & \Phi^T \end{bmatrix},
+        \qquad \Phi = e^{F\Delta t},\quad
+        Q_d = \int_0^{\Delta t} e^{F s} G Q_c G^T e^{F^T s}\, ds .
+
+    Parameters
+    ----------
+    F : array_like
+        (n, n) system matrix, 1/s.
+    G : array_like or None
+        (n, m) noise input matrix; None for the identity (then `Qc` is (n, n)).
+    Qc : array_like
+        (m, m) white-noise intensities (two-sided PSDs).
+    dt : float
+        Step, s (> 0).
+
+    Returns
+    -------
+    Phi : numpy.ndarray
+        (n, n) transition matrix.
+    Qd : numpy.ndarray
+        (n, n) discrete process-noise covariance (symmetrised).
+
+    References
+    ----------
+    .. [1] C. F. Van Loan, IEEE Trans. Automatic Control 23(3), 395-404, 1978.
+    """
+    from scipy.linalg import expm
+
+    F = np.asarray(F, dtype=np.float64)
+    n = F.shape[0]
+    if F.shape != (n, n):
+        raise ValueError(f"F must be square, got {F.shape}")
+    Qc = np.atleast_2d(np.asarray(Qc, dtype=np.float64))
+    G = np.eye(n) if G is None else np.asarray(G, dtype=np.float64)
+    if G.shape[0] != n or G.shape[1] != Qc.shape[0] or Qc.shape[0] != Qc.shape[1]:
+        raise ValueError(f"shapes do not match: F {F.shape}, G {G.shape}, Qc {Qc.shape}")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive step in s, got {dt!r}")
+    Q = G @ Qc @ G.T
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -F
+    M[:n, n:] = Q
+    M[n:, n:] = F.T
+    E = expm(M * dt)
+    Phi = E[n:, n:].T
+    Qd = Phi @ E[:n, n:]
+    return Phi, 0.5 * (Qd + Qd.T)
+
+
+def initial_covariance(model, states, p0_random_walk: float | None = None, var_x: float = 0.0,
+                       var_v: float = 0.0, var_theta: float = 0.0, var_scale_factor: float = 0.0):
+    r"""Diagonal initial covariance, GM states at their steady state.
+
+    A GM bias started at its steady-state variance :math:`\sigma^2` is stationary, which the PSD
+    bound's guarantee needs (method.md section 6). The random walk has no steady state: its
+    initial variance must be stated (e.g. the turn-on bias repeatability squared, or
+    :math:`K^2 t_0` for a bias left to wander :math:`t_0` seconds before the filter starts).
+
+    Parameters
+    ----------
+    model : imupipe.models.NoiseModel
+        SI model (GM sigmas are read from it, in the order of increasing T).
+    states : sequence of str
+        State names from :func:`continuous_model`.
+    p0_random_walk : float
+        Initial variance of ``p``, u^2. Required when ``p`` is a state.
+    var_x, var_v, var_theta, var_scale_factor : float, optional
+        Initial variances of the kinematic states (m^2, (m/s)^2, rad^2) and of the scale factor
+        (1). Default 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, n) diagonal covariance.
+    """
+    gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    d = []
+    b_i = 0
+    for s in states:
+        if s == "x":
+            d.append(var_x)
+        elif s == "v":
+            d.append(var_v)
+        elif s == "theta":
+            d.append(var_theta)
+        elif s == "b" or s.startswith("b_"):
+            d.append(gm[b_i][0] ** 2)
+            b_i += 1
+        elif s == "p":
+            if p0_random_walk is None:
+                raise ValueError(
+                    "the random-walk state p has no steady state: give its initial variance p0_random_walk "
+                    "(u^2), e.g. the turn-on bias repeatability squared"
+                )
+            d.append(float(p0_random_walk))
+        elif s == "s_f":
+            d.append(var_scale_factor)
+        else:
+            raise ValueError(f"unknown state {s!r}")
+    return np.diag(np.asarray(d, dtype=np.float64))
+
+
+def _mat(a):
+    return [[float(v) for v in row] for row in np.asarray(a)]
+
+
+def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, sensor: str = "accel",
+              p0_random_walk: float | None = None, var_scale_factor: float = 0.0, var_x: float = 0.0,
+              var_v: float = 0.0, var_theta: float = 0.0) -> dict:
+    r"""Continuous and discrete Kalman-filter matrices of one axis, as a YAML-ready dict.
+
+    Parameters
+    ----------
+    model : imupipe.models.NoiseModel
+        The (bound) noise model, SI.
+    dt : float
+        Filter step, s.
+    reduced, q_m, sensor :
+        See :func:`continuous_model`.
+    p0_random_walk, var_scale_factor, var_x, var_v, var_theta :
+        See :func:`initial_covariance`.
+
+    Returns
+    -------
+    dict
+        ``states``, ``state_units``, ``noises``, ``noise_units``, ``F``, ``G``, ``Qc`` (continuous),
+        ``Phi``, ``Qd`` (discrete at `dt`), ``P0``, ``parameters`` (SI), ``discrete_noise``
+        (per-step standard deviations: white :math:`N/\sqrt{\Delta t}`, random walk
+        :math:`K\sqrt{\Delta t}`, GM :math:`\phi` and :math:`\sigma\sqrt{1-\phi^2}`), ``equation``,
+        ``notes``.
+    """
+    cm = continuous_model(model, reduced=reduced, q_m=q_m, sensor=sensor)
+    Phi, Qd = discretize(cm.F, cm.G, cm.Qc, dt)
+    P0 = initial_covariance(model, cm.states, p0_random_walk=p0_random_walk, var_x=var_x, var_v=var_v,
+                            var_theta=var_theta, var_scale_factor=var_scale_factor)
+    u = _RATE_UNIT[sensor]
+    unit_of = {"x": "m", "v": "m/s", "theta": "rad", "p": u, "s_f": "1"}
+    state_units = [unit_of.get(s, u) for s in cm.states]
+    noise_units = [f"({u})^2/Hz" if nm == "nu_s" else f"({u})^2/s" for nm in cm.noises]
+    gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    is_reduced = "p" not in cm.states
+    notes = [
+        "two-sided intensities: E[w(t) w(s)] = Qc delta(t - s)",
+        "random-walk driving std per step is K*sqrt(dt) (the paper's sigma_p = K*dt holds only at dt = 1 s)",
+        "GM states start at their steady-state variance sigma^2 (stationary, as the PSD bound requires)",
+    ]
+    if not is_reduced:
+        notes.append("p (random walk) is not stationary: its initial variance is a stated input")
+    return {
+        "sensor": sensor,
+        "equation": "Gallon et al. 2021 eq. 19 (reduced, no random-walk state)" if is_reduced
+        else "Gallon et al. 2021 eq. 17",
+        "dt_s": float(dt),
+        "q_m_nominal": float(q_m),
+        "states": list(cm.states),
+        "state_units": state_units,
+        "noises": list(cm.noises),
+        "noise_units": noise_units,
+        "F": _mat(cm.F),
+        "G": _mat(cm.G),
+        "Qc": _mat(cm.Qc),
+        "Phi": _mat(Phi),
+        "Qd": _mat(Qd),
+        "P0": _mat(P0),
+        "parameters": {
+            "white": float(model.white),
+            "gauss_markov": [{"sigma": float(s), "T": float(T)} for s, T in gm],
+            "random_walk": float(model.random_walk),
+            "units": {"white": f"{u}/sqrt(Hz)", "sigma": u, "T": "s", "random_walk": f"{u}/sqrt(s)"},
+        },
+        "discrete_noise": {
+            "white_std_per_sample": float(model.white / math.sqrt(dt)),
+            "random_walk_driving_std": float(model.random_walk * math.sqrt(dt)),
+            "gauss_markov": [
+                {"phi": float(math.exp(-dt / T)), "driving_std": float(s * math.sqrt(-math.expm1(-2 * dt / T)))}
+                for s, T in gm
+            ],
+            "unit": u,
+        },
+        "notes": notes,
+    }
+
+
+def kalibr_yaml(gyro_model, accel_model, rate_hz: float, rostopic: str = "/imu0", fold_gm: bool = True) -> dict:
+    r"""Kalibr ``imu.yaml`` entries (white noise density and bias random walk, SI).
+
+    Kalibr's IMU model has two terms per sensor: ``*_noise_density`` = :math:`N` (rad/s/sqrt(Hz),
+    m/s^2/sqrt(Hz)) and ``*_random_walk`` = :math:`K` (rad/s^2/sqrt(Hz) = rad/s/sqrt(s),
+    m/s^3/sqrt(Hz)). It has no GM state; with `fold_gm` each GM term is folded into the random walk
+    conservatively: a random walk with :math:`K'^2 = 2\sigma^2/T` has PSD
+    :math:`(2\sigma^2/T)/(2\pi f)^2 \ge 2\sigma^2 T/(1 + (2\pi f T)^2)` at every :math:`f > 0`,
+    so :math:`K_{eff} = \sqrt{K^2 + \sum_i 2\sigma_i^2/T_i}` bounds GM + random walk in PSD.
+
+    Parameters
+    ----------
+    gyro_model, accel_model : imupipe.models.NoiseModel
+        SI models (rad/s and m/s^2).
+    rate_hz : float
+        IMU update rate, Hz.
+    rostopic : str, optional
+        Default ``"/imu0"``.
+    fold_gm : bool, optional
+        Fold GM terms into the random walk as above (default True). False ignores them (warns:
+        not a bound).
+
+    Returns
+    -------
+    dict
+        ``rostopic``, ``update_rate``, ``accelerometer_noise_density``,
+        ``accelerometer_random_walk``, ``gyroscope_noise_density``, ``gyroscope_random_walk``.
+    """
+
+    def k_eff(m, name):
+        if not m.gauss_markov:
+            return float(m.random_walk)
+        if fold_gm:
+            return float(math.sqrt(m.random_walk**2 + sum(2 * s**2 / T for s, T in m.gauss_markov)))
+        warnings.warn(f"{name} GM terms are dropped from the Kalibr model: it no longer bounds the data",
+                      UserWarning, stacklevel=3)
+        return float(m.random_walk)
+
+    return {
+        "rostopic": rostopic,
+        "update_rate": float(rate_hz),
+        "accelerometer_noise_density": float(accel_model.white),
+        "accelerometer_random_walk": k_eff(accel_model, "accelerometer"),
+        "gyroscope_noise_density": float(gyro_model.white),
+        "gyroscope_random_walk": k_eff(gyro_model, "gyroscope"),
+    }

@@ -1,0 +1,334 @@
+"""Tests of imupipe.bound: the PSD-bounding linear program, the paper's hand inflation, AV checks."""
+
+import math
+
+import numpy as np
+import pytest
+
+from imupipe.bound import (
+    BoundResult,
+    bound_psd,
+    check_allan_components,
+    gm_bounds_gm,
+    looseness,
+    margin,
+    paper_inflation,
+)
+from imupipe.models import NoiseModel
+from imupipe.spectra import psd, smooth_log_bands
+
+RATE = 1.0  # Hz, the paper's block-averaged rate
+N_SAMPLES = 36000  # 10 h
+WINDOW_S, STEP_S = 25200.0, 36000.0  # one 7 h Hann window per 10 h record (paper's t = 7 h, t_s = 10 h)
+EULER_GAMMA = 0.5772156649015329
+
+
+def periodograms(model, n_curves, rng):
+    """Two-sided single-window periodograms of `n_curves` simulated 10 h records at 1 Hz."""
+    from imupipe.simulate import simulate
+
+    out = []
+    for _ in range(n_curves):
+        x = simulate(model, N_SAMPLES, RATE, rng)
+        ds = psd(x, RATE, window_s=WINDOW_S, step_s=STEP_S)
+        out.append(ds.psd.values)
+    return ds.frequency.values, np.array(out), ds.edf.values
+
+
+def white_periodograms(N, n_curves, rng):
+    """Same for white noise of density N (u/sqrt(Hz)): samples N*sqrt(rate)*randn (no simulate needed)."""
+    out = []
+    for _ in range(n_curves):
+        ds = psd(N * math.sqrt(RATE) * rng.standard_normal(N_SAMPLES), RATE, window_s=WINDOW_S, step_s=STEP_S)
+        out.append(ds.psd.values)
+    return ds.frequency.values, np.array(out), ds.edf.values
+
+
+# a STIM-300-like gyro in SI (paper Table 2 spec column, K read as (deg/h)/sqrt(s): method.md 2.4)
+DEG_H = math.pi / 180 / 3600
+TRUTH = NoiseModel(
+    white=0.3 / 60 * math.pi / 180,  # 0.3 deg/sqrt(h)
+    gauss_markov=((3.0 * DEG_H, 300.0),),
+    random_walk=0.03 * DEG_H,
+)
+SPEC = NoiseModel(
+    white=0.15 / 60 * math.pi / 180,
+    gauss_markov=((1.5 * DEG_H, 1500.0),),
+    random_walk=2e-2 * DEG_H,
+)
+
+
+@pytest.fixture(scope="module")
+def gyro_curves():
+    rng = np.random.default_rng(300)
+    return periodograms(TRUTH, 15, rng)
+
+
+@pytest.fixture(scope="module")
+def gyro_bound(gyro_curves):
+    f, curves, _ = gyro_curves
+    return bound_psd(f, curves, SPEC, mode="raw")
+
+
+class TestGaussMarkovIdentity:
+    def test_condition_matches_psd_difference(self):
+        # S_m - S over the common denominator is linear in (2 pi f)^2: its sign on [0, inf) is decided
+        # by the two end values, sigma_m^2 T_m - sigma^2 T and sigma_m^2/T_m - sigma^2/T
+        rng = np.random.default_rng(7)
+        f = np.concatenate(([0.0], np.logspace(-9, 9, 4001)))
+        checked = {True: 0, False: 0}
+        for _ in range(400):
+            sigma, T = 10 ** rng.uniform(-6, -2), 10 ** rng.uniform(0, 4)
+            sigma_m, T_m = sigma * 10 ** rng.uniform(-0.5, 1.0), T * 10 ** rng.uniform(-1.5, 1.5)
+            lo = sigma_m**2 * T_m / (sigma**2 * T) - 1
+            hi = (sigma_m**2 / T_m) / (sigma**2 / T) - 1
+            if min(abs(lo), abs(hi)) < 1e-3:  # too close to the boundary for a sampled check
+                continue
+            s_m = NoiseModel(gauss_markov=((sigma_m, T_m),)).psd(f)
+            s = NoiseModel(gauss_markov=((sigma, T),)).psd(f)
+            numeric = bool(np.all(s_m >= s * (1 - 1e-12)))
+            assert gm_bounds_gm(sigma_m, T_m, sigma, T) == numeric
+            checked[numeric] += 1
+        assert checked[True] > 30 and checked[False] > 30
+
+    def test_equal_processes_bound_each_other(self):
+        assert gm_bounds_gm(1.0, 10.0, 1.0, 10.0)
+        # same variance, shorter T: more high-frequency power but less at DC -> not a bound
+        assert not gm_bounds_gm(1.0, 5.0, 1.0, 10.0)
+
+
+class TestBoundPsdRaw:
+    def test_bounds_every_curve_at_every_frequency(self, gyro_curves, gyro_bound):
+        f, curves, _ = gyro_curves
+        r = gyro_bound
+        assert isinstance(r, BoundResult)
+        assert r.bounded
+        assert r.margin >= 1 - 1e-9
+        # independent recomputation on every curve and every positive frequency
+        s_m = r.model.psd(f[1:])
+        assert np.all(s_m[None, :] >= curves[:, 1:] * (1 - 1e-9))
+        # ... and above the spec
+        assert np.all(s_m >= SPEC.psd(f[1:]) * (1 - 1e-9))
+        m, label, fm = margin(r.model, f, curves)
+        assert m == pytest.approx(r.margin, rel=1e-12)
+        assert label == r.margin_curve and fm == r.margin_frequency
+
+    def test_tight(self, gyro_bound):
+        # the LP optimum touches the envelope somewhere (otherwise scaling down would be cheaper)
+        assert min(gyro_bound.margin, gyro_bound.spec_margin) == pytest.approx(1.0, abs=1e-6)
+
+    def test_inflation_factors(self, gyro_bound):
+        r = gyro_bound
+        assert r.inflation["N"] == pytest.approx(r.model.white / SPEC.white)
+        assert r.inflation["K"] == pytest.approx(r.model.random_walk / SPEC.random_walk)
+        assert r.inflation["sigma"] == pytest.approx(r.model.gauss_markov[0][0] / SPEC.gauss_markov[0][0])
+        assert r.inflation["T"] == pytest.approx(r.model.gauss_markov[0][1] / SPEC.gauss_markov[0][1])
+
+    def test_no_looser_than_paper_hand_inflation(self, gyro_curves, gyro_bound):
+        f, curves, _ = gyro_curves
+        hand = paper_inflation(f, curves, SPEC)
+        assert hand.bounded
+        assert hand.details["n_steps"] > 0
+        lp = gyro_bound
+        # same looseness measure on the same targets
+        assert looseness(hand.model, f, curves, SPEC) == pytest.approx(hand.looseness, rel=1e-12)
+        assert lp.looseness <= hand.looseness * (1 + 1e-9)
+        # at the hand procedure's own time constant the LP is optimal among all bounds with that T
+        fixed = bound_psd(f, curves, SPEC, T_grid=[hand.model.gauss_markov[0][1]], n_gm=1,
+                          keep=("white", "gauss_markov", "random_walk"))
+        assert fixed.looseness <= hand.looseness * (1 + 1e-9)
+
+    def test_to_dict_is_yaml_safe(self, gyro_bound):
+        import yaml
+
+        d = yaml.safe_load(yaml.safe_dump(gyro_bound.to_dict()))
+        assert d["bounded"] is True
+        assert d["mode"] == "raw"
+        assert d["bound"]["gauss_markov"][0]["T"] > 0
+        assert set(d["inflation"]) >= {"N", "K", "sigma", "T"}
+
+    def test_labels_from_dict(self, gyro_curves):
+        f, curves, _ = gyro_curves
+        named = {f"d{i // 3 + 1}/{'xyz'[i % 3]}": c for i, c in enumerate(curves)}
+        r = bound_psd(f, named, SPEC, T_grid=[300.0])
+        assert r.margin_curve in named
+
+
+@pytest.fixture(scope="module")
+def white():
+    """15 records (5 datasets x 3 axes) of white noise, 10 h at 1 Hz, one 7 h Hann window each."""
+    return white_periodograms(TestWhiteNoiseInflation.N, 15, np.random.default_rng(2021))
+
+
+class TestWhiteNoiseInflation:
+    N = 1e-3
+
+    def test_raw_mode_follows_the_periodogram_maximum(self, white):
+        # Each ordinate of a single periodogram of white noise is S * Exp(1) (chi^2_2 / 2). The bound
+        # must reach the largest of n = 15 x 12600 of them, whose mean is the harmonic number
+        # H_n = ln n + gamma + 1/(2n) = 12.73 (power), i.e. sqrt(12.73) = 3.57 in amplitude; the
+        # maximum is Gumbel-distributed with sd pi/sqrt(6) = 1.28 (neighbouring Hann ordinates are
+        # correlated, which lowers the mean slightly: 12.66 +- 1.32 over 40 simulated sets).
+        f, curves, edf = white
+        n = curves[:, 1:].size
+        h_n = math.log(n) + EULER_GAMMA + 1 / (2 * n)
+        r = bound_psd(f, curves, NoiseModel(white=self.N), dt=1.0, mode="raw", edf=edf, keep=("white",))
+        assert r.bounded
+        power = r.inflation["N"] ** 2
+        assert power == pytest.approx(np.max(curves[:, 1:]) / self.N**2, rel=1e-9)
+        assert h_n - 4.0 < power < h_n + 5.0
+        assert 3.0 < r.inflation["N"] < 4.3
+
+    def test_confidence_mode_inflates_much_less(self, white):
+        f, curves, edf = white
+        spec = NoiseModel(white=self.N)
+        raw = bound_psd(f, curves, spec, mode="raw", edf=edf, keep=("white",))
+        conf = bound_psd(f, curves, spec, mode="confidence", edf=edf, keep=("white",))
+        assert conf.bounded and conf.mode == "confidence"
+        assert conf.details["n_tests"] == 15 * conf.details["n_bands"]
+        assert conf.inflation["N"] < 0.7 * raw.inflation["N"]
+        # the statement is on band averages: single raw ordinates may exceed the bound
+        assert conf.raw_margin < 1
+        # letting the LP use a GM for the poorly resolved lowest bands leaves N close to the truth
+        full = bound_psd(f, curves, spec, mode="confidence", edf=edf, keep=("white", "gauss_markov"))
+        assert full.inflation["N"] < 1.4
+
+    def test_per_ordinate_confidence_is_honest_but_useless(self, white):
+        # a single chi^2_2 ordinate's Bonferroni upper limit is about n/(1-c) times the estimate
+        f, curves, edf = white
+        r = bound_psd(f, curves, NoiseModel(white=self.N), mode="confidence", edf=edf, keep=("white",),
+                      bands_per_decade=None)
+        assert r.inflation["N"] > 100
+
+    def test_white_spec_gets_no_extra_components_in_raw_mode(self, white):
+        f, curves, edf = white
+        r = bound_psd(f, curves, NoiseModel(white=self.N), mode="raw", T_grid=np.logspace(0, 4, 9))
+        assert r.components == ["white"]
+        assert "not needed" in r.decisions["gauss_markov"]
+        assert "not needed" in r.decisions["random_walk"]
+
+
+class TestSmoothed:
+    def test_bands_match_spectra(self, gyro_curves):
+        from imupipe.bound import _band_groups, _group_mean
+
+        f, curves, edf = gyro_curves
+        bands = smooth_log_bands(f, curves, 10, edf=edf, taper="hann")
+        fp = f[1:]
+        starts, counts, gedf = _band_groups(fp, 10, edf[1:], "hann", None)
+        np.testing.assert_allclose(_group_mean(curves[:, 1:], starts, counts), bands.psd, rtol=1e-12)
+        np.testing.assert_allclose(gedf[0], bands.edf, rtol=1e-12)
+        np.testing.assert_array_equal(counts, bands.n_bins)
+
+    def test_smoothed_bound_of_band_averages(self, gyro_curves, gyro_bound):
+        f, curves, edf = gyro_curves
+        r = bound_psd(f, curves, SPEC, mode="smoothed", edf=edf)
+        assert r.bounded and r.margin >= 1 - 1e-9
+        assert r.looseness <= gyro_bound.looseness * 1.000001 or r.model.white <= gyro_bound.model.white
+        assert r.model.white < gyro_bound.model.white  # less periodogram scatter at high frequency
+
+    def test_min_edf_merges_low_bands(self, gyro_curves):
+        from imupipe.bound import _band_groups
+
+        f, _, edf = gyro_curves
+        starts, counts, gedf = _band_groups(f[1:], 10, edf[1:], "hann", 20.0)
+        assert np.all(gedf[0, :] >= 20.0)
+        assert counts.sum() == f.size - 1
+
+
+class TestComponentsAndDegenerateInputs:
+    def test_curve_of_zeros_is_harmless(self, gyro_curves):
+        f, curves, _ = gyro_curves
+        with_zero = np.vstack([curves[:3], np.zeros_like(curves[0])])
+        r = bound_psd(f, with_zero, SPEC, T_grid=[300.0])
+        ref = bound_psd(f, curves[:3], SPEC, T_grid=[300.0])
+        assert r.bounded
+        assert r.model.white == pytest.approx(ref.model.white, rel=1e-9)
+
+    def test_all_zero_and_no_spec(self):
+        f = np.linspace(0, 0.5, 101)
+        r = bound_psd(f, np.zeros((2, f.size)))
+        assert r.bounded and r.model.white == 0 and r.model.gauss_markov == ()
+
+    def test_spec_without_gm_gets_one_when_the_data_need_it(self, gyro_curves):
+        f, curves, _ = gyro_curves
+        spec = NoiseModel(white=SPEC.white, random_walk=SPEC.random_walk)
+        r = bound_psd(f, curves, spec)
+        assert r.bounded
+        assert "gauss_markov" in r.components and "added" in r.decisions["gauss_markov"]
+        assert r.inflation["sigma"] is None and r.inflation["T"] is None
+        d = r.to_dict()
+        assert d["inflation"]["sigma"] is None
+
+    def test_keep_without_random_walk(self, gyro_curves):
+        f, curves, _ = gyro_curves
+        r = bound_psd(f, curves, None, keep={"kept": ["white", "gauss_markov", "flicker"]})
+        assert r.components == ["white", "gauss_markov"]
+        assert r.model.random_walk == 0 and r.bounded
+
+    def test_two_gm_terms_no_looser(self, gyro_curves, gyro_bound):
+        f, curves, _ = gyro_curves
+        r = bound_psd(f, curves, SPEC, n_gm=2, T_grid=np.logspace(0, 4.5, 19))
+        assert r.bounded
+        assert r.looseness <= gyro_bound.looseness * 1.01
+
+    def test_bad_inputs(self):
+        f = np.linspace(0, 0.5, 11)
+        with pytest.raises(ValueError, match="mode"):
+            bound_psd(f, np.ones((1, 11)), mode="loose")
+        with pytest.raises(ValueError, match="shape"):
+            bound_psd(f, np.ones((1, 10)))
+        with pytest.raises(ValueError, match="non-negative"):
+            bound_psd(f, -np.ones((1, 11)))
+
+
+class TestAllanComponents:
+    TAU = np.logspace(-1, 4.5, 60)
+
+    def test_each_component_checked(self):
+        identified = NoiseModel(white=1e-4, gauss_markov=((2e-5, 200.0),), random_walk=1e-7)
+        bound = NoiseModel(white=1.5e-4, gauss_markov=((4e-5, 150.0),), random_walk=1.2e-7)
+        res = check_allan_components(bound, identified, self.TAU)
+        assert res["white"]["passed"] and res["white"]["margin"] == pytest.approx(2.25)
+        assert res["random_walk"]["passed"] and res["random_walk"]["margin"] == pytest.approx(1.44)
+        assert res["gauss_markov"]["passed"]
+        # GM bound in PSD implies GM bound in AV (AV is a positive-weighted integral of the PSD)
+        assert gm_bounds_gm(4e-5, 150.0, 2e-5, 200.0)
+
+    def test_gm_with_sigma_b_does_not_bound_flicker_b(self):
+        # method.md 2.3: a GM's ADEV peaks at 0.6174 sigma < 0.664 B, so sigma = B fails everywhere
+        B = 1e-5
+        identified = NoiseModel(white=1e-4, flicker=B)
+        res = check_allan_components(NoiseModel(white=1e-4, gauss_markov=((B, 100.0),)), identified, self.TAU)
+        assert res["flicker"]["passed"] is False
+        assert res["flicker"]["margin"] < (0.6174 / 0.664) ** 2 * 1.001
+        # over a finite tau grid a ladder of GM terms, one per decade, covers flicker
+        ladder = tuple((B, T) for T in (0.03, 0.3, 3.0, 30.0, 300.0, 3000.0))
+        res = check_allan_components(NoiseModel(white=1e-4, gauss_markov=ladder), identified, np.logspace(-1, 3, 30))
+        assert res["flicker"]["passed"] is True
+
+    def test_missing_random_walk_fails(self):
+        res = check_allan_components(NoiseModel(white=1e-4), NoiseModel(white=1e-4, random_walk=1e-7), self.TAU)
+        assert res["random_walk"]["passed"] is False and res["random_walk"]["margin"] == 0.0
+        assert res["white"]["passed"] and res["white"]["margin"] == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+class TestPaperScale:
+    def test_block_averaged_with_sampled_model(self):
+        # 125 Hz records decimated to 1 Hz; the bound compares with NoiseModel.psd_sampled(f, 1 s)
+        from imupipe.simulate import simulate
+        from imupipe.spectra import decimate
+
+        rng = np.random.default_rng(11)
+        curves = []
+        for _ in range(15):
+            x = simulate(TRUTH, 125 * N_SAMPLES, 125.0, rng)
+            y, _ = decimate(x, 125.0, 1.0)
+            ds = psd(y, 1.0, window_s=WINDOW_S, step_s=STEP_S)
+            curves.append(ds.psd.values)
+        f = ds.frequency.values
+        r = bound_psd(f, np.array(curves), SPEC, dt=1.0)
+        assert r.bounded
+        s_m = r.model.psd_sampled(f[1:], 1.0)
+        assert np.all(s_m >= np.array(curves)[:, 1:] * (1 - 1e-9))

@@ -1,0 +1,162 @@
+"""Tests of imupipe.kf: state-space structure (paper eqs. 17, 19), Van Loan against closed forms."""
+
+import math
+
+import numpy as np
+import pytest
+
+from imupipe.kf import continuous_model, discretize, export_kf, initial_covariance, kalibr_yaml
+from imupipe.models import NoiseModel
+
+# STIM-300-like accelerometer (paper Table 2, inflated column, in SI): N from 0.0425 m/s/sqrt(h)
+N_ACC = 0.0425 / 60.0
+SIGMA_ACC = 0.165e-3 * 9.80665
+T_ACC = 120.0
+K_ACC = 3.625e-6 * 9.80665  # (g)/sqrt(s) read as the paper's units discussion (method.md 2.4)
+
+
+@pytest.fixture
+def accel():
+    return NoiseModel(white=N_ACC, gauss_markov=((SIGMA_ACC, T_ACC),), random_walk=K_ACC)
+
+
+class TestContinuousModel:
+    def test_eq17_structure(self, accel):
+        cm = continuous_model(accel, q_m=9.81)
+        assert cm.states == ["x", "v", "b", "p", "s_f"]
+        expected_F = np.array(
+            [
+                [0, 1, 0, 0, 0],
+                [0, 0, -1, -1, -9.81],
+                [0, 0, -1 / T_ACC, 0, 0],
+                [0, 0, 0, 0, 0],
+                [0, 0, 0, 0, 0],
+            ]
+        )
+        np.testing.assert_array_equal(cm.F, expected_F)
+        assert cm.noises == ["nu_s", "nu_b", "nu_p"]
+        np.testing.assert_array_equal(cm.G[:, 0], [0, -1, 0, 0, 0])
+        np.testing.assert_array_equal(cm.G[:, 1], [0, 0, 1, 0, 0])
+        np.testing.assert_array_equal(cm.G[:, 2], [0, 0, 0, 1, 0])
+        np.testing.assert_allclose(np.diag(cm.Qc), [N_ACC**2, 2 * SIGMA_ACC**2 / T_ACC, K_ACC**2], rtol=1e-15)
+        # the scale factor has no noise
+        assert not np.any(cm.G[cm.states.index("s_f")])
+
+    def test_eq19_reduced(self):
+        m = NoiseModel(white=N_ACC, gauss_markov=((SIGMA_ACC, T_ACC),))
+        cm = continuous_model(m)  # no random walk: reduced by default
+        assert cm.states == ["x", "v", "b", "s_f"]
+        assert cm.noises == ["nu_s", "nu_b"]
+
+    def test_reduced_with_random_walk_warns(self, accel):
+        with pytest.warns(UserWarning, match="random walk"):
+            cm = continuous_model(accel, reduced=True)
+        assert "p" not in cm.states
+
+    def test_gyro_and_two_gm(self):
+        m = NoiseModel(white=1e-4, gauss_markov=((1e-5, 1000.0), (2e-5, 10.0)), random_walk=1e-7)
+        cm = continuous_model(m, sensor="gyro", scale_factor=False)
+        assert cm.states == ["theta", "b_1", "b_2", "p"]
+        # GM states sorted by increasing T
+        assert cm.F[1, 1] == -1 / 10.0 and cm.F[2, 2] == -1 / 1000.0
+
+
+class TestDiscretize:
+    @pytest.mark.parametrize("dt", [0.01, 0.1, 1.0, 7.3])
+    def test_gm_closed_form(self, dt):
+        sigma, T = 2.5e-3, 300.0
+        F = np.array([[-1 / T]])
+        Phi, Qd = discretize(F, np.eye(1), np.array([[2 * sigma**2 / T]]), dt)
+        assert Phi[0, 0] == pytest.approx(math.exp(-dt / T), rel=1e-12)
+        assert Qd[0, 0] == pytest.approx(sigma**2 * (1 - math.exp(-2 * dt / T)), rel=1e-12)
+
+    @pytest.mark.parametrize("dt", [0.01, 0.5, 2.0])
+    def test_random_walk_is_K_sqrt_dt_not_K_dt(self, dt):
+        K = 3.4e-6
+        Phi, Qd = discretize(np.zeros((1, 1)), None, np.array([[K**2]]), dt)
+        assert Phi[0, 0] == 1.0
+        assert Qd[0, 0] == pytest.approx(K**2 * dt, rel=1e-12)
+        # the paper's sigma_p = K*dt is a different number except at dt = 1 s
+        assert math.sqrt(Qd[0, 0]) == pytest.approx(K * math.sqrt(dt), rel=1e-12)
+        assert not math.isclose(math.sqrt(Qd[0, 0]), K * dt, rel_tol=1e-3)
+
+    @pytest.mark.parametrize("dt", [0.004, 0.1, 1.0])
+    def test_velocity_random_walk_block(self, dt):
+        # x' = v, v' = -nu_s: Qd = N^2 [[dt^3/3, -dt^2/2 * (-1)...]] with the sign of G squared away
+        N = 7e-4
+        cm = continuous_model(NoiseModel(white=N), scale_factor=False)
+        Phi, Qd = discretize(cm.F, cm.G, cm.Qc, dt)
+        np.testing.assert_allclose(Phi, [[1, dt], [0, 1]], rtol=1e-12, atol=0)
+        np.testing.assert_allclose(
+            Qd, N**2 * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]]), rtol=1e-12, atol=0
+        )
+
+    def test_white_measurement_noise_per_sample(self):
+        d = export_kf(NoiseModel(white=2e-3), dt=0.01)
+        assert d["discrete_noise"]["white_std_per_sample"] == pytest.approx(2e-3 / math.sqrt(0.01), rel=1e-15)
+
+    def test_full_model_blocks(self, accel):
+        dt = 0.2
+        cm = continuous_model(accel)
+        Phi, Qd = discretize(cm.F, cm.G, cm.Qc, dt)
+        ib, ip = cm.states.index("b"), cm.states.index("p")
+        assert Phi[ib, ib] == pytest.approx(math.exp(-dt / T_ACC), rel=1e-12)
+        assert Qd[ib, ib] == pytest.approx(SIGMA_ACC**2 * -math.expm1(-2 * dt / T_ACC), rel=1e-12)
+        assert Qd[ip, ip] == pytest.approx(K_ACC**2 * dt, rel=1e-12)
+        assert Qd[ib, ip] == 0.0
+        np.testing.assert_allclose(Qd, Qd.T, rtol=0, atol=0)
+        assert np.all(np.linalg.eigvalsh(Qd) > -1e-30)
+
+    def test_bad_inputs(self):
+        with pytest.raises(ValueError, match="dt"):
+            discretize(np.zeros((1, 1)), None, np.eye(1), 0.0)
+        with pytest.raises(ValueError, match="shapes"):
+            discretize(np.zeros((2, 2)), np.ones((2, 1)), np.eye(2), 1.0)
+
+
+class TestInitialCovariance:
+    def test_gm_steady_state_and_explicit_rw(self, accel):
+        cm = continuous_model(accel)
+        with pytest.raises(ValueError, match="p0_random_walk"):
+            initial_covariance(accel, cm.states)
+        P0 = initial_covariance(accel, cm.states, p0_random_walk=1e-8, var_scale_factor=1e-8)
+        np.testing.assert_allclose(np.diag(P0), [0, 0, SIGMA_ACC**2, 1e-8, 1e-8], rtol=1e-15)
+
+    def test_gm_stays_stationary(self, accel):
+        # P0 of the GM state is a fixed point of the discrete propagation: Phi P Phi' + Qd = P
+        cm = continuous_model(NoiseModel(gauss_markov=((SIGMA_ACC, T_ACC),)), scale_factor=False)
+        Phi, Qd = discretize(cm.F, cm.G, cm.Qc, 0.5)
+        P0 = initial_covariance(NoiseModel(gauss_markov=((SIGMA_ACC, T_ACC),)), cm.states)
+        ib = cm.states.index("b")
+        P1 = Phi @ P0 @ Phi.T + Qd
+        assert P1[ib, ib] == pytest.approx(SIGMA_ACC**2, rel=1e-12)
+
+
+class TestExport:
+    def test_export_is_plain_and_consistent(self, accel):
+        import yaml
+
+        d = export_kf(accel, dt=0.01, q_m=9.81, p0_random_walk=(1e-3) ** 2)
+        text = yaml.safe_dump(d)  # plain Python types only
+        back = yaml.safe_load(text)
+        assert back["states"] == ["x", "v", "b", "p", "s_f"]
+        assert back["equation"].endswith("eq. 17")
+        assert back["discrete_noise"]["random_walk_driving_std"] == pytest.approx(K_ACC * 0.1, rel=1e-12)
+        assert back["discrete_noise"]["gauss_markov"][0]["phi"] == pytest.approx(math.exp(-0.01 / T_ACC))
+        assert back["state_units"] == ["m", "m/s", "m/s^2", "m/s^2", "1"]
+
+    def test_kalibr(self, accel):
+        gyro = NoiseModel(white=4.4e-5, random_walk=2e-7)
+        d = kalibr_yaml(gyro, accel, rate_hz=125.0)
+        assert d["update_rate"] == 125.0
+        assert d["gyroscope_noise_density"] == 4.4e-5
+        assert d["gyroscope_random_walk"] == 2e-7
+        assert d["accelerometer_noise_density"] == N_ACC
+        k_eff = math.sqrt(K_ACC**2 + 2 * SIGMA_ACC**2 / T_ACC)
+        assert d["accelerometer_random_walk"] == pytest.approx(k_eff, rel=1e-15)
+        # the folded random walk bounds GM + random walk in PSD at every frequency
+        f = np.logspace(-7, 3, 2000)
+        folded = NoiseModel(random_walk=k_eff).psd(f)
+        assert np.all(folded >= NoiseModel(gauss_markov=accel.gauss_markov, random_walk=K_ACC).psd(f))
+        with pytest.warns(UserWarning, match="no longer bounds"):
+            kalibr_yaml(gyro, accel, 125.0, fold_gm=False)

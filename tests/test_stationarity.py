@@ -1,0 +1,246 @@
+"""Tests of imupipe.stationarity: the paper's Levene + KS test and its calibrated versions.
+
+Rejection rates are checked against binomial tolerances (4 standard deviations) over simulated
+records; every simulation has a fixed seed. The null records come from a small local generator
+(exact AR(1) Gauss-Markov + white noise) so the tests do not depend on imupipe.simulate; one test
+uses imupipe.simulate with a NoiseModel when it is importable.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.stats
+from scipy.signal import lfilter
+
+from imupipe.stationarity import (
+    bootstrap_stationarity,
+    calibrated_stationarity,
+    ks_statistics,
+    levene_statistic,
+    stationarity_tests,
+)
+
+
+def white_plus_gm(white_std, gm_sigma, gm_T, dt=1.0):
+    """Null-record generator gen(n, rng): white noise + first-order GM started at steady state.
+
+    Exact discretisation: phi = exp(-dt/T), driving std sigma * sqrt(1 - phi^2) (method.md 2.2).
+    """
+    phi = math.exp(-dt / gm_T)
+    q = gm_sigma * math.sqrt(1.0 - phi**2)
+
+    def gen(n, rng):
+        drive = q * rng.standard_normal(n)
+        drive[0] = gm_sigma * rng.standard_normal()
+        return lfilter([1.0], [1.0, -phi], drive) + white_std * rng.standard_normal(n)
+
+    return gen
+
+
+def binomial_band(p, n, k=4.0):
+    sd = math.sqrt(p * (1 - p) / n)
+    return p - k * sd, p + k * sd
+
+
+# ---------------------------------------------------------------------------------------------
+class TestStatistics:
+    @pytest.mark.parametrize("k", [2, 3, 5])
+    def test_levene_equals_scipy(self, k, rng):
+        segs = rng.standard_normal((k, 301)) * np.linspace(1, 1.3, k)[:, None]
+        expected = scipy.stats.levene(*segs, center="median").statistic
+        assert levene_statistic(segs) == pytest.approx(expected, rel=1e-12)
+
+    def test_levene_vectorised(self, rng):
+        segs = rng.standard_normal((4, 3, 100))
+        np.testing.assert_allclose(levene_statistic(segs), [levene_statistic(s) for s in segs], rtol=1e-14)
+
+    @pytest.mark.parametrize("quantised", [False, True])
+    def test_ks_equals_scipy(self, quantised, rng):
+        # quantised data (an ADIS-like LSB) produce ties: D is read at the end of each tie run
+        segs = rng.standard_normal((3, 500))
+        if quantised:
+            segs = np.round(segs * 3) / 3
+        segs[1] += 0.1
+        expected = [scipy.stats.ks_2samp(segs[i], segs[i + 1]).statistic for i in range(2)]
+        np.testing.assert_allclose(ks_statistics(segs), expected, rtol=1e-12)
+        np.testing.assert_allclose(ks_statistics(segs[None])[0], expected, rtol=1e-12)
+
+    def test_ks_hand_example(self):
+        # F1 - F2 after {1, 2}: 1, after 3: 1/3 ... -> D = 2/3 at x = 2
+        segs = np.array([[1.0, 2.0, 5.0], [3.0, 4.0, 6.0]])
+        assert ks_statistics(segs)[0] == pytest.approx(2 / 3)
+        assert ks_statistics(np.ones((2, 5)))[0] == 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+class TestPaperTest:
+    def test_output_is_plain_python(self, rng):
+        res = stationarity_tests(rng.standard_normal(1001), n_segments=3)
+        assert res["segment_length"] == 333 and res["n_dropped"] == 2
+        assert res["ks_pairs"] == [[0, 1], [1, 2]]
+        assert res["ks_alpha"] == pytest.approx(0.025)
+
+        def plain(v):
+            if isinstance(v, dict):
+                return all(plain(u) for u in v.values())
+            if isinstance(v, list):
+                return all(plain(u) for u in v)
+            return type(v) in (int, float, bool, str)
+
+        assert plain(res)
+        yaml = pytest.importorskip("yaml")
+        assert yaml.safe_load(yaml.safe_dump(res)) == res
+
+    def test_matches_scipy_on_halves(self, rng):
+        x = rng.standard_normal(2000)
+        res = stationarity_tests(x)
+        lev = scipy.stats.levene(x[:1000], x[1000:], center="median")
+        ks = scipy.stats.ks_2samp(x[:1000], x[1000:])
+        assert res["levene_p"] == lev.pvalue and res["ks_p"] == [ks.pvalue]
+        assert res["stationary"] == (lev.pvalue > 0.05 and ks.pvalue > 0.05)
+
+    def test_white_noise_passes_at_nominal_rate(self, rng):
+        # iid data: each test rejects with probability 0.05; the AND verdict with prob.
+        # 1 - 0.95^2 = 0.0975 (the two tests are nearly independent). 300 records.
+        rejected = [not stationarity_tests(rng.standard_normal(1000))["stationary"] for _ in range(300)]
+        lo, hi = binomial_band(1 - 0.95**2, 300)
+        assert lo < np.mean(rejected) < hi
+
+    def test_variance_step_fails(self, rng):
+        x = rng.standard_normal(4000)
+        x[2000:] *= 1.3
+        res = stationarity_tests(x)
+        assert not res["stationary"] and not res["levene_pass"]
+
+    def test_mean_step_fails_in_the_right_pair(self, rng):
+        x = rng.standard_normal(3000)
+        x[2000:] += 0.5
+        res = stationarity_tests(x, n_segments=3)
+        assert not res["stationary"]
+        assert res["ks_p"][1] < 1e-6 and res["ks_p"][0] > 1e-3  # the step is between segments 1 and 2
+
+    def test_errors(self, rng):
+        with pytest.raises(ValueError, match="n_segments"):
+            stationarity_tests(rng.standard_normal(100), n_segments=1)
+        with pytest.raises(ValueError, match="alpha"):
+            stationarity_tests(rng.standard_normal(100), alpha=0.0)
+        with pytest.raises(ValueError, match="too short"):
+            stationarity_tests(np.zeros(5), n_segments=2)
+        with pytest.raises(ValueError, match="NaN or inf"):
+            stationarity_tests(np.array([1.0, np.nan, 2.0, 3.0, 4.0, 5.0, 6.0]))
+
+    def test_constant_record(self):
+        with pytest.warns(UserWarning, match="constant record"):
+            res = stationarity_tests(np.full(100, 9.81))
+        assert res["levene_p"] == 1.0 and res["ks_p"] == [1.0] and res["stationary"]
+
+
+# ---------------------------------------------------------------------------------------------
+class TestCalibrated:
+    def test_correlated_noise_paper_rejects_calibrated_does_not(self, rng):
+        # method.md section 5: on stationary white + GM noise at 1 Hz the paper's KS on halves
+        # rejects far more often than 5 % (serially correlated samples), the calibrated test
+        # ~5 %. 100 records of 2000 s (GM sigma = white std, T = 50 s), 39 null draws each
+        # ((39 + 1) * 0.05 = 2: an exact-level Monte Carlo test). Binomial sd at 5 %: 2.2 %.
+        gen = white_plus_gm(1.0, 1.0, 50.0)
+        paper_ks, paper, calibrated = [], [], []
+        for _ in range(100):
+            x = gen(2000, rng)
+            res = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=rng)
+            paper_ks.append(not res["paper"]["ks_pass"])
+            paper.append(not res["paper"]["stationary"])
+            calibrated.append(not res["stationary"])
+        assert np.mean(paper_ks) > 0.5 and np.mean(paper) > 0.5
+        lo, hi = binomial_band(0.05, 100)
+        assert max(lo, 0.0) <= np.mean(calibrated) < hi
+
+    def test_variance_step_fails(self, rng):
+        gen = white_plus_gm(1.0, 0.5, 20.0)
+        x = gen(4000, rng)
+        x[2000:] *= 1.5
+        res = calibrated_stationarity(x, 1.0, gen, n_sim=99, rng=rng)
+        assert not res["stationary"]
+        assert res["levene_p"] == pytest.approx(0.01) and res["p_value"] <= 0.02
+
+    def test_p_value_formula_and_output(self, rng):
+        # a null that can never reach the observed statistics: p = 1/(1 + n_sim)
+        x = np.concatenate([rng.standard_normal(500), 10 + 5 * rng.standard_normal(500)])
+        res = calibrated_stationarity(x, 2.0, lambda n, g: g.standard_normal(n), n_sim=19, rng=1)
+        assert res["levene_p"] == res["ks_p"] == res["p_value"] == pytest.approx(1 / 20)
+        assert res["rate_hz"] == 2.0 and res["n_sim"] == 19
+        assert res["paper"]["stationary"] is False
+        yaml = pytest.importorskip("yaml")
+        assert yaml.safe_load(yaml.safe_dump(res)) == res
+
+    def test_reproducible_with_seed(self, rng):
+        gen = white_plus_gm(1.0, 1.0, 30.0)
+        x = gen(1000, rng)
+        a = calibrated_stationarity(x, 1.0, gen, n_sim=20, rng=7)
+        b = calibrated_stationarity(x, 1.0, gen, n_sim=20, rng=7)
+        assert a == b
+
+    def test_bad_model_and_simulator_shape(self, rng):
+        with pytest.raises(TypeError, match="NoiseModel or a callable"):
+            calibrated_stationarity(rng.standard_normal(100), 1.0, 3.0, n_sim=5)
+        with pytest.raises(ValueError, match="shape"):
+            calibrated_stationarity(
+                rng.standard_normal(100), 1.0, lambda n, g: g.standard_normal(n + 1), n_sim=5
+            )
+
+    def test_with_noise_model(self, rng):
+        models = pytest.importorskip("imupipe.models")
+        pytest.importorskip("imupipe.simulate")
+        model = models.NoiseModel(white=1.0, gauss_markov=((1.0, 50.0),))
+        x = white_plus_gm(1.0, 1.0, 50.0)(2000, rng)
+        res = calibrated_stationarity(x, 1.0, model, n_sim=19, rng=rng)
+        assert 0.0 < res["p_value"] <= 1.0 and "NoiseModel" in res["null"]
+
+    @pytest.mark.slow
+    def test_ten_hour_records(self, rng):
+        # paper scale: 10 h at 1 Hz, white + GM (sigma = white std, T = 300 s); 100 records,
+        # 99 null draws each
+        gen = white_plus_gm(1.0, 1.0, 300.0)
+        paper, calibrated = [], []
+        for _ in range(100):
+            res = calibrated_stationarity(gen(36000, rng), 1.0, gen, n_sim=99, rng=rng)
+            paper.append(not res["paper"]["stationary"])
+            calibrated.append(not res["stationary"])
+        assert np.mean(paper) > 0.5
+        lo, hi = binomial_band(0.05, 100)
+        assert max(lo, 0.0) <= np.mean(calibrated) < hi
+
+
+# ---------------------------------------------------------------------------------------------
+class TestBlockBootstrap:
+    def test_white_noise_near_nominal(self, rng):
+        # iid data, blocks of 1 sample = the ordinary bootstrap. 100 records, 39 draws.
+        rejected = []
+        for _ in range(100):
+            res = bootstrap_stationarity(rng.standard_normal(1000), 1.0, block_s=1.0, n_boot=39, rng=rng)
+            rejected.append(not res["stationary"])
+        lo, hi = binomial_band(0.05, 100)
+        assert max(lo, 0.0) <= np.mean(rejected) < hi
+
+    def test_variance_step_fails(self, rng):
+        x = rng.standard_normal(4000)
+        x[2000:] *= 1.5
+        res = bootstrap_stationarity(x, 1.0, block_s=20.0, n_boot=99, rng=rng)
+        assert not res["stationary"] and res["block_length"] == 20
+
+    def test_correlated_noise_long_blocks(self, rng):
+        # white + GM (T = 10 s) with blocks of 20 T: far fewer false rejections than the paper's
+        # test (the bootstrap is only approximately calibrated: a loose upper limit)
+        gen = white_plus_gm(1.0, 1.0, 10.0)
+        boot, paper = [], []
+        for _ in range(60):
+            res = bootstrap_stationarity(gen(4000, rng), 1.0, block_s=200.0, n_boot=39, rng=rng)
+            boot.append(not res["stationary"])
+            paper.append(not res["paper"]["stationary"])
+        assert np.mean(boot) < 0.2 < np.mean(paper)
+
+    def test_errors(self, rng):
+        with pytest.raises(ValueError, match="block_s"):
+            bootstrap_stationarity(rng.standard_normal(100), 1.0, block_s=0.1)
+        with pytest.raises(ValueError, match="block_s"):
+            bootstrap_stationarity(rng.standard_normal(100), 1.0, block_s=200.0)
