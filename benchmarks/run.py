@@ -37,22 +37,22 @@ import os
 # Per-job numerics must not start BLAS threads (docs performance.md); set before numpy is imported.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import shlex  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-import warnings  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import math
+import shlex
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))  # sibling helper modules (this folder is not a package)
 
-from timing import Timing, fmt, fmt_s, machine_info, md_table, pct, timed  # noqa: E402
+from timing import Timing, fmt, fmt_s, machine_info, md_table, pct, timed
 
 REPO = HERE.parent
 DEG = math.pi / 180.0
@@ -78,7 +78,7 @@ class Sizes:
 
     @property
     def n(self) -> int:
-        return int(round(self.duration_s * self.rate))
+        return round(self.duration_s * self.rate)
 
     # PSD windows: the paper's 7 h windows every 10 h on a 10 h record, and a 1 h Welch at 50 % overlap;
     # as fractions of the record so that the quick scale keeps the same shape.
@@ -182,8 +182,8 @@ def bench_allan(series, sizes: Sizes, truth, repeats: int, record: dict):
         xs, rate = series[key]
         x0 = xs[0]
         grid = tau_grid(x0.size, rate, taus)
-        t_api, ds0 = timed(lambda: allan_variance(x0, rate, taus=taus), repeats)
-        t_core, _ = timed(lambda: overlapping_avar(x0, rate, grid.m), repeats)
+        t_api, ds0 = timed(lambda x0=x0, rate=rate, taus=taus: allan_variance(x0, rate, taus=taus), repeats)
+        t_core, _ = timed(lambda x0=x0, rate=rate, m=grid.m: overlapping_avar(x0, rate, m), repeats)
         avs = [ds0] + [allan_variance(x, rate, taus=taus) for x in xs[1:]]
         exact = truth.avar(grid.tau)
         rel = np.abs(np.stack([d["avar"].values for d in avs]) / exact - 1.0)
@@ -191,10 +191,10 @@ def bench_allan(series, sizes: Sizes, truth, repeats: int, record: dict):
                  "imupipe_overlapping_avar": t_core.to_dict(),
                  "av_relerr_median": float(np.median(rel)), "av_relerr_max": float(np.max(rel))}
         if allantools is not None:
-            def peer():
+            def peer(x0=x0, rate=rate, tau=grid.tau):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    return allantools.oadev(x0, rate=rate, data_type="freq", taus=grid.tau)
+                    return allantools.oadev(x0, rate=rate, data_type="freq", taus=tau)
 
             t_peer, res = timed(peer, repeats)
             t_at, dev_at = np.asarray(res[0]), np.asarray(res[1])
@@ -238,14 +238,14 @@ def bench_identify(series, sizes: Sizes, truth, repeats: int, record: dict):
     rows, out = [], {}
     tau_eval = np.logspace(math.log10(1.0 / sizes.rate), math.log10(sizes.duration_s / 4.0), 60)
     for label, _key, _taus in tau_settings(sizes):
-        grid, avs, rate = record["_avs"][label]
+        _grid, avs, rate = record["_avs"][label]
         t_av = Timing(record["allan"][label]["imupipe_allan_variance"]["values_s"])
         for n_gm in (1, 2):
             def fit(ds, n_gm=n_gm, rate=rate):
                 return fit_allan(ds["tau"].values, ds["avar"].values, ds["edf"].values,
                                  components=FIT_COMPONENTS, n_gm=n_gm, n_boot=0, dt=1.0 / rate)
 
-            t_fit, _ = timed(lambda: fit(avs[0]), repeats)
+            t_fit, _ = timed(lambda fit=fit, ds=avs[0]: fit(ds), repeats)
             fits = [fit(ds) for ds in avs]
             e = {"white": [], "random_walk": [], "gm_sigma": [], "gm_T": [], "av_med": [], "av_max": []}
             for f in fits:
@@ -268,7 +268,7 @@ def bench_identify(series, sizes: Sizes, truth, repeats: int, record: dict):
                          err_cell(e["random_walk"]), err_cell(e["gm_sigma"]), err_cell(e["gm_T"]),
                          f"{pct(nanmedian(e['av_med']))} / {pct(nanmedian(e['av_max']))}"])
         # the peers' slope-line reading on the same AV
-        t_sl, _ = timed(lambda: slope_line(avs[0]["tau"].values, np.sqrt(avs[0]["avar"].values)), repeats)
+        t_sl, _ = timed(lambda ds=avs[0]: slope_line(ds["tau"].values, np.sqrt(ds["avar"].values)), repeats)
         sls = [slope_line(ds["tau"].values, np.sqrt(ds["avar"].values)) for ds in avs]
         ew = [relerr(s.get("white"), TRUTH["white"]) for s in sls]
         ek = [relerr(s.get("random_walk"), TRUTH["random_walk"]) for s in sls]
@@ -319,7 +319,8 @@ def bench_bound(raw_axes, sizes: Sizes, truth, repeats: int, record: dict):
         t_dec, dec = cache_dec[rate]
         if (rate, wlabel) not in cache_psd:
             win, step = sizes.windows[wlabel]
-            t_psd, pss = timed(lambda: [psd(x, rate, window_s=win, step_s=step) for x in dec], repeats)
+            t_psd, pss = timed(lambda rate=rate, win=win, step=step, dec=dec:
+                               [psd(x, rate, window_s=win, step_s=step) for x in dec], repeats)
             cache_psd[(rate, wlabel)] = (t_psd, pss)
         t_psd, pss = cache_psd[(rate, wlabel)]
         freq = pss[0]["frequency"].values
@@ -361,7 +362,7 @@ def bench_bound(raw_axes, sizes: Sizes, truth, repeats: int, record: dict):
         low = sizes.rates[-1]
         x1 = cache_dec[low][1][0]
         win, step = sizes.windows["paper 7h/10h"]
-        nper, nstep = int(round(win * low)), int(round(step * low))
+        nper, nstep = round(win * low), round(step * low)
         t_ip, p_ip = timed(lambda: psd(x1, low, window_s=win, step_s=step), repeats)
         if nstep >= nper:  # scipy cannot skip samples between segments: give it the segments we use
             k = (x1.size - nper) // nstep + 1
@@ -384,22 +385,6 @@ def bench_bound(raw_axes, sizes: Sizes, truth, repeats: int, record: dict):
     except ImportError:
         pass
     return table, out
-
-
-# ---------------------------------------------------------------------------------------------
-# floor (one streaming pass per tau plus Welch)
-# ---------------------------------------------------------------------------------------------
-def bench_floor(raw0, sizes: Sizes, repeats: int) -> dict:
-    """Per-axis floor components: np.sum pass, block-average decimation, PSD at the lowest rate."""
-    from imupipe.spectra import decimate, psd
-
-    t_sum, _ = timed(lambda: np.sum(raw0), max(repeats, 21))
-    low = sizes.rates[-1]
-    t_dec, (x1, _) = timed(lambda: decimate(raw0, sizes.rate, low), max(repeats, 11))
-    win, step = sizes.windows["paper 7h/10h"]
-    t_psd, _ = timed(lambda: psd(x1, low, window_s=win, step_s=step), max(repeats, 11))
-    return {"n_samples": int(raw0.size), "sum_pass": t_sum.to_dict(), "decimate": t_dec.to_dict(),
-            "psd_low_rate": t_psd.to_dict()}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -518,9 +503,10 @@ def targets(results: dict, sizes: Sizes) -> list:
     mem = dag.get("axis_memory")
     if mem:
         ratio = mem["peak_rss_mb"] / mem["raw_mb"]
-        out.append(("peak RSS of an axis job <= 4x its raw data",
-                    f"{fmt(mem['peak_rss_mb'], 3)} MB = {fmt(ratio, 3)}x {fmt(mem['raw_mb'], 3)} MB "
-                    f"(rule {mem['rule']})", "PASS" if ratio <= 4.0 else "FAIL", mem["source"]))
+        measured = (f"{fmt(mem['peak_rss_mb'], 3)} MB = {fmt(ratio, 3)}x {fmt(mem['raw_mb'], 3)} MB "
+                    f"(rule {mem['rule']})")
+        out.append(("peak RSS of an axis job <= 4x its raw data", measured, "PASS" if ratio <= 4.0 else "FAIL",
+                    mem["source"]))
     else:
         out.append(("peak RSS of an axis job <= 4x its raw data", "n/a", "NOT MEASURED",
                     dag.get("skipped", "no per-job memory available")))
@@ -552,12 +538,12 @@ def main(argv=None) -> int:
     results = {"command": command, "machine": machine_info(), "sizes": sizes.__dict__, "truth_SI": TRUTH}
     md = ["# imupipe benchmark: speed against error", "", f"Command: `{command}`", ""]
     md += ["Machine: " + "; ".join(f"{k} {v}" for k, v in results["machine"].items()), ""]
-    md += [f"Input: {sizes.name}; {sizes.n_axes} independent simulated axes of {sizes.n} samples "
-           f"({sizes.n * 8 / 1e6:.3g} MB float64 each) from a STIM-300-like gyro model (paper Table 2 spec: "
-           f"N {fmt(TRUTH['white'])} rad/s/sqrt(Hz), GM sigma {fmt(TRUTH['gm_sigma'])} rad/s and T "
-           f"{fmt(TRUTH['gm_T'])} s, K {fmt(TRUTH['random_walk'])} rad/s/sqrt(s)), seed {args.seed}. "
-           f"Times: median [min-max] of {args.repeats} runs. Errors: median over the axes of |estimate/true - 1| "
-           "(one draw of the statistical scatter).", ""]
+    md += [(f"Input: {sizes.name}; {sizes.n_axes} independent simulated axes of {sizes.n} samples "
+            f"({sizes.n * 8 / 1e6:.3g} MB float64 each) from a STIM-300-like gyro model (paper Table 2 spec: "
+            f"N {fmt(TRUTH['white'])} rad/s/sqrt(Hz), GM sigma {fmt(TRUTH['gm_sigma'])} rad/s and T "
+            f"{fmt(TRUTH['gm_T'])} s, K {fmt(TRUTH['random_walk'])} rad/s/sqrt(s)), seed {args.seed}. "
+            f"Times: median [min-max] of {args.repeats} runs. Errors: median over the axes of |estimate/true - 1| "
+            "(one draw of the statistical scatter)."), ""]
 
     def section(title, note=""):
         md.extend([f"## {title}", ""] + ([note, ""] if note else []))
@@ -575,9 +561,9 @@ def main(argv=None) -> int:
         t_sim = time.perf_counter() - t_sim
         results["simulate_s_all_axes"] = t_sim
         t_warm = warm_up(truth, sizes.rate)
-        md += [f"Simulation of the input (not compared with anything): {fmt_s(t_sim)} for {sizes.n_axes} axes; "
-               f"warm-up of every timed function on a small record (lazy imports, first calls; untimed): "
-               f"{fmt_s(t_warm)}.", ""]
+        md += [(f"Simulation of the input (not compared with anything): {fmt_s(t_sim)} for {sizes.n_axes} axes; "
+                f"warm-up of every timed function on a small record (lazy imports, first calls; untimed): "
+                f"{fmt_s(t_warm)}."), ""]
         low = sizes.rates[-1]
         series = {"full": (raw_axes, sizes.rate),
                   "1Hz": ([decimate(x, sizes.rate, low)[0] for x in raw_axes], low)}
@@ -618,7 +604,6 @@ def main(argv=None) -> int:
                 "limits, so < 1 by design), and whether the bound holds against its own mode's targets.")
         table, results["bound"] = bench_bound(series["full"][0], sizes, truth, args.repeats, record)
         md += [table, ""]
-        results["floor_per_axis"] = bench_floor(series["full"][0][0], sizes, args.repeats)
         print("\n".join(md[md_start:]), flush=True)
         md_start = len(md)
     else:
@@ -632,7 +617,7 @@ def main(argv=None) -> int:
         import dag as dagbench
 
         results["dag"] = dagbench.run(REPO, args.out, cores=args.cores, repeats=args.dag_repeats,
-                                      keep_scratch=args.keep_scratch, floor_per_axis=results.get("floor_per_axis"))
+                                      keep_scratch=args.keep_scratch)
         md += [results["dag"]["markdown"], ""]
 
     section("Targets")

@@ -132,12 +132,12 @@ def machine_info() -> dict:
         "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "unset"),
         "platform": f"{platform.system()} {platform.machine()}",
     }
+    from importlib.metadata import PackageNotFoundError, version
+
     for mod in ("scipy", "allantools", "snakemake", "xarray"):
         try:
-            from importlib.metadata import version
-
             info[mod] = version(mod)
-        except Exception:  # not installed: say so rather than fail
+        except PackageNotFoundError:  # not installed: say so rather than fail
             info[mod] = "not installed"
     try:
         import imupipe.allan as _allan

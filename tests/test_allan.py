@@ -482,6 +482,18 @@ class TestNoiseID:
         for m in (1, 2, 8):
             assert math.floor(noise_id_lag1(y, m) + 0.5) == alpha, m
 
+    @pytest.mark.parametrize("backend", BACKENDS)
+    def test_one_pass_sums_equal_two_pass(self, backend):
+        # the noise identification of allan_variance uses sums from one pass over theta per lag; the
+        # p it gives must equal the two-pass (centred) computation of noise_id_lag1 to rounding
+        rng = np.random.default_rng(21)
+        y = rng.standard_normal(50_000) + 0.05 * np.cumsum(rng.standard_normal(50_000))
+        m = tau_grid(y.size, 1.0, 10).m
+        m = m[y.size // m >= 30]
+        th = theta_of(y)
+        p = allan._lag1_p_from_sums(th, m, allan._lag1_sums(th, m, backend), 0, 2)
+        np.testing.assert_allclose(p, [noise_id_lag1(y, mm) for mm in m], rtol=1e-9, atol=1e-9)
+
     @pytest.mark.shared_data
     @pytest.mark.parametrize("folder,name,n", [("phasedat", "phase_dat_oadev_octave.txt", 1000),
                                                 ("ocxo", "oadev_octave.txt", 19_982),

@@ -26,9 +26,10 @@ to n/4: 0.14 s; NumPy path 0.5 s; allantools.oadev 2 s; ``benchmarks/bench_allan
 eight independent partial sums (vectorised), small lags blocked over k so that the record is read from
 cache; the NumPy path processes each lag in cache-sized chunks. Both give the same sums to rounding.
 
-"All" averaging factors (``taus="all"``) use an FFT method in :math:`O(N \log^2 N)`
-(:func:`_oavar_sums_all`), with a rounding-error bound per averaging factor; the factors whose bound
-exceeds ``1e-9`` of the sum are recomputed with the direct kernel.
+Dense grids (``taus="all"``: every averaging factor) use an FFT method in :math:`O(N \log^2 N)`
+(:func:`_oavar_sums_all`; 11 ms for the 18 000 factors of a 36 000-point record, against 0.6 s for
+allantools) with a rounding-error bound; the factors whose bound exceeds ``1e-9`` of the sum are
+recomputed with the direct kernel, so every value is exact to 1e-9.
 
 Confidence limits use equivalent degrees of freedom (EDF) from the algorithm of Greenhall & Riley
 (2003) for the dominant power-law noise identified at each averaging time by the lag-1 autocorrelation
@@ -92,7 +93,6 @@ _FFT_RTOL = 1e-9  # relative error accepted from the FFT path before a lag is re
 _FFT_LEAF = 8  # leaf size of the divide-and-conquer head products
 _JMAX = 100  # Greenhall & Riley's limit on the explicit sum (their J_max)
 _NOISE_ID_MIN_POINTS = 30  # averaged points needed by the lag-1 ACF method (Riley & Greenhall 2004)
-_NOISE_ID_BATCH = 1 << 21  # m-sample means processed together by the noise identification
 
 
 class ConstantSignalWarning(UserWarning):
@@ -299,7 +299,8 @@ def _fft_error_coefficient(L: int, mmax: int) -> float:
     c_prefix = 10.0 * (b + L / b + 2.0) + 6.0 * (math.log2(L) + 1.0)
     c_corr = 3.0 * eta * math.log2(n_r)  # forward, product, inverse (RMS per lag, see docstring)
     c_head = 3.0 * eta * math.log2(max(P, 2))
-    return c_prefix + 10.0 * c_corr + 8.0 * levels * c_head
+    c_leaf = 8.0 * (_FFT_LEAF - 1)  # leaves: at most leaf - 1 products, summed directly, weight 4 + 4
+    return c_prefix + 10.0 * c_corr + 8.0 * levels * c_head + c_leaf
 
 
 def _oavar_sums_all(theta: np.ndarray, mmax: int, backend: str = "auto", rtol: float = _FFT_RTOL):
@@ -335,13 +336,16 @@ def _oavar_sums_all(theta: np.ndarray, mmax: int, backend: str = "auto", rtol: f
 
     Hence :math:`|\Delta S(m)| \le E = \gamma\, u\, T` with
     :math:`\gamma = 10(b + L/b + 2) + 6(\log_2 L + 1) + 30\eta\log_2 n_R + 24\eta\, n_{lev} \log_2 P`
-    (:func:`_fft_error_coefficient`; :math:`E \approx 3\times10^{-12}\,T` for L = 36 001). The FFT
+    (plus :math:`8 \cdot 7` for the directly summed leaves of at most 7 products;
+    :func:`_fft_error_coefficient`; :math:`E \approx 4\times10^{-12}\,T` for L = 36 001). The FFT
     terms are root-mean-square bounds (the element-wise worst case is larger by up to
     :math:`\sqrt{n}` but is not attained by rounding errors, which are not coherent over the lags);
     the tests measure the actual error against the direct kernel for white, flicker-like, random-walk
     and rate-random-walk inputs and find it 2-4 orders of magnitude below E. A lag is accepted from the
-    FFT path only if :math:`E \le` `rtol` :math:`(S_{fft}(m) - E)`; the others are recomputed with the
-    direct kernel. With white rate noise only the first few lags are recomputed; with a dominant rate
+    FFT path only if :math:`E \le` `rtol` :math:`(S_{fft}(m) - E)`, which guarantees a relative error
+    at most `rtol`; the others are recomputed with the direct kernel. (Rounding in the detrending
+    perturbs S by about :math:`u\sqrt{T S}`, which is below :math:`10^{-15} S` wherever the test
+    accepts a lag.) With white rate noise only the first few lags are recomputed; with a dominant rate
     random walk (:math:`T/S` large) up to a few percent of them.
 
     Returns
@@ -633,65 +637,62 @@ def noise_id_lag1(x, m: int, *, data: str = "frequency", dmin: int = 0, dmax: in
     return _lag1_p(z, dmin, dmax) + offset
 
 
-def _b1_theory(N: int, mu: int) -> float:
-    """Barnes' bias function B1(N, mu) = N (1 - N^mu) / (2 (N - 1) (1 - 2^mu)) (mu = 0: its limit)."""
-    if mu == 0:
-        return N * math.log(N) / (2.0 * (N - 1) * math.log(2.0))
-    return N * (1.0 - float(N) ** mu) / (2.0 * (N - 1) * (1.0 - 2.0**mu))
-
-
-def _segment_sums(v: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Sum of v over each segment [start, start + length) (zero for an empty segment)."""
-    out = np.zeros(starts.size)
-    ok = lengths > 0
-    if ok.any():
-        out[ok] = np.add.reduceat(v, starts[ok])[: ok.sum()] if v.size else 0.0
+def _lag1_sums(theta: np.ndarray, lags: np.ndarray, backend: str) -> np.ndarray:
+    """(nlags, 3, 3): for d = 0, 1, 2 the sums (sum w, sum w^2, sum w_i w_{i+1}) of w = diff(z, d),
+    z the N = n // m non-overlapping m-sample means (theta[(i+1)m] - theta[im]) / m."""
+    lags = np.ascontiguousarray(lags, dtype=np.int64)
+    out = np.empty((lags.size, 3, 3))
+    if lags.size == 0:
+        return out
+    if backend == "c":
+        _kernels.lag1_sums(np.ascontiguousarray(theta, dtype=np.float64), lags, out.reshape(-1))
+        return out
+    n = theta.size - 1
+    for j, m in enumerate(lags.tolist()):
+        w = np.diff(theta[: (n // m) * m + 1 : m]) / m
+        for d in range(3):
+            out[j, d] = (w.sum(), (w * w).sum(), (w[:-1] * w[1:]).sum()) if w.size else (0.0, 0.0, 0.0)
+            w = np.diff(w)
     return out
 
 
-def _lag1_p_many(z: np.ndarray, lengths: np.ndarray, dmin: int = 0, dmax: int = 2) -> np.ndarray:
-    """Riley & Greenhall's p = -2(delta + d) for many series at once (concatenated in z).
+def _lag1_p_from_sums(theta: np.ndarray, lags: np.ndarray, sums: np.ndarray, dmin: int, dmax: int) -> np.ndarray:
+    """Riley & Greenhall's p = -2(delta + d) per lag from the sums of :func:`_lag1_sums` (NaN if undefined).
 
-    Same test as :func:`_lag1_p`, with segment sums (numpy.add.reduceat), so that the noise types of
-    thousands of averaging factors cost O(total length). NaN for a segment that becomes constant or
-    shorter than 2 points.
+    With N' = N - d points w of sum A, sum of squares B and lag-1 sum C, the centred lag-1
+    autocorrelation is r1 = [C - wbar (2A - w_first - w_last) + (N' - 1) wbar^2] / (B - A^2/N'); the
+    same test as :func:`_lag1_p` (the two-pass form, used by :func:`noise_id_lag1`).
     """
-    lengths = np.asarray(lengths, dtype=np.int64)
-    p = np.full(lengths.size, np.nan)
-    active = np.arange(lengths.size)
-    d = 0
-    while active.size:
-        starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
-        seg = np.repeat(np.arange(lengths.size), lengths)
-        ok = lengths >= 2
-        mean = _segment_sums(z, starts, lengths) / np.maximum(lengths, 1)
-        zc = z - mean[seg]
-        den = _segment_sums(zc * zc, starts, lengths)
-        prod = np.zeros(z.size)
-        if z.size > 1:
-            prod[:-1] = zc[:-1] * zc[1:]
-            ends = starts + lengths - 1
-            prod[ends[lengths > 0]] = 0.0  # no product across a segment boundary
-        num = _segment_sums(prod, starts, lengths)
-        good = ok & (den > 0)
-        r1 = np.where(good, num / np.where(good, den, 1.0), 0.0)
+    n = theta.size - 1
+    N = n // lags
+    idx = np.stack([np.minimum(k, N) * lags for k in range(4)] + [np.maximum(N - k, 0) * lags for k in range(4)])
+    t = theta[idx]
+    zf = (t[1:4] - t[0:3]) / lags  # z_0, z_1, z_2
+    zl = (t[4:7] - t[5:8]) / lags  # z_{N-1}, z_{N-2}, z_{N-3}
+    first = np.stack([zf[0], zf[1] - zf[0], zf[2] - 2 * zf[1] + zf[0]])
+    last = np.stack([zl[0], zl[0] - zl[1], zl[0] - 2 * zl[1] + zl[2]])
+    p = np.full(lags.size, np.nan)
+    open_ = np.ones(lags.size, dtype=bool)
+    for d in range(dmax + 1):
+        Np = (N - d).astype(np.float64)
+        A, B, C = sums[:, d, 0], sums[:, d, 1], sums[:, d, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mean = A / Np
+            den = B - A * mean
+            num = C - mean * (2.0 * A - first[d] - last[d]) + (Np - 1.0) * mean * mean
+            r1 = num / den
+        good = open_ & (Np >= 2) & (den > 0) & np.isfinite(r1)
+        open_ &= good  # an undefined step leaves p NaN
         delta = r1 / (1.0 + r1)
         stop = good & (d >= dmin) & ((delta < 0.25) | (d >= dmax))
-        p[active[stop]] = -2.0 * (delta[stop] + d)
-        cont = good & ~stop
-        if not cont.any():
-            break
-        # difference the continuing segments (within each segment)
-        keep_seg = cont[seg]
-        dz = np.diff(z)
-        first = np.zeros(z.size, dtype=bool)
-        first[starts[lengths > 0]] = True
-        sel = keep_seg[1:] & ~first[1:]
-        z = dz[sel]
-        lengths = lengths[cont] - 1
-        active = active[cont]
-        d += 1
+        p[stop] = -2.0 * (delta[stop] + d)
+        open_ &= ~stop
     return p
+
+
+def _segment_sums(v: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Sum of v over each of the contiguous segments [start, start + length) (all lengths >= 1)."""
+    return np.add.reduceat(v, starts) if v.size else np.zeros(starts.size)
 
 
 def _b1_theory(N: np.ndarray, mu: int) -> np.ndarray:
@@ -702,8 +703,8 @@ def _b1_theory(N: np.ndarray, mu: int) -> np.ndarray:
     return N * (1.0 - N**mu) / (2.0 * (N - 1) * (1.0 - 2.0**mu))
 
 
-def _noise_id_b1(z: np.ndarray, lengths: np.ndarray, p_lag1: np.ndarray) -> np.ndarray:
-    """Noise types by the B1 ratio (NIST SP 1065 section 5.6; Stable32 below 30 points), many series.
+def _noise_id_b1(theta: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """Noise types by the B1 ratio (NIST SP 1065 section 5.6; Stable32 below 30 points), for few means.
 
     B1 = (sample variance of the N means) / (their Allan variance); the exponent mu of AVAR ~ tau^mu
     whose theoretical B1(N, mu) is nearest in the log sense (boundaries at geometric means) gives
@@ -712,76 +713,62 @@ def _noise_id_b1(z: np.ndarray, lengths: np.ndarray, p_lag1: np.ndarray) -> np.n
     two (R(n) needs the modified variance), and with so few means a chance low ratio would otherwise
     assign alpha = 2, whose EDF grows with the number of terms instead of the number of clusters
     (e.g. 12 000 instead of 4 for white rate noise at N = 4): confidence limits orders of magnitude too
-    narrow. Returns float alpha, NaN where undefined. `p_lag1` is unused (kept for the signature).
+    narrow. Returns float alpha, NaN where undefined (constant means).
     """
-    lengths = np.asarray(lengths, dtype=np.int64)
-    N = lengths.astype(np.float64)
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
-    seg = np.repeat(np.arange(lengths.size), lengths)
-    mean = _segment_sums(z, starts, lengths) / np.maximum(N, 1)
-    ss = _segment_sums((z - mean[seg]) ** 2, starts, lengths)
+    n = theta.size - 1
+    N = n // lags
+    cnt = N + 1
+    first = np.concatenate(([0], np.cumsum(cnt)[:-1]))
+    pos = np.arange(int(cnt.sum())) - np.repeat(first, cnt)
+    t = theta[pos * np.repeat(lags, cnt)]  # theta[0], theta[m], ..., theta[N m] per lag
+    z = np.diff(t) / np.repeat(lags.astype(np.float64), cnt)[1:]
+    keep = np.ones(z.size, dtype=bool)
+    keep[first[1:] - 1] = False  # drop differences across lags
+    z = z[keep]
+    starts = np.concatenate(([0], np.cumsum(N)[:-1]))
+    seg = np.repeat(np.arange(N.size), N)
+    Nf = N.astype(np.float64)
+    mean = _segment_sums(z, starts, N) / Nf
+    ss = _segment_sums((z - mean[seg]) ** 2, starts, N)
     dz2 = np.zeros(z.size)
-    if z.size > 1:
-        dz2[:-1] = np.diff(z) ** 2
-        dz2[(starts + lengths - 1)[lengths > 0]] = 0.0
-    sd = _segment_sums(dz2, starts, lengths)
-    alpha = np.full(lengths.size, np.nan)
-    ok = (lengths >= 2) & (sd > 0)
+    dz2[:-1] = np.diff(z) ** 2
+    dz2[starts + N - 1] = 0.0  # no difference across lags
+    sd = _segment_sums(dz2, starts, N)
+    alpha = np.full(N.size, np.nan)
+    ok = (N >= 2) & (sd > 0)
     if not ok.any():
         return alpha
-    Nk = N[ok]
-    b1 = (ss[ok] / np.maximum(Nk - 1, 1)) / (sd[ok] / (2.0 * (Nk - 1)))
+    Nk = Nf[ok]
+    b1 = (ss[ok] / (Nk - 1)) / (sd[ok] / (2.0 * (Nk - 1)))
     with np.errstate(divide="ignore", invalid="ignore"):
         th = np.stack([_b1_theory(Nk, mu) for mu in (-2, -1, 0, 1)])
     bounds = np.sqrt(th[:-1] * th[1:])  # geometric means between neighbours
-    idx = np.sum(b1[None, :] >= bounds, axis=0)  # 0..3 -> mu = -2..1
-    mu = np.maximum(idx - 2, -1)  # mu = -2 (alpha = 1 or 2) is not assigned: see the docstring
+    mu = np.sum(b1[None, :] >= bounds, axis=0) - 2  # -2 .. 1
+    mu = np.maximum(mu, -1)  # no alpha = 1, 2 from B1 (see above)
     a = (-mu - 1).astype(np.float64)
-    a[Nk == 2] = 0.0  # B1 = 1 identically for two points
+    a[Nk == 2] = 0.0  # B1 = 1 identically for two means
     alpha[ok] = a
     return alpha
 
 
-def _noise_ids(theta: np.ndarray, lags: np.ndarray, dmax: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Integer alpha (rate data) per lag from theta (sample units), and the number of m-sample means.
+def _noise_ids(theta: np.ndarray, lags: np.ndarray, backend: str = "auto", dmax: int = 2):
+    """Integer alpha (rate data) per lag from theta (sample units), and the number of m-sample means N.
 
-    The N = n // m means are (theta[(i+1)m] - theta[im]) / m, so all lags together cost
-    O(sum N) = O(n log n), processed in batches of at most _NOISE_ID_BATCH means (bounded memory).
-    With N >= _NOISE_ID_MIN_POINTS: lag-1 autocorrelation (Riley & Greenhall 2004); with fewer: the B1
-    ratio (as Stable32). Clipped to -dmax..2; 0 (white) where neither can decide (constant means).
+    N >= _NOISE_ID_MIN_POINTS: lag-1 autocorrelation (Riley & Greenhall 2004) from one pass over theta
+    per lag (:func:`_lag1_sums`); fewer: the B1 ratio (as Stable32). Rounded (floor(p + 0.5)), clipped
+    to -dmax..2; 0 (white) where neither can decide (constant means).
     """
-    n = theta.size - 1
     lags = np.asarray(lags, dtype=np.int64)
-    npts = n // lags
-    alpha = np.zeros(lags.size, dtype=np.int64)
-    start = 0
-    while start < lags.size:
-        stop = start + 1
-        total = int(npts[start])
-        while stop < lags.size and total + npts[stop] <= _NOISE_ID_BATCH:
-            total += int(npts[stop])
-            stop += 1
-        alpha[start:stop] = _noise_ids_batch(theta, lags[start:stop], npts[start:stop], dmax)
-        start = stop
-    return alpha, npts
-
-
-def _noise_ids_batch(theta: np.ndarray, lags: np.ndarray, npts: np.ndarray, dmax: int) -> np.ndarray:
-    cnt = npts + 1  # theta samples per series
-    first = np.concatenate(([0], np.cumsum(cnt)[:-1]))
-    pos = np.arange(int(cnt.sum())) - np.repeat(first, cnt)
-    t = theta[pos * np.repeat(lags, cnt)]  # theta[0], theta[m], ..., theta[N m] per series
-    dt = np.diff(t)
-    keep = np.ones(dt.size, dtype=bool)
-    keep[first[1:] - 1] = False  # drop differences across series
-    z = dt[keep] / np.repeat(lags.astype(np.float64), npts)  # the m-sample means
-    p = _lag1_p_many(z, npts, 0, dmax)
-    a = np.where(np.isnan(p), np.nan, np.floor(p + 0.5))
-    few = npts < _NOISE_ID_MIN_POINTS
-    if few.any():
-        zf = z[np.repeat(few, npts)]
-        a[few] = _noise_id_b1(zf, npts[few], p[few])
-    return np.clip(np.nan_to_num(a, nan=0.0), -dmax, 2).astype(np.int64)
+    N = (theta.size - 1) // lags
+    a = np.full(lags.size, np.nan)
+    many = N >= _NOISE_ID_MIN_POINTS
+    if many.any():
+        lm = lags[many]
+        p = _lag1_p_from_sums(theta, lm, _lag1_sums(theta, lm, _pick_backend(backend)), 0, dmax)
+        a[many] = np.floor(p + 0.5)
+    if (~many).any():
+        a[~many] = _noise_id_b1(theta, lags[~many])
+    return np.clip(np.nan_to_num(a, nan=0.0), -dmax, 2).astype(np.int64), N
 
 
 # ---------------------------------------------------------------------------------------------
@@ -877,6 +864,15 @@ def edf_greenhall(alpha, d: int, m, n_phase: int, *, overlapping: bool = True) -
     :math:`1/\mathrm{edf} = \frac{1}{M}\sum_{|l| \le \min(d, \lceil r\rceil - 1)} (1 - |l|/r)\rho_l^2`,
     :math:`\rho_l = \binom{2d}{d+l}/\binom{2d}{d}`, is used (it equals :math:`(a_0 - a_1/r)/M` of their
     case 4 when :math:`\lceil r\rceil > d`). Modified variances (their case 1) are not implemented.
+
+    Notes
+    -----
+    This is the algorithm Stable32 uses: with the noise types of the Stable32 octave files it reproduces
+    their confidence limits to 5e-4 (tests). Its filter factor F = m models phase samples averaged over
+    :math:`\tau_0`. For white rate noise given as interval averages (an IMU's output; equivalently
+    phase sampled instantaneously, F = :math:`\infty`) the exact discrete EDF differs: at m = 1 it is
+    15 % lower than this one (666 against 782 for 1000 samples: limits about 8 % too narrow), for
+    m = 2..32 it is 3-13 % higher (these limits are then conservative), and from m = 64 on the two agree.
 
     Parameters
     ----------
@@ -1182,7 +1178,7 @@ def allan_variance(
     if constant:
         alpha = np.zeros(m.size, dtype=np.int64)
     else:
-        alpha, _ = _noise_ids(theta, m)
+        alpha, _ = _noise_ids(theta, m, be)
     edf = edf_greenhall(alpha, 2, m, n + 1, overlapping=overlapping)
     lower, upper = chi2_limits(avar, edf, confidence)
 

@@ -702,9 +702,12 @@ def select_components(
     (one-sided, Bonferroni over the :math:`n` AV points and the :math:`J` components tested,
     :math:`\alpha` = `significance`), or, when `lr_test`, if refitting without :math:`c` raises
     :math:`\chi^2` by more than :math:`\chi^2_{d}(1-\alpha/J)` (:math:`d` = number of parameters
-    removed; for the random walk the rate ramp is removed with it, since a ramp absorbs a random
-    walk's rise at the longest taus and is no filter state). Keeping a component on either test is
-    the conservative (integrity) side. Both tests
+    removed). For the random walk the test asks the paper's question, "does the AV rise at the long
+    end?": the null drops the rate ramp too (it absorbs the rise and is no filter state) and caps
+    the GM time constants at :math:`\tau_{max}/8`, so that a GM cannot mimic a +1/2 slope over the
+    last octaves; a random walk and a GM with :math:`T` near the record length are
+    indistinguishable there (method.md 4), and keeping the random-walk state is the integrity side.
+    Keeping a component on either test is the conservative side. Both tests
     treat the AV points as independent; overlapping AV estimates at neighbouring taus are
     positively correlated, so the nominal level is approximate (a component fitted to a chance
     fluctuation at the shortest taus is the typical false positive).
@@ -792,7 +795,14 @@ def select_components(
             comps = tuple(x for x in fit.components if x not in removed)
             if comps:
                 n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
-                alt, _ = _profile(t, y, e, comps, fit.n_gm, fit.T_grid if fit.T_grid.size else _default_T_grid(t))
+                grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
+                if c == "random_walk":
+                    # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
+                    # below the longest tau, so a +1/2 slope there counts as random-walk evidence
+                    grid = grid[grid <= t.max() / 8.0]
+                    if grid.size == 0:
+                        comps = tuple(x for x in comps if x != "gauss_markov")
+                alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
                 d_chi2 = float(alt.chi2 - fit.chi2)
                 lr_shows = bool(d_chi2 > chi2_dist.isf(significance / n_tested, n_removed))
         data = shows or lr_shows

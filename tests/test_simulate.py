@@ -1,0 +1,50 @@
+"""Simulated components have the statistics of their definitions (tolerances from sampling spread)."""
+
+import numpy as np
+import pytest
+
+from imupipe.models import NoiseModel
+from imupipe.simulate import simulate
+
+
+def test_white_variance(rng):
+    n, rate, N = 200_000, 100.0, 1e-3
+    x = simulate(NoiseModel(white=N), n, rate, rng)
+    # var estimate has relative std sqrt(2/n) = 0.0032: 5 sigma
+    assert x.var() == pytest.approx(N**2 * rate, rel=5 * np.sqrt(2 / n))
+
+
+def test_gauss_markov_lag1_and_variance(rng):
+    n, rate, sigma, T = 400_000, 10.0, 2.0, 0.5
+    x = simulate(NoiseModel(gauss_markov=((sigma, T),)), n, rate, rng)
+    phi = np.exp(-1 / (rate * T))
+    r1 = np.dot(x[1:], x[:-1]) / np.dot(x, x)
+    # AR(1) lag-1 estimate std ~ sqrt((1-phi^2)/n) = 0.0007; variance with n_eff = n (1-phi)/(1+phi)
+    assert r1 == pytest.approx(phi, abs=5 * np.sqrt((1 - phi**2) / n))
+    n_eff = n * (1 - phi) / (1 + phi)
+    assert x.var() == pytest.approx(sigma**2, rel=5 * np.sqrt(2 / n_eff))
+
+
+def test_random_walk_increments(rng):
+    n, rate, K = 200_000, 50.0, 1e-4
+    x = simulate(NoiseModel(random_walk=K), n, rate, rng)
+    d = np.diff(x)
+    assert d.var() == pytest.approx(K**2 / rate, rel=5 * np.sqrt(2 / n))
+
+
+def test_flicker_allan_flat(rng):
+    from imupipe.allan import overlapping_avar
+
+    B, rate, n = 1e-3, 1.0, 2**18
+    avs = np.mean([overlapping_avar(simulate(NoiseModel(flicker=B), n, rate, rng), rate, np.array([16, 64, 256]))
+                   for _ in range(8)], axis=0)
+    # flat at (2 ln2/pi) B^2 within 15 %: 8 records, edf of several hundred per tau, plus the missing
+    # sub-1/(n dt) part of the spectrum
+    np.testing.assert_allclose(avs, 0.4413 * B**2, rtol=0.15)
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="n >= 2"):
+        simulate(NoiseModel(white=1.0), 1, 1.0)
+    with pytest.raises(ValueError, match="rate"):
+        simulate(NoiseModel(white=1.0), 10, 0.0)
