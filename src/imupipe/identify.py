@@ -654,6 +654,11 @@ def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:
     return out
 
 
+def _refit_model(sol, comps, n_gm):
+    """NoiseModel of a refit (helper of select_components)."""
+    return _params_to_model(_solution_to_params(sol, comps, n_gm))
+
+
 def _component_av(model, name, tau):
     """AV of one named component of `model` at tau (u^2)."""
     from imupipe.models import NoiseModel, gm_avar
@@ -691,18 +696,22 @@ def select_components(
 ) -> dict:
     r"""Keep only the components the data show and the application needs.
 
-    Data test (per component :math:`c` of ``fit.model``): with the fitted total AV :math:`m(\tau)`
-    and the AV estimate's standard deviation :math:`m\sqrt{2/\nu}`, the component's
-    contribution is significant if
+    Data test (per component :math:`c` of ``fit.model``): the data are refitted without
+    :math:`c` (AV :math:`m_{-c}`); with the fitted total AV :math:`m(\tau)` and the AV estimate's
+    standard deviation :math:`m\sqrt{2/\nu}`, the part of the component that the other components
+    cannot absorb is significant if
 
     .. math::
 
-        z_c = \max_k \frac{\sigma_c^2(\tau_k)}{m(\tau_k)\sqrt{2/\nu_k}} > z_{1 - \alpha/(n J)},
+        z_c = \max_k \frac{|m(\tau_k) - m_{-c}(\tau_k)|}{m(\tau_k)\sqrt{2/\nu_k}}
+        > z_{1 - \alpha/(n J)},
 
-    (one-sided, Bonferroni over the :math:`n` AV points and the :math:`J` components tested,
-    :math:`\alpha` = `significance`), or, when `lr_test`, if refitting without :math:`c` raises
-    :math:`\chi^2` by more than :math:`\chi^2_{d}(1-\alpha/J)` (:math:`d` = number of parameters
-    removed). For the random walk the test asks the paper's question, "does the AV rise at the long
+    (Bonferroni over the :math:`n` AV points and the :math:`J` components tested,
+    :math:`\alpha` = `significance`), or, when `lr_test`, if the refit's :math:`\chi^2` exceeds the
+    full fit's by more than :math:`\chi^2_{d}(1-\alpha/J)` (:math:`d` = number of parameters
+    removed). Comparing with a refit, not with the component's own fitted contribution, matters:
+    components that substitute for each other (quantization + a short-T GM for part of the white
+    noise) can each carry a large fitted contribution that the data do not require. For the random walk the test asks the paper's question, "does the AV rise at the long
     end?": the null drops the rate ramp too (it absorbs the rise and is no filter state) and caps
     the GM time constants at :math:`\tau_{max}/8`, so that a GM cannot mimic a +1/2 slope over the
     last octaves; a random walk and a GM with :math:`T` near the record length are
@@ -741,7 +750,7 @@ def select_components(
     relevance : float, optional
         Minimum share of the model AV inside the band. Default 0.05.
     lr_test : bool, optional
-        Also run the refit (likelihood-ratio-like) test. Default True.
+        Also apply the chi-squared (likelihood-ratio-like) test of the refit. Default True.
 
     Returns
     -------
@@ -784,27 +793,30 @@ def select_components(
                 reasons[c] = "fitted coefficient is zero"
                 details[c] = {"z": 0.0}
             continue
-        contrib = _component_av(model, c, t)
-        z = contrib / sd
-        k = int(np.argmax(z))
-        shows = bool(z[k] > zcrit)
+        removed = (c,) + _SUBSTITUTES.get(c, ())
+        comps = tuple(x for x in fit.components if x not in removed)
         d_chi2 = None
         lr_shows = False
-        if lr_test:
-            removed = (c,) + _SUBSTITUTES.get(c, ())
-            comps = tuple(x for x in fit.components if x not in removed)
-            if comps:
-                n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
-                grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
-                if c == "random_walk":
-                    # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
-                    # below the longest tau, so a +1/2 slope there counts as random-walk evidence
-                    grid = grid[grid <= t.max() / 8.0]
-                    if grid.size == 0:
-                        comps = tuple(x for x in comps if x != "gauss_markov")
-                alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
+        if comps:
+            n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
+            grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
+            if c == "random_walk":
+                # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
+                # below the longest tau, so a +1/2 slope there counts as random-walk evidence
+                grid = grid[grid <= t.max() / 8.0]
+                if grid.size == 0:
+                    comps = tuple(x for x in comps if x != "gauss_markov")
+            alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
+            m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
+            if lr_test:
                 d_chi2 = float(alt.chi2 - fit.chi2)
                 lr_shows = bool(d_chi2 > chi2_dist.isf(significance / n_tested, n_removed))
+        else:
+            m_null = np.zeros_like(m)
+        # the part of the component the other components cannot absorb, against the AV's spread
+        z = np.abs(m - m_null) / sd
+        k = int(np.argmax(z))
+        shows = bool(z[k] > zcrit)
         data = shows or lr_shows
         share = None
         if f_lo is not None:
