@@ -56,8 +56,8 @@ not deg/h (nor deg/h^(3/2), a factor 60 away) (method.md 2.4).
 
 Examples
 --------
->>> round(to_si(0.15, "deg/sqrt(h)", "white", "gyro"), 10)
-4.36e-05
+>>> f"{to_si(0.15, 'deg/sqrt(h)', 'white', 'gyro'):.4e}"
+'4.3633e-05'
 >>> to_si(1.0, "mg", "rate", "accel")
 0.00980665
 """
