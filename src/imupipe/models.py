@@ -293,13 +293,13 @@ class NoiseModel:
     def to_dict(self) -> dict:
         """Plain-Python dict (SI) for YAML; inverse of :meth:`from_dict`."""
         return {
-            "white": self.white,
-            "gauss_markov": [{"sigma": s, "T": T} for s, T in self.gauss_markov],
-            "random_walk": self.random_walk,
-            "flicker": self.flicker,
-            "quantization": self.quantization,
-            "ramp": self.ramp,
-            "dt": self.dt,
+            "white": float(self.white),
+            "gauss_markov": [{"sigma": float(s), "T": float(T)} for s, T in self.gauss_markov],
+            "random_walk": float(self.random_walk),
+            "flicker": float(self.flicker),
+            "quantization": float(self.quantization),
+            "ramp": float(self.ramp),
+            "dt": None if self.dt is None else float(self.dt),
         }
 
     @classmethod

@@ -1,0 +1,633 @@
+r"""Figures of the PSD-overbounding method (Gallon, Joerger, Pervan, ION GNSS+ 2021, Figures 5-8).
+
+Every function returns a :class:`matplotlib.figure.Figure` built directly (no pyplot state, no GUI
+backend) that labels itself: title naming the sensor (and the bound's mode where known), axis labels
+with units, a legend, log-log axes. Write it with :func:`save_figure` (atomic).
+
+=====================================  ==============================================================
+function                               what it shows
+=====================================  ==============================================================
+:func:`plot_psd_bound`                 Figure 5: sample PSDs, spec PSD, bound PSD and its components
+:func:`plot_allan_components`          Figure 6: sample ADEVs, identified and bound components
+:func:`plot_inflation_effect`          Figure 7: PSD change when one parameter is inflated (Table 3)
+:func:`plot_inflation_steps`           Figure 8: the hand inflation, model after each phase
+=====================================  ==============================================================
+
+Conventions (docs/architecture.md): data and models are SI (gyro rad/s, accel m/s^2); every PSD is
+**two-sided** :math:`S_2` (u^2/Hz, listed for f >= 0; DC is not drawn). Model PSDs are
+``model.psd_sampled(f, dt)`` (block-averaged, aliased) when the sample interval `dt` of the averaged
+data is given, else the continuous ``model.psd(f)``. Allan deviations are
+:math:`\sqrt{\mathrm{AVAR}}` in the rate unit.
+
+matplotlib is imported inside the functions: ``import imupipe.plot`` costs nothing.
+
+References
+----------
+.. [1] E. Gallon, M. Joerger, B. Pervan, "Development of Stochastic IMU Error Models for INS/GNSS
+       Integration", ION GNSS+ 2021, Figures 5-8, Tables 2-3, Appendix A.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "PSD_UNITS",
+    "RATE_UNITS",
+    "plot_allan_components",
+    "plot_inflation_effect",
+    "plot_inflation_steps",
+    "plot_psd_bound",
+    "save_figure",
+    "table3_model",
+]
+
+#: SI rate unit of each sensor.
+RATE_UNITS = {"gyro": "rad/s", "accel": "m/s^2"}
+#: SI two-sided PSD unit of each sensor.
+PSD_UNITS = {"gyro": "(rad/s)^2/Hz", "accel": "(m/s^2)^2/Hz"}
+#: Spec-sheet rate units used by ``display_unit="spec"``.
+SPEC_RATE_UNITS = {"gyro": "deg/h", "accel": "mg"}
+
+#: Display name and colour of each model component (one colour per component in every figure).
+_COMPONENT_STYLE = {
+    "white": ("white noise", "C0"),
+    "gauss_markov": ("Gauss-Markov", "C1"),
+    "random_walk": ("random walk", "C2"),
+    "flicker": ("flicker", "C3"),
+    "quantization": ("quantization", "C4"),
+    "ramp": ("ramp", "C5"),
+}
+_EXTRA_GM_COLOURS = ("C1", "C6", "C8", "C9", "C7")
+_SAMPLE_COLOUR = "0.6"
+_SPEC_COLOUR = "tab:red"
+_BOUND_COLOUR = "tab:green"
+
+_G0 = 9.80665  # standard gravity, m/s^2
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+def _new_figure(nrows=1, ncols=1, figsize=(7.5, 5.0)):
+    """A pyplot-free Figure with constrained layout and an (nrows, ncols) grid of axes."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def _check_sensor(sensor):
+    if sensor not in RATE_UNITS:
+        raise ValueError(f"sensor must be one of {sorted(RATE_UNITS)}, got {sensor!r}")
+    return sensor
+
+
+def _as_curves(curves, n, dim):
+    """(C, n) float64 array and per-curve labels from an array or an xarray.DataArray.
+
+    A DataArray must have the dimension `dim` (``frequency`` or ``tau``); all its other dimensions
+    (e.g. ``dataset``, ``axis``) are stacked into curves, labelled ``dataset=..., axis=...``.
+    """
+    if curves is None:
+        return None, []
+    if hasattr(curves, "dims") and hasattr(curves, "stack"):  # xarray.DataArray
+        if dim not in curves.dims:
+            raise ValueError(f"an xarray argument needs a {dim!r} dimension, got dims {curves.dims}")
+        other = [d for d in curves.dims if d != dim]
+        if other:
+            st = curves.stack(curve=other).transpose("curve", dim)
+            arr = np.asarray(st.values, dtype=np.float64)
+            labels = []
+            for idx in st.indexes["curve"]:
+                idx = idx if isinstance(idx, tuple) else (idx,)
+                labels.append(", ".join(f"{d}={v}" for d, v in zip(other, idx)))
+        else:
+            arr = np.asarray(curves.values, dtype=np.float64)[None, :]
+            labels = ["curve 0"]
+    else:
+        arr = np.asarray(curves, dtype=np.float64)
+        if arr.ndim == 1:
+            arr = arr[None, :]
+        labels = [f"curve {i}" for i in range(arr.shape[0])] if arr.ndim == 2 else []
+    if arr.ndim != 2 or arr.shape[1] != n:
+        raise ValueError(f"curves must have shape (n_curves, {n}) on the {dim} grid, got {arr.shape}")
+    return arr, labels
+
+
+def _grid(x, curves, dim):
+    """The 1-D grid `x`, or the `dim` coordinate of an xarray `curves` when `x` is None."""
+    if x is None:
+        if hasattr(curves, "coords") and dim in getattr(curves, "coords", {}):
+            x = curves.coords[dim].values
+        else:
+            raise ValueError(f"{dim} is required (or pass an xarray DataArray with a {dim!r} coordinate)")
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"{dim} must be one-dimensional, got shape {x.shape}")
+    return x
+
+
+def _unwrap_bound(bound_model):
+    """(NoiseModel, mode or None) from a NoiseModel or a :class:`imupipe.bound.BoundResult`."""
+    if bound_model is not None and hasattr(bound_model, "model") and hasattr(bound_model, "mode"):
+        return bound_model.model, bound_model.mode
+    return bound_model, None
+
+
+def _model_psd(model, f, dt):
+    """Two-sided model PSD on f (Hz, > 0), u^2/Hz: sampled if dt is given, else continuous."""
+    if dt is not None:
+        return np.asarray(model.psd_sampled(f, dt), dtype=np.float64)
+    return np.asarray(model.psd(f), dtype=np.float64)
+
+
+def _psd_scale(display_unit, sensor):
+    """(factor from SI PSD to the display PSD, PSD unit string)."""
+    if display_unit is None or display_unit in ("SI", "si"):
+        return 1.0, PSD_UNITS[sensor]
+    from imupipe.units import from_si
+
+    rate = SPEC_RATE_UNITS[sensor] if display_unit == "spec" else str(display_unit)
+    c = float(from_si(1.0, rate, "rate", sensor, key="display_unit"))
+    return c * c, f"({rate})^2/Hz"
+
+
+def _component_style(name):
+    """(display name, colour) of a component key from ``NoiseModel.components()``."""
+    if name.startswith("gauss_markov_"):
+        i = int(name.rsplit("_", 1)[1])
+        return f"Gauss-Markov {i + 1}", _EXTRA_GM_COLOURS[i % len(_EXTRA_GM_COLOURS)]
+    return _COMPONENT_STYLE.get(name, (name, "k"))
+
+
+def _draw_samples(ax, x, arr, labels, what, lw=0.6):
+    """Sample curves: grey with one legend entry, or coloured and labelled one by one."""
+    if arr is None:
+        return
+    if labels is None:
+        for i, y in enumerate(arr):
+            ax.plot(x, y, color=_SAMPLE_COLOUR, lw=lw, alpha=0.7, zorder=1, gid=f"sample:{i}",
+                    label=f"sample {what} ({arr.shape[0]} curves)" if i == 0 else "_nolegend_")
+    else:
+        if len(labels) != arr.shape[0]:
+            raise ValueError(f"{len(labels)} labels for {arr.shape[0]} curves")
+        for i, (y, lab) in enumerate(zip(arr, labels)):
+            ax.plot(x, y, lw=lw, alpha=0.8, zorder=1, gid=f"sample:{i}", label=str(lab))
+
+
+def _resolve_labels(labels, auto):
+    if labels is True:
+        return auto
+    if labels is None or labels is False:
+        return None
+    return [str(s) for s in labels]
+
+
+def _finish_loglog(ax, xlabel, ylabel, legend_loc="best", ncol=1):
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="major", alpha=0.4)
+    ax.grid(True, which="minor", alpha=0.15)
+    ax.legend(loc=legend_loc, fontsize="small", ncol=ncol, framealpha=0.85)
+
+
+def _fmt(x):
+    return f"{x:.3g}"
+
+
+# ---------------------------------------------------------------------------------------------
+# Figure 5
+# ---------------------------------------------------------------------------------------------
+def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=None, labels=None, title=None,
+                   display_unit=None):
+    r"""Sample PSDs of one sensor type with the spec-sheet PSD and the bounding model (paper Figure 5).
+
+    Parameters
+    ----------
+    frequency : array_like or None
+        Frequency grid, Hz, shape (n_freq,). f = 0 is not drawn (a random walk is infinite there).
+        None takes the ``frequency`` coordinate of an xarray `curves`.
+    curves : array_like or xarray.DataArray
+        Two-sided sample PSDs, u^2/Hz (SI): shape (n_curves, n_freq), or a DataArray with dims
+        (dataset, axis, frequency) (any dims besides ``frequency`` are stacked into curves).
+    spec_model : imupipe.models.NoiseModel or None
+        Spec-sheet model, SI.
+    bound_model : imupipe.models.NoiseModel or imupipe.bound.BoundResult or None
+        The bound; each of its components is drawn dashed. A BoundResult also names the mode in
+        the title.
+    sensor : {"gyro", "accel"}
+        Sensor type (unit labels).
+    dt : float, optional
+        Sample interval of the (block-averaged) data, s: models drawn as ``psd_sampled(f, dt)``,
+        the spectrum the sample PSDs estimate; else the continuous ``psd(f)``.
+    labels : sequence of str or True, optional
+        One label per curve (curves then drawn in colour, one legend entry each); True uses the
+        DataArray's coordinates. Default: thin grey lines with a single legend entry.
+    title : str, optional
+        Figure title; default names the sensor, the model PSD convention and the bound's mode.
+    display_unit : None, "spec" or str, optional
+        None (default): SI, y label ``two-sided PSD [(rad/s)^2/Hz]`` or ``[(m/s^2)^2/Hz]``.
+        ``"spec"``: (deg/h)^2/Hz for a gyro, (mg)^2/Hz for an accelerometer. Any other string is
+        taken as a rate unit (``"deg/s"``, ``"ug"``) and the PSD is shown in (unit)^2/Hz.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One log-log axes. Lines carry gids ``sample:i``, ``spec``, ``bound``, ``bound:<component>``.
+    """
+    sensor = _check_sensor(sensor)
+    f_all = _grid(frequency, curves, "frequency")
+    arr, auto = _as_curves(curves, f_all.size, "frequency")
+    keep = f_all > 0
+    f = f_all[keep]
+    arr = arr[:, keep]
+    scale, unit = _psd_scale(display_unit, sensor)
+    bound, mode = _unwrap_bound(bound_model)
+
+    fig, axes = _new_figure()
+    ax = axes[0, 0]
+    _draw_samples(ax, f, arr * scale if scale != 1.0 else arr, _resolve_labels(labels, auto), "PSDs")
+
+    def y(model):
+        s = _model_psd(model, f, dt)
+        return s * scale if scale != 1.0 else s
+
+    if spec_model is not None:
+        ax.plot(f, y(spec_model), color=_SPEC_COLOUR, lw=2.0, zorder=3, gid="spec", label="spec sheet")
+    if bound is not None:
+        ax.plot(f, y(bound), color=_BOUND_COLOUR, lw=2.0, zorder=4, gid="bound",
+                label="bound" + (f" ({mode})" if mode else ""))
+        for name, comp in bound.components().items():
+            if name == "ramp":  # no PSD
+                continue
+            disp, colour = _component_style(name)
+            ax.plot(f, y(comp), color=colour, lw=1.2, ls="--", zorder=3, gid=f"bound:{name}",
+                    label=f"bound: {disp}")
+    conv = f"sampled, dt = {_fmt(dt)} s" if dt is not None else "continuous"
+    if title is None:
+        title = f"{sensor}: sample PSDs, spec and bound" + (f" (mode {mode})" if mode else "")
+    fig.suptitle(title)
+    ax.set_title(f"two-sided PSDs; model PSDs {conv}", fontsize="small")
+    _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{unit}]", legend_loc="lower left")
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# Figure 6
+# ---------------------------------------------------------------------------------------------
+def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, avar_lower=None, avar_upper=None,
+                          labels=None, title=None):
+    r"""Sample Allan deviations with the identified model's and the bound's components (paper Figure 6).
+
+    Each component (white, Gauss-Markov, random walk, flicker, quantization, ramp) has one colour:
+    the identified model's solid, the bound's dashed; the totals are black (solid / dashed). The
+    paper's check is that each bound component lies above its identified counterpart (a bound GM
+    standing in for flicker).
+
+    Parameters
+    ----------
+    tau : array_like or None
+        Averaging times, s, shape (n_tau,) (> 0). None takes the ``tau`` coordinate of an xarray `avar`.
+    avar : array_like or xarray.DataArray
+        Sample Allan variances, u^2 (SI): shape (n_curves, n_tau), or a DataArray with dims
+        (dataset, axis, tau). Drawn as ADEV = sqrt(avar), u.
+    identified_model : imupipe.models.NoiseModel or None
+        Model fitted to the Allan variances (:func:`imupipe.identify.fit_allan`), SI.
+    bound_model : imupipe.models.NoiseModel or imupipe.bound.BoundResult or None
+        The PSD bound, SI.
+    sensor : {"gyro", "accel"}
+        Sensor type (unit labels: rad/s or m/s^2).
+    avar_lower, avar_upper : array_like or xarray.DataArray, optional
+        Confidence limits of `avar`, u^2, same shape; drawn as a shaded band.
+    labels : sequence of str or True, optional
+        Per-curve labels (coloured curves), True for the DataArray's coordinates; default grey.
+    title : str, optional
+        Figure title; default names the sensor (and the bound's mode).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One log-log axes. Lines carry gids ``sample:i``, ``identified``, ``identified:<component>``,
+        ``bound``, ``bound:<component>``.
+    """
+    sensor = _check_sensor(sensor)
+    tau = _grid(tau, avar, "tau")
+    if np.any(tau <= 0):
+        raise ValueError("tau must be > 0 s")
+    arr, auto = _as_curves(avar, tau.size, "tau")
+    bound, mode = _unwrap_bound(bound_model)
+    unit = RATE_UNITS[sensor]
+
+    fig, axes = _new_figure()
+    ax = axes[0, 0]
+    if avar_lower is not None and avar_upper is not None:
+        lo, _ = _as_curves(avar_lower, tau.size, "tau")
+        hi, _ = _as_curves(avar_upper, tau.size, "tau")
+        if lo.shape != arr.shape or hi.shape != arr.shape:
+            raise ValueError("avar_lower and avar_upper must have the shape of avar")
+        for i in range(arr.shape[0]):
+            ax.fill_between(tau, np.sqrt(np.clip(lo[i], 0, None)), np.sqrt(np.clip(hi[i], 0, None)),
+                            color=_SAMPLE_COLOUR, alpha=0.15, lw=0, zorder=0, gid=f"band:{i}",
+                            label="confidence interval" if i == 0 else "_nolegend_")
+    _draw_samples(ax, tau, np.sqrt(np.clip(arr, 0, None)), _resolve_labels(labels, auto), "ADEVs", lw=0.8)
+
+    for model, who, ls in ((identified_model, "identified", "-"), (bound, "bound", "--")):
+        if model is None:
+            continue
+        for name, comp in model.components().items():
+            disp, colour = _component_style(name)
+            ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
+                    label=f"{who}: {disp}")
+        ax.plot(tau, np.sqrt(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,
+                label=f"{who}: total")
+    if title is None:
+        title = f"{sensor}: Allan deviation, identified and bound components" + (f" (mode {mode})" if mode else "")
+    fig.suptitle(title)
+    ax.set_title("solid: identified model; dashed: bound", fontsize="small")
+    _finish_loglog(ax, r"averaging time $\tau$ [s]", f"Allan deviation [{unit}]", ncol=2)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# Figure 7
+# ---------------------------------------------------------------------------------------------
+def table3_model(dt: float = 1.0):
+    r"""The paper's Appendix Table 3 example accelerometer model, SI.
+
+    sigma_bs = 1e-2 g = 9.80665e-2 m/s^2, T = 1e3 s, velocity random walk 0.1 m/s/sqrt(h)
+    (N = 0.1/60 m/s^2/sqrt(Hz)), K = 1e-4 m/s^2/sqrt(s) (the unit of K the paper's values imply,
+    method.md 2.4), sample interval `dt` (1 s in the paper).
+    """
+    from imupipe.models import NoiseModel
+
+    return NoiseModel(white=0.1 / 60.0, gauss_markov=((1e-2 * _G0, 1e3),), random_walk=1e-4, dt=dt)
+
+
+def _factor_text(k):
+    return f"{k:g}"
+
+
+def plot_inflation_effect(base_model=None, *, duration_s=36000.0, dt=1.0, factors=(1, 2, 5, 10), sensor="accel"):
+    r"""Effect on the model PSD of inflating one parameter at a time (paper Figure 7, Appendix A.1).
+
+    A 2x2 grid in the paper's order: (a) white noise N, (b) random walk K, (c) Gauss-Markov sigma,
+    (d) Gauss-Markov T. Each panel shows the base model's continuous two-sided PSD (red, the paper's
+    equation 13) and the PSD with that one parameter multiplied by each factor; for T, also divided
+    by it (dashed), since the paper deflates T. Frequencies span 1/duration_s to 1/(2 dt).
+
+    Read as: N raises the flat high-frequency part; K the 1/f^2 low-frequency part; sigma the
+    mid-band plateau (and the low end, sigma^2 T); deflating T lowers the plateau and widens the
+    band it covers (the paper's text calls the right of its plots "low frequencies"; here the
+    axis is frequency in Hz).
+
+    Parameters
+    ----------
+    base_model : imupipe.models.NoiseModel, optional
+        Model to perturb, SI. Default :func:`table3_model` (the paper's Table 3 accelerometer:
+        sigma 1e-2 g, T 1e3 s, RW 0.1 m/s/sqrt(h), K 1e-4 m/s^2/sqrt(s)). With several GM terms
+        the one of smallest T is perturbed.
+    duration_s : float, optional
+        Record length, s; the lowest frequency is 1/duration_s. Default 36000 (10 h).
+    dt : float, optional
+        Sample interval, s; the highest frequency is 1/(2 dt). Default 1.
+    factors : sequence of float, optional
+        Multipliers (> 0; 1 is the base and is drawn once). The paper's Figure 7 uses x1.5 and
+        x0.5 for every parameter: ``factors=(0.5, 1.5)``. Default (1, 2, 5, 10).
+    sensor : {"gyro", "accel"}, optional
+        Unit labels. The default model is an accelerometer model: a gyro needs `base_model`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Four log-log axes; the base line has gid ``base``, the others ``<param>:x<k>`` / ``T:/<k>``.
+    """
+    sensor = _check_sensor(sensor)
+    if base_model is None:
+        if sensor != "accel":
+            raise ValueError("the default base model is the paper's accelerometer example (Table 3); "
+                             "pass base_model for a gyro")
+        base_model = table3_model(dt)
+        origin = "Table 3 example"
+    else:
+        origin = "base model"
+    if not (duration_s > 0 and dt > 0 and duration_s > 2 * dt):
+        raise ValueError("need duration_s > 2 dt > 0")
+    ks = sorted({float(k) for k in factors if float(k) != 1.0})
+    if any(k <= 0 for k in ks):
+        raise ValueError("factors must be > 0")
+    if base_model.dt is None:
+        base_model = replace(base_model, dt=dt)
+    f = np.logspace(np.log10(1.0 / duration_s), np.log10(0.5 / dt), 400)
+    gm = sorted(base_model.gauss_markov, key=lambda st: st[1])
+    rest = tuple(gm[1:])
+
+    def with_gm(sigma=None, T=None):
+        s0, T0 = gm[0]
+        return replace(base_model, gauss_markov=((s0 if sigma is None else sigma, T0 if T is None else T),) + rest)
+
+    panels = [
+        ("N", "(a) white noise N", base_model.white > 0, lambda k: replace(base_model, white=base_model.white * k)),
+        ("K", "(b) random walk K", base_model.random_walk > 0,
+         lambda k: replace(base_model, random_walk=base_model.random_walk * k)),
+        ("sigma", r"(c) Gauss-Markov $\sigma$", bool(gm), lambda k: with_gm(sigma=gm[0][0] * k)),
+        ("T", "(d) Gauss-Markov T", bool(gm), lambda k: with_gm(T=gm[0][1] * k)),
+    ]
+    import matplotlib as mpl
+
+    cmap = mpl.colormaps["viridis"]
+    colours = [cmap(x) for x in np.linspace(0.15, 0.85, max(len(ks), 1))]
+    fig, axes = _new_figure(2, 2, figsize=(11.0, 8.0))
+    base_psd = base_model.psd(f)
+    unit = PSD_UNITS[sensor]
+    sym = {"N": "N", "K": "K", "sigma": r"$\sigma$", "T": "T"}
+    for ax, (key, name, present, make) in zip(axes.ravel(), panels):
+        ax.plot(f, base_psd, color=_SPEC_COLOUR, lw=2.2, zorder=4, gid="base", label=origin)
+        if present:
+            for k, c in zip(ks, colours):
+                ax.plot(f, make(k).psd(f), color=c, lw=1.3, zorder=3, gid=f"{key}:x{_factor_text(k)}",
+                        label=f"{sym[key]} x {_factor_text(k)}")
+                if key == "T":
+                    ax.plot(f, make(1.0 / k).psd(f), color=c, lw=1.3, ls="--", zorder=3,
+                            gid=f"T:/{_factor_text(k)}", label=f"T / {_factor_text(k)}")
+        else:
+            ax.text(0.5, 0.5, "component absent from the model", transform=ax.transAxes, ha="center",
+                    fontsize="small")
+        ax.set_title(name)
+        _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{unit}]", legend_loc="lower left",
+                       ncol=2 if key == "T" else 1)
+    p = base_model
+    params = [f"N={_fmt(p.white)} {RATE_UNITS[sensor]}/sqrt(Hz)", f"K={_fmt(p.random_walk)} {RATE_UNITS[sensor]}/sqrt(s)"]
+    if gm:
+        params += [f"sigma={_fmt(gm[0][0])} {RATE_UNITS[sensor]}", f"T={_fmt(gm[0][1])} s"]
+    fig.suptitle(f"{sensor}: effect of inflating one parameter on the model PSD ({origin}; "
+                 f"{_fmt(duration_s / 3600.0)} h, dt = {_fmt(dt)} s)\n" + ", ".join(params))
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# Figure 8
+# ---------------------------------------------------------------------------------------------
+_PHASE_NAMES = {"sigma": "sigma", "T": "T", "K": "K", "N": "N"}
+
+
+def _history_rows(history):
+    """History entries as (parameter, N, sigma, T, K, margin) tuples (lists, tuples or dicts)."""
+    rows = []
+    for h in history:
+        if isinstance(h, dict):
+            h = (h["parameter"], h["N"], h["sigma"], h["T"], h["K"], h.get("margin", float("nan")))
+        p, N, s, T, K, m = h
+        rows.append((str(p), float(N), float(s), float(T), float(K), float(m)))
+    if not rows:
+        raise ValueError("history is empty")
+    return rows
+
+
+def _phase_ends(rows):
+    """Indices of the last step of each phase (a run of one parameter name), skipping the start."""
+    ends = []
+    for i in range(1, len(rows)):
+        if i == len(rows) - 1 or rows[i + 1][0] != rows[i][0]:
+            ends.append(i)
+    return ends
+
+
+def _spread(ends, m):
+    """Indices of `m` phase ends spread evenly over the steps: the first, the last, and between."""
+    ends = np.asarray(ends)
+    chosen = {0, ends.size - 1}
+    for t in np.linspace(ends[0], ends[-1], m)[1:-1]:
+        order = np.argsort(np.abs(ends - t), kind="stable")
+        chosen.add(int(next(j for j in order if int(j) not in chosen)))
+    return sorted(chosen)
+
+
+def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=None, title=None, max_phases=6):
+    r"""The paper's hand inflation, step by step (paper Figure 8, Appendix A.2).
+
+    Draws the sample PSDs (grey), the spec-sheet PSD (red) and the model PSD at the end of each
+    phase of :func:`imupipe.bound.paper_inflation` (a phase is a run of steps on one parameter:
+    inflate sigma, deflate T, inflate K, inflate N, repeated in rounds if needed), colour-coded in
+    order, legend ``after sigma``, ``after T``, ... (``(round r)`` appended to a parameter's later
+    phases). The last one is the final model (thick, ``final, after <p>``). When the procedure
+    alternates between parameters (its no-progress rule steps one parameter at a time) and there
+    are more than `max_phases` phases, `max_phases` of them are drawn: the first, the last and
+    phase ends spread evenly over the steps between.
+
+    Parameters
+    ----------
+    frequency : array_like or None
+        Frequency grid, Hz (f = 0 not drawn); None takes the coordinate of an xarray `curves`.
+    curves : array_like or xarray.DataArray
+        Two-sided sample PSDs, u^2/Hz (SI), (n_curves, n_freq) or dims (dataset, axis, frequency).
+    spec_model : imupipe.models.NoiseModel
+        The spec model the procedure started from (its GM terms beyond the one of smallest T are
+        kept fixed, as in :func:`~imupipe.bound.paper_inflation`).
+    history : sequence
+        ``paper_inflation(...).details["history"]``: entries (parameter, N, sigma, T, K, margin)
+        in SI (N u/sqrt(Hz), sigma u, T s, K u/sqrt(s)); the first is ``"spec"``. Dict entries with
+        those keys are accepted too.
+    sensor : {"gyro", "accel"}
+        Sensor type (unit labels).
+    dt : float, optional
+        Sample interval of the averaged data, s: models drawn as ``psd_sampled(f, dt)`` (pass the
+        same dt as to paper_inflation).
+    title : str, optional
+        Figure title; default names the sensor and the procedure.
+    max_phases : int, optional
+        Most phase curves drawn (>= 2), the final model included. Default 6.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One log-log axes; lines with gids ``sample:i``, ``spec``, ``phase:<j>`` (j = 0, 1, ...; the
+        last is the final model).
+    """
+    from imupipe.models import NoiseModel
+
+    sensor = _check_sensor(sensor)
+    f_all = _grid(frequency, curves, "frequency")
+    arr, _ = _as_curves(curves, f_all.size, "frequency")
+    keep = f_all > 0
+    f = f_all[keep]
+    arr = arr[:, keep]
+    rows = _history_rows(history)
+    extra_gm = tuple(sorted(spec_model.gauss_markov, key=lambda st: st[1])[1:])
+
+    def model_of(row):
+        _, N, s, T, K, _ = row
+        g = ((s, T),) + extra_gm if s > 0 else extra_gm
+        return NoiseModel(white=N, gauss_markov=g, random_walk=K, dt=dt)
+
+    fig, axes = _new_figure()
+    ax = axes[0, 0]
+    _draw_samples(ax, f, arr, None, "PSDs")
+    ax.plot(f, _model_psd(spec_model, f, dt), color=_SPEC_COLOUR, lw=2.0, zorder=3, gid="spec", label="spec sheet")
+    if int(max_phases) < 2:
+        raise ValueError("max_phases must be >= 2")
+    ends = _phase_ends(rows)
+    labels, seen = [], {}
+    for i in ends:
+        p = rows[i][0]
+        seen[p] = seen.get(p, 0) + 1
+        labels.append(f"after {_PHASE_NAMES.get(p, p)}" + (f" (round {seen[p]})" if seen[p] > 1 else ""))
+    n_phases = len(ends)
+    if n_phases > int(max_phases):
+        pick = _spread(ends, int(max_phases))
+        ends = [ends[j] for j in pick]
+        labels = [labels[j] for j in pick]
+    if ends:
+        labels[-1] = f"final, {labels[-1]}"
+    import matplotlib as mpl
+
+    cmap = mpl.colormaps["viridis"]
+    for j, (i, label) in enumerate(zip(ends, labels)):
+        last = j == len(ends) - 1
+        colour = cmap(0.1 + 0.8 * j / max(len(ends) - 1, 1))
+        ax.plot(f, _model_psd(model_of(rows[i]), f, dt), color=colour, lw=2.4 if last else 1.4, zorder=4 + j,
+                gid=f"phase:{j}", label=label)
+    n_steps = len(rows) - 1
+    final = rows[-1][5]
+    if title is None:
+        title = f"{sensor}: step-by-step spec inflation (paper procedure)"
+    fig.suptitle(title)
+    conv = f"sampled, dt = {_fmt(dt)} s" if dt is not None else "continuous"
+    shown = "" if len(ends) == n_phases else f" ({len(ends)} shown)"
+    ax.set_title(f"{n_steps} steps in {n_phases} phases{shown}, final margin {final:.3g}; model PSDs {conv}",
+                 fontsize="small")
+    _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{PSD_UNITS[sensor]}]", legend_loc="lower left")
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# output
+# ---------------------------------------------------------------------------------------------
+def save_figure(fig, path) -> None:
+    """Write `fig` to `path` atomically (temporary file in the same directory, then :func:`os.replace`).
+
+    The format comes from the suffix (``.png``, ``.pdf``, ``.svg``, ...), at 150 dpi. The figure is
+    closed afterwards (released from pyplot if pyplot manages it). On an error the temporary file
+    is removed and `path` is left untouched.
+    """
+    from imupipe.io import atomic_path
+
+    path = Path(path)
+    fmt = path.suffix.lstrip(".").lower()
+    if not fmt:
+        raise ValueError(f"{path}: no suffix to take the figure format from")
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(os.fspath(tmp), format=fmt, dpi=150)
+    finally:
+        plt = sys.modules.get("matplotlib.pyplot")
+        if plt is not None:
+            plt.close(fig)

@@ -1,0 +1,217 @@
+r"""Spec sheets (and simulation truths): YAML files of noise parameters, each value with its unit.
+
+A spec sheet states, per sensor type, the stochastic parameters of a manufacturer's data sheet.
+Every value carries an explicit unit, converted once to SI by :mod:`imupipe.units`; a missing or
+ambiguous unit is an error that names the file and the key. Components a sheet leaves out are
+absent from the model (the bound then adds them only if the data need them, method.md 6)::
+
+    name: STIM-300
+    source: Gallon et al. 2021, Table 2
+    gyro:
+      white: {value: 0.15, unit: deg/sqrt(h)}           # N (angle random walk)
+      gauss_markov:                                     # first-order GM terms (bias instability)
+        - sigma: {value: 1.5, unit: deg/h}
+          T: {value: 1500, unit: s}
+      random_walk: {value: 2.0e-2, unit: (deg/h)/sqrt(s)}  # K (rate random walk)
+    accel:
+      ...
+
+Optional per sensor: ``flicker`` (B, rate unit), ``quantization`` (Q, e.g. deg or m/s) and
+``ramp`` (R, e.g. deg/h^2). The same format describes the "true" model of simulated data.
+
+Model PSDs are two-sided (method.md 1): :math:`S_2 = N^2 + \sum 2\sigma^2 T/(1 + (2\pi f T)^2)
++ K^2/(2\pi f)^2 + B^2/(2\pi f)`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from imupipe.models import NoiseModel
+from imupipe.units import UnitError, from_si, to_si
+
+__all__ = ["SpecError", "SpecSheet", "load_spec", "parse_spec", "inflation_rows", "SENSOR_KEYS"]
+
+#: Keys allowed under a sensor, with the imupipe.units quantity of their value.
+SENSOR_KEYS = {
+    "white": "white",
+    "gauss_markov": None,  # list of {sigma: gm_sigma, T: time}
+    "random_walk": "random_walk",
+    "flicker": "rate",
+    "quantization": "quantization",
+    "ramp": "ramp",
+}
+_TOP_KEYS = {"name", "source", "notes", "gyro", "accel"}
+
+
+class SpecError(ValueError):
+    """A spec sheet is missing, malformed, or has a value without a valid unit."""
+
+
+@dataclass(frozen=True)
+class SpecSheet:
+    """A loaded spec sheet.
+
+    Attributes
+    ----------
+    name : str
+        Human-readable name (``name`` key, else the file stem).
+    path : str
+        File it came from.
+    models : dict
+        ``{sensor: NoiseModel}`` in SI for the sensors the sheet describes.
+    units : dict
+        ``{sensor: {quantity: unit}}`` as written in the sheet (``white``, ``gm_sigma``, ``time``,
+        ``random_walk``, ``flicker``, ...), to report results in the sheet's own units.
+    values : dict
+        ``{sensor: {parameter: (value, unit)}}`` exactly as written (``gm_sigma_1``, ``gm_T_1`` for
+        GM terms), for tables.
+    """
+
+    name: str
+    path: str
+    models: dict
+    units: dict
+    values: dict = field(default_factory=dict)
+
+
+def _quantity(sensor_block, key, quantity, sensor, where):
+    item = sensor_block[key]
+    label = f"{where}: {sensor}.{key}"
+    if isinstance(item, (int, float)) and not isinstance(item, bool):
+        raise SpecError(
+            f"{label} = {item!r} has no unit; write it as {{value: {item!r}, unit: <unit>}} "
+            f"(every value needs an explicit unit)"
+        )
+    if not isinstance(item, dict) or set(item) != {"value", "unit"}:
+        raise SpecError(f"{label} must be a mapping with exactly the keys 'value' and 'unit', got {item!r}")
+    value = item["value"]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise SpecError(f"{label}.value must be a finite non-negative number, got {value!r}")
+    try:
+        si = float(to_si(float(value), item["unit"], quantity, sensor, key=label))
+    except UnitError as exc:
+        raise SpecError(str(exc)) from None
+    return si, float(value), item["unit"]
+
+
+def parse_spec(data, where: str = "<spec>") -> SpecSheet:
+    """Build a :class:`SpecSheet` from already-parsed YAML (a dict); `where` names it in errors."""
+    if not isinstance(data, dict):
+        raise SpecError(f"{where}: a spec sheet is a mapping with keys gyro and/or accel, got {type(data).__name__}")
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise SpecError(f"{where}: unknown key(s) {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+    sensors = [s for s in ("gyro", "accel") if s in data]
+    if not sensors:
+        raise SpecError(f"{where}: no 'gyro' or 'accel' section")
+    models, units, values = {}, {}, {}
+    for sensor in sensors:
+        block = data[sensor]
+        if not isinstance(block, dict) or not block:
+            raise SpecError(f"{where}: {sensor} must be a non-empty mapping of noise parameters")
+        bad = set(block) - set(SENSOR_KEYS)
+        if bad:
+            raise SpecError(f"{where}: {sensor}: unknown key(s) {sorted(bad)}; allowed: {sorted(SENSOR_KEYS)}")
+        kw, u, v = {}, {}, {}
+        for key, quantity in SENSOR_KEYS.items():
+            if key not in block or key == "gauss_markov":
+                continue
+            si, raw, unit = _quantity(block, key, quantity, sensor, where)
+            kw[key] = si
+            u[key] = unit
+            v[key] = (raw, unit)
+        gms = block.get("gauss_markov") or []
+        if isinstance(gms, dict):
+            gms = [gms]
+        if not isinstance(gms, list):
+            raise SpecError(f"{where}: {sensor}.gauss_markov must be a list of {{sigma, T}} terms")
+        terms = []
+        for i, term in enumerate(gms, start=1):
+            if not isinstance(term, dict) or set(term) != {"sigma", "T"}:
+                raise SpecError(f"{where}: {sensor}.gauss_markov[{i - 1}] needs exactly the keys 'sigma' and 'T'")
+            s_si, s_raw, s_unit = _quantity(term, "sigma", "gm_sigma", sensor, f"{where}: {sensor}.gauss_markov[{i - 1}]")
+            t_si, t_raw, t_unit = _quantity(term, "T", "time", sensor, f"{where}: {sensor}.gauss_markov[{i - 1}]")
+            if t_si <= 0:
+                raise SpecError(f"{where}: {sensor}.gauss_markov[{i - 1}].T must be > 0")
+            terms.append((s_si, t_si))
+            u.setdefault("gm_sigma", s_unit)
+            u.setdefault("time", t_unit)
+            v[f"gm_sigma_{i}"] = (s_raw, s_unit)
+            v[f"gm_T_{i}"] = (t_raw, t_unit)
+        kw["gauss_markov"] = tuple(terms)
+        models[sensor] = NoiseModel(**kw)
+        units[sensor] = u
+        values[sensor] = v
+    return SpecSheet(name=str(data.get("name") or where), path=where, models=models, units=units, values=values)
+
+
+def load_spec(path) -> SpecSheet:
+    """Read a spec sheet YAML file (module docstring); errors name the file and the key.
+
+    Parameters
+    ----------
+    path : str or Path
+        YAML file.
+
+    Returns
+    -------
+    SpecSheet
+        Models in SI (gyro rad/s, accel m/s^2) and the sheet's own units.
+    """
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise SpecError(f"spec sheet {str(p)!r} not found")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise SpecError(f"{p}: not valid YAML ({exc})") from None
+    sheet = parse_spec(data, where=str(p))
+    if not (isinstance(data, dict) and data.get("name")):
+        sheet = SpecSheet(p.stem, str(p), sheet.models, sheet.units, sheet.values)
+    return sheet
+
+
+def _default_units(sensor):
+    if sensor == "gyro":
+        return {"white": "deg/sqrt(h)", "gm_sigma": "deg/h", "time": "s", "random_walk": "(deg/h)/sqrt(s)"}
+    return {"white": "m/s/sqrt(h)", "gm_sigma": "mg", "time": "s", "random_walk": "m/s^2/sqrt(s)"}
+
+
+def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> list[dict]:
+    """Table 2 rows: parameter, unit, spec value, bound value and their ratio, in the sheet's units.
+
+    Units come from the sheet where it gives them, else gyro deg/sqrt(h), deg/h, s, (deg/h)/sqrt(s)
+    and accel m/s/sqrt(h), mg, s, m/s^2/sqrt(s). A parameter absent from the spec has spec value
+    None and ratio None (the bound added it).
+    """
+    units = {**_default_units(sensor), **spec.units.get(sensor, {})}
+    specm = spec.models.get(sensor, NoiseModel())
+
+    def conv(v, q):
+        return float(from_si(v, units[q], q, sensor)) if v else None
+
+    rows = [("white noise N", "white", specm.white, bound_model.white)]
+    n = max(len(specm.gauss_markov), len(bound_model.gauss_markov))
+    for i in range(n):
+        s = specm.gauss_markov[i] if i < len(specm.gauss_markov) else (0.0, 0.0)
+        b = bound_model.gauss_markov[i] if i < len(bound_model.gauss_markov) else (0.0, 0.0)
+        tag = f" {i + 1}" if n > 1 else ""
+        rows.append((f"GM sigma{tag}", "gm_sigma", s[0], b[0]))
+        rows.append((f"GM T{tag}", "time", s[1], b[1]))
+    rows.append(("random walk K", "random_walk", specm.random_walk, bound_model.random_walk))
+    out = []
+    for label, q, sv, bv in rows:
+        a, b = conv(sv, q), conv(bv, q)
+        out.append({
+            "parameter": label,
+            "unit": units[q],
+            "spec": a,
+            "bound": b,
+            "ratio": (b / a) if (a and b is not None) else None,
+        })
+    return out

@@ -1,0 +1,226 @@
+"""End-to-end runs of the Snakemake workflow on small configurations (tests/configs/).
+
+One run of tests/configs/tiny.yaml (2 simulated datasets x 1.5 h at 20 Hz, ~15 s on 2 cores) is shared
+by the contract, caching and resume tests. Checks: the output contract (dims, attrs, bound file keys),
+that the global bound bounds every per-axis sample PSD of the spectra file (recomputed here from the
+files, not read from the bound's own report), that editing a spec sheet re-runs only bounding, figures
+and tables, that bad input fails its own dataset with a message naming the culprit while the other
+datasets' results are kept, and that a run killed mid-way resumes to identical outputs.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+xr = pytest.importorskip("xarray")
+pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip install -e '.[test]')")
+
+from imupipe.models import NoiseModel  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ROOT / "tests" / "configs" / "tiny.yaml"
+SNAKEMAKE = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"), "--cores", "2"]
+SPEC_RULES = {"axis_bound", "global_bound", "kf_export", "kalibr", "figures", "table", "all"}
+ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+
+
+def snakemake(workdir, *args, config=TINY, check=True, **kw):
+    cmd = [*SNAKEMAKE, "--directory", str(workdir), "--configfile", str(config), *args]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=ENV, **kw)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
+    return proc
+
+
+def dry_run_jobs(workdir, *args, config=TINY):
+    """Rule -> job count from a dry run's "Job stats" table."""
+    out = snakemake(workdir, "-n", *args, config=config).stdout
+    counts = {}
+    if "Job stats:" in out:
+        table = out.split("Job stats:", 1)[1]
+        for line in table.splitlines()[3:]:
+            m = re.match(r"^(\w+)\s+(\d+)$", line.strip())
+            if not m:
+                break
+            if m.group(1) != "total":
+                counts[m.group(1)] = int(m.group(2))
+    return counts
+
+
+def tiny_config(tmp_path, **changes):
+    cfg = yaml.safe_load(TINY.read_text())
+    for key, value in changes.items():
+        cfg[key] = value
+    path = tmp_path / "config.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A complete run of the tiny configuration with its own copy of the spec sheets."""
+    work = tmp_path_factory.mktemp("tiny")
+    specs = work / "specs"
+    shutil.copytree(ROOT / "config" / "specs", specs)
+    cfg = yaml.safe_load(TINY.read_text())
+    cfg["spec_dir"] = str(specs)
+    config = work / "config.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    snakemake(work, config=config)
+    return work, config
+
+
+class TestContract:
+    def test_spectra_file(self, tiny_run):
+        work, _ = tiny_run
+        for sensor, unit in (("gyro", "(rad/s)^2/Hz"), ("accel", "(m/s^2)^2/Hz")):
+            with xr.open_dataset(work / f"results/spectra/{sensor}.nc") as ds:
+                assert ds.psd.dims == ("dataset", "axis", "frequency")
+                assert list(ds.dataset.values) == ["sim01", "sim02"]
+                assert list(ds.axis.values) == ["x", "y", "z"]
+                assert ds.psd.attrs["units"] == unit
+                assert ds.attrs["sidedness"] == "two-sided" or ds.psd.attrs.get("sidedness") == "two-sided"
+                for v in ("psd_lower", "psd_upper"):
+                    assert ds[v].dims == ds.psd.dims
+                    assert ds[v].attrs["units"] == unit
+                assert ds.frequency.attrs["units"] == "Hz"
+                assert np.all(ds.psd_lower.values <= ds.psd.values)
+                assert np.all(ds.psd.values <= ds.psd_upper.values)
+
+    def test_allan_file(self, tiny_run):
+        work, _ = tiny_run
+        with xr.open_dataset(work / "results/allan/gyro.nc") as ds:
+            assert ds.avar.dims == ("dataset", "axis", "tau")
+            assert ds.tau.attrs["units"] == "s"
+            for v in ("avar_lower", "avar_upper"):
+                assert ds[v].dims == ds.avar.dims
+            ok = np.isfinite(ds.avar.values)
+            assert np.all(ds.avar_lower.values[ok] <= ds.avar.values[ok])
+            assert np.all(ds.avar.values[ok] <= ds.avar_upper.values[ok])
+
+    @pytest.mark.parametrize("sensor", ["gyro", "accel"])
+    def test_bound_file_and_margin_recomputed(self, tiny_run, sensor):
+        work, _ = tiny_run
+        b = yaml.safe_load((work / f"results/bound/stim300/{sensor}.yaml").read_text())
+        for key in ("bound", "bound_spec_units", "inflation", "bounded", "margin", "margin_curve", "spec", "mode"):
+            assert key in b, key
+        assert b["bounded"] is True
+        assert b["margin"] >= 1.0
+        model = NoiseModel(white=b["bound"]["white"], random_walk=b["bound"]["random_walk"],
+                           gauss_markov=tuple((g["sigma"], g["T"]) for g in b["bound"]["gauss_markov"]))
+        with xr.open_dataset(work / f"results/spectra/{sensor}.nc") as ds:
+            f = ds.frequency.values[1:]
+            s_model = model.psd_sampled(f, b["dt_s"])
+            ratio = s_model[None, None, :] / ds.psd.values[:, :, 1:]
+        # every curve (15 in the paper, 6 here) at every frequency; 1e-9 = the LP's stated rounding
+        assert ratio.min() >= 1 - 1e-9
+        assert ratio.min() == pytest.approx(b["margin"], rel=1e-9)
+
+    def test_table_kf_and_figures(self, tiny_run):
+        work, _ = tiny_run
+        table = (work / "results/tables/stim300/inflation.md").read_text()
+        assert "white noise N" in table and "deg/sqrt(h)" in table and "m/s/sqrt(h)" in table
+        kf = yaml.safe_load((work / "results/kf/stim300/gyro.yaml").read_text())
+        assert {"F", "Phi", "Qd", "P0"} <= set(kf)
+        for name in ("psd_bound_gyro", "allan_components_accel", "inflation_steps_gyro"):
+            png = work / f"results/figures/stim300/{name}.png"
+            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert not list((work / "results").rglob(".tmp-*")), "temporary files left behind"
+
+
+class TestCaching:
+    def test_nothing_to_do_after_a_run(self, tiny_run):
+        work, config = tiny_run
+        assert dry_run_jobs(work, config=config) == {}
+
+    def test_spec_edit_reruns_only_bounding(self, tiny_run):
+        work, config = tiny_run
+        spec = work / "specs" / "stim300.yaml"
+        text = spec.read_text()
+        spec.write_text(text.replace("value: 0.15, unit: deg/sqrt(h)", "value: 0.16, unit: deg/sqrt(h)"))
+        try:
+            jobs = dry_run_jobs(work, config=config)
+        finally:
+            spec.write_text(text)
+            # restore the old modification time order: outputs newer than the spec again
+            past = time.time() - 3600
+            os.utime(spec, (past, past))
+        assert jobs, "editing the spec sheet must re-run the bound"
+        assert set(jobs) <= SPEC_RULES, f"jobs other than bounding/figures/tables: {jobs}"
+        assert {"axis_bound", "global_bound", "table"} <= set(jobs)
+
+
+class TestBadInput:
+    def test_bad_dataset_fails_alone(self, tmp_path, rng):
+        """A missing file and a file with a NaN sample fail their own ingest with a message naming the
+        file; with --keep-going the good dataset's per-axis results are still produced."""
+        n, rate = 3600, 2.0  # 30 min at 2 Hz
+        cols = ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
+        x = rng.normal(size=(n, 6)) * 1e-3
+        good = tmp_path / "good.csv"
+        bad = tmp_path / "bad.csv"
+        header = ",".join(cols)
+        np.savetxt(good, x, delimiter=",", header=header, comments="")
+        xb = x.copy()
+        xb[100, 2] = np.nan
+        np.savetxt(bad, xb, delimiter=",", header=header, comments="")
+        sheet = tmp_path / "datasets.tsv"
+        head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", *cols]
+        rows = [[name, str(p), "2", "rad/s", "m/s^2", *cols] for name, p in
+                (("good", good), ("nanrow", bad), ("missing", tmp_path / "nowhere.csv"))]
+        sheet.write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
+        config = tiny_config(tmp_path, datasets=str(sheet), simulation=None,
+                             psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
+                                  "confidence": 0.95})
+        proc = snakemake(tmp_path, "--keep-going", config=config, check=False)
+        assert proc.returncode != 0
+        log = proc.stdout + proc.stderr
+        assert "nowhere.csv" in log
+        assert "bad.csv" in log and re.search(r"NaN|non-finite|not finite", log)
+        for sensor in ("gyro", "accel"):
+            for axis in "xyz":
+                assert (tmp_path / f"results/allan/good/{sensor}/{axis}.nc").is_file()
+                assert (tmp_path / f"results/psd/good/{sensor}/{axis}.nc").is_file()
+        assert not (tmp_path / "results/series/nanrow").exists()
+
+    def test_unknown_config_key_rejected(self, tmp_path):
+        config = tiny_config(tmp_path, colour="blue")
+        proc = snakemake(tmp_path, "-n", config=config, check=False)
+        assert proc.returncode != 0
+        assert "colour" in proc.stdout + proc.stderr
+
+
+class TestResume:
+    def test_killed_run_resumes_to_identical_outputs(self, tiny_run, tmp_path):
+        work, config = tiny_run
+        proc = subprocess.Popen([*SNAKEMAKE, "--directory", str(tmp_path), "--configfile", str(config)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV,
+                                start_new_session=True)
+        deadline = time.time() + 120
+        while time.time() < deadline and len(list((tmp_path / "results/allan").rglob("*.nc"))) < 4:
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGKILL)  # as a power cut would: no clean-up by Snakemake
+        proc.wait()
+        assert not (tmp_path / "results/bound").exists(), "the run finished before it was killed"
+        snakemake(tmp_path, "--unlock", config=config)  # the killed run left its lock
+        snakemake(tmp_path, "--rerun-incomplete", config=config)
+        for sensor in ("gyro", "accel"):
+            for name in (f"spectra/{sensor}.nc", f"allan/{sensor}.nc"):
+                with xr.open_dataset(work / "results" / name) as a, xr.open_dataset(tmp_path / "results" / name) as b:
+                    xr.testing.assert_identical(a.load(), b.load())
+            a = yaml.safe_load((work / f"results/bound/stim300/{sensor}.yaml").read_text())
+            b = yaml.safe_load((tmp_path / f"results/bound/stim300/{sensor}.yaml").read_text())
+            for d in (a, b):
+                d.pop("solve_time_s")
+            assert a == b

@@ -1,0 +1,21 @@
+"""Kalman-filter matrices of the bound model of one sensor type (rule kf_export): continuous F, G, Qc
+(paper eq. 17, or eq. 19 without the random-walk state), exact discrete Phi, Qd (Van Loan), P0."""
+
+from imupipe.io import read_yaml, run_job, write_yaml_atomic
+
+
+def main(path_bound: str, dt_s: float, path_out: str, sensor: str) -> None:
+    from imupipe.kf import export_kf
+    from imupipe.models import NoiseModel
+
+    bound = read_yaml(path_bound)
+    b = bound["bound"]
+    model = NoiseModel(white=b["white"] or 0.0, random_walk=b["random_walk"] or 0.0,
+                       gauss_markov=tuple((g["sigma"], g["T"]) for g in b["gauss_markov"]))
+    out = {"sensor": sensor, "spec": bound["spec"], "dt_s": dt_s, **export_kf(model, dt_s, sensor=sensor)}
+    write_yaml_atomic(out, path_out, header=f"{sensor}: Kalman-filter model of the bound (SI), one axis")
+
+
+if __name__ == "__main__":
+    run_job(main, snakemake.log[0], path_bound=snakemake.input.bound, dt_s=snakemake.params.dt_s,
+            path_out=snakemake.output.kf, sensor=snakemake.wildcards.sensor)
