@@ -212,7 +212,7 @@ class TestResume:
             time.sleep(0.2)
         os.killpg(proc.pid, signal.SIGKILL)  # as a power cut would: no clean-up by Snakemake
         proc.wait()
-        assert not (tmp_path / "results/bound").exists(), "the run finished before it was killed"
+        assert not (tmp_path / "results/bound/stim300/gyro.yaml").exists(), "the run finished before it was killed"
         snakemake(tmp_path, "--unlock", config=config)  # the killed run left its lock
         snakemake(tmp_path, "--rerun-incomplete", config=config)
         for sensor in ("gyro", "accel"):
@@ -224,3 +224,14 @@ class TestResume:
             for d in (a, b):
                 d.pop("solve_time_s")
             assert a == b
+
+
+class TestReport:
+    def test_html_report_has_every_figure(self, tiny_run):
+        work, config = tiny_run
+        report = work / "report.html"
+        snakemake(work, "--report", str(report), config=config)
+        html = report.read_text(errors="replace")
+        for name in ("psd_bound_gyro.png", "allan_components_accel.png", "inflation_steps_gyro.png",
+                     "inflation_effect.png", "inflation.md"):
+            assert name in html, f"{name} missing from the report"

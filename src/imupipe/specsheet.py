@@ -32,7 +32,7 @@ from pathlib import Path
 from imupipe.models import NoiseModel
 from imupipe.units import UnitError, from_si, to_si
 
-__all__ = ["SpecError", "SpecSheet", "load_spec", "parse_spec", "inflation_rows", "SENSOR_KEYS"]
+__all__ = ["SpecError", "SpecSheet", "load_spec", "parse_spec", "display_units", "inflation_rows", "SENSOR_KEYS"]
 
 #: Keys allowed under a sensor, with the imupipe.units quantity of their value.
 SENSOR_KEYS = {
@@ -182,18 +182,31 @@ def _default_units(sensor):
     return {"white": "m/s/sqrt(h)", "gm_sigma": "mg", "time": "s", "random_walk": "m/s^2/sqrt(s)"}
 
 
+def display_units(spec: SpecSheet, sensor: str) -> dict:
+    """Units to report `sensor`'s parameters in: the sheet's own, completed by customary ones.
+
+    Keys ``white``, ``gm_sigma``, ``time``, ``random_walk`` (and ``flicker`` if the sheet has it). A
+    sheet without a GM term but with flicker reports GM sigma in the flicker's unit; otherwise gyro
+    deg/sqrt(h), deg/h, s, (deg/h)/sqrt(s) and accel m/s/sqrt(h), mg, s, m/s^2/sqrt(s).
+    """
+    units = {**_default_units(sensor), **spec.units.get(sensor, {})}
+    if "gm_sigma" not in spec.units.get(sensor, {}) and "flicker" in units:
+        units["gm_sigma"] = units["flicker"]
+    return units
+
+
 def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> list[dict]:
     """Table 2 rows: parameter, unit, spec value, bound value and their ratio, in the sheet's units.
 
-    Units come from the sheet where it gives them, else gyro deg/sqrt(h), deg/h, s, (deg/h)/sqrt(s)
-    and accel m/s/sqrt(h), mg, s, m/s^2/sqrt(s). A parameter absent from the spec has spec value
-    None and ratio None (the bound added it).
+    Units from :func:`display_units`. A parameter absent from the spec has spec value None and ratio
+    None (the bound added it); a spec flicker B is listed with no bound value (no filter state: the
+    bound's GM terms cover it).
     """
-    units = {**_default_units(sensor), **spec.units.get(sensor, {})}
+    units = display_units(spec, sensor)
     specm = spec.models.get(sensor, NoiseModel())
 
     def conv(v, q):
-        return float(from_si(v, units[q], q, sensor)) if v else None
+        return float(from_si(v, units[q], "rate" if q == "flicker" else q, sensor)) if v else None
 
     rows = [("white noise N", "white", specm.white, bound_model.white)]
     n = max(len(specm.gauss_markov), len(bound_model.gauss_markov))
@@ -204,6 +217,8 @@ def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> lis
         rows.append((f"GM sigma{tag}", "gm_sigma", s[0], b[0]))
         rows.append((f"GM T{tag}", "time", s[1], b[1]))
     rows.append(("random walk K", "random_walk", specm.random_walk, bound_model.random_walk))
+    if specm.flicker:  # not a filter state: the bound covers it with its GM terms
+        rows.append(("flicker B (covered by GM)", "flicker", specm.flicker, 0.0))
     out = []
     for label, q, sv, bv in rows:
         a, b = conv(sv, q), conv(bv, q)

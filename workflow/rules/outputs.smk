@@ -8,6 +8,7 @@ rule kf_export:
         kf="results/kf/{spec}/{sensor}.yaml",
     params:
         dt_s=1.0 / float(config["application"]["rate_hz"]),
+        horizon_s=config["application"]["horizon_s"],
     log:
         "logs/kf_export/{spec}/{sensor}.log",
     script:
@@ -34,6 +35,7 @@ rule figures:
         allan="results/allan/{sensor}.nc",
         identified="results/identify/{sensor}.yaml",
         bound="results/bound/{spec}/{sensor}.yaml",
+        spec=spec_file,
     output:
         psd_bound=report(
             "results/figures/{spec}/psd_bound_{sensor}.png",

@@ -8,7 +8,7 @@ def main(path_psd: str, path_spec: str, mode: str, n_gm: int, confidence: float,
     import xarray as xr
 
     from imupipe.bound import bound_psd
-    from imupipe.specsheet import load_spec
+    from imupipe.specsheet import display_units, load_spec
 
     spec = load_spec(path_spec)
     if sensor not in spec.models:
@@ -19,8 +19,8 @@ def main(path_psd: str, path_spec: str, mode: str, n_gm: int, confidence: float,
     result = bound_psd(ds.frequency.values, {label: ds.psd.values}, spec.models[sensor], dt=dt, mode=mode,
                        n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, edf=ds.edf.values,
                        taper=ds.attrs.get("taper", "hann"))
-    out = {"spec": spec.name, "curve": label, "sensor": sensor, "dt_s": dt,
-           **result.to_dict(spec_units=spec.units[sensor], sensor=sensor)}
+    out = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt,
+           **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
     write_yaml_atomic(out, path_out, header=f"per-axis bound of {label} against {spec.name}")
 
 

@@ -13,21 +13,22 @@ def bound_model(d):
                       gauss_markov=tuple((g["sigma"], g["T"]) for g in d["gauss_markov"]))
 
 
-def main(path_spectra, path_allan, path_identified, path_bound, out_psd, out_allan, out_steps, sensor, spec):
+def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_psd, out_allan, out_steps, sensor, spec):
     import xarray as xr
 
     from imupipe.models import NoiseModel
     from imupipe.plot import plot_allan_components, plot_inflation_steps, plot_psd_bound, save_figure
+    from imupipe.specsheet import load_spec
 
     bound = read_yaml(path_bound)
-    model, spec_model = bound_model(bound["bound"]), bound_model(bound["spec"])
+    model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
     identified = NoiseModel.from_dict(read_yaml(path_identified)["model"])
     with xr.open_dataset(path_spectra) as sp:
         sp = sp.load()
     with xr.open_dataset(path_allan) as av:
         av = av.load()
     dt = bound["dt_s"]
-    title = f"{sensor}: {bound['spec']} spec vs {bound['mode']}-mode bound (margin {bound['margin']:.3g})"
+    title = f"{sensor}: {bound['spec_name']} spec vs {bound['mode']}-mode bound (margin {bound['margin']:.3g})"
     save_figure(plot_psd_bound(sp.frequency.values, sp.psd, spec_model, model, sensor=sensor, dt=dt, title=title),
                 out_psd)
     save_figure(plot_allan_components(av.tau.values, av.avar, identified, model, sensor=sensor,
@@ -45,5 +46,5 @@ def main(path_spectra, path_allan, path_identified, path_bound, out_psd, out_all
 if __name__ == "__main__":
     i, o, w = snakemake.input, snakemake.output, snakemake.wildcards
     run_job(main, snakemake.log[0], path_spectra=i.spectra, path_allan=i.allan, path_identified=i.identified,
-            path_bound=i.bound, out_psd=o.psd_bound, out_allan=o.allan_components, out_steps=o.inflation_steps,
+            path_bound=i.bound, path_spec=i.spec, out_psd=o.psd_bound, out_allan=o.allan_components, out_steps=o.inflation_steps,
             sensor=w.sensor, spec=w.spec)

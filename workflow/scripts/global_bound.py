@@ -22,7 +22,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, paths_axis: l
 
     from imupipe.bound import bound_psd, check_allan_components, looseness, paper_inflation
     from imupipe.models import NoiseModel
-    from imupipe.specsheet import load_spec
+    from imupipe.specsheet import display_units, load_spec
 
     spec = load_spec(path_spec)
     if sensor not in spec.models:
@@ -46,9 +46,9 @@ def main(path_spectra: str, path_allan: str, path_identified: str, paths_axis: l
                        taper=sp.attrs.get("taper", "hann"))
     logging.info("bound %s: margin %.4g (%s), looseness %.4g", result.model, result.margin, result.margin_curve,
                  result.looseness)
-    out = {"spec": spec.name, "spec_file": path_spec.rsplit("/", 1)[-1], "sensor": sensor, "dt_s": dt,
+    out = {"spec_name": spec.name, "spec_file": path_spec.rsplit("/", 1)[-1], "sensor": sensor, "dt_s": dt,
            "n_curves": len(curves), "curves": list(curves), "states_kept_by_identification": kept,
-           **result.to_dict(spec_units=spec.units[sensor], sensor=sensor)}
+           **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
     with xr.open_dataset(path_allan) as av:
         tau = av.tau.values
     ident_model = NoiseModel.from_dict(identified["model"])
