@@ -19,14 +19,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
+import argparse
+import platform
+import statistics
+import time
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from imupipe import allan  # noqa: E402
+from imupipe import allan
 
 try:
     import allantools
@@ -115,14 +115,14 @@ def main():
     for label, m in grids.items():
         rows = []
         if allantools:
-            av, t = timed(lambda: oadev_allantools(x, rate, m), rep)
+            av, t = timed(lambda m=m: oadev_allantools(x, rate, m), rep)
             rows.append(("allantools.oadev", t, av))
         if have_c:
-            av, t = timed(lambda: allan.overlapping_avar(x, rate, m, backend="c"), rep)
+            av, t = timed(lambda m=m: allan.overlapping_avar(x, rate, m, backend="c"), rep)
             rows.append(("imupipe overlapping_avar, C kernel", t, av))
-        av, t = timed(lambda: allan.overlapping_avar(x, rate, m, backend="numpy"), rep)
+        av, t = timed(lambda m=m: allan.overlapping_avar(x, rate, m, backend="numpy"), rep)
         rows.append(("imupipe overlapping_avar, NumPy", t, av))
-        _, t = timed(lambda: allan.allan_variance(x, rate, taus=m / rate), rep)
+        _, t = timed(lambda m=m: allan.allan_variance(x, rate, taus=m / rate), rep)
         rows.append(("imupipe allan_variance (+EDF, CI)", t, rows[-1][2]))
         table(f"{n} samples at {rate:g} Hz, {label} ({m.size} unique, m = {m[0]}..{m[-1]})", rows)
         if have_c:
@@ -138,14 +138,15 @@ def main():
         m1 = np.arange(1, n1 // 2)  # allantools stops one short of n/2 (a single term)
         rows = []
         if allantools:
-            av, t = timed(lambda: oadev_allantools(x1, 1.0, m1), rep)
+            av, t = timed(lambda x1=x1, m1=m1: oadev_allantools(x1, 1.0, m1), rep)
             rows.append(("allantools.oadev", t, av))
-        av, t = timed(lambda: allan.overlapping_avar(x1, 1.0, m1, method="fft"), rep)
+        av, t = timed(lambda x1=x1, m1=m1: allan.overlapping_avar(x1, 1.0, m1, method="fft"), rep)
         rows.append(("imupipe FFT method (O(N log^2 N))", t, av))
         if have_c:
-            av, t = timed(lambda: allan.overlapping_avar(x1, 1.0, m1, method="direct", backend="c"), rep)
+            av, t = timed(lambda x1=x1, m1=m1: allan.overlapping_avar(x1, 1.0, m1, method="direct", backend="c"),
+                          rep)
             rows.append(("imupipe direct, C kernel (O(N^2))", t, av))
-        _, t = timed(lambda: allan.allan_variance(x1, 1.0, taus=m1 / 1.0), rep)
+        _, t = timed(lambda x1=x1, m1=m1: allan.allan_variance(x1, 1.0, taus=m1 / 1.0), rep)
         rows.append(("imupipe allan_variance (+EDF, CI)", t, rows[1][2]))
         th, _ = allan._integrate(x1)
         _, recomputed, _ = allan._oavar_sums_all(th, int(m1[-1]))

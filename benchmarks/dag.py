@@ -558,3 +558,33 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
                           orch_rows))
     res["markdown"] = "\n".join(lines)
     return res
+
+
+def main(argv=None) -> int:
+    """Command line: ``python benchmarks/dag.py [--repo .] [--out benchmarks/results] [--cores 2] [--repeats 3]``."""
+    import argparse
+    import json
+
+    here = Path(__file__).resolve().parent
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("--repo", type=Path, default=here.parent, help="checkout holding Snakefile (default: this one)")
+    ap.add_argument("--out", type=Path, default=here / "results", help="output folder (default benchmarks/results)")
+    ap.add_argument("--cores", type=int, default=2, help="snakemake --cores (default 2)")
+    ap.add_argument("--repeats", type=int, default=3, help="cold runs and spec reruns (default 3)")
+    ap.add_argument("--configfile", default="config/config.yaml", help="relative to the repo")
+    ap.add_argument("--spec", default=None, help="spec sheet under config/specs/ to touch (default: found)")
+    ap.add_argument("--keep-scratch", action="store_true", help="keep <out>/dag_scratch")
+    args = ap.parse_args(argv)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    args.out.mkdir(parents=True, exist_ok=True)
+    res = run(args.repo, args.out, cores=args.cores, repeats=args.repeats, keep_scratch=args.keep_scratch,
+              configfile=args.configfile, spec_name=args.spec)
+    print(res["markdown"])
+    (args.out / "dag.md").write_text(res["markdown"] + "\n")
+    (args.out / "dag.json").write_text(json.dumps(res, indent=1, default=str))
+    return 1 if "skipped" in res and "not in the tree" not in res["skipped"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

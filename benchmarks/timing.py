@@ -94,9 +94,10 @@ def fmt(x, digits: int = 3) -> str:
 
 def pct(x, digits: int = 2) -> str:
     """Relative value as a percentage (0.0123 -> '1.2 %')."""
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+    if x is None or not math.isfinite(float(x)):
         return "n/a"
-    return f"{100.0 * float(x):.{digits}g} %"
+    v = 100.0 * float(x)
+    return f"{v:.{digits}g} %" if abs(v) < 10 ** digits else f"{v:.0f} %"
 
 
 def md_table(headers, rows) -> str:
