@@ -235,3 +235,23 @@ class TestReport:
         for name in ("psd_bound_gyro.png", "allan_components_accel.png", "inflation_steps_gyro.png",
                      "inflation_effect.png", "inflation.md"):
             assert name in html, f"{name} missing from the report"
+
+
+@pytest.mark.slow
+@pytest.mark.shared_data
+class TestRealData:
+    def test_adis16405_bounded_and_states_kept(self, shared_data, tmp_path):
+        """The shipped real-data config on the two ADIS16405 records (~1 min on 2 cores): a bounded model
+        per sensor type, the components kept and why, the Allan check per component."""
+        config = ROOT / "config" / "adis16405.yaml"
+        snakemake(tmp_path, config=config)
+        for sensor in ("gyro", "accel"):
+            b = yaml.safe_load((tmp_path / f"results/bound/adis16405/{sensor}.yaml").read_text())
+            assert b["bounded"] is True and b["margin"] >= 1 - 1e-9
+            assert b["n_curves"] == 6
+            ident = yaml.safe_load((tmp_path / f"results/identify/{sensor}.yaml").read_text())
+            kept = ident["selection"]["kept"]
+            assert "white" in kept
+            assert set(kept) | set(ident["selection"]["dropped"]) >= {"white", "random_walk"}
+            assert all(name in ident["selection"]["reasons"] for name in kept)
+            assert b["allan_check"]["white"]["passed"] is True
