@@ -255,3 +255,110 @@ class TestRealData:
             assert set(kept) | set(ident["selection"]["dropped"]) >= {"white", "random_walk"}
             assert all(name in ident["selection"]["reasons"] for name in kept)
             assert b["allan_check"]["white"]["passed"] is True
+
+
+def _bad_input_files(folder, rng):
+    """One good CSV and one CSV per bad-input class (2 Hz, 15 min, time column), plus sheet overrides."""
+    cols = ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
+    n, rate = 1800, 2.0
+    x = rng.normal(size=(n, 6)) * 1e-3
+    t = np.arange(n) / rate
+
+    def write(name, data, time):
+        np.savetxt(folder / name, np.column_stack([time, data]), delimiter=",", header=",".join(["time", *cols]),
+                   comments="")
+
+    write("good.csv", x, t)
+    (folder / "empty.csv").write_text("")
+    write("trunc.csv", x, t)
+    lines = (folder / "trunc.csv").read_text().splitlines()
+    lines[500] = ",".join(lines[500].split(",")[:3])
+    (folder / "trunc.csv").write_text("\n".join(lines) + "\n")
+    xi = x.copy()
+    xi[10, 4] = np.inf
+    write("inf.csv", xi, t)
+    tg = t.copy()
+    tg[900:] += 30.0
+    write("gap.csv", x, tg)
+    td = t.copy()
+    td[700] = td[699]
+    write("dup.csv", x, td)
+    tn = t.copy()
+    tn[[600, 601]] = tn[[601, 600]]
+    write("nonmono.csv", x, tn)
+    write("fast.csv", x, t / 2)
+    write("short.csv", x[:100], t[:100])
+    xc = x.copy()
+    xc[:, 1] = 0.25
+    write("const.csv", xc, t)
+    # dataset -> (file, sheet overrides, words the message must contain)
+    cases = {
+        "good": ("good.csv", {}, None),
+        "missing": ("nowhere.csv", {}, ["nowhere.csv", "not found"]),
+        "empty": ("empty.csv", {}, ["empty.csv", "empty"]),
+        "trunc": ("trunc.csv", {}, ["trunc.csv", "line 501", "too few fields"]),
+        "inf": ("inf.csv", {}, ["inf.csv", "accel_y", "non-finite"]),
+        "gap": ("gap.csv", {}, ["gap.csv", "gap", "row 899"]),
+        "dup": ("dup.csv", {}, ["dup.csv", "duplicate timestamp", "row 699"]),
+        "nonmono": ("nonmono.csv", {}, ["nonmono.csv", "not increasing", "row 601"]),
+        "rate": ("fast.csv", {}, ["fast.csv", "rate_hz = 2 Hz", "4 Hz"]),
+        "short": ("short.csv", {}, ["short.csv", "shorter than"]),
+        "const": ("const.csv", {}, ["const.csv", "gyro_y", "constant"]),
+        "unit": ("good.csv", {"gyro_unit": "furlong/s"}, ["gyro_unit", "furlong"]),
+        "column": ("good.csv", {"gyro_y": "gyro_q"}, ["gyro_q", "not found"]),
+    }
+    head = ["dataset", "path", "rate_hz", "time_column", "gyro_unit", "accel_unit", *cols]
+    rows = []
+    for name, (path, over, _) in cases.items():
+        cells = {"dataset": name, "path": str(folder / path), "rate_hz": "2", "time_column": "time",
+                 "gyro_unit": "rad/s", "accel_unit": "m/s^2", **{c: c for c in cols}, **over}
+        rows.append([cells[h] for h in head])
+    (folder / "datasets.tsv").write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
+    return cases
+
+
+class TestEveryBadInputClass:
+    def test_each_class_fails_alone_and_names_its_culprit(self, tmp_path, rng):
+        """One run over a good recording and one recording per bad-input class: exit non-zero, every failing
+        dataset's message names its file/column/row, the good dataset's per-axis results exist, and no
+        failing dataset leaves an output behind."""
+        cases = _bad_input_files(tmp_path, rng)
+        config = tiny_config(tmp_path, datasets=str(tmp_path / "datasets.tsv"), simulation=None,
+                             psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
+                                  "confidence": 0.95})
+        proc = snakemake(tmp_path, "--keep-going", config=config, check=False)
+        assert proc.returncode != 0
+        errors = [line for line in (proc.stdout + proc.stderr).splitlines() if line.startswith("imupipe error:")]
+        for name, (_, _, words) in cases.items():
+            if words is None:
+                continue
+            hits = [e for e in errors if all(w in e for w in words)]
+            assert hits, f"{name}: no error line with {words}; got:\n" + "\n".join(errors)
+            assert not (tmp_path / "results/series" / name).exists()
+            log = (tmp_path / "logs/ingest" / f"{name}.log").read_text()
+            assert all(w in log for w in words)
+        for sensor in ("gyro", "accel"):
+            for axis in "xyz":
+                assert (tmp_path / f"results/allan/good/{sensor}/{axis}.nc").is_file()
+                assert (tmp_path / f"results/stationarity/good/{sensor}/{axis}.yaml").is_file()
+
+    def test_spec_sheet_with_ambiguous_k_unit_stops_before_any_job(self, tmp_path):
+        specs = tmp_path / "specs"
+        specs.mkdir()
+        text = (ROOT / "config/specs/stim300.yaml").read_text()
+        (specs / "stim300.yaml").write_text(text.replace("unit: (deg/h)/sqrt(s)", "unit: deg/h"))
+        config = tiny_config(tmp_path, spec_dir=str(specs))
+        proc = snakemake(tmp_path, "-n", config=config, check=False)
+        out = proc.stdout + proc.stderr
+        assert proc.returncode != 0
+        assert "stim300.yaml" in out and "gyro.random_walk" in out and "sqrt(s)" in out
+
+    @pytest.mark.parametrize("changes, key", [
+        ({"decimate": {"rate_hz": -1.0}}, "rate_hz"),
+        ({"bound": {"mode": "loose", "n_gm": 1, "confidence": 0.95, "bands_per_decade": 10,
+                    "compare_paper": True}}, "loose"),
+    ])
+    def test_config_value_out_of_range(self, tmp_path, changes, key):
+        proc = snakemake(tmp_path, "-n", config=tiny_config(tmp_path, **changes), check=False)
+        assert proc.returncode != 0
+        assert key in proc.stdout + proc.stderr

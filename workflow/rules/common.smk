@@ -82,6 +82,21 @@ wildcard_constraints:
     spec="|".join(SPECS),
 
 
+def _check_specs():
+    """Read every spec sheet once at start-up: a missing sheet or a value without a valid unit stops the run
+    before any job, naming the file and the key (the bound jobs would otherwise fail one by one)."""
+    from imupipe.specsheet import load_spec
+
+    for name in SPECS:
+        sheet = load_spec(repo_path(config.get("spec_dir", "config/specs")) / f"{name}.yaml")
+        missing = [s for s in SENSORS if s not in sheet.models]
+        if missing:
+            raise ValueError(f"spec sheet {sheet.path}: no section for {', '.join(missing)} (config sensors: {SENSORS})")
+
+
+_check_specs()
+
+
 def raw_input(wildcards):
     """The recording of a dataset, declared as input only if it exists (a missing file fails its
     own ingest job with a clear message instead of blocking the whole DAG)."""
