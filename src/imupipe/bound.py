@@ -801,7 +801,8 @@ def bound_psd(
     n_gm : int, optional
         Number of GM terms (0 allowed). Default 1.
     T_grid : array_like, optional
-        Trial time constants, s. Default 10 per decade spanning the frequency grid's corner
+        Trial time constants, s, or an int: that many per decade over the default span. Default 10
+        per decade spanning the frequency grid's corner
         frequencies :math:`1/(2\pi T)`, with half a decade below and one above.
     confidence : float, optional
         Family-wise level of the ``confidence`` mode. Default 0.95.
@@ -845,8 +846,13 @@ def bound_psd(
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests)
-    grid = _default_T_grid(prob) if T_grid is None else np.asarray(T_grid, dtype=np.float64)
-    if np.any(grid <= 0):
+    if T_grid is None:
+        grid = _default_T_grid(prob)
+    elif np.ndim(T_grid) == 0:  # points per decade of the default span
+        grid = _default_T_grid(prob, per_decade=int(T_grid))
+    else:
+        grid = np.asarray(T_grid, dtype=np.float64)
+    if grid.size == 0 or np.any(grid <= 0):
         raise ValueError("T_grid must hold positive time constants (s)")
     extra_T = [T for _, T in spec_model.gauss_markov] if spec_model is not None else []
     n_gm = int(n_gm)

@@ -5,6 +5,7 @@
 rule axis_bound:
     input:
         psd="results/psd/{dataset}/{sensor}/{axis}.nc",
+        identified="results/identify/{sensor}.yaml",
         spec=spec_file,
     output:
         bound="results/bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml",
