@@ -445,6 +445,38 @@ class TestEDF:
         assert lo == pytest.approx(20.0 / scipy.stats.chi2.ppf(0.95, 10), rel=1e-12)
         assert hi == pytest.approx(20.0 / scipy.stats.chi2.ppf(0.05, 10), rel=1e-12)
 
+    @pytest.mark.skipif(allan._kernels is None, reason="imupipe._kernels not built")
+    @pytest.mark.parametrize("n", [5, 8, 9, 2 * 2051 + 1, 16_384 + 7, 70_001])
+    def test_fused_kernel_sums_equal_numpy(self, n):
+        # allan_variance takes the lag-1 sums from the blocked AV pass (oavar_sums with out9): block edges
+        # of means (2048) and of theta (16384), the first 3 means, small and streamed lags. Each sum must
+        # equal the NumPy path's within the rounding bound of the two summations, 2 (n + 8) u sum|terms|.
+        rng = np.random.default_rng(n)
+        y = rng.standard_normal(n) + 0.01 * np.cumsum(rng.standard_normal(n))
+        th = theta_of(y)
+        m = np.array([k for k in (1, 2, 3, 7, 8, 1000, 8192, 8193, 20_000) if 2 * k <= n], dtype=np.int64)
+        out, out9 = np.empty(m.size), np.empty(9 * m.size)
+        allan._kernels.oavar_sums(th, m, out, out9)
+        np.testing.assert_array_equal(out, allan._sums_direct(th, m, "c"))  # the AV sums unchanged
+        ref = allan._lag1_sums(th, m, "numpy")
+        for j, mm in enumerate(m):
+            w = np.diff(th[: (n // mm) * mm + 1 : mm]) / mm
+            for d in range(3):
+                terms = (np.abs(w).sum(), (w * w).sum(), np.abs(w[:-1] * w[1:]).sum())
+                tol = 2 * (w.size + 8) * np.finfo(float).eps * np.array(terms)
+                assert np.all(np.abs(out9[9 * j + 3 * d : 9 * j + 3 * d + 3] - ref[j, d]) <= tol), (mm, d)
+                w = np.diff(w)
+
+    @pytest.mark.parametrize("backend", BACKENDS)
+    def test_allan_variance_noise_ids_by_backend(self, backend):
+        # the fused pass (C) and the separate NumPy passes identify the same noise types
+        rng = np.random.default_rng(5)
+        y = rng.standard_normal(60_000) + 0.02 * np.cumsum(rng.standard_normal(60_000))
+        ref = allan_variance(y, 10.0, taus="octave", backend="numpy")
+        ds = allan_variance(y, 10.0, taus="octave", backend=backend)
+        np.testing.assert_array_equal(ds["alpha"].values, ref["alpha"].values)
+        np.testing.assert_allclose(ds["avar"].values, ref["avar"].values, rtol=1e-12)
+
     @pytest.mark.shared_data
     @pytest.mark.parametrize("folder,name,n", [("phasedat", "phase_dat_oadev_octave.txt", 1000),
                                                 ("ocxo", "oadev_octave.txt", 19_982)])

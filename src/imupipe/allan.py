@@ -146,7 +146,10 @@ def _integrate(a: np.ndarray) -> tuple[np.ndarray, bool]:
     if y[0] == y[-1] and np.all(y == y[0]):
         theta[1:] = 0.0
         return theta, True
-    np.cumsum(y - y.mean(), out=theta[1:])
+    if _kernels is not None and y.flags.c_contiguous:
+        _kernels.integrate(y, float(y.mean()), theta)  # the same sums as below, without the temporary
+    else:
+        np.cumsum(y - y.mean(), out=theta[1:])
     return theta, False
 
 
@@ -751,12 +754,13 @@ def _noise_id_b1(theta: np.ndarray, lags: np.ndarray) -> np.ndarray:
     return alpha
 
 
-def _noise_ids(theta: np.ndarray, lags: np.ndarray, backend: str = "auto", dmax: int = 2):
+def _noise_ids(theta: np.ndarray, lags: np.ndarray, backend: str = "auto", dmax: int = 2, lag1_sums=None):
     """Integer alpha (rate data) per lag from theta (sample units), and the number of m-sample means N.
 
     N >= _NOISE_ID_MIN_POINTS: lag-1 autocorrelation (Riley & Greenhall 2004) from one pass over theta
-    per lag (:func:`_lag1_sums`); fewer: the B1 ratio (as Stable32). Rounded (floor(p + 0.5)), clipped
-    to -dmax..2; 0 (white) where neither can decide (constant means).
+    per lag (:func:`_lag1_sums`, or `lag1_sums` of all `lags` when already computed); fewer: the B1
+    ratio (as Stable32). Rounded (floor(p + 0.5)), clipped to -dmax..2; 0 (white) where neither can
+    decide (constant means).
     """
     lags = np.asarray(lags, dtype=np.int64)
     N = (theta.size - 1) // lags
@@ -764,7 +768,8 @@ def _noise_ids(theta: np.ndarray, lags: np.ndarray, backend: str = "auto", dmax:
     many = N >= _NOISE_ID_MIN_POINTS
     if many.any():
         lm = lags[many]
-        p = _lag1_p_from_sums(theta, lm, _lag1_sums(theta, lm, _pick_backend(backend)), 0, dmax)
+        sums = _lag1_sums(theta, lm, _pick_backend(backend)) if lag1_sums is None else lag1_sums[many]
+        p = _lag1_p_from_sums(theta, lm, sums, 0, dmax)
         a[many] = np.floor(p + 0.5)
     if (~many).any():
         a[~many] = _noise_id_b1(theta, lags[~many])
@@ -1161,6 +1166,7 @@ def allan_variance(
         )
 
     fft_used = False
+    lag1 = None
     if overlapping:
         n_terms = theta.size - 2 * m
         use_fft = method == "fft" or (method == "auto" and _fft_is_faster(theta.size, m, be))
@@ -1168,6 +1174,10 @@ def allan_variance(
             sums_all, _, _ = _oavar_sums_all(theta, int(m.max()), backend=be)
             sums = sums_all[m - 1]
             fft_used = True
+        elif be == "c" and not constant:  # the noise-ID sums in the same pass over theta
+            lag1 = np.empty((m.size, 3, 3))
+            sums = np.empty(m.size)
+            _kernels.oavar_sums(theta, np.ascontiguousarray(m, dtype=np.int64), sums, lag1.reshape(-1))
         else:
             sums = _sums_direct(theta, m, be)
     else:
@@ -1178,7 +1188,7 @@ def allan_variance(
     if constant:
         alpha = np.zeros(m.size, dtype=np.int64)
     else:
-        alpha, _ = _noise_ids(theta, m, be)
+        alpha, _ = _noise_ids(theta, m, be, lag1_sums=lag1)
     edf = edf_greenhall(alpha, 2, m, n + 1, overlapping=overlapping)
     lower, upper = chi2_limits(avar, edf, confidence)
 
