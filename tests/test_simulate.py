@@ -48,3 +48,20 @@ def test_bad_arguments():
         simulate(NoiseModel(white=1.0), 1, 1.0)
     with pytest.raises(ValueError, match="rate"):
         simulate(NoiseModel(white=1.0), 10, 0.0)
+
+
+def test_batch_records_have_the_model_statistics_and_are_independent(rng):
+    # n_records rows: each row a record of the model. Steady-state GM + white: the variance across
+    # rows at a fixed sample (n_records draws: rel. std sqrt(2/n_records)) at the first and last sample
+    # (GM started at steady state), and the lag-1 correlation between rows ~ 0 (std 1/sqrt(n))
+    N, sigma, T, rate, n, rows = 1e-3, 2e-3, 5.0, 10.0, 400, 20_000
+    x = simulate(NoiseModel(white=N, gauss_markov=((sigma, T),)), n, rate, rng, n_records=rows)
+    assert x.shape == (rows, n)
+    total = sigma**2 + N**2 * rate
+    for k in (0, n - 1):
+        assert x[:, k].var() == pytest.approx(total, rel=5 * np.sqrt(2 / rows))
+    phi = np.exp(-1 / (rate * T))
+    r1 = np.mean(x[:, 1:] * x[:, :-1]) / total  # within-row lag-1 correlation
+    assert r1 == pytest.approx(phi * sigma**2 / total, abs=5 / np.sqrt(rows * n) * 2)
+    across = np.corrcoef(x[0], x[1])[0, 1]  # two different records
+    assert abs(across) < 5 * np.sqrt(1 + 2 * phi / (1 - phi)) / np.sqrt(n)

