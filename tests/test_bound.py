@@ -332,3 +332,30 @@ class TestPaperScale:
         assert r.bounded
         s_m = r.model.psd_sampled(f[1:], 1.0)
         assert np.all(s_m >= np.array(curves)[:, 1:] * (1 - 1e-9))
+
+
+def test_dominance_reduction_keeps_the_lp_optimum(rng):
+    # white + GM + random-walk columns on increasing frequency (non-increasing) and a noisy periodogram:
+    # the LP over the undominated rows has the optimum of the LP over all rows, and every dropped row is
+    # implied by a kept one
+    from scipy.optimize import linprog
+
+    from imupipe.bound import _undominated
+    from imupipe.models import NoiseModel
+
+    f = np.linspace(1e-4, 0.5, 5000)
+    B = np.stack([NoiseModel(white=1.0).psd_sampled(f, 1.0), NoiseModel(gauss_markov=((1.0, 300.0),)).psd_sampled(f, 1.0),
+                  NoiseModel(random_walk=1.0).psd_sampled(f, 1.0)], axis=1)
+    t = (B @ np.array([1e-8, 1e-10, 1e-14])) * rng.exponential(size=f.size)
+    keep = _undominated(B, t)
+    assert 0 < keep.size < f.size / 10
+    dropped = np.setdiff1d(np.arange(f.size), keep)
+    for i in dropped[:: max(1, dropped.size // 200)]:
+        assert np.any(np.all(B[keep] <= B[i], axis=1) & (t[keep] >= t[i]))
+    c = B.mean(axis=0) / B.max(axis=0)
+    scale = B.max(axis=0)
+    full = linprog(c, A_ub=-(B / scale) / t[:, None], b_ub=-np.ones(f.size), method="highs")
+    red = linprog(c, A_ub=-(B[keep] / scale) / t[keep, None], b_ub=-np.ones(keep.size), method="highs")
+    assert red.fun == pytest.approx(full.fun, rel=1e-9)
+    # a column that increases somewhere: no reduction
+    assert _undominated(np.c_[B, f], t).size == f.size

@@ -330,20 +330,45 @@ class _LPSolution:
     n_lp: int
 
 
+def _undominated(B, t):
+    """Indices of the rows of 'B x >= t' (x >= 0) that no other row implies, when every column of B is
+    non-increasing along the rows (basis PSDs on increasing frequency: white, GM, random walk).
+
+    Row i is implied by a later row j when B[j] <= B[i] componentwise and t[j] >= t[i]
+    (B[i] x >= B[j] x >= t[j] >= t[i]); with non-increasing columns every later row has B[j] <= B[i],
+    so only rows whose target exceeds every later target remain (the right-to-left records of t, a few
+    hundred of 12 600 periodogram bins). The test is made on the computed floats, so the reduced LP has
+    exactly the feasible set of the full one. Rows with t <= 0 are dropped (always satisfied). Without
+    monotone columns: every row with t > 0.
+    """
+    pos = np.flatnonzero(t > 0)
+    if pos.size == 0 or B.shape[1] == 0 or np.any(np.diff(B[pos], axis=0) > 0):
+        return pos
+    tp = t[pos]
+    later_max = np.empty_like(tp)
+    later_max[-1] = -np.inf
+    later_max[:-1] = np.maximum.accumulate(tp[::-1])[::-1][1:]
+    return pos[tp > later_max]
+
+
 def _constraint_matrix(prob, Bb, Br):
-    """Normalised '>= 1' rows: data rows (envelope of targets) and, off raw mode, spec rows at bins."""
+    """Normalised '>= 1' rows: data rows (envelope of targets) and, off raw mode, spec rows at bins;
+    rows implied by others left out (:func:`_undominated`)."""
     tenv = prob.targets.max(axis=0)
     if prob.starts is None:
         tgt = tenv if prob.spec is None else np.maximum(tenv, prob.spec)
-        ok = tgt > 0
+        ok = _undominated(Br, tgt)
         A = Br[ok] / tgt[ok, None]
     else:
-        ok = tenv > 0
+        ok = _undominated(Br, tenv)
         A = Br[ok] / tenv[ok, None]
         if prob.spec is not None:
-            oks = prob.spec > 0
+            oks = _undominated(Bb, prob.spec)
             A = np.vstack([A, Bb[oks] / prob.spec[oks, None]])
     return A
+
+
+_DIRECT_LP_ROWS = 2000  # at most this many rows: no cutting planes (HiGHS solves them in one go)
 
 
 def _solve_lp(prob, comps, Ts):
@@ -374,6 +399,8 @@ def _solve_lp(prob, comps, Ts):
         if cell.size:
             active.add(int(cell[np.argmin(rs[cell])]))
     n_lp = 0
+    if n_rows <= _DIRECT_LP_ROWS:  # few rows left after the dominance reduction: one LP over all of them
+        active = set(range(n_rows))
     for _ in range(60):
         idx = np.fromiter(sorted(active), dtype=np.int64)
         res = linprog(cs, A_ub=-As[idx], b_ub=-np.ones(idx.size), bounds=(0, None), method="highs")
