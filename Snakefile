@@ -2,13 +2,15 @@
 #
 # results/ layout (README "Output contract"):
 #   series/{dataset}/{sensor}/{axis}.nc        full-rate channel, SI             (ingest)
-#   decimated/{dataset}/{sensor}/{axis}.nc     block average to decimate.rate_hz (decimate)
-#   stationarity/{dataset}/{sensor}/{axis}.yaml, stationarity/{sensor}.yaml      (stationarity, merge)
-#   psd/{dataset}/{sensor}/{axis}.nc, spectra/{sensor}.nc   two-sided Welch PSD  (psd, merge)
-#   allan/{dataset}/{sensor}/{axis}.nc, allan/{sensor}.nc   overlapping AV       (allan, merge)
+#   allan/{dataset}/{sensor}/{axis}.nc         overlapping AV of the full rate   (reduce)
+#   decimated/{dataset}/{sensor}/{axis}.nc     block average to decimate.rate_hz (reduce)
+#   psd/{dataset}/{sensor}/{axis}.nc           two-sided Welch PSD               (reduce)
+#   stationarity/{dataset}/{sensor}/{axis}.yaml, stationarity/{sensor}.yaml      (collect)
+#   spectra/{sensor}.nc, allan/{sensor}.nc     every curve of a sensor type      (collect)
 #   identify/{sensor}.yaml                     fitted components, states kept    (identify)
-#   bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml, bound/{spec}/{sensor}.yaml (bound)
-#   kf/{spec}/{sensor}.yaml, kf/{spec}/kalibr_imu.yaml                           (kf)
+#   bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml, bound/{spec}/{sensor}.yaml,
+#   kf/{spec}/{sensor}.yaml                    per-axis and global bound, KF     (bound)
+#   kf/{spec}/kalibr_imu.yaml                                                    (kalibr)
 #   figures/..., tables/{spec}/inflation.{md,csv}                                (figures, tables)
 # Only bound, kf, figures and tables read config/specs/{spec}.yaml.
 
@@ -25,8 +27,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/ingest.smk"
-include: "workflow/rules/spectra.smk"
-include: "workflow/rules/allan.smk"
+include: "workflow/rules/reduce.smk"
 include: "workflow/rules/stationarity.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/bound.smk"

@@ -1,45 +1,31 @@
-# The bound: per axis, then global over every dataset and axis of a sensor type (the contract file).
-# These are the first rules that read the spec sheet.
+# The bound of one sensor type against one spec sheet, in one job: the tightest model per axis (every
+# dataset and axis), the global bound over every included curve (the contract file), the Allan-domain
+# check per component, the paper's hand inflation for comparison, and the Kalman-filter matrices of the
+# global bound. The only stage that reads the spec sheet with kalibr, figures and table: a new spec sheet
+# re-runs these jobs alone.
 
 
-rule axis_bound:
-    input:
-        psd="results/psd/{dataset}/{sensor}/{axis}.nc",
-        identified="results/identify/{sensor}.yaml",
-        spec=spec_file,
-    output:
-        bound="results/bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml",
-    params:
-        mode=config["bound"]["mode"],
-        n_gm=config["bound"]["n_gm"],
-        confidence=config["bound"]["confidence"],
-        bands_per_decade=config["bound"]["bands_per_decade"],
-    log:
-        "logs/axis_bound/{spec}/{dataset}/{sensor}/{axis}.log",
-    benchmark:
-        "results/benchmarks/axis_bound/{spec}/{dataset}/{sensor}/{axis}.tsv"
-    script:
-        "../scripts/axis_bound.py"
-
-
-rule global_bound:
+rule bound:
     input:
         spectra="results/spectra/{sensor}.nc",
         allan="results/allan/{sensor}.nc",
         identified="results/identify/{sensor}.yaml",
-        axis_bounds=axis_bounds_of,
         spec=spec_file,
     output:
+        axis_bounds=axis_files_out("results/bound/{{spec}}/axes/{dataset}/{{sensor}}/{axis}.yaml"),
         bound="results/bound/{spec}/{sensor}.yaml",
+        kf="results/kf/{spec}/{sensor}.yaml",
     params:
         mode=config["bound"]["mode"],
         n_gm=config["bound"]["n_gm"],
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
+        kf_dt_s=1.0 / float(config["application"]["rate_hz"]),
+        horizon_s=config["application"]["horizon_s"],
     log:
-        "logs/global_bound/{spec}/{sensor}.log",
+        "logs/bound/{spec}/{sensor}.log",
     benchmark:
-        "results/benchmarks/global_bound/{spec}/{sensor}.tsv"
+        "results/benchmarks/bound/{spec}/{sensor}.tsv"
     script:
-        "../scripts/global_bound.py"
+        "../scripts/bound.py"

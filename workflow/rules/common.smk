@@ -124,15 +124,9 @@ def axis_files(pattern):
     return _files
 
 
-def axis_bounds_of(wildcards):
-    """Per-axis bound files of one spec and sensor type."""
-    return expand(
-        "results/bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml",
-        spec=wildcards.spec,
-        dataset=list(DATASETS),
-        sensor=wildcards.sensor,
-        axis=AXES,
-    )
+def axis_files_out(pattern):
+    """Output list: pattern for every dataset and axis (other wildcards kept as {{...}} in `pattern`)."""
+    return expand(pattern, dataset=list(DATASETS), axis=AXES)
 
 
 def simulation_seed(wildcards):

@@ -40,17 +40,3 @@ rule ingest:
     script:
         "../scripts/ingest.py"
 
-
-rule decimate:
-    input:
-        series="results/series/{dataset}/{sensor}/{axis}.nc",
-    output:
-        decimated="results/decimated/{dataset}/{sensor}/{axis}.nc",
-    params:
-        rate_hz=config["decimate"]["rate_hz"],
-    log:
-        "logs/decimate/{dataset}/{sensor}/{axis}.log",
-    benchmark:
-        "results/benchmarks/decimate/{dataset}/{sensor}/{axis}.tsv"
-    script:
-        "../scripts/decimate.py"

@@ -1,18 +1,4 @@
-# Kalman-filter export, figures (paper Figures 5-8) and the inflation table (paper Table 2).
-
-
-rule kf_export:
-    input:
-        bound="results/bound/{spec}/{sensor}.yaml",
-    output:
-        kf="results/kf/{spec}/{sensor}.yaml",
-    params:
-        dt_s=1.0 / float(config["application"]["rate_hz"]),
-        horizon_s=config["application"]["horizon_s"],
-    log:
-        "logs/kf_export/{spec}/{sensor}.log",
-    script:
-        "../scripts/kf_export.py"
+# Kalibr-style imu.yaml, figures (paper Figures 5-8) and the inflation table (paper Table 2).
 
 
 rule kalibr:

@@ -1,34 +1,27 @@
-# Levene + two-sample KS on the decimated record (paper), calibrated on a simulated null from the axis's
-# own Allan-variance fit; then a per-sensor summary that applies stationarity.on_fail.
+# Per sensor type, one job: Levene + two-sample KS on every decimated axis (paper), calibrated on a null
+# simulated from the axis's own Allan-variance fit; stationarity.on_fail applied; then every axis's PSD and
+# Allan variance gathered into one file per sensor type with an `included` flag.
 
 
-rule stationarity:
+rule collect:
     input:
-        decimated="results/decimated/{dataset}/{sensor}/{axis}.nc",
-        allan="results/allan/{dataset}/{sensor}/{axis}.nc",
+        decimated=axis_files("results/decimated/{dataset}/{sensor}/{axis}.nc"),
+        allan=axis_files("results/allan/{dataset}/{sensor}/{axis}.nc"),
+        psd=axis_files("results/psd/{dataset}/{sensor}/{axis}.nc"),
     output:
-        verdict="results/stationarity/{dataset}/{sensor}/{axis}.yaml",
+        verdicts=axis_files_out("results/stationarity/{dataset}/{{sensor}}/{axis}.yaml"),
+        summary="results/stationarity/{sensor}.yaml",
+        spectra="results/spectra/{sensor}.nc",
+        allan="results/allan/{sensor}.nc",
     params:
         n_segments=config["stationarity"]["n_segments"],
         alpha=config["stationarity"]["alpha"],
         test=config["stationarity"]["test"],
         n_sim=config["stationarity"]["n_sim"],
-    log:
-        "logs/stationarity/{dataset}/{sensor}/{axis}.log",
-    benchmark:
-        "results/benchmarks/stationarity/{dataset}/{sensor}/{axis}.tsv"
-    script:
-        "../scripts/stationarity.py"
-
-
-rule merge_stationarity:
-    input:
-        verdicts=axis_files("results/stationarity/{dataset}/{sensor}/{axis}.yaml"),
-    output:
-        summary="results/stationarity/{sensor}.yaml",
-    params:
         on_fail=config["stationarity"]["on_fail"],
     log:
-        "logs/merge_stationarity/{sensor}.log",
+        "logs/collect/{sensor}.log",
+    benchmark:
+        "results/benchmarks/collect/{sensor}.tsv"
     script:
-        "../scripts/merge_stationarity.py"
+        "../scripts/collect.py"

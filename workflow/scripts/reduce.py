@@ -1,0 +1,40 @@
+"""Full-rate stage of one dataset and sensor type (rule reduce): per axis, the overlapping Allan variance
+of the full-rate series, the block average to the decimation rate and its Welch PSD. One axis at a time;
+files written with netCDF4 alone (no xarray import in this job)."""
+
+from imupipe.allan import _allan_variance
+from imupipe.io import read_series, run_job, write_series
+from imupipe.spectra import _psd, decimate
+
+AXES = ("x", "y", "z")
+
+
+def main(series: list, allan_out: list, decimated_out: list, psd_out: list, taus, allan_confidence: float,
+         rate_hz: float, window_s: float, step_s: float, taper: str, detrend: str, psd_confidence: float) -> None:
+    for axis, path_in, path_av, path_dec, path_psd in zip(AXES, series, allan_out, decimated_out, psd_out):
+        x, rate, attrs = read_series(path_in)
+        units = attrs.pop("units")
+        labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
+
+        av = _allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
+        av.attrs.update(labels)
+        av.to_netcdf(path_av)
+
+        y, new_rate = decimate(x, rate, rate_hz)
+        del x  # one axis's samples in memory at a time
+        attrs.pop("rate_hz", None)
+        attrs["decimation"] = f"block average of {rate / new_rate:g} samples at {rate:g} Hz"
+        write_series(path_dec, y, rate_hz=new_rate, units=units, attrs=attrs)
+
+        sp = _psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
+                  detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
+        sp.attrs.update(labels)
+        sp.to_netcdf(path_psd)
+
+
+if __name__ == "__main__":
+    p, o = snakemake.params, snakemake.output
+    run_job(main, snakemake.log[0], series=list(snakemake.input.series), allan_out=list(o.allan),
+            decimated_out=list(o.decimated), psd_out=list(o.psd), taus=p.taus, allan_confidence=p.allan_confidence,
+            rate_hz=p.rate_hz, window_s=p.window_s, step_s=p.step_s, taper=p.taper, detrend=p.detrend,
+            psd_confidence=p.psd_confidence)
