@@ -134,16 +134,21 @@ def _check_rate(rate) -> float:
     return rate
 
 
-def _integrate(a: np.ndarray) -> tuple[np.ndarray, bool]:
+def _integrate(a: np.ndarray, out: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
     """theta (float64, length n+1, sample units) of the mean-removed signal, and whether it is constant.
 
     The mean is computed in float64 (pairwise summation) and subtracted in float64; for a constant
-    signal theta is exactly zero.
+    signal theta is exactly zero. `out` (float64, n+1) receives theta; it may be the buffer whose
+    ``out[1:]`` is `a` itself (integration in place: sample k is read before theta[k+1] is written),
+    which saves a copy of the record (the workflow's full-rate jobs).
     """
     y = np.asarray(a, dtype=np.float64)
-    theta = np.empty(y.size + 1)
+    theta = np.empty(y.size + 1) if out is None else out
+    if theta.shape != (y.size + 1,) or theta.dtype != np.float64:
+        raise ValueError(f"out must be a float64 array of {y.size + 1} elements, got {theta.dtype} {theta.shape}")
     theta[0] = 0.0
     if y[0] == y[-1] and np.all(y == y[0]):
+        theta[0] = 0.0
         theta[1:] = 0.0
         return theta, True
     if _kernels is not None and y.flags.c_contiguous:
@@ -1131,9 +1136,10 @@ def allan_variance(
 
 
 def _allan_variance(x, rate=None, taus="octave", overlapping=True, confidence=0.683, *, units=None,
-                    method="auto", backend="auto"):
+                    method="auto", backend="auto", theta_buffer=None):
     """:func:`allan_variance` as :class:`imupipe.labelled.Labelled` arrays (no xarray import; the
-    workflow writes them with netCDF4 alone)."""
+    workflow writes them with netCDF4 alone). `theta_buffer`: float64 array of n + 1 elements for the
+    integrated signal, possibly with `x` as its ``[1:]`` (then `x` is overwritten: see :func:`_integrate`)."""
     from imupipe.labelled import Labelled
 
     if hasattr(x, "dims") and hasattr(x, "coords"):  # an xarray.DataArray, recognised without importing xarray
@@ -1164,7 +1170,7 @@ def _allan_variance(x, rate=None, taus="octave", overlapping=True, confidence=0.
     n = a.size
     grid = tau_grid(n, rate, taus)
     m = grid.m
-    theta, constant = _integrate(a)
+    theta, constant = _integrate(a, out=theta_buffer)
     if constant:
         warnings.warn(
             f"the signal is constant ({n} samples equal to {a[0]!r}): its Allan variance is exactly 0 "

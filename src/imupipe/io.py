@@ -103,8 +103,13 @@ def write_series(path, x, *, rate_hz: float, units: str, attrs: dict | None = No
                     nc.setncattr(k, val)
 
 
-def read_series(path, name: str = "signal"):
-    """Read a channel written by :func:`write_series`: (float64 array, rate_hz, attrs dict)."""
+def read_series(path, name: str = "signal", pad_front: int = 0):
+    """Read a channel written by :func:`write_series`: (float64 array, rate_hz, attrs dict).
+
+    With ``pad_front = p`` the samples are read, in chunks, into ``buf[p:]`` of a new float64 buffer of
+    n + p elements and the returned array is that view (``x.base`` is the buffer): room for an in-place
+    cumulative sum without a second copy of the record.
+    """
     import netCDF4
     import numpy as np
 
@@ -113,7 +118,15 @@ def read_series(path, name: str = "signal"):
         if name not in nc.variables:
             raise KeyError(f"{path}: no variable {name!r} (has {sorted(nc.variables)})")
         v = nc.variables[name]
-        x = np.asarray(v[:], dtype=np.float64)
+        if pad_front:
+            n = v.shape[0]
+            buf = np.empty(n + pad_front)
+            step = 1 << 20
+            for i in range(0, n, step):
+                buf[pad_front + i : pad_front + min(n, i + step)] = v[i : i + step]
+            x = buf[pad_front:]
+        else:
+            x = np.asarray(v[:], dtype=np.float64)
         attrs = {k: nc.getncattr(k) for k in nc.ncattrs()}
         attrs["units"] = getattr(v, "units", None)
         return x, float(nc.rate_hz), attrs

@@ -12,19 +12,19 @@ AXES = ("x", "y", "z")
 def main(series: list, allan_out: list, decimated_out: list, psd_out: list, taus, allan_confidence: float,
          rate_hz: float, window_s: float, step_s: float, taper: str, detrend: str, psd_confidence: float) -> None:
     for axis, path_in, path_av, path_dec, path_psd in zip(AXES, series, allan_out, decimated_out, psd_out):
-        x, rate, attrs = read_series(path_in)
+        x, rate, attrs = read_series(path_in, pad_front=1)  # x = buffer[1:], integrated in place below
         units = attrs.pop("units")
         labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
 
-        av = _allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
-        av.attrs.update(labels)
-        av.to_netcdf(path_av)
-
-        y, new_rate = decimate(x, rate, rate_hz)
-        del x  # one axis's samples in memory at a time
+        y, new_rate = decimate(x, rate, rate_hz)  # first: the AV overwrites x with its integral
         attrs.pop("rate_hz", None)
         attrs["decimation"] = f"block average of {rate / new_rate:g} samples at {rate:g} Hz"
         write_series(path_dec, y, rate_hz=new_rate, units=units, attrs=attrs)
+
+        av = _allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units, theta_buffer=x.base)
+        del x  # one axis's samples (36 MB at paper scale) in memory at a time, and no copy of them
+        av.attrs.update(labels)
+        av.to_netcdf(path_av)
 
         sp = _psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
                   detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
