@@ -90,12 +90,32 @@ static double block_sum(const double *restrict a, const double *restrict b, cons
 
 /* The nine lag-1 sums over z[k], k in [lo, n) with lo >= 3 (z[lo-3 .. lo-1] exist): with
  * d1[k] = z[k] - z[k-1] and d2[k] = d1[k] - d1[k-1], s += (sum z, sum z^2, sum z[k-1] z[k],
- * sum d1, sum d1^2, sum d1[k-1] d1[k], sum d2, sum d2^2, sum d2[k-1] d2[k]).  Four lanes per sum, so
- * that the loop vectorises without reassociating any one accumulator. */
+ * sum d1, sum d1^2, sum d1[k-1] d1[k], sum d2, sum d2^2, sum d2[k-1] d2[k]), one mean at a time: the
+ * remainder of lag1_block, and lag1_block itself where the compiler has no vector extensions. */
+static void lag1_scalar(const double *z, Py_ssize_t lo, Py_ssize_t n, double *s)
+{
+    for (Py_ssize_t k = lo; k < n; k++) {
+        const double z0 = z[k], z1 = z[k - 1], z2 = z[k - 2], z3 = z[k - 3];
+        const double a0 = z0 - z1, a1 = z1 - z2, a2 = z2 - z3;
+        const double b0 = a0 - a1, b1 = a1 - a2;
+        s[0] += z0;
+        s[1] += z0 * z0;
+        s[2] += z1 * z0;
+        s[3] += a0;
+        s[4] += a0 * a0;
+        s[5] += a1 * a0;
+        s[6] += b0;
+        s[7] += b0 * b0;
+        s[8] += b1 * b0;
+    }
+}
+
 #if defined(__GNUC__) || defined(__clang__)
 typedef double v4d __attribute__((vector_size(32))); /* four lanes; SSE2 pairs or one AVX register */
 #define LOAD4(v, p) memcpy(&(v), (p), sizeof(v4d)) /* unaligned load */
 
+/* lag1_scalar's sums with four lanes per sum, so that the loop vectorises without reassociating any one
+ * accumulator. */
 IMUPIPE_CLONES
 static void lag1_block(const double *restrict z, Py_ssize_t lo, Py_ssize_t n, double *s)
 {
@@ -122,41 +142,12 @@ static void lag1_block(const double *restrict z, Py_ssize_t lo, Py_ssize_t n, do
         acc[8] += b1 * b0;
     }
     double tail[9] = {0.0};
-    for (; k < n; k++) {
-        const double z0 = z[k], z1 = z[k - 1], z2 = z[k - 2], z3 = z[k - 3];
-        const double a0 = z0 - z1, a1 = z1 - z2, a2 = z2 - z3;
-        const double b0 = a0 - a1, b1 = a1 - a2;
-        tail[0] += z0;
-        tail[1] += z0 * z0;
-        tail[2] += z1 * z0;
-        tail[3] += a0;
-        tail[4] += a0 * a0;
-        tail[5] += a1 * a0;
-        tail[6] += b0;
-        tail[7] += b0 * b0;
-        tail[8] += b1 * b0;
-    }
+    lag1_scalar(z, k, n, tail);
     for (int q = 0; q < 9; q++)
         s[q] += ((acc[q][0] + acc[q][2]) + (acc[q][1] + acc[q][3])) + tail[q];
 }
 #else
-static void lag1_block(const double *z, Py_ssize_t lo, Py_ssize_t n, double *s)
-{
-    for (Py_ssize_t k = lo; k < n; k++) {
-        const double z0 = z[k], z1 = z[k - 1], z2 = z[k - 2], z3 = z[k - 3];
-        const double a0 = z0 - z1, a1 = z1 - z2, a2 = z2 - z3;
-        const double b0 = a0 - a1, b1 = a1 - a2;
-        s[0] += z0;
-        s[1] += z0 * z0;
-        s[2] += z1 * z0;
-        s[3] += a0;
-        s[4] += a0 * a0;
-        s[5] += a1 * a0;
-        s[6] += b0;
-        s[7] += b0 * b0;
-        s[8] += b1 * b0;
-    }
-}
+#define lag1_block lag1_scalar
 #endif
 
 /* Zero the nine lag-1 sums s of lag m and add the terms of the first min(N, 3) means, for which not

@@ -98,20 +98,11 @@ def _curves_to_array(curves, n_freq):
         labels = [str(k) for k in curves]
         arr = np.stack([np.asarray(v, dtype=np.float64) for v in curves.values()])
     elif hasattr(curves, "dims") and hasattr(curves, "stack"):  # xarray.DataArray
-        da = curves
-        other = [d for d in da.dims if d != "frequency"]
-        if "frequency" not in da.dims:
+        from imupipe.labelled import stack_curves
+
+        if "frequency" not in curves.dims:
             raise ValueError("an xarray curves argument needs a 'frequency' dimension")
-        if other:
-            st = da.stack(curve=other).transpose("curve", "frequency")
-            arr = np.asarray(st.values, dtype=np.float64)
-            labels = []
-            for idx in st.indexes["curve"]:
-                idx = idx if isinstance(idx, tuple) else (idx,)
-                labels.append(", ".join(f"{d}={v}" for d, v in zip(other, idx)))
-        else:
-            arr = np.asarray(da.values, dtype=np.float64)[None, :]
-            labels = ["curve 0"]
+        arr, labels = stack_curves(curves, "frequency")
     else:
         arr = np.asarray(curves, dtype=np.float64)
         if arr.ndim == 1:
@@ -541,6 +532,16 @@ def _evaluate(prob, model):
     return out
 
 
+def _result(prob, model, spec_model, t0: float, **rest) -> BoundResult:
+    """The :class:`BoundResult` of `model` on `prob`: margins and looseness from :func:`_evaluate`,
+    ``bounded`` when both the target and the spec margins reach 1 - _EPS_BOUND, the inflation against
+    `spec_model`, the time since `t0`; `rest` gives the other fields."""
+    ev = _evaluate(prob, model)
+    bounded = ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
+    return BoundResult(model=model, spec=spec_model, inflation=_inflation(model, spec_model), bounded=bool(bounded),
+                       **ev, solve_time_s=time.perf_counter() - t0, **rest)
+
+
 def _spec_components(spec):
     if spec is None:
         return list(BOUND_COMPONENTS)
@@ -930,33 +931,11 @@ def bound_psd(
                     decisions[cand] = (f"not in the spec and not needed by the data "
                                        f"(looseness gain {gain:.3g} <= {add_threshold:g})")
         model = _x_to_model(sol, dt)
-    ev = _evaluate(prob, model)
-    bounded = ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
                    dt=dt, n_gm=n_gm)
-    return BoundResult(
-        model=model,
-        spec=spec_model,
-        inflation=_inflation(model, spec_model),
-        bounded=bool(bounded),
-        margin=ev["margin"],
-        margin_curve=ev["margin_curve"],
-        margin_frequency=ev["margin_frequency"],
-        raw_margin=ev["raw_margin"],
-        raw_margin_curve=ev["raw_margin_curve"],
-        raw_margin_frequency=ev["raw_margin_frequency"],
-        spec_margin=ev["spec_margin"],
-        spec_margin_frequency=ev["spec_margin_frequency"],
-        looseness=ev["looseness"],
-        mode=mode,
-        components=list(comps),
-        decisions=decisions,
-        T_profile=prof,
-        n_lp=n_lp,
-        solve_time_s=time.perf_counter() - t0,
-        details=details,
-    )
+    return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
+                   T_profile=prof, n_lp=n_lp, details=details)
 
 
 def margin(model, frequency, curves, dt: float | None = None):
@@ -1097,34 +1076,19 @@ def paper_inflation(
             state, cur = moved(state, best_p), best_m
             n += 1
             history.append((best_p, state["N"], state["sigma"], state["T"], state["K"], cur))
-    model = model_of(state)
-    ev = _evaluate(prob, model)
-    bounded = ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
-    if not bounded:
-        warnings.warn(f"paper_inflation stopped after {n} steps without a bound (margin {cur:.3g})",
-                      RuntimeWarning, stacklevel=2)
-    return BoundResult(
-        model=model,
-        spec=spec_model,
-        inflation=_inflation(model, spec_model),
-        bounded=bool(bounded),
-        margin=ev["margin"],
-        margin_curve=ev["margin_curve"],
-        margin_frequency=ev["margin_frequency"],
-        raw_margin=ev["raw_margin"],
-        raw_margin_curve=ev["raw_margin_curve"],
-        raw_margin_frequency=ev["raw_margin_frequency"],
-        spec_margin=ev["spec_margin"],
-        spec_margin_frequency=ev["spec_margin_frequency"],
-        looseness=ev["looseness"],
+    result = _result(
+        prob, model_of(state), spec_model, t0,
         mode="paper",
         components=_spec_components(spec_model),
         decisions={"procedure": f"multiplicative steps of {step:g} in the order {list(order)}"},
         n_lp=0,
-        solve_time_s=time.perf_counter() - t0,
         details={"history": [list(h) for h in history], "n_steps": n, "step": step, "order": list(order),
                  "history_columns": ["parameter", "N", "sigma", "T", "K", "margin"]},
     )
+    if not result.bounded:
+        warnings.warn(f"paper_inflation stopped after {n} steps without a bound (margin {cur:.3g})",
+                      RuntimeWarning, stacklevel=2)
+    return result
 
 
 def gm_bounds_gm(sigma_m: float, T_m: float, sigma: float, T: float, rtol: float = 0.0) -> bool:

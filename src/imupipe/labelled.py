@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Labelled"]
+__all__ = ["Labelled", "stack_curves"]
 
 
 class Labelled(NamedTuple):
@@ -61,3 +61,18 @@ class Labelled(NamedTuple):
                         var.coordinates = aux
                     var[:] = a
                 nc.setncatts({k: v for k, v in self.attrs.items() if v is not None})
+
+
+def stack_curves(da, dim: str):
+    """(C, n) float64 array and labels of an xarray.DataArray with dimension `dim` (``frequency`` or
+    ``tau``): every other dimension (e.g. ``dataset``, ``axis``) stacked into curves labelled
+    ``"dataset=..., axis=..."``; a DataArray on `dim` alone is one curve, ``"curve 0"``."""
+    other = [d for d in da.dims if d != dim]
+    if not other:
+        return np.asarray(da.values, dtype=np.float64)[None, :], ["curve 0"]
+    st = da.stack(curve=other).transpose("curve", dim)
+    labels = []
+    for idx in st.indexes["curve"]:
+        idx = idx if isinstance(idx, tuple) else (idx,)
+        labels.append(", ".join(f"{d}={v}" for d, v in zip(other, idx)))
+    return np.asarray(st.values, dtype=np.float64), labels

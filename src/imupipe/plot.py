@@ -98,19 +98,11 @@ def _as_curves(curves, n, dim):
     if curves is None:
         return None, []
     if hasattr(curves, "dims") and hasattr(curves, "stack"):  # xarray.DataArray
+        from imupipe.labelled import stack_curves
+
         if dim not in curves.dims:
             raise ValueError(f"an xarray argument needs a {dim!r} dimension, got dims {curves.dims}")
-        other = [d for d in curves.dims if d != dim]
-        if other:
-            st = curves.stack(curve=other).transpose("curve", dim)
-            arr = np.asarray(st.values, dtype=np.float64)
-            labels = []
-            for idx in st.indexes["curve"]:
-                idx = idx if isinstance(idx, tuple) else (idx,)
-                labels.append(", ".join(f"{d}={v}" for d, v in zip(other, idx)))
-        else:
-            arr = np.asarray(curves.values, dtype=np.float64)[None, :]
-            labels = ["curve 0"]
+        arr, labels = stack_curves(curves, dim)
     else:
         arr = np.asarray(curves, dtype=np.float64)
         if arr.ndim == 1:
@@ -132,6 +124,15 @@ def _grid(x, curves, dim):
     if x.ndim != 1:
         raise ValueError(f"{dim} must be one-dimensional, got shape {x.shape}")
     return x
+
+
+def _positive_frequency_curves(frequency, curves):
+    """Frequency grid (Hz) and PSD curves (C, F) without the DC bin (a PSD plot is log-log), and the
+    curve labels of :func:`_as_curves`."""
+    f_all = _grid(frequency, curves, "frequency")
+    arr, labels = _as_curves(curves, f_all.size, "frequency")
+    keep = f_all > 0
+    return f_all[keep], arr[:, keep], labels
 
 
 def _unwrap_bound(bound_model):
@@ -245,11 +246,7 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
         One log-log axes. Lines carry gids ``sample:i``, ``spec``, ``bound``, ``bound:<component>``.
     """
     sensor = _check_sensor(sensor)
-    f_all = _grid(frequency, curves, "frequency")
-    arr, auto = _as_curves(curves, f_all.size, "frequency")
-    keep = f_all > 0
-    f = f_all[keep]
-    arr = arr[:, keep]
+    f, arr, auto = _positive_frequency_curves(frequency, curves)
     scale, unit = _psd_scale(display_unit, sensor)
     bound, mode = _unwrap_bound(bound_model)
 
@@ -555,11 +552,7 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=N
     from imupipe.models import NoiseModel
 
     sensor = _check_sensor(sensor)
-    f_all = _grid(frequency, curves, "frequency")
-    arr, _ = _as_curves(curves, f_all.size, "frequency")
-    keep = f_all > 0
-    f = f_all[keep]
-    arr = arr[:, keep]
+    f, arr, _ = _positive_frequency_curves(frequency, curves)
     rows = _history_rows(history)
     extra_gm = tuple(sorted(spec_model.gauss_markov, key=lambda st: st[1])[1:])
 
