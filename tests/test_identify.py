@@ -48,15 +48,53 @@ class TestFitAllan:
         assert sel["reduced_model"] is True
         assert "white" in sel["kept"]
 
-    def test_white_interval_covers_truth(self):
-        truth = TRUTHS["white+gm+rw"]
-        tau, avar, edf = curves(truth, 10.0, 3, seed=13)
-        fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov", "random_walk"), n_boot=100, rng=1)
-        lo, hi = fit.intervals["white"]
-        # the chi2 bootstrap ignores the correlation of overlapping AV points (docstring: ~60 % coverage at 95 %),
-        # so the check widens the interval by the per-curve spread derived in the module docstring
-        spread = 0.003 * truth.white
-        assert lo - spread <= truth.white <= hi + spread
+    def test_bootstrap_spread_matches_record_to_record_spread(self):
+        # The intervals are only right if the bootstrap spread of N equals the spread of N over independent
+        # records. R records give the latter with relative standard error 1/sqrt(2 (R - 1)), B replicates the former
+        # with 1/sqrt(2 (B - 1)); 3.5 combined standard errors (two-sided 5e-4). The chi2 bootstrap (independent AV
+        # points) gives a ratio of 0.69 here, 5.7 standard errors off.
+        truth, hours, R, B = TRUTHS["white+gm"], 1.0, 200, 300
+        comps = ("white", "gauss_markov", "random_walk")
+        n = int(hours * 3600 * RATE)
+        rng = np.random.default_rng(31)
+        fits = []
+        for _ in range(R):
+            av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
+            fits.append(fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=0).params["white"])
+        boot = fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=B, rng=rng,
+                         rate=RATE, n_samples=n)
+        ratio = np.std(boot.bootstrap[:, boot.param_names.index("white")], ddof=1) / np.std(fits, ddof=1)
+        se = np.hypot(1 / np.sqrt(2 * (R - 1)), 1 / np.sqrt(2 * (B - 1)))
+        assert abs(np.log(ratio)) < 3.5 * se
+
+    @pytest.mark.slow
+    @pytest.mark.parametrize("hours", [10.0, 50.0])
+    @pytest.mark.parametrize("name", list(TRUTHS))
+    def test_intervals_cover_truth_at_the_stated_rate(self, name, hours):
+        # R independent records, a 90 % interval each: the number covering the truth is Binomial(R, 0.9) if the
+        # intervals are right; the test fails below its 0.1 % quantile. A random walk absent from the truth (K = 0)
+        # is covered when the interval reaches 0. Known gap, not asserted: where K > 0 and GM and random walk are
+        # confounded, K's percentile interval under-covers on the upper side (about 79 % over 320 records at 10 h
+        # and 50 h; the parametric bootstrap from a fit with K near 0 cannot reach the truth).
+        from scipy.stats import binom
+
+        truth, R, level = TRUTHS[name], 60, 0.9
+        comps = ("white", "gauss_markov", "random_walk")
+        n = int(hours * 3600 * RATE)
+        rng = np.random.default_rng(41 + int(hours))
+        true = {"white": truth.white, "gm_sigma_1": truth.gauss_markov[0][0], "gm_T_1": truth.gauss_markov[0][1]}
+        if truth.random_walk == 0:
+            true["random_walk"] = 0.0
+        hits = dict.fromkeys(true, 0)
+        for _ in range(R):
+            av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
+            fit = fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=100, rng=rng,
+                            confidence=level, rate=RATE, n_samples=n)
+            for k, v in true.items():
+                lo, hi = fit.intervals[k]
+                hits[k] += bool(lo <= v <= hi)
+        k_min = binom.ppf(0.001, R, level)
+        assert all(h >= k_min for h in hits.values()), (hits, k_min)
 
     @pytest.mark.slow
     def test_white_within_one_percent_50h(self):

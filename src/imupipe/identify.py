@@ -178,12 +178,13 @@ def av_basis(tau, components=COMPONENTS, T=()):
 # ---------------------------------------------------------------------------------------------
 # weighted NNLS with re-weighting
 # ---------------------------------------------------------------------------------------------
-def _wnnls(A, y, edf, n_iter=30, rtol=1e-9):
+def _wnnls(A, y, edf, n_iter=30, rtol=1e-9, m0=None):
     r"""Non-negative quasi-likelihood fit of AVs with variance :math:`2 m^2/\nu`.
 
     Iteratively re-weighted NNLS: weights :math:`w_k = \sqrt{\nu_k/2}/m_k` evaluated on the
-    current model :math:`m = A p` (first pass on the data). Returns ``(p, m, chi2)`` with the
-    Pearson statistic :math:`\chi^2 = \sum \tfrac{\nu_k}{2} ((y_k - m_k)/m_k)^2`.
+    current model :math:`m = A p` (first pass on the data, or on `m0`, e.g. the solution at a
+    neighbouring GM time constant). Returns ``(p, m, chi2)`` with the Pearson statistic
+    :math:`\chi^2 = \sum \tfrac{\nu_k}{2} ((y_k - m_k)/m_k)^2`.
     """
     from scipy.optimize import nnls
 
@@ -192,7 +193,7 @@ def _wnnls(A, y, edf, n_iter=30, rtol=1e-9):
         m = np.zeros_like(y)
         return np.zeros(0), m, float("inf")
     s = np.sqrt(edf / 2.0)
-    m = y.copy()
+    m = y.copy() if m0 is None else np.maximum(m0, 1e-6 * y)
     p = np.zeros(k)
     for _ in range(n_iter):
         w = s / m
@@ -237,9 +238,9 @@ class _Solution:
     m: np.ndarray
 
 
-def _solve_fixed(t, y, e, comps, T):
+def _solve_fixed(t, y, e, comps, T, m0=None):
     A, names = av_basis(t, comps, T)
-    p, m, chi2 = _wnnls(A, y, e)
+    p, m, chi2 = _wnnls(A, y, e, m0=m0)
     return _Solution(p, names, tuple(float(x) for x in T), chi2, m)
 
 
@@ -252,20 +253,25 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True):
         return sol, (np.zeros(0), np.zeros(0))
     grid = np.sort(np.asarray(T_grid, dtype=np.float64))
     if n_gm == 1:
-        chis = np.array([_solve_fixed(t, y, e, comps, (T,)).chi2 for T in grid])
+        # each grid point starts from its neighbour's model (same optimum, fewer re-weightings)
+        sols, m0 = [], None
+        for T in grid:
+            sols.append(_solve_fixed(t, y, e, comps, (T,), m0=m0))
+            m0 = sols[-1].m
+        chis = np.array([sol.chi2 for sol in sols])
         i = int(np.argmin(chis))
-        best = _solve_fixed(t, y, e, comps, (grid[i],))
+        best = sols[i]
         if refine and grid.size >= 2:
             lo = math.log(grid[max(i - 1, 0)])
             hi = math.log(grid[min(i + 1, grid.size - 1)])
             if hi > lo:
                 res = minimize_scalar(
-                    lambda lt: _solve_fixed(t, y, e, comps, (math.exp(lt),)).chi2,
+                    lambda lt: _solve_fixed(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
                     bounds=(lo, hi),
                     method="bounded",
                     options={"xatol": 1e-3},
                 )
-                cand = _solve_fixed(t, y, e, comps, (math.exp(res.x),))
+                cand = _solve_fixed(t, y, e, comps, (math.exp(res.x),), m0=best.m)
                 if cand.chi2 < best.chi2:
                     best = cand
         return best, (grid, chis)
@@ -419,7 +425,7 @@ def fit_allan(
     confidence: float = 0.95,
     rng=None,
     dt: float | None = None,
-    bootstrap: str = "chi2",
+    bootstrap: str = "correlated",
     rate: float | None = None,
     n_samples=None,
 ) -> AllanFit:
@@ -442,13 +448,18 @@ def fit_allan(
     bounded scalar search (Nelder-Mead in :math:`\log T` for several GM terms).
 
     Uncertainty: parametric bootstrap, refitting each replicate (T profile included); intervals are
-    percentiles at `confidence`. ``bootstrap="chi2"`` draws :math:`y^*_k = m_k \chi^2_{\nu_k}/\nu_k`
-    independently per point: fast, but overlapping AV estimates at neighbouring taus share data,
-    so ignoring their correlation gives intervals that are too narrow (about 60 % coverage for N at
-    a nominal 95 % on simulated records). ``bootstrap="series"`` simulates whole records from the
-    fitted model (:func:`imupipe.simulate.simulate`, record lengths `n_samples` at `rate`) and
-    recomputes the overlapping AV at the same taus (:func:`imupipe.allan.overlapping_avar`): it
-    keeps the correlation and is the one to report.
+    percentiles at `confidence`. Overlapping AV estimates at neighbouring taus share data and are
+    strongly correlated; the replicate generator must keep that:
+
+    * ``"correlated"`` (default): the exact covariance of the overlapping estimates under the
+      fitted model (:func:`imupipe.avcov.avar_covariance`, records of `n_samples` at `rate`), drawn
+      with chi-squared marginals through a Gaussian copula
+      (:func:`imupipe.avcov.correlated_replicates`). Milliseconds per replicate.
+    * ``"series"``: whole records simulated from the fitted model and their AV recomputed (the
+      same distribution up to the copula approximation; one record per replicate and curve).
+    * ``"chi2"``: :math:`y^*_k = m_k \chi^2_{\nu_k}/\nu_k` independently per point. It ignores the
+      correlation, and its intervals are too narrow (about 60 % coverage for N at a nominal 95 %);
+      kept for comparison only.
 
     With one 10 h record GM and rate random walk are confounded (method.md section 4): K is often
     fitted as 0 and the GM parameters have 50-200 % spread, while white noise is recovered to < 1 %.
@@ -479,12 +490,12 @@ def fit_allan(
         Random generator (or seed) for the bootstrap. Default ``numpy.random.default_rng()``.
     dt : float, optional
         Sample interval, s, stored in the returned model (needed by quantization's PSD).
-    bootstrap : {"chi2", "series"}, optional
-        Replicate generator (see above). Default ``"chi2"``.
+    bootstrap : {"correlated", "series", "chi2"}, optional
+        Replicate generator (see above). Default ``"correlated"``.
     rate : float, optional
-        Sampling rate of the records the AVs come from, Hz (``series`` bootstrap).
+        Sampling rate of the records the AVs come from, Hz (``correlated`` and ``series``).
     n_samples : int or sequence of int, optional
-        Record length(s) in samples, one per pooled curve (``series`` bootstrap).
+        Record length(s) in samples, one per pooled curve (``correlated`` and ``series``).
 
     Returns
     -------
@@ -498,11 +509,11 @@ def fit_allan(
     """
     t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
     comps = _check_components(components, n_gm)
-    if bootstrap not in ("chi2", "series"):
-        raise ValueError(f"bootstrap must be 'chi2' or 'series', got {bootstrap!r}")
-    if bootstrap == "series" and n_boot > 0:
+    if bootstrap not in ("correlated", "chi2", "series"):
+        raise ValueError(f"bootstrap must be 'correlated', 'chi2' or 'series', got {bootstrap!r}")
+    if bootstrap in ("correlated", "series") and n_boot > 0:
         if rate is None or n_samples is None:
-            raise ValueError("the series bootstrap needs rate (Hz) and n_samples (per curve)")
+            raise ValueError(f"the {bootstrap} bootstrap needs rate (Hz) and n_samples (per curve)")
         n_curves = int(cid.max()) + 1
         lengths = np.broadcast_to(np.asarray(n_samples, dtype=np.int64), (n_curves,))
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
@@ -523,14 +534,18 @@ def fit_allan(
     if n_boot > 0:
         # bootstrap grid: a little coarser than the fit's, same span
         bgrid = grid if grid.size <= 30 else np.logspace(math.log10(grid[0]), math.log10(grid[-1]), 30)
+        if bootstrap in ("correlated", "series"):
+            ms = np.rint(t * float(rate)).astype(np.int64)
+            sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rate))
         if bootstrap == "series":
             from imupipe.allan import overlapping_avar
             from imupipe.simulate import simulate
-
-            ms = np.rint(t * float(rate)).astype(np.int64)
-            sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rate))
+        elif bootstrap == "correlated":
+            ystar_all = _correlated_draws(sim_model, best.m, ms, cid, lengths, float(rate), int(n_boot), rng)
         for b in range(int(n_boot)):
-            if bootstrap == "series":
+            if bootstrap == "correlated":
+                ystar = ystar_all[b]
+            elif bootstrap == "series":
                 ystar = np.empty_like(y)
                 for ci in range(n_curves):
                     sel = np.flatnonzero(cid == ci)
@@ -592,6 +607,26 @@ def fit_allan(
         notes=notes,
         T_grid=grid,
     )
+
+
+def _correlated_draws(model, mean, ms, cid, lengths, rate, n_boot, rng):
+    """Bootstrap AV replicates of every pooled curve: chi2 marginals, the model's correlation.
+
+    Curves are independent records; within a curve the covariance is
+    :func:`imupipe.avcov.avar_covariance` of the fitted model (computed once per distinct grid and
+    record length).
+    """
+    from imupipe.avcov import avar_covariance, correlated_replicates
+
+    out = np.empty((n_boot, mean.size))
+    cache = {}
+    for ci in np.unique(cid):
+        sel = np.flatnonzero(cid == ci)
+        key = (tuple(ms[sel]), int(lengths[ci]))
+        if key not in cache:
+            cache[key] = avar_covariance(model, ms[sel], int(lengths[ci]), rate)
+        out[:, sel] = correlated_replicates(mean[sel], cache[key], n_boot, rng)
+    return out
 
 
 def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:

@@ -9,7 +9,7 @@ from imupipe.io import run_job, write_yaml_atomic
 
 
 def curves_of(av):
-    """(label, tau, avar, edf) of every included curve, NaN entries removed."""
+    """(label, tau, avar, edf, n_samples) of every included curve, NaN entries removed."""
     out = []
     for d in av.dataset.values:
         for a in av.axis.values:
@@ -17,7 +17,7 @@ def curves_of(av):
                 continue
             c = av.sel(dataset=d, axis=a)
             ok = np.isfinite(c.avar.values) & np.isfinite(c.edf.values)
-            out.append((f"{d}/{a}", av.tau.values[ok], c.avar.values[ok], c.edf.values[ok]))
+            out.append((f"{d}/{a}", av.tau.values[ok], c.avar.values[ok], c.edf.values[ok], int(c.n_samples)))
     return out
 
 
@@ -33,8 +33,9 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     taus = [c[1] for c in curves]
     avars = [c[2] for c in curves]
     edfs = [c[3] for c in curves]
+    rate = float(av.attrs["rate_hz"])
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, n_boot=n_boot, confidence=confidence,
-                    rng=20211, dt=1.0 / float(av.attrs["rate_hz"]))
+                    rng=20211, dt=1.0 / rate, rate=rate, n_samples=[c[4] for c in curves])
     selection = select_components(fit, taus, avars, edfs, rate_hz=rate_hz, horizon_s=horizon_s,
                                   significance=significance, relevance=relevance)
     logging.info("kept %s; dropped %s", selection["kept"], selection["dropped"])
@@ -47,7 +48,7 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
         "slope_line": {},
     }
     out["selection"]["band_hz"] = [float(v) for v in out["selection"]["band_hz"]] if out["selection"]["band_hz"] else None
-    for label, t, y, _ in curves:
+    for label, t, y, _, _ in curves:
         sl = slope_line(t, np.sqrt(y))
         out["slope_line"][label] = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in sl.items()}
     if truth:
