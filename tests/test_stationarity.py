@@ -173,6 +173,25 @@ class TestCalibrated:
         yaml = pytest.importorskip("yaml")
         assert yaml.safe_load(yaml.safe_dump(res)) == res
 
+    def test_early_stop_keeps_the_full_verdict(self, rng):
+        # Same null draws (a callable null draws record by record from the same generator): the verdict with
+        # stop_early must equal the full n_sim test's on every record -- it is a certainty, not a statistical
+        # statement -- and stationary records stop early. A variance step makes some records non-stationary.
+        gen = white_plus_gm(1.0, 1.0, 30.0)
+        runs = []
+        for i in range(40):
+            x = gen(2000, rng)
+            if i % 4 == 0:
+                x[1000:] *= 1.3
+            full = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=False)
+            fast = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=True)
+            assert fast["stationary"] == full["stationary"]
+            assert full["n_sim_run"] == 39 and not full["stopped_early"]
+            runs.append(fast["n_sim_run"])
+            if fast["stopped_early"]:
+                assert fast["stationary"]
+        assert np.median(runs) < 39
+
     def test_reproducible_with_seed(self, rng):
         gen = white_plus_gm(1.0, 1.0, 30.0)
         x = gen(1000, rng)

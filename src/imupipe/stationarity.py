@@ -48,7 +48,9 @@ References
 .. [5] H. R. Kuensch, "The jackknife and the bootstrap for general stationary observations",
        Ann. Statist. 17(3), 1217-1241, 1989; D. N. Politis and J. P. Romano, "A circular
        block-resampling procedure for stationary data", 1992 (block bootstrap).
-.. [6] D. Gallon, M. Joerger, B. Pervan, ION GNSS+ 2021, section "Stationarity".
+.. [6] E. Gallon, M. Joerger, B. Pervan, ION GNSS+ 2021, section "Stationarity".
+.. [7] J. Besag, P. Clifford, "Sequential Monte Carlo p-values", Biometrika 78(2), 301-304, 1991
+       (stopping the simulation once the decision is known; used by ``stop_early``).
 """
 
 from __future__ import annotations
@@ -254,16 +256,32 @@ def stationarity_tests(x, n_segments: int = 2, alpha: float = 0.05) -> dict:
 # ---------------------------------------------------------------------------------------------
 # Monte Carlo calibration (model or block bootstrap)
 # ---------------------------------------------------------------------------------------------
-def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null: str) -> dict:
-    """Observed (W, D_max) against n_sim null records drawn in batches by draw(count) -> (count, L)."""
+def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null: str, stop_early: bool = False) -> dict:
+    """Observed (W, D_max) against n_sim null records drawn in batches by draw(count) -> (count, L).
+
+    stop_early: stop once the verdict of the full n_sim test is certain. A null record with both
+    statistics >= the observed ones has a min-p <= the observed min-p whatever the other records
+    (p-values are ranks), so once d such records give (1 + d)/(1 + n_sim) > alpha the full test
+    cannot reject (Besag & Clifford 1991 use the same idea for sequential Monte Carlo p-values).
+    """
     obs_segs = _segments(a, k, m)
     w_obs = float(levene_statistic(obs_segs))
     d_obs = ks_statistics(obs_segs)
     batch = max(1, _BATCH_SAMPLES // a.size)
+    # first batch: enough records for the stopping rule to fire on a typical stationary record
+    first = min(batch, 4 * max(1, math.ceil(alpha * (n_sim + 1)))) if stop_early else batch
     w_sim, d_sim = [], []
     done = 0
+    stopped = False
     while done < n_sim:
-        count = min(batch, n_sim - done)
+        if stop_early and done:
+            dominating = int(np.count_nonzero((np.concatenate(w_sim) >= w_obs)
+                                              & (np.concatenate(d_sim) >= d_obs.max())))
+            if (1 + dominating) / (n_sim + 1) > alpha:
+                stopped = True
+                break
+        # batches grow geometrically (first, first, 2 first, ...) so the stopping rule is checked often
+        count = min(max(first, done), batch, n_sim - done)
         sims = np.asarray(draw(count), dtype=np.float64)
         if sims.shape != (count, a.size):
             raise ValueError(f"null simulator returned shape {sims.shape}, expected {(count, a.size)}")
@@ -276,10 +294,10 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
     w_sim = np.concatenate(w_sim)
     d_sim = np.concatenate(d_sim)
 
-    # rank-based p-values of every record (observed first) among all n_sim + 1 (Hope 1968);
+    # rank-based p-values of every record (observed first) among all done + 1 (Hope 1968);
     # the combined test is the min-p statistic calibrated on the same draws
     stats = np.stack([np.concatenate(([w_obs], w_sim)), np.concatenate(([d_obs.max()], d_sim))], axis=1)
-    n_all = n_sim + 1
+    n_all = done + 1
     pvals = np.empty_like(stats)
     for c in range(2):
         sorted_c = np.sort(stats[:, c])
@@ -292,6 +310,8 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
         "test": "Levene W and max KS D, Monte Carlo null",
         "null": null,
         "n_sim": int(n_sim),
+        "n_sim_run": int(done),
+        "stopped_early": stopped,
         "n_segments": k,
         "segment_length": int(m),
         "n_dropped": int(a.size - k * m),
@@ -319,6 +339,7 @@ def calibrated_stationarity(
     alpha: float = 0.05,
     n_sim: int = 200,
     rng=None,
+    stop_early: bool = True,
 ) -> dict:
     r"""Levene + KS stationarity test calibrated on a simulated stationary null.
 
@@ -362,14 +383,20 @@ def calibrated_stationarity(
         integer for an exact level, e.g. 199 or 999).
     rng : numpy.random.Generator or int or None, optional
         Seed or generator (``numpy.random.default_rng(rng)``).
+    stop_early : bool, optional
+        Stop drawing once the verdict of the full `n_sim` test is certain: when d null records
+        exceed the observed record in both statistics and :math:`(1 + d)/(1 + n_{sim}) > \alpha`
+        (each such record has a min-p at most the observed one, whatever the other draws). The
+        verdict is that of the full test; the p-values are then those of the ``n_sim_run``
+        records drawn. A typical stationary record stops after 20 of 99 draws. Default True.
 
     Returns
     -------
     dict
         ``levene_statistic``, ``levene_p``, ``ks_statistic`` (per pair), ``ks_statistic_max``,
-        ``ks_p``, ``p_value`` (combined), ``stationary``, ``n_sim``, ``null``, ``combination`` and
-        the settings; plus ``paper``: the dict of :func:`stationarity_tests` on the same record.
-        Plain Python types.
+        ``ks_p``, ``p_value`` (combined), ``stationary``, ``n_sim``, ``n_sim_run``,
+        ``stopped_early``, ``null``, ``combination`` and the settings; plus ``paper``: the dict of
+        :func:`stationarity_tests` on the same record. Plain Python types.
     """
     a, k, m = _check_args(x, n_segments, alpha)
     rate = float(rate)
@@ -407,7 +434,7 @@ def calibrated_stationarity(
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # constant-record warnings belong to the observed record only
-        out = _monte_carlo(a, k, m, alpha, n_sim, draw, null)
+        out = _monte_carlo(a, k, m, alpha, n_sim, draw, null, stop_early=stop_early)
     out["rate_hz"] = rate
     out["paper"] = stationarity_tests(a, n_segments=k, alpha=alpha)
     return _plain_dict(out)
