@@ -337,3 +337,23 @@ def test_import_does_not_load_matplotlib():
     code = "import sys, imupipe.plot; print('matplotlib' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_long_curves_are_drawn_through_their_envelope():
+    # a 20000-point periodogram: every log-x column keeps its extremes, so the drawn curve has the data's
+    # per-column min and max (the picture at pixel resolution), with far fewer points
+    from imupipe.plot import _ENVELOPE_BINS, _envelope
+
+    rng = np.random.default_rng(8)
+    f = np.linspace(0, 0.5, 20_001)[1:]
+    y = rng.chisquare(2, f.size) / 2
+    keep = _envelope(f, y)
+    assert keep.size < f.size / 2 and np.all(np.diff(keep) > 0)
+    lx = np.log(f)
+    col = np.minimum(((lx - lx[0]) / (lx[-1] - lx[0]) * _ENVELOPE_BINS).astype(int), _ENVELOPE_BINS - 1)
+    for c in np.unique(col)[:: 97]:
+        in_col = col == c
+        assert y[in_col].max() == y[keep][col[keep] == c].max()
+        assert y[in_col].min() == y[keep][col[keep] == c].min()
+    # short curves are drawn whole
+    assert np.array_equal(_envelope(f[:1000], y[:1000]), np.arange(1000))

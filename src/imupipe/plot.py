@@ -168,19 +168,53 @@ def _component_style(name):
     return _COMPONENT_STYLE.get(name, (name, "k"))
 
 
+#: Log-x columns of the min/max envelope of long sample curves (about 2 per pixel at 7.5 in, 150 dpi).
+_ENVELOPE_BINS = 2048
+
+
+def _envelope(x, y, n_bins=_ENVELOPE_BINS):
+    """Indices of the points that draw like the whole curve on a log-x axis (min/max decimation).
+
+    x > 0 sorted ascending. The x range is cut into `n_bins` equal log-width columns; each column keeps
+    its first, last, lowest and highest point, in order. Columns narrower than a pixel drawn with
+    these 4 points look exactly like the full polyline; sparse columns (low frequencies) keep every
+    point. Curves of up to 4 `n_bins` points are returned whole.
+    """
+    n = x.size
+    if n <= 4 * n_bins:
+        return np.arange(n)
+    lx = np.log(x)
+    col = np.minimum(((lx - lx[0]) / (lx[-1] - lx[0]) * n_bins).astype(np.int64), n_bins - 1)
+    starts = np.flatnonzero(np.r_[True, col[1:] != col[:-1]])
+    ends = np.r_[starts[1:], n] - 1
+    finite = np.isfinite(y)
+    # order by (column, value): a column's first entry is its lowest point, its last entry the highest
+    by_low = np.lexsort((np.where(finite, y, np.inf), col))
+    by_high = np.lexsort((np.where(finite, y, -np.inf), col))
+    return np.unique(np.concatenate([starts, ends, by_low[starts], by_high[ends]]))
+
+
 def _draw_samples(ax, x, arr, labels, what, lw=0.6):
-    """Sample curves: grey with one legend entry, or coloured and labelled one by one."""
+    """Sample curves: grey with one legend entry, or coloured and labelled one by one.
+
+    Long curves on a log-x axis are drawn through their min/max envelope (:func:`_envelope`): the same
+    picture, a fraction of the drawing time.
+    """
     if arr is None:
         return
+    x = np.asarray(x)
     if labels is None:
-        for i, y in enumerate(arr):
-            ax.plot(x, y, color=_SAMPLE_COLOUR, lw=lw, alpha=0.7, zorder=1, gid=f"sample:{i}",
-                    label=f"sample {what} ({arr.shape[0]} curves)" if i == 0 else "_nolegend_")
+        labels_iter = [f"sample {what} ({arr.shape[0]} curves)"] + ["_nolegend_"] * (arr.shape[0] - 1)
+        style = {"color": _SAMPLE_COLOUR, "alpha": 0.7}
     else:
         if len(labels) != arr.shape[0]:
             raise ValueError(f"{len(labels)} labels for {arr.shape[0]} curves")
-        for i, (y, lab) in enumerate(zip(arr, labels)):
-            ax.plot(x, y, lw=lw, alpha=0.8, zorder=1, gid=f"sample:{i}", label=str(lab))
+        labels_iter = [str(lab) for lab in labels]
+        style = {"alpha": 0.8}
+    for i, (y, lab) in enumerate(zip(arr, labels_iter)):
+        y = np.asarray(y)
+        keep = _envelope(x, y) if x.size > 1 and np.all(x > 0) else np.arange(x.size)
+        ax.plot(x[keep], y[keep], lw=lw, zorder=1, gid=f"sample:{i}", label=lab, **style)
 
 
 def _resolve_labels(labels, auto):
