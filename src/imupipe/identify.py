@@ -513,7 +513,10 @@ def fit_allan(
         raise ValueError(f"bootstrap must be 'correlated', 'chi2' or 'series', got {bootstrap!r}")
     if bootstrap in ("correlated", "series") and n_boot > 0:
         if rate is None or n_samples is None:
-            raise ValueError(f"the {bootstrap} bootstrap needs rate (Hz) and n_samples (per curve)")
+            raise ValueError(
+                f"the {bootstrap} bootstrap needs the records' rate (Hz) and n_samples (per curve): pass "
+                "rate= and n_samples= (allan_variance(...).attrs 'rate_hz' and 'n_samples'), or n_boot=0"
+            )
         n_curves = int(cid.max()) + 1
         lengths = np.broadcast_to(np.asarray(n_samples, dtype=np.int64), (n_curves,))
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
