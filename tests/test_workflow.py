@@ -160,6 +160,19 @@ class TestCaching:
         assert set(jobs) <= SPEC_RULES, f"jobs other than bounding/figures/tables: {jobs}"
         assert {"bound", "table"} <= set(jobs)
 
+    def test_a_new_dataset_list_reruns_the_merge(self, tiny_run):
+        # Snakemake only checks the outputs a downstream job asks for: the merged per-sensor files exist, so a
+        # third dataset (or a different sheet in the same directory) must still re-run collect -- and reduce
+        # the new dataset -- or the bound would use the old datasets' spectra
+        work, config = tiny_run
+        cfg = yaml.safe_load(config.read_text())
+        cfg["simulation"]["n_datasets"] = 3
+        more = work / "config_3.yaml"
+        more.write_text(yaml.safe_dump(cfg))
+        jobs = dry_run_jobs(work, config=more)
+        assert jobs.get("collect") == 2 and jobs.get("reduce") == 2, jobs
+        assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
+
 
 class TestBadInput:
     def test_bad_dataset_fails_alone(self, tmp_path, rng):

@@ -134,7 +134,12 @@ def simulation_seed(wildcards):
 
 
 def final_outputs():
-    out = expand("results/spectra/{sensor}.nc", sensor=SENSORS)
+    # Per-axis outputs are asked for too: Snakemake re-runs a job for a missing output only when some job asks
+    # for that output, so a dataset added to the sheet must show up here to re-run the per-sensor merges.
+    per_axis = dict(dataset=list(DATASETS), sensor=SENSORS, axis=AXES)
+    out = expand("results/stationarity/{dataset}/{sensor}/{axis}.yaml", **per_axis)
+    out += expand("results/bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml", spec=SPECS, **per_axis)
+    out += expand("results/spectra/{sensor}.nc", sensor=SENSORS)
     out += expand("results/allan/{sensor}.nc", sensor=SENSORS)
     out += expand("results/identify/{sensor}.yaml", sensor=SENSORS)
     out += expand("results/bound/{spec}/{sensor}.yaml", spec=SPECS, sensor=SENSORS)

@@ -14,6 +14,9 @@ rule collect:
         spectra="results/spectra/{sensor}.nc",
         allan="results/allan/{sensor}.nc",
     params:
+        # the dataset list as a parameter: a changed sheet re-runs the merges even where Snakemake's record of
+        # the input set is incomplete (final_outputs also asks for every per-axis verdict, see common.smk)
+        datasets=sorted(DATASETS),
         n_segments=config["stationarity"]["n_segments"],
         alpha=config["stationarity"]["alpha"],
         test=config["stationarity"]["test"],
