@@ -803,8 +803,9 @@ def select_components(
         (True when eq. 19 without random walk is allowed), ``band_hz``, ``significance``,
         ``relevance``.
     """
-    from scipy.stats import chi2 as chi2_dist
-    from scipy.stats import norm
+    # scipy.special, not scipy.stats (same functions, 0.5 s less of import): -ndtri(p) is the
+    # standard normal upper quantile norm.isf(p), chdtri(df, p) the chi-squared one chi2.isf(p, df)
+    from scipy.special import chdtri, ndtri
 
     t, y, e = _pool(tau, avar, edf)
     model = fit.model
@@ -813,7 +814,7 @@ def select_components(
     present = _present(model)
     n_tested = max(1, len(present))
     # Bonferroni over the AV points and over the components tested
-    zcrit = float(norm.isf(significance / (t.size * n_tested)))
+    zcrit = float(-ndtri(significance / (t.size * n_tested)))
 
     if band_hz is not None:
         f_lo, f_hi = (float(band_hz[0]), float(band_hz[1]))
@@ -853,7 +854,7 @@ def select_components(
             m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
             if lr_test:
                 d_chi2 = float(alt.chi2 - fit.chi2)
-                lr_shows = bool(d_chi2 > chi2_dist.isf(significance / n_tested, n_removed))
+                lr_shows = bool(d_chi2 > chdtri(n_removed, significance / n_tested))
         else:
             m_null = np.zeros_like(m)
         # the part of the component the other components cannot absorb, against the AV's spread
