@@ -187,6 +187,8 @@ class TestCalibrated:
             fast = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=True)
             assert fast["stationary"] == full["stationary"]
             assert full["n_sim_run"] == 39 and not full["stopped_early"]
+            # the lemma the stopping rule rests on: the calibrated p-value is at least the observed min-p
+            assert full["p_value"] >= min(full["levene_p"], full["ks_p"])
             runs.append(fast["n_sim_run"])
             if fast["stopped_early"]:
                 assert fast["stationary"]

@@ -259,25 +259,27 @@ def stationarity_tests(x, n_segments: int = 2, alpha: float = 0.05) -> dict:
 def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null: str, stop_early: bool = False) -> dict:
     """Observed (W, D_max) against n_sim null records drawn in batches by draw(count) -> (count, L).
 
-    stop_early: stop once the verdict of the full n_sim test is certain. A null record with both
-    statistics >= the observed ones has a min-p <= the observed min-p whatever the other records
-    (p-values are ranks), so once d such records give (1 + d)/(1 + n_sim) > alpha the full test
-    cannot reject (Besag & Clifford 1991 use the same idea for sequential Monte Carlo p-values).
+    stop_early: stop once the verdict of the full n_sim test is certain. With a = 1 + #{W_s >= W_obs}
+    and b = 1 + #{D_s >= D_obs} over the final draws, the observed min-p is min(a, b)/(1 + n_sim), and
+    every record at least as extreme in the statistic attaining it has a min-p <= the observed one
+    (p-values are ranks), so the calibrated p-value is >= min(a, b)/(1 + n_sim). The counts a and b
+    only grow with more draws, so once min(a, b)/(1 + n_sim) > alpha on the draws so far the full
+    test cannot reject (the sequential Monte Carlo p-value idea of Besag & Clifford 1991).
     """
     obs_segs = _segments(a, k, m)
     w_obs = float(levene_statistic(obs_segs))
     d_obs = ks_statistics(obs_segs)
     batch = max(1, _BATCH_SAMPLES // a.size)
     # first batch: enough records for the stopping rule to fire on a typical stationary record
-    first = min(batch, 4 * max(1, math.ceil(alpha * (n_sim + 1)))) if stop_early else batch
+    first = min(batch, 2 * max(1, math.ceil(alpha * (n_sim + 1)))) if stop_early else batch
     w_sim, d_sim = [], []
     done = 0
     stopped = False
     while done < n_sim:
         if stop_early and done:
-            dominating = int(np.count_nonzero((np.concatenate(w_sim) >= w_obs)
-                                              & (np.concatenate(d_sim) >= d_obs.max())))
-            if (1 + dominating) / (n_sim + 1) > alpha:
+            as_extreme_w = 1 + int(np.count_nonzero(np.concatenate(w_sim) >= w_obs))
+            as_extreme_d = 1 + int(np.count_nonzero(np.concatenate(d_sim) >= d_obs.max()))
+            if min(as_extreme_w, as_extreme_d) / (n_sim + 1) > alpha:
                 stopped = True
                 break
         # batches grow geometrically (first, first, 2 first, ...) so the stopping rule is checked often
@@ -384,11 +386,12 @@ def calibrated_stationarity(
     rng : numpy.random.Generator or int or None, optional
         Seed or generator (``numpy.random.default_rng(rng)``).
     stop_early : bool, optional
-        Stop drawing once the verdict of the full `n_sim` test is certain: when d null records
-        exceed the observed record in both statistics and :math:`(1 + d)/(1 + n_{sim}) > \alpha`
-        (each such record has a min-p at most the observed one, whatever the other draws). The
-        verdict is that of the full test; the p-values are then those of the ``n_sim_run``
-        records drawn. A typical stationary record stops after 20 of 99 draws. Default True.
+        Stop drawing once the verdict of the full `n_sim` test is certain: when at least
+        :math:`\alpha (1 + n_{sim})` null records reach the observed Levene W and at least as many
+        (not necessarily the same) reach the observed KS D: the calibrated p-value is at least the
+        observed min-p, which these counts bound from below whatever the other draws. The verdict
+        is that of the full test; the p-values are then those of the ``n_sim_run`` records drawn.
+        A typical stationary record stops after 10-20 of 99 draws. Default True.
 
     Returns
     -------
