@@ -204,47 +204,41 @@ class _Problem:
     targets: np.ndarray  # what the model must exceed, per curve and row (C, R)
     spec: np.ndarray | None  # spec PSD at the bins (F,)
     spec_rows: np.ndarray | None  # spec PSD on rows (R,)
+    envelope: np.ndarray  # max of the targets over the curves, on rows (R,)
     env: np.ndarray  # envelope of targets and spec on rows (R,)
     weights: np.ndarray  # objective weights on rows (R,)
+    objective_weights: np.ndarray  # weights/env where env > 0, else 0: the objective is this @ (B_rows x) (R,)
     mode: str
     details: dict = field(default_factory=dict)
-    _cache: dict = field(default_factory=dict, repr=False)
+    _columns: dict = field(default_factory=dict, repr=False)
+    _kept: dict = field(default_factory=dict, repr=False)
 
-    def unit_psd(self, kind, T=None):
-        """Basis PSD of a unit component at the bins (F,)."""
+    def column(self, kind, T=None):
+        """Basis PSD of a unit component: (bins (F,), rows (R,), bins non-increasing, rows
+        non-increasing), cached."""
         key = (kind, T)
-        if key in self._cache:
-            return self._cache[key]
-        from imupipe.models import NoiseModel
+        hit = self._columns.get(key)
+        if hit is None:
+            from imupipe.models import NoiseModel
 
-        if kind == "white":
-            m = NoiseModel(white=1.0)
-        elif kind == "random_walk":
-            m = NoiseModel(random_walk=1.0)
-        elif kind == "gm":
-            m = NoiseModel(gauss_markov=((1.0, float(T)),))
-        else:  # pragma: no cover
-            raise ValueError(kind)
-        v = m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt)
-        v = np.asarray(v, dtype=np.float64)
-        if len(self._cache) > 4000:
-            self._cache.clear()
-        self._cache[key] = v
-        return v
+            if kind == "white":
+                m = NoiseModel(white=1.0)
+            elif kind == "random_walk":
+                m = NoiseModel(random_walk=1.0)
+            elif kind == "gm":
+                m = NoiseModel(gauss_markov=((1.0, float(T)),))
+            else:  # pragma: no cover
+                raise ValueError(kind)
+            b = np.asarray(m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt), dtype=np.float64)
+            r = self.to_rows(b)
+            hit = (b, r, not np.any(np.diff(b) > 0), not np.any(np.diff(r) > 0))
+            if len(self._columns) > 4000:
+                self._columns.clear()
+            self._columns[key] = hit
+        return hit
 
     def to_rows(self, a):
         return a if self.starts is None else _group_mean(a, self.starts, self.counts)
-
-    def column(self, kind, T=None):
-        """One unit component: (bins (F,), rows (R,), bins non-increasing, rows non-increasing), cached."""
-        key = ("column", kind, T)
-        hit = self._cache.get(key)
-        if hit is None:
-            b = self.unit_psd(kind, T)
-            r = self.to_rows(b)
-            hit = (b, r, not np.any(np.diff(b) > 0), not np.any(np.diff(r) > 0))
-            self._cache[key] = hit
-        return hit
 
     def basis(self, comps, Ts):
         """Columns (bins (F, J), rows (R, J)), names, and whether every column is non-increasing
@@ -267,45 +261,13 @@ class _Problem:
         Br = Bb if self.starts is None else np.stack([c[1] for c in cols], axis=1)
         return Bb, Br, names, all(c[2] for c in cols), all(c[3] for c in cols)
 
-    def kept_rows(self, which, monotone):
-        """Row indices of the '>= 1' constraints that no other constraint implies (:func:`_records`),
-        for the data envelope on rows (``which="data"``, with the spec in raw mode) or the spec at the
-        bins (``which="spec"``); cached, since they depend on the targets only."""
-        key = ("kept_rows", which, monotone)
-        hit = self._cache.get(key)
+    def kept_rows(self, B, t, which, monotone):
+        """:func:`_undominated` rows of 'B x >= t' given whether B's columns are monotone, cached per
+        constraint set `which` (the rows depend on the targets t and that flag only)."""
+        key = (which, monotone)
+        hit = self._kept.get(key)
         if hit is None:
-            t = self.constraint_targets(which)
-            hit = _records(t) if monotone else np.flatnonzero(t > 0)
-            self._cache[key] = hit
-        return hit
-
-    def constraint_targets(self, which):
-        """What the model must exceed, cached: ``"envelope"`` -> the max of the targets over the
-        curves, on rows; ``"data"`` -> the LP's data constraints, the envelope (in raw mode, where rows
-        are bins, also the spec); ``"spec"`` -> the spec PSD at the bins."""
-        key = ("targets", which)
-        hit = self._cache.get(key)
-        if hit is None:
-            if which == "spec":
-                hit = self.spec
-            elif which == "envelope":
-                hit = self.targets.max(axis=0)
-            else:
-                hit = self.constraint_targets("envelope")
-                if self.starts is None and self.spec is not None:
-                    hit = np.maximum(hit, self.spec)
-            self._cache[key] = hit
-        return hit
-
-    def objective_weights(self):
-        """Row weights of the LP objective, w_k/E_k where the envelope E_k > 0 and 0 elsewhere, so
-        that the objective of coefficients x is (weights / E) @ (B_rows x); cached."""
-        hit = self._cache.get("objective_weights")
-        if hit is None:
-            ok = self.env > 0
-            hit = np.zeros_like(self.env)
-            hit[ok] = self.weights[ok] / self.env[ok]
-            self._cache["objective_weights"] = hit
+            hit = self._kept[key] = _undominated(B, t, monotone)
         return hit
 
     def worst_margin(self, model):
@@ -314,9 +276,8 @@ class _Problem:
         the result is exactly that of the full evaluation at a fraction of its cost."""
         mb = self.model_bins(model)
         mr = self.to_rows(mb)
-        tenv = self.constraint_targets("envelope")
         with np.errstate(divide="ignore", invalid="ignore"):
-            m = float(np.min(np.where(tenv > 0, mr / tenv, np.inf)))
+            m = float(np.min(np.where(self.envelope > 0, mr / self.envelope, np.inf)))
             if self.spec is not None:
                 m = min(m, float(np.min(np.where(self.spec > 0, mb / self.spec, np.inf))))
         return m
@@ -370,11 +331,13 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         spec = np.asarray(spec_model.psd(f) if dt is None else spec_model.psd_sampled(f, dt), dtype=np.float64)
         spec = np.where(np.isfinite(spec), spec, 0.0)
         spec_rows = spec if starts is None else _group_mean(spec, starts, counts)
-    env = targets.max(axis=0)
-    if spec_rows is not None:
-        env = np.maximum(env, spec_rows)
+    envelope = targets.max(axis=0)
+    env = envelope if spec_rows is None else np.maximum(envelope, spec_rows)
     weights = _log_weights(f_rows)
-    return _Problem(f, raw, labels, dt, starts, counts, f_rows, targets, spec, spec_rows, env, weights, mode, details)
+    objective_weights = np.zeros_like(env)
+    np.divide(weights, env, out=objective_weights, where=env > 0)
+    return _Problem(f, raw, labels, dt, starts, counts, f_rows, targets, spec, spec_rows, envelope, env, weights,
+                    objective_weights, mode, details)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -389,19 +352,7 @@ class _LPSolution:
     n_lp: int
 
 
-def _records(t):
-    """Indices i with t[i] > 0 and t[i] > t[j] for every later j (the right-to-left records of t)."""
-    pos = np.flatnonzero(t > 0)
-    if pos.size == 0:
-        return pos
-    tp = t[pos]
-    later_max = np.empty_like(tp)
-    later_max[-1] = -np.inf
-    later_max[:-1] = np.maximum.accumulate(tp[::-1])[::-1][1:]
-    return pos[tp > later_max]
-
-
-def _undominated(B, t):
+def _undominated(B, t, monotone=None):
     """Indices of the rows of 'B x >= t' (x >= 0) that no other row implies, when every column of B is
     non-increasing along the rows (basis PSDs on increasing frequency: white, GM, random walk).
 
@@ -410,23 +361,30 @@ def _undominated(B, t):
     so only rows whose target exceeds every later target remain (the right-to-left records of t, a few
     hundred of 12 600 periodogram bins). The test is made on the computed floats, so the reduced LP has
     exactly the feasible set of the full one. Rows with t <= 0 are dropped (always satisfied). Without
-    monotone columns: every row with t > 0. (The LP uses the same rule through
-    :meth:`_Problem.kept_rows`, with the monotonicity of each column checked once over all rows.)
+    monotone columns: every row with t > 0. `monotone`: whether B's columns are non-increasing, when
+    the caller knows it (the LP checks each unit column once over all rows); None: checked here on the
+    rows with t > 0.
     """
     pos = np.flatnonzero(t > 0)
-    if pos.size == 0 or B.shape[1] == 0 or np.any(np.diff(B[pos], axis=0) > 0):
+    if monotone is None:
+        monotone = B.shape[1] > 0 and not np.any(np.diff(B[pos], axis=0) > 0)
+    if pos.size == 0 or not monotone:
         return pos
-    return _records(t)
+    tp = t[pos]
+    later_max = np.empty_like(tp)
+    later_max[-1] = -np.inf
+    later_max[:-1] = np.maximum.accumulate(tp[::-1])[::-1][1:]
+    return pos[tp > later_max]
 
 
 def _constraint_matrix(prob, Bb, Br, mono_b, mono_r):
-    """Normalised '>= 1' rows: data rows (envelope of targets; in raw mode with the spec) and, off raw
-    mode, spec rows at bins; rows implied by others left out (:func:`_undominated`)."""
-    tgt = prob.constraint_targets("data")
-    ok = prob.kept_rows("data", mono_r)
+    """Normalised '>= 1' rows: data rows (envelope of targets; in raw mode, where rows are bins, with the
+    spec) and, off raw mode, spec rows at bins; rows implied by others left out (:func:`_undominated`)."""
+    tgt = prob.env if prob.starts is None else prob.envelope
+    ok = prob.kept_rows(Br, tgt, "data", mono_r)
     A = Br[ok] / tgt[ok, None]
     if prob.starts is not None and prob.spec is not None:
-        oks = prob.kept_rows("spec", mono_b)
+        oks = prob.kept_rows(Bb, prob.spec, "spec", mono_b)
         A = np.vstack([A, Bb[oks] / prob.spec[oks, None]])
     return A
 
@@ -441,7 +399,7 @@ def _solve_lp(prob, comps, Ts):
     Bb, Br, names, mono_b, mono_r = prob.basis(comps, Ts)
     J = len(names)
     A = _constraint_matrix(prob, Bb, Br, mono_b, mono_r)
-    cobj = prob.objective_weights() @ Br if J else np.zeros(0)
+    cobj = prob.objective_weights @ Br if J else np.zeros(0)
     if A.shape[0] == 0 or J == 0:
         return _LPSolution(np.zeros(J), names, tuple(Ts), 0.0, 0)
     colmax = A.max(axis=0)
@@ -604,8 +562,7 @@ def _evaluate(prob, model):
         out.update(spec_margin=float(rs[j]), spec_margin_frequency=float(prob.f[j]))
     else:
         out.update(spec_margin=float("inf"), spec_margin_frequency=None)
-    ok = prob.env > 0
-    out["looseness"] = float(np.sum(prob.weights[ok] * mr[ok] / prob.env[ok])) if ok.any() else 0.0
+    out["looseness"] = float(prob.objective_weights @ mr)  # the LP's objective
     return out
 
 
