@@ -275,13 +275,11 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
     w_sim, d_sim = [], []
     done = 0
     stopped = False
+    as_extreme_w = as_extreme_d = 1  # records (the observed included) reaching the observed W, D
     while done < n_sim:
-        if stop_early and done:
-            as_extreme_w = 1 + int(np.count_nonzero(np.concatenate(w_sim) >= w_obs))
-            as_extreme_d = 1 + int(np.count_nonzero(np.concatenate(d_sim) >= d_obs.max()))
-            if min(as_extreme_w, as_extreme_d) / (n_sim + 1) > alpha:
-                stopped = True
-                break
+        if stop_early and done and min(as_extreme_w, as_extreme_d) / (n_sim + 1) > alpha:
+            stopped = True
+            break
         # batches grow geometrically (first, first, 2 first, ...) so the stopping rule is checked often
         count = min(max(first, done), batch, n_sim - done)
         sims = np.asarray(draw(count), dtype=np.float64)
@@ -292,6 +290,8 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
         segs = np.sort(_segments(sims, k, m), axis=-1)
         w_sim.append(levene_statistic(segs))
         d_sim.append(ks_statistics(segs).max(axis=-1))
+        as_extreme_w += int(np.count_nonzero(w_sim[-1] >= w_obs))
+        as_extreme_d += int(np.count_nonzero(d_sim[-1] >= d_obs.max()))
         done += count
     w_sim = np.concatenate(w_sim)
     d_sim = np.concatenate(d_sim)
@@ -391,7 +391,8 @@ def calibrated_stationarity(
         (not necessarily the same) reach the observed KS D: the calibrated p-value is at least the
         observed min-p, which these counts bound from below whatever the other draws. The verdict
         is that of the full test; the p-values are then those of the ``n_sim_run`` records drawn.
-        A typical stationary record stops after 10-20 of 99 draws. Default True.
+        A clearly stationary record stops after 10-40 of 99 draws; one near the level draws all.
+        Default True.
 
     Returns
     -------
