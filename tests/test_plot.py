@@ -219,7 +219,7 @@ def test_inflation_effect():
 
 def test_inflation_effect_paper_factors_and_gyro():
     fig = plot_inflation_effect(factors=(0.5, 1.5), duration_s=3600.0, dt=0.5)
-    assert _legend(fig.axes[2]) == ["Table 3 example", r"$\sigma$ x 0.5", r"$\sigma$ x 1.5"]
+    assert _legend(fig.axes[2]) == ["Table 3 example", "σ x 0.5", "σ x 1.5"]
     assert _by_gid(fig.axes[0], "base").get_xdata()[-1] == pytest.approx(1.0)
     with pytest.raises(ValueError, match="gyro"):
         plot_inflation_effect(sensor="gyro")
