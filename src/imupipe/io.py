@@ -62,22 +62,24 @@ def write_text_atomic(text: str, path) -> None:
 def write_yaml_atomic(data, path, header: str | None = None) -> None:
     """Write plain data (dicts, lists, numbers, strings) as YAML, keys in insertion order, atomically.
 
-    `header` lines are written first as ``#`` comments (units, provenance).
+    `header` lines are written first as ``#`` comments (units, provenance). Uses libyaml's safe dumper
+    where PyYAML has it (the same text, ~5x faster), else the pure-Python one.
     """
     import yaml
 
-    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=False, width=110)
+    dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+    text = yaml.dump(data, Dumper=dumper, sort_keys=False, default_flow_style=False, width=110)
     if header:
         text = "".join(f"# {line}\n" for line in header.splitlines()) + text
     write_text_atomic(text, path)
 
 
 def read_yaml(path):
-    """Read a YAML file (safe loader)."""
+    """Read a YAML file (safe loader; libyaml's where PyYAML has it, ~7x faster)."""
     import yaml
 
     with open(path) as fh:
-        return yaml.safe_load(fh)
+        return yaml.load(fh, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
 
 
 def write_series(path, x, *, rate_hz: float, units: str, attrs: dict | None = None, name: str = "signal") -> None:
