@@ -202,14 +202,14 @@ class NoiseModel:
         if dt <= 0:
             raise ValueError(f"dt must be > 0 s, got {dt!r}")
         s = np.full_like(f, self.white**2)
-        w = 2.0 * np.pi * f * dt
+        cw = np.cos(2.0 * np.pi * f * dt) if self.gauss_markov else None
         for sigma, T in self.gauss_markov:
             x = dt / T
             a = math.exp(-x)
             r = (T / dt) ** 2
             c0 = 2.0 * sigma**2 * r * float(_expm1x(np.array([x]))[0])
             b = sigma**2 * r * (-math.expm1(-x)) ** 2
-            s = s + dt * (c0 + 2.0 * b * (np.cos(w) - a) / (1.0 - 2.0 * a * np.cos(w) + a * a))
+            s = s + dt * (c0 + 2.0 * b * (cw - a) / (1.0 - 2.0 * a * cw + a * a))
         with np.errstate(divide="ignore"):
             if self.random_walk:
                 sn = np.sin(np.pi * f * dt)
