@@ -7,7 +7,8 @@ Used by ``benchmarks/run.py`` (section 4). Steps:
    and run ``snakemake --until simulate`` there so that the input data exist (not timed as part of the cold
    run; its time is reported). The checkout's ``results/`` is never touched.
 2. cold run: remove ``results/``, ``logs/`` and ``benchmarks/`` of the scratch copy, run
-   ``snakemake --cores <cores> --configfile config/config.yaml`` with ``OPENBLAS_NUM_THREADS=1``; wall time.
+   ``snakemake --cores <cores> --configfile config/config.yaml`` with ``OPENBLAS_NUM_THREADS=1`` and the
+   Makefile's ``SNAKEMAKE_FLAGS`` (``RUN_FLAGS``); wall time.
    While it runs, a sampler reads every job process's peak resident set (``VmHWM`` of ``/proc/<pid>/status``,
    a high-water mark, so a late sample still sees an earlier peak) every 50 ms. Snakemake's own
    ``benchmark:`` files sample memory first at 0 s and then every 0.5 s, so for sub-second jobs their
@@ -36,6 +37,8 @@ from pathlib import Path
 from timing import Timing, fmt, fmt_s, md_table, timed
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+# the options `make run` adds (Makefile, SNAKEMAKE_FLAGS): the run measured is the one users get
+RUN_FLAGS = ["--max-jobs-per-timespan", "1000/0s"]
 SAMPLE_INTERVAL_S = 0.05
 MB = 1e6
 
@@ -428,7 +431,7 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
     scratch = make_scratch(repo, out / "dag_scratch")
     logs = out / "dag_logs"
     logs.mkdir(parents=True, exist_ok=True)
-    base = ["--cores", str(cores), "--configfile", configfile]
+    base = ["--cores", str(cores), "--configfile", configfile, *RUN_FLAGS]
     res["scratch"] = "benchmarks/results/dag_scratch (copy of Snakefile, workflow/, config/, data/)"
     try:
         t_prep, text, _ = snakemake(scratch, base + ["--until", "simulate"], logs / "prepare.log")
@@ -523,7 +526,8 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
     fl = floor or {}
     lines.append(f"Scratch copy of the workflow; input data prepared by `snakemake --until simulate` "
                  f"({fmt_s(res['prepare_s'])}, {res['prepare_jobs']} jobs; not part of the cold run). "
-                 f"`snakemake --cores {cores} --configfile {configfile}`, OPENBLAS_NUM_THREADS=1, {repeats} runs each.")
+                 f"`snakemake --cores {cores} --configfile {configfile} {' '.join(RUN_FLAGS)}` (as `make run`), "
+                 f"OPENBLAS_NUM_THREADS=1, {repeats} runs each.")
     lines.append("")
     lines.append(md_table(
         ["run", "wall time", "jobs", "note"],

@@ -238,3 +238,10 @@ def test_parsers_on_snakemake_output(dag_module):
     (job,) = dag_module.parse_jobs(text)
     assert job["rule"] == "a" and job["benchmark"] == "bench/a/2.tsv"
     assert job["wildcards"] == {"dataset": "d1", "axis": "y"}
+
+
+def test_the_dag_benchmark_runs_snakemake_as_make_run_does(dag_module):
+    # the measured run must be the one users get: the Makefile's SNAKEMAKE_FLAGS are the benchmark's RUN_FLAGS
+    makefile = (BENCH.parent / "Makefile").read_text()
+    line = next(ln for ln in makefile.splitlines() if ln.startswith("SNAKEMAKE_FLAGS"))
+    assert line.split("=", 1)[1].split() == dag_module.RUN_FLAGS
