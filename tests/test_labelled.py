@@ -42,3 +42,43 @@ def test_in_place_integration_gives_the_same_allan_variance(tmp_path, rng, backe
     assert y.base is not None and y.base.size == x.size + 1 and np.array_equal(y, x)
     got = _allan_variance(y, rate, taus="octave", backend=backend, theta_buffer=y.base)
     np.testing.assert_array_equal(got.data_vars["avar"][0], ref.data_vars["avar"][0])
+
+
+def test_per_sensor_file_reads_the_same_without_xarray(tmp_path, rng):
+    # what collect writes (xarray) and bound/identify/figures read (netCDF4 alone): every variable of
+    # every curve, the coordinates, the global attrs and the included flags agree with xarray's reading;
+    # a shorter record's missing taus (outer join) come back NaN in both
+    from imupipe.io import write_netcdf_atomic
+    from imupipe.merge import Stacked, included_flags, stack_axis_files
+
+    paths = []
+    for d, n in (("long", 40_000), ("short", 10_000)):
+        for a in ("x", "y", "z"):
+            lab = _allan_variance(rng.standard_normal(n), 10.0, taus="octave", units="rad/s")
+            lab.attrs.update(dataset=d, axis=a, sensor="gyro", n_samples=n)
+            paths.append(tmp_path / f"{d}_{a}.nc")
+            lab.to_netcdf(paths[-1])
+    ds = stack_axis_files(paths, join="outer")
+    summary = {"curves": [{"dataset": d, "axis": a, "included": (d, a) != ("short", "y")}
+                          for d in ("long", "short") for a in ("x", "y", "z")]}
+    ds["included"] = included_flags(summary, ds)
+    write_netcdf_atomic(ds, tmp_path / "gyro.nc")
+
+    st = Stacked(tmp_path / "gyro.nc")
+    with xr.open_dataset(tmp_path / "gyro.nc") as ref:
+        ref = ref.load()
+        assert st.datasets == list(ref.dataset.values) and st.axes == list(ref.axis.values)
+        np.testing.assert_array_equal(st["tau"], ref.tau.values)
+        assert st.attrs == ref.attrs
+        for name in ("avar", "avar_lower", "edf", "alpha", "n_samples"):
+            for d in st.datasets:
+                for a in st.axes:
+                    np.testing.assert_array_equal(st.at(name, d, a), ref[name].sel(dataset=d, axis=a).values)
+    for name in ("avar", "alpha"):  # the integer noise type too: NaN where the record has no such tau
+        assert np.isnan(st.at(name, "short", "x")[-1]) and np.isfinite(st.at(name, "long", "x")[-1])
+    assert ("short", "y") in st.curves() and ("short", "y") not in st.curves(included_only=True)
+    assert len(st.curves(included_only=True)) == 5
+    with pytest.raises(KeyError, match="no variable 'psd'"):
+        st["psd"]
+    with pytest.raises(ValueError, match="not a per-sensor file"):
+        Stacked(paths[0])

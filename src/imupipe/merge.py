@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["stack_axis_files", "included_flags"]
+__all__ = ["Stacked", "stack_axis_files", "included_flags"]
 
 _PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
 
@@ -24,6 +24,7 @@ def stack_axis_files(paths, join: str = "exact"):
         Variables with dims (dataset, axis, coord), their attrs kept; per-file record lengths as the
         variable ``n_samples`` (dataset, axis); global attrs of the first file, minus per-file ones.
     """
+    import numpy as np
     import xarray as xr
 
     by_dataset: dict[str, list] = {}
@@ -50,6 +51,12 @@ def stack_axis_files(paths, join: str = "exact"):
     except ValueError as exc:
         raise ValueError(f"files do not share one grid ({exc}); check that every dataset uses the same "
                          "decimation rate and PSD window") from None
+    for name in out.data_vars:
+        # an integer variable (the noise type alpha) that the outer join padded with NaN: stored as float
+        # with NaN rather than cast back to its integer dtype (NaN has no integer value)
+        var = out[name]
+        if var.dtype.kind == "f" and np.dtype(var.encoding.get("dtype", "f8")).kind in "iu" and np.isnan(var.values).any():
+            var.encoding.pop("dtype", None)
     out.attrs = {k: v for k, v in first_attrs.items() if k not in _PER_FILE}
     out["dataset"].attrs["long_name"] = "dataset"
     out["axis"].attrs["long_name"] = "sensor axis"
@@ -67,3 +74,68 @@ def included_flags(summary: dict, ds):
         flags.loc[{"dataset": c["dataset"], "axis": c["axis"]}] = bool(c["included"])
     flags.attrs = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
     return flags.astype("i1")
+
+
+class Stacked:
+    """A per-sensor-type file of :func:`stack_axis_files` (``results/spectra/{sensor}.nc``,
+    ``results/allan/{sensor}.nc``) read with netCDF4 alone, for the jobs that only read it: importing
+    xarray costs ~0.35 s per process, a third of a bound job.
+
+    Attributes
+    ----------
+    datasets, axes : list of str
+        The ``dataset`` and ``axis`` coordinates, in file order.
+    coords : dict
+        Every 1-D coordinate variable (``frequency`` in Hz, ``tau`` in s, ...) as a float64 array.
+    attrs : dict
+        Global attributes (``rate_hz``, ``taper``, ...).
+    variables : dict
+        ``name -> (values, dims, attrs)`` of every other variable, values as stored (floats NaN where
+        missing, the same as xarray's decoding of the ``_FillValue = NaN`` these files carry).
+    """
+
+    def __init__(self, path):
+        import netCDF4
+        import numpy as np
+
+        self.path = str(path)
+        with netCDF4.Dataset(self.path) as nc:
+            nc.set_auto_mask(False)
+            self.attrs = {k: nc.getncattr(k) for k in nc.ncattrs()}
+            names = {"dataset", "axis"}
+            missing = names - set(nc.variables)
+            if missing:
+                raise ValueError(f"{self.path}: no {', '.join(sorted(missing))} coordinate: not a per-sensor file")
+            self.datasets = [str(v) for v in nc.variables["dataset"][:]]
+            self.axes = [str(v) for v in nc.variables["axis"][:]]
+            self.coords, self.variables = {}, {}
+            for name, var in nc.variables.items():
+                if name in names:
+                    continue
+                attrs = {k: var.getncattr(k) for k in var.ncattrs() if k != "_FillValue"}
+                if var.dimensions == (name,):
+                    self.coords[name] = np.asarray(var[:], dtype=np.float64)
+                else:
+                    self.variables[name] = (np.asarray(var[:]), tuple(var.dimensions), attrs)
+
+    def __getitem__(self, name):
+        """Values of a variable (all its dimensions) or of a coordinate."""
+        if name in self.coords:
+            return self.coords[name]
+        if name not in self.variables:
+            raise KeyError(f"{self.path}: no variable {name!r} (has {sorted(self.variables)})")
+        return self.variables[name][0]
+
+    def at(self, name, dataset, axis):
+        """A variable at one (dataset, axis): the curve on its last dimension, or a scalar; a variable
+        without the dataset/axis dimensions is returned whole."""
+        values, dims, _ = self.variables[name]
+        index = tuple(self.datasets.index(dataset) if d == "dataset" else self.axes.index(axis) if d == "axis"
+                      else slice(None) for d in dims)
+        return values[index]
+
+    def curves(self, included_only=False):
+        """(dataset, axis) of every curve in file order; with `included_only`, those whose ``included``
+        flag is set."""
+        return [(d, a) for d in self.datasets for a in self.axes
+                if not included_only or int(self.at("included", d, a))]

@@ -32,18 +32,17 @@ def axis_bounds(sp, spec, sensor, kept, dt, mode, n_gm, confidence, bands_per_de
 
     out = []
     path_of = {(Path(q).parent.parent.name, Path(q).stem): q for q in paths_out}
-    for d in sp.dataset.values:
-        for a in sp.axis.values:
-            label = f"{d}/{a}"
-            c = sp.sel(dataset=d, axis=a)
-            result = bound_psd(sp.frequency.values, {label: c.psd.values}, spec.models[sensor], dt=dt, mode=mode,
-                               n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade,
-                               edf=c.edf.values, taper=sp.attrs.get("taper", "hann"), keep=kept,
-                               T_grid=AXIS_T_PER_DECADE)
-            ax = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt,
-                  **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
-            write_yaml_atomic(ax, path_of[(str(d), str(a))], header=f"per-axis bound of {label} against {spec.name}")
-            out.append(ax)
+    f = sp["frequency"]
+    for d, a in sp.curves():
+        label = f"{d}/{a}"
+        result = bound_psd(f, {label: sp.at("psd", d, a)}, spec.models[sensor], dt=dt, mode=mode,
+                           n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade,
+                           edf=sp.at("edf", d, a), taper=sp.attrs.get("taper", "hann"), keep=kept,
+                           T_grid=AXIS_T_PER_DECADE)
+        ax = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt,
+              **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
+        write_yaml_atomic(ax, path_of[(d, a)], header=f"per-axis bound of {label} against {spec.name}")
+        out.append(ax)
     return out
 
 
@@ -65,9 +64,8 @@ def write_kf(model, spec_name: str, dt_s: float, horizon_s: float, path_out: str
 def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, mode: str, n_gm: int,
          confidence: float, bands_per_decade: int, compare_paper: bool, kf_dt_s: float, horizon_s: float,
          axis_out: list, path_out: str, kf_out: str, sensor: str) -> None:
-    import xarray as xr
-
     from imupipe.bound import bound_psd, check_allan_components, looseness, paper_inflation
+    from imupipe.merge import Stacked
     from imupipe.models import NoiseModel
     from imupipe.specsheet import display_units, load_spec
 
@@ -75,17 +73,13 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     if sensor not in spec.models:
         raise ValueError(f"{path_spec}: no '{sensor}' section, but the config processes {sensor}")
     spec_model = spec.models[sensor]
-    with xr.open_dataset(path_spectra) as sp:
-        sp = sp.load()
+    sp = Stacked(path_spectra)
     dt = 1.0 / float(sp.attrs["rate_hz"])
-    f = sp.frequency.values
+    f = sp["frequency"]
     curves, edf = {}, []
-    for d in sp.dataset.values:
-        for a in sp.axis.values:
-            if int(sp.included.sel(dataset=d, axis=a)):
-                curves[f"{d}/{a}"] = sp.psd.sel(dataset=d, axis=a).values
-                e = sp.edf.sel(dataset=d, axis=a).values if "dataset" in sp.edf.dims else sp.edf.values
-                edf.append(np.broadcast_to(e, f.shape))
+    for d, a in sp.curves(included_only=True):
+        curves[f"{d}/{a}"] = sp.at("psd", d, a)
+        edf.append(np.broadcast_to(sp.at("edf", d, a), f.shape))
     identified = read_yaml(path_identified)
     kept = identified["selection"]["kept"]
     per_axis = axis_bounds(sp, spec, sensor, kept, dt, mode, n_gm, confidence, bands_per_decade, axis_out)
@@ -97,8 +91,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     out = {"spec_name": spec.name, "spec_file": path_spec.rsplit("/", 1)[-1], "sensor": sensor, "dt_s": dt,
            "n_curves": len(curves), "curves": list(curves), "states_kept_by_identification": kept,
            **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
-    with xr.open_dataset(path_allan) as av:
-        tau = av.tau.values
+    tau = Stacked(path_allan)["tau"]
     ident_model = NoiseModel.from_dict(identified["model"])
     out["allan_check"] = _plain(check_allan_components(result.model, ident_model, tau))
     out["allan_check_passed"] = all(v["passed"] is not False for v in out["allan_check"].values())

@@ -14,8 +14,7 @@ def bound_model(d):
 
 
 def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_psd, out_allan, out_steps, sensor, spec):
-    import xarray as xr
-
+    from imupipe.merge import Stacked
     from imupipe.models import NoiseModel
     from imupipe.plot import plot_allan_components, plot_inflation_steps, plot_psd_bound, save_figure
     from imupipe.specsheet import load_spec
@@ -23,22 +22,25 @@ def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_p
     bound = read_yaml(path_bound)
     model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
     identified = NoiseModel.from_dict(read_yaml(path_identified)["model"])
-    with xr.open_dataset(path_spectra) as sp:
-        sp = sp.load()
-    with xr.open_dataset(path_allan) as av:
-        av = av.load()
+    sp, av = Stacked(path_spectra), Stacked(path_allan)
+
+    def every_curve(stacked, name):  # (dataset x axis, n): one row per curve
+        values = stacked[name]
+        return values.reshape(-1, values.shape[-1])
+
     dt = bound["dt_s"]
     title = f"{sensor}: {bound['spec_name']} spec vs {bound['mode']}-mode bound (margin {bound['margin']:.3g})"
-    save_figure(plot_psd_bound(sp.frequency.values, sp.psd, spec_model, model, sensor=sensor, dt=dt, title=title),
-                out_psd)
-    save_figure(plot_allan_components(av.tau.values, av.avar, identified, model, sensor=sensor,
-                                      avar_lower=av.avar_lower, avar_upper=av.avar_upper,
+    save_figure(plot_psd_bound(sp["frequency"], every_curve(sp, "psd"), spec_model, model, sensor=sensor, dt=dt,
+                               title=title), out_psd)
+    save_figure(plot_allan_components(av["tau"], every_curve(av, "avar"), identified, model, sensor=sensor,
+                                      avar_lower=every_curve(av, "avar_lower"),
+                                      avar_upper=every_curve(av, "avar_upper"),
                                       title=f"{sensor}: Allan deviation, identified vs bound components ({spec})"),
                 out_allan)
     hand = bound.get("paper_hand_inflation")
     history = [[p["parameter"], p["N"], p["sigma"], p["T"], p["K"], p["margin"]] for p in hand["phases"]] if hand else []
-    curves = np.stack([sp.psd.sel(dataset=c.split("/")[0], axis=c.split("/")[1]).values for c in bound["curves"]])
-    save_figure(plot_inflation_steps(sp.frequency.values, curves, spec_model, history, sensor=sensor, dt=dt,
+    curves = np.stack([sp.at("psd", *c.split("/")) for c in bound["curves"]])
+    save_figure(plot_inflation_steps(sp["frequency"], curves, spec_model, history, sensor=sensor, dt=dt,
                                      title=f"{sensor}: the paper's hand inflation of {spec}, step by step"),
                 out_steps)
 

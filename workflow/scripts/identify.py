@@ -9,26 +9,23 @@ from imupipe.io import run_job, write_yaml_atomic
 
 
 def curves_of(av):
-    """(label, tau, avar, edf, n_samples) of every included curve, NaN entries removed."""
+    """(label, tau, avar, edf, n_samples) of every included curve of a :class:`imupipe.merge.Stacked`
+    Allan-variance file, NaN entries removed."""
     out = []
-    for d in av.dataset.values:
-        for a in av.axis.values:
-            if not int(av.included.sel(dataset=d, axis=a)):
-                continue
-            c = av.sel(dataset=d, axis=a)
-            ok = np.isfinite(c.avar.values) & np.isfinite(c.edf.values)
-            out.append((f"{d}/{a}", av.tau.values[ok], c.avar.values[ok], c.edf.values[ok], int(c.n_samples)))
+    tau = av["tau"]
+    for d, a in av.curves(included_only=True):
+        avar, edf = av.at("avar", d, a), av.at("edf", d, a)
+        ok = np.isfinite(avar) & np.isfinite(edf)
+        out.append((f"{d}/{a}", tau[ok], avar[ok], edf[ok], int(av.at("n_samples", d, a))))
     return out
 
 
 def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: float, significance: float,
          relevance: float, rate_hz: float, horizon_s: float, truth, path_out: str, sensor: str) -> None:
-    import xarray as xr
-
     from imupipe.identify import fit_allan, select_components, slope_line
+    from imupipe.merge import Stacked
 
-    with xr.open_dataset(path_allan) as av:
-        av = av.load()
+    av = Stacked(path_allan)
     curves = curves_of(av)
     taus = [c[1] for c in curves]
     avars = [c[2] for c in curves]
