@@ -170,7 +170,7 @@ class TestCaching:
         more = work / "config_3.yaml"
         more.write_text(yaml.safe_dump(cfg))
         jobs = dry_run_jobs(work, config=more)
-        assert jobs.get("collect") == 2 and jobs.get("reduce") == 2, jobs
+        assert jobs.get("collect") == 2 and jobs.get("reduce") == 1, jobs
         assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
 
 

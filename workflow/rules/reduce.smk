@@ -1,18 +1,23 @@
-# The full-rate stage, one job per dataset and sensor type (its three axes one after the other, at most one
-# axis's samples in memory): overlapping Allan variance of the full-rate axis, block average to
-# decimate.rate_hz, Welch PSD of the decimated axis. One job instead of nine per sensor type: a job costs
-# ~0.1 s to start plus its imports, more than an axis's numerics (docs/architecture.md). The job imports
-# numpy, netCDF4 and the C kernel only (no xarray, no scipy.signal), so its peak memory stays near the
-# data of one axis. Parallelism: the (dataset, sensor) jobs run side by side on --cores.
+# The full-rate stage, one job per dataset (its six channels one after the other, at most one axis's samples
+# in memory): overlapping Allan variance of the full-rate axis, block average to decimate.rate_hz, Welch PSD
+# of the decimated axis. One job instead of one per channel: a job costs ~0.2 s to start plus its imports,
+# about half of a channel's numerics (docs/architecture.md). The job imports numpy, netCDF4 and the C kernel
+# only (no xarray, no scipy.signal), so its peak memory stays near the data of one axis. Parallelism: the
+# dataset jobs run side by side on --cores.
+
+
+def channel_files(pattern):
+    """Output list: pattern for every sensor and axis of the job's dataset ({{dataset}} kept)."""
+    return expand(pattern, sensor=SENSORS, axis=AXES)
 
 
 rule reduce:
     input:
-        series=expand("results/series/{{dataset}}/{{sensor}}/{axis}.nc", axis=AXES),
+        series=channel_files("results/series/{{dataset}}/{sensor}/{axis}.nc"),
     output:
-        allan=expand("results/allan/{{dataset}}/{{sensor}}/{axis}.nc", axis=AXES),
-        decimated=expand("results/decimated/{{dataset}}/{{sensor}}/{axis}.nc", axis=AXES),
-        psd=expand("results/psd/{{dataset}}/{{sensor}}/{axis}.nc", axis=AXES),
+        allan=channel_files("results/allan/{{dataset}}/{sensor}/{axis}.nc"),
+        decimated=channel_files("results/decimated/{{dataset}}/{sensor}/{axis}.nc"),
+        psd=channel_files("results/psd/{{dataset}}/{sensor}/{axis}.nc"),
     params:
         taus=config["allan"]["taus"],
         allan_confidence=config["allan"]["confidence"],
@@ -23,8 +28,8 @@ rule reduce:
         detrend=config["psd"]["detrend"],
         psd_confidence=config["psd"]["confidence"],
     log:
-        "logs/reduce/{dataset}/{sensor}.log",
+        "logs/reduce/{dataset}.log",
     benchmark:
-        "results/benchmarks/reduce/{dataset}/{sensor}.tsv"
+        "results/benchmarks/reduce/{dataset}.tsv"
     script:
         "../scripts/reduce.py"

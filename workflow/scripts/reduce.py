@@ -1,17 +1,14 @@
-"""Full-rate stage of one dataset and sensor type (rule reduce): per axis, the overlapping Allan variance
-of the full-rate series, the block average to the decimation rate and its Welch PSD. One axis at a time;
+"""Full-rate stage of one dataset (rule reduce): per channel (sensor and axis), the overlapping Allan variance
+of the full-rate series, the block average to the decimation rate and its Welch PSD. One channel at a time;
 files written with netCDF4 alone (no xarray import in this job)."""
 
 from imupipe.allan import _allan_variance
 from imupipe.io import read_series, run_job, write_series
 from imupipe.spectra import _psd, decimate
 
-AXES = ("x", "y", "z")
-
-
 def main(series: list, allan_out: list, decimated_out: list, psd_out: list, taus, allan_confidence: float,
          rate_hz: float, window_s: float, step_s: float, taper: str, detrend: str, psd_confidence: float) -> None:
-    for axis, path_in, path_av, path_dec, path_psd in zip(AXES, series, allan_out, decimated_out, psd_out):
+    for path_in, path_av, path_dec, path_psd in zip(series, allan_out, decimated_out, psd_out, strict=True):
         x, rate, attrs = read_series(path_in, pad_front=1)  # x = buffer[1:], integrated in place below
         units = attrs.pop("units")
         labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
