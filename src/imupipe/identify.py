@@ -178,13 +178,18 @@ def av_basis(tau, components=COMPONENTS, T=()):
 # ---------------------------------------------------------------------------------------------
 # weighted NNLS with re-weighting
 # ---------------------------------------------------------------------------------------------
-def _wnnls(A, y, edf, n_iter=30, rtol=1e-9, m0=None):
+def _wnnls(A, y, edf, n_iter=30, rtol=1e-6, m0=None):
     r"""Non-negative quasi-likelihood fit of AVs with variance :math:`2 m^2/\nu`.
 
     Iteratively re-weighted NNLS: weights :math:`w_k = \sqrt{\nu_k/2}/m_k` evaluated on the
     current model :math:`m = A p` (first pass on the data, or on `m0`, e.g. the solution at a
     neighbouring GM time constant). Returns ``(p, m, chi2)`` with the Pearson statistic
     :math:`\chi^2 = \sum \tfrac{\nu_k}{2} ((y_k - m_k)/m_k)^2`.
+
+    The iteration stops once the model moves by less than `rtol` (relative) at every tau. At 1e-6 the
+    default run's pooled fits agree with a 1e-9 stop to 1e-6 relative and their bootstrap replicates to
+    1.4e-4 at most (a parameter near zero), far inside the parameters' statistical uncertainty, for a
+    fifth less time.
     """
     from scipy.optimize import nnls
 
