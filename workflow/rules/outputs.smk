@@ -16,6 +16,8 @@ rule kalibr:
 
 
 rule figures:
+    # before kalibr and table when both are ready: the figures are the longer jobs at the end of a run
+    priority: 1
     input:
         spectra="results/spectra/{sensor}.nc",
         allan="results/allan/{sensor}.nc",
