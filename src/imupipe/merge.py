@@ -55,7 +55,8 @@ def stack_axis_files(paths, join: str = "exact"):
         # an integer variable (the noise type alpha) that the outer join padded with NaN: stored as float
         # with NaN rather than cast back to its integer dtype (NaN has no integer value)
         var = out[name]
-        if var.dtype.kind == "f" and np.dtype(var.encoding.get("dtype", "f8")).kind in "iu" and np.isnan(var.values).any():
+        stored_as_int = np.dtype(var.encoding.get("dtype", "f8")).kind in "iu"
+        if var.dtype.kind == "f" and stored_as_int and np.isnan(var.values).any():
             var.encoding.pop("dtype", None)
     out.attrs = {k: v for k, v in first_attrs.items() if k not in _PER_FILE}
     out["dataset"].attrs["long_name"] = "dataset"
@@ -118,18 +119,21 @@ class Stacked:
                 else:
                     self.variables[name] = (np.asarray(var[:]), tuple(var.dimensions), attrs)
 
+    def _variable(self, name):
+        if name not in self.variables:
+            raise KeyError(f"{self.path}: no variable {name!r} (has {sorted(self.variables)})")
+        return self.variables[name]
+
     def __getitem__(self, name):
         """Values of a variable (all its dimensions) or of a coordinate."""
         if name in self.coords:
             return self.coords[name]
-        if name not in self.variables:
-            raise KeyError(f"{self.path}: no variable {name!r} (has {sorted(self.variables)})")
-        return self.variables[name][0]
+        return self._variable(name)[0]
 
     def at(self, name, dataset, axis):
         """A variable at one (dataset, axis): the curve on its last dimension, or a scalar; a variable
         without the dataset/axis dimensions is returned whole."""
-        values, dims, _ = self.variables[name]
+        values, dims, _ = self._variable(name)
         index = tuple(self.datasets.index(dataset) if d == "dataset" else self.axes.index(axis) if d == "axis"
                       else slice(None) for d in dims)
         return values[index]

@@ -29,6 +29,8 @@ References
 
 from __future__ import annotations
 
+import functools
+import math
 import os
 import sys
 from dataclasses import replace
@@ -102,19 +104,18 @@ def _new_figure(nrows=1, ncols=1, figsize=(7.5, 5.0)):
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
-def _log_formatter():
-    """Tick labels of a log axis as plain Unicode text: 10⁻³ and, where matplotlib labels minor ticks
+@functools.cache
+def _unicode_log_formatter_class():
+    """LogFormatterSciNotation with plain Unicode labels: 10⁻³ and, where matplotlib labels minor ticks
     (an axis spanning less than about a decade), 2×10⁻³.
 
-    matplotlib decides which ticks carry a label (its LogFormatterSciNotation, so the choice is the
-    same); only the text differs: its mathtext labels are parsed by a typesetting engine, ~10 ms per
-    distinct label in every fresh process, a fifth of a figure job.
+    matplotlib decides which ticks carry a label (the parent class, so the choice is the same); only the
+    text differs: its mathtext labels are parsed by a typesetting engine, ~10 ms per distinct label in
+    every fresh process, a fifth of a figure job. Built once, on first use (matplotlib imported lazily).
     """
-    import math
-
     from matplotlib.ticker import LogFormatterSciNotation
 
-    class _Unicode(LogFormatterSciNotation):
+    class UnicodeLogFormatter(LogFormatterSciNotation):
         def __call__(self, x, pos=None):
             if not super().__call__(x, pos) or not (x > 0 and math.isfinite(x)):
                 return ""
@@ -123,7 +124,7 @@ def _log_formatter():
             power = "10" + str(e).translate(_SUPERSCRIPT)
             return power if abs(c - 1.0) < 1e-6 else f"{c:.2g}×{power}"
 
-    return _Unicode(base=10.0)
+    return UnicodeLogFormatter
 
 
 def _check_sensor(sensor):
@@ -289,8 +290,8 @@ def _finish_loglog(ax, xlabel, ylabel, legend_loc="best", ncol=1):
     ax.set_xscale("log")
     ax.set_yscale("log")
     for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_formatter(_log_formatter())
-        axis.set_minor_formatter(_log_formatter())
+        axis.set_major_formatter(_unicode_log_formatter_class()(base=10.0))
+        axis.set_minor_formatter(_unicode_log_formatter_class()(base=10.0))
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.grid(True, which="major", alpha=0.4)
@@ -693,7 +694,7 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=N
     conv = f"sampled, dt = {_fmt(dt)} s" if dt is not None else "continuous"
     shown = "" if len(ends) == n_phases else f" ({len(ends)} shown)"
     _axes_title(ax, f"{n_steps} steps in {n_phases} phases{shown}, final margin {final:.3g}; model PSDs {conv}",
-                 fontsize="small")
+                fontsize="small")
     _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{PSD_UNITS[sensor]}]", legend_loc="lower left")
     return fig
 

@@ -129,6 +129,11 @@ def axis_files_out(pattern):
     return expand(pattern, dataset=list(DATASETS), axis=AXES)
 
 
+def channel_files(pattern):
+    """Output list: pattern for every sensor and axis (other wildcards kept as {{...}} in `pattern`)."""
+    return expand(pattern, sensor=SENSORS, axis=AXES)
+
+
 def simulation_seed(wildcards):
     return SIM_SEEDS[wildcards.dataset]
 

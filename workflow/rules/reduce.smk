@@ -6,11 +6,6 @@
 # dataset jobs run side by side on --cores.
 
 
-def channel_files(pattern):
-    """Output list: pattern for every sensor and axis of the job's dataset ({{dataset}} kept)."""
-    return expand(pattern, sensor=SENSORS, axis=AXES)
-
-
 rule reduce:
     input:
         series=channel_files("results/series/{{dataset}}/{sensor}/{axis}.nc"),

@@ -6,6 +6,7 @@ from imupipe.allan import _allan_variance
 from imupipe.io import read_series, run_job, write_series
 from imupipe.spectra import _psd, decimate
 
+
 def main(series: list, allan_out: list, decimated_out: list, psd_out: list, taus, allan_confidence: float,
          rate_hz: float, window_s: float, step_s: float, taper: str, detrend: str, psd_confidence: float) -> None:
     for path_in, path_av, path_dec, path_psd in zip(series, allan_out, decimated_out, psd_out, strict=True):
