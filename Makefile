@@ -18,7 +18,13 @@ $(VENV)/.installed: pyproject.toml setup.py
 
 env: $(VENV)/.installed
 
+# Every job imports imupipe in a new interpreter: compiled bytecode saves ~50 ms per job. Python writes it
+# itself on first import unless PYTHONDONTWRITEBYTECODE is set; compileall writes it either way (a no-op
+# when it is up to date).
+BYTECODE = $(VENV)/bin/python -m compileall -q src/imupipe
+
 run: env  ## the default paper-scale workflow (simulated STIM-300-like data)
+	$(BYTECODE)
 	$(SNAKEMAKE)
 
 test: env  ## the test suite (slow paper-scale checks excluded)
@@ -31,6 +37,7 @@ bench: env  ## speed against error, with allantools in the same run
 	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/python benchmarks/run.py
 
 report: env
+	$(BYTECODE)
 	$(SNAKEMAKE) --report results/report.html
 
 clean:

@@ -429,6 +429,8 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
         res["markdown"] = res["skipped"]
         return res
     scratch = make_scratch(repo, out / "dag_scratch")
+    # as `make run` does (Makefile, BYTECODE): the package's bytecode compiled, whatever PYTHONDONTWRITEBYTECODE
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(repo / "src" / "imupipe")], check=False)
     logs = out / "dag_logs"
     logs.mkdir(parents=True, exist_ok=True)
     base = ["--cores", str(cores), "--configfile", configfile, *RUN_FLAGS]

@@ -357,3 +357,20 @@ def test_long_curves_are_drawn_through_their_envelope():
         assert y[in_col].min() == y[keep][col[keep] == c].min()
     # short curves are drawn whole
     assert np.array_equal(_envelope(f[:1000], y[:1000]), np.arange(1000))
+
+
+def test_envelope_has_one_column_per_pixel_of_its_axes():
+    # the 2x2 figure's panels are about half as wide as the single-axes figure's: half the columns, and a
+    # drawn sample curve keeps at most 4 points per column (first, last, min, max)
+    from imupipe.plot import _DPI, _new_figure, _pixel_columns
+
+    ax1 = _new_figure()[1][0, 0]
+    panel = _new_figure(2, 2, figsize=(11.0, 8.0))[1][0, 0]
+    one, quarter = _pixel_columns(ax1), _pixel_columns(panel)
+    assert one == pytest.approx(ax1.get_position().width * 7.5 * _DPI, abs=1)
+    assert 0.3 * one < quarter < 0.7 * one
+    f = np.linspace(0, 0.5, 20_001)[1:]
+    from imupipe.plot import _draw_samples
+
+    _draw_samples(panel, f, np.random.default_rng(1).chisquare(2, (1, f.size)), None, "PSDs")
+    assert panel.get_lines()[0].get_xdata().size <= 4 * quarter

@@ -1,10 +1,14 @@
 """Simulated components have the statistics of their definitions (tolerances from sampling spread)."""
 
+import importlib
+
 import numpy as np
 import pytest
 
 from imupipe.models import NoiseModel
 from imupipe.simulate import simulate
+
+simulate_module = importlib.import_module("imupipe.simulate")  # the package exports the function of that name
 
 
 def test_white_variance(rng):
@@ -65,3 +69,17 @@ def test_batch_records_have_the_model_statistics_and_are_independent(rng):
     assert r1 == pytest.approx(phi * sigma**2 / total, abs=5 / np.sqrt(rows * n) * 2)
     across = np.corrcoef(x[0], x[1])[0, 1]  # two different records
     assert abs(across) < 5 * np.sqrt(1 + 2 * phi / (1 - phi)) / np.sqrt(n)
+
+
+@pytest.mark.skipif(simulate_module._kernels is None, reason="imupipe._kernels not built")
+def test_ar1_kernel_is_lfilter(rng):
+    """The compiled Gauss-Markov recursion does lfilter's operations in lfilter's order: bit-identical."""
+    from scipy.signal import lfilter
+
+    e = rng.standard_normal((3, 5000))
+    for phi in (0.0, 0.5, 1.0 - 1e-9):
+        expected = lfilter([1.0], [1.0, -phi], e, axis=-1)
+        got = simulate_module._ar1(e.copy(), phi)
+        assert np.array_equal(got, expected)
+    with pytest.raises(ValueError, match="whole number of rows"):
+        simulate_module._kernels.ar1(np.zeros(10), 0.5, 3)

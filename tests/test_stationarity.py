@@ -13,7 +13,9 @@ import pytest
 import scipy.stats
 from scipy.signal import lfilter
 
+from imupipe import stationarity
 from imupipe.stationarity import (
+    _null_statistics,
     bootstrap_stationarity,
     calibrated_stationarity,
     ks_statistics,
@@ -71,6 +73,55 @@ class TestStatistics:
         segs = np.array([[1.0, 2.0, 5.0], [3.0, 4.0, 6.0]])
         assert ks_statistics(segs)[0] == pytest.approx(2 / 3)
         assert ks_statistics(np.ones((2, 5)))[0] == 0.0
+
+    @pytest.mark.parametrize("backend", ["numpy", pytest.param("c", marks=pytest.mark.skipif(
+        stationarity._kernels is None, reason="imupipe._kernels not built"))])
+    @pytest.mark.parametrize("k, m, quantised", [(2, 301, False), (2, 300, True), (3, 17, False), (4, 250, True)])
+    def test_null_statistics_equal_scipy(self, backend, k, m, quantised, rng):
+        """(W, max D) of the Monte Carlo null, per record, against scipy.stats on the unsorted segments; two
+        extra samples per record are dropped as in the test. D is a ratio of integer counts: exact. W differs
+        from scipy's only by summation order: each segment mean of m |deviations| carries a relative error
+        below m u, and the between-segment sum magnifies it by sum(zbar_i^2) / sum((zbar_i - zbar)^2)."""
+        scale = np.r_[np.repeat(np.linspace(1.0, 1.2, k), m), 1.0, 1.0]
+        records = rng.standard_normal((6, k * m + 2)) * scale
+        if quantised:  # an LSB of a third of the noise: many ties
+            records = np.round(records * 3) / 3
+        expect_w, expect_d, bound = [], [], []
+        for r in records:
+            segs = r[: k * m].reshape(k, m)
+            expect_w.append(scipy.stats.levene(*segs, center="median").statistic)
+            expect_d.append(max(scipy.stats.ks_2samp(segs[i], segs[i + 1]).statistic for i in range(k - 1)))
+            zi = np.abs(segs - np.median(segs, axis=1, keepdims=True)).mean(axis=1)
+            bound.append(8 * k * m * 2.0**-53 * np.sum(zi**2) / np.sum((zi - zi.mean()) ** 2))
+        w, d = _null_statistics(records.copy(), k, m, backend=backend)
+        np.testing.assert_array_equal(d, expect_d)
+        assert np.all(np.abs(w / np.array(expect_w) - 1) <= np.array(bound))
+
+    def test_null_statistics_degenerate_and_signed_zeros(self, rng):
+        records = rng.standard_normal((3, 41))
+        before = records.copy()
+        _null_statistics(records, 2, 20)
+        assert np.array_equal(records, before)  # the input is left alone
+        # no spread about the medians anywhere: W = 0 (equal spreads), D = 0 or 1 by level; no spread within
+        # the segments' |deviations| but different deviations: W = inf; -0.0 and 0.0 are one value (a tie)
+        flat = np.array([[1.0] * 8, [1.0] * 4 + [2.0] * 4, [1.0] * 4 + [0.0, 2.0, 0.0, 2.0],
+                         [-0.0, 0.0, -0.0, 0.0, 0.0, -0.0, 0.0, 0.0]])
+        for backend in ["numpy"] + (["c"] if stationarity._kernels is not None else []):
+            w, d = _null_statistics(flat, 2, 4, backend=backend)
+            assert w.tolist() == [0.0, 0.0, np.inf, 0.0] and d.tolist() == [0.0, 1.0, 0.5, 0.0]
+
+    @pytest.mark.skipif(stationarity._kernels is None, reason="imupipe._kernels not built")
+    def test_segment_kernel_rejects_bad_buffers(self):
+        kern = stationarity._kernels
+        x, w, d = np.zeros(12), np.zeros(2), np.zeros(2)
+        with pytest.raises(ValueError, match="len\\(x\\) == len\\(w\\) \\* n"):
+            kern.segment_stats(x, 5, 2, 2, w, d)
+        with pytest.raises(ValueError, match="k \\* m <= n"):
+            kern.segment_stats(x, 6, 2, 4, w, d)
+        with pytest.raises(ValueError, match="k >= 2"):
+            kern.segment_stats(x, 6, 1, 6, w, d)
+        with pytest.raises(TypeError, match="float64"):
+            kern.segment_stats(x.astype(np.float32), 6, 2, 3, w, d)
 
 
 # ---------------------------------------------------------------------------------------------

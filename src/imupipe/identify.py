@@ -39,6 +39,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
@@ -146,8 +147,6 @@ def av_basis(tau, components=COMPONENTS, T=()):
     names : list of str
         Column labels (``"white"``, ``"gm_1"``, ... ``"random_walk"``, ...).
     """
-    from imupipe.models import gm_avar
-
     t = np.asarray(tau, dtype=np.float64)
     cols, names = [], []
     for c in components:
@@ -156,7 +155,7 @@ def av_basis(tau, components=COMPONENTS, T=()):
             names.append("white")
         elif c == "gauss_markov":
             for i, Ti in enumerate(T):
-                cols.append(np.asarray(gm_avar(t, 1.0, float(Ti)), dtype=np.float64))
+                cols.append(_gm_column(t.tobytes(), float(Ti)))
                 names.append(f"gm_{i + 1}")
         elif c == "random_walk":
             cols.append(t / 3.0)
@@ -173,6 +172,18 @@ def av_basis(tau, components=COMPONENTS, T=()):
     if not cols:
         return np.zeros((t.size, 0)), names
     return np.stack(cols, axis=1), names
+
+
+@functools.lru_cache(maxsize=1024)
+def _gm_column(tau_bytes: bytes, T: float) -> np.ndarray:
+    """GM column of :func:`av_basis` (AV per unit sigma^2 at the float64 taus packed in `tau_bytes`), cached:
+    every bootstrap replicate profiles the same T grid on the same taus, and the axes of one record length
+    share their taus, so most columns are computed once per job (at most 1024 kept, ~2 kB each)."""
+    from imupipe.models import gm_avar
+
+    col = np.asarray(gm_avar(np.frombuffer(tau_bytes, dtype=np.float64), 1.0, T), dtype=np.float64)
+    col.flags.writeable = False
+    return col
 
 
 # ---------------------------------------------------------------------------------------------

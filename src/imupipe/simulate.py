@@ -17,7 +17,24 @@ from __future__ import annotations
 
 import numpy as np
 
+try:  # optional compiled kernel; scipy.signal.lfilter does the same recursion
+    from imupipe import _kernels
+except ImportError:  # pragma: no cover
+    _kernels = None
+
 __all__ = ["simulate"]
+
+
+def _ar1(e: np.ndarray, phi: float) -> np.ndarray:
+    """x[0] = e[0], x[i] = phi x[i-1] + e[i] along the last axis, in place: the compiled kernel
+    (``imupipe._kernels.ar1``, no scipy.signal import in the job) or ``scipy.signal.lfilter``, the same
+    operations in the same order (tested bit-identical)."""
+    if _kernels is not None and e.flags.c_contiguous and e.dtype == np.float64:
+        _kernels.ar1(e, float(phi), e.shape[-1])
+        return e
+    from scipy.signal import lfilter
+
+    return lfilter([1.0], [1.0, -phi], e, axis=-1)
 
 
 def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: int | None = None) -> np.ndarray:
@@ -38,8 +55,6 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
         Simulate this many independent records at once, shape (n_records, n) (vectorised: a Monte
         Carlo null of 99 records costs about one tenth of 99 calls). Default: one record, shape (n,).
     """
-    from scipy.signal import lfilter
-
     n = int(n)
     if n < 2:
         raise ValueError(f"simulate needs n >= 2 samples, got {n}")
@@ -48,26 +63,47 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
     rng = np.random.default_rng(rng)
     dt = 1.0 / float(rate)
     shape = (n,) if n_records is None else (int(n_records), n)
-    x = np.zeros(shape)
+    # each component is drawn into a fresh array and scaled in place (no temporaries: a Monte Carlo batch
+    # is tens of MB); the values are those of the plain expressions, operation for operation
+    x = None
+
+    def add(term):
+        nonlocal x
+        if x is None:
+            x = term
+        else:
+            x += term
+
     if model.white:
-        x += model.white / np.sqrt(dt) * rng.standard_normal(shape)
+        w = rng.standard_normal(shape)
+        w *= model.white / np.sqrt(dt)
+        add(w)
     for sigma, T in model.gauss_markov:
         phi = np.exp(-dt / T)
-        e = rng.standard_normal(shape) * (sigma * np.sqrt(-np.expm1(-2.0 * dt / T)))
+        e = rng.standard_normal(shape)
+        e *= sigma * np.sqrt(-np.expm1(-2.0 * dt / T))
         e[..., 0] = sigma * rng.standard_normal(shape[:-1])
-        x += lfilter([1.0], [1.0, -phi], e, axis=-1)
+        add(_ar1(e, phi))
     if model.random_walk:
-        x += model.random_walk * np.sqrt(dt) * np.cumsum(rng.standard_normal(shape), axis=-1)
+        w = rng.standard_normal(shape)
+        np.cumsum(w, axis=-1, out=w)
+        w *= model.random_walk * np.sqrt(dt)
+        add(w)
     if model.flicker:
         m = 2 * n
         f = np.fft.rfftfreq(m, dt)
         spec = np.zeros(f.size)
         spec[1:] = np.sqrt(model.flicker**2 / (2.0 * np.pi * f[1:]))
         fshape = shape[:-1] + (f.size,)
-        z = rng.standard_normal(fshape) + 1j * rng.standard_normal(fshape)
+        z = np.empty(fshape, dtype=np.complex128)
+        z.real = rng.standard_normal(fshape)
+        z.imag = rng.standard_normal(fshape)
         # two-sided density S2 -> amplitude: x = irfft(Z * sqrt(S2 * m / dt) / sqrt(2)) with E|Z|^2 = 2
-        y = np.fft.irfft(z * spec * np.sqrt(m / dt / 2.0), n=m, axis=-1)
-        x += y[..., :n]
+        z *= spec
+        z *= np.sqrt(m / dt / 2.0)
+        add(np.fft.irfft(z, n=m, axis=-1)[..., :n])
+    if x is None:
+        x = np.zeros(shape)
     if model.quantization:
         e = model.quantization * rng.standard_normal(shape[:-1] + (n + 1,))
         x += np.diff(e, axis=-1) / dt
