@@ -1,86 +1,72 @@
-"""Stack per-axis results into one labelled Dataset per sensor type: dims (dataset, axis, <coord>)."""
+"""Stack per-axis results into one labelled file per sensor type: dims (dataset, axis, <coord>).
+
+Read and written with netCDF4 alone (:class:`Stacked`): importing xarray costs ~0.3 s per process, more than
+the stacking itself. :meth:`Stacked.to_xarray` gives the same content as an :class:`xarray.Dataset`.
+"""
 
 from __future__ import annotations
 
-__all__ = ["Stacked", "stack_axis_files", "included_flags"]
+from typing import NamedTuple
+
+__all__ = ["Stacked", "stack_axis_files"]
 
 _PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
+_INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
 
 
 def stack_axis_files(paths, join: str = "exact"):
-    """Open per-(dataset, axis) netCDF files (global attrs ``dataset`` and ``axis``) and stack them.
+    """The per-axis files stacked (:meth:`Stacked.from_axis_files`) as an :class:`xarray.Dataset`."""
+    return Stacked.from_axis_files(paths, join=join).to_xarray()
 
-    Parameters
-    ----------
-    paths : sequence of str
-        Files of one sensor type, each with one index coordinate (``frequency`` or ``tau``).
-    join : {"exact", "outer"}
-        ``exact``: every file must share the coordinate (PSDs of one configuration); ``outer``:
-        union, missing entries NaN (AV grids of records of different lengths).
 
-    Returns
-    -------
-    xarray.Dataset
-        Variables with dims (dataset, axis, coord), their attrs kept; per-file record lengths as the
-        variable ``n_samples`` (dataset, axis); global attrs of the first file, minus per-file ones.
-    """
+class _AxisFile(NamedTuple):
+    path: str
+    dataset: str
+    axis: str
+    dim: str  # the one dimension, e.g. "tau" or "frequency"
+    index: object  # its coordinate values, float64
+    index_attrs: dict
+    data: dict  # name -> (values, attrs) of the data variables on dim
+    attrs: dict  # global attributes
+
+
+def _read_axis_file(path) -> _AxisFile:
+    """A per-axis file: its data variables on its one dimension; auxiliary coordinates (``m``, ``n_terms``)
+    are dropped."""
+    import netCDF4
     import numpy as np
-    import xarray as xr
 
-    by_dataset: dict[str, list] = {}
-    first_attrs = None
-    for path in paths:
-        with xr.open_dataset(path) as ds:
-            ds = ds.load()
-        dataset, axis = ds.attrs.get("dataset"), ds.attrs.get("axis")
+    with netCDF4.Dataset(path) as nc:
+        nc.set_auto_mask(False)
+        attrs = {k: nc.getncattr(k) for k in nc.ncattrs()}
+        dataset, axis = attrs.get("dataset"), attrs.get("axis")
         if dataset is None or axis is None:
             raise ValueError(f"{path}: global attributes 'dataset' and 'axis' are required")
-        if first_attrs is None:
-            first_attrs = dict(ds.attrs)
-        n = ds.attrs.get("n_samples")
-        ds = ds.reset_coords(drop=True)
-        if n is not None:
-            ds["n_samples"] = xr.DataArray(int(n), attrs={"long_name": "samples in the record", "units": "1"})
-        ds.attrs = {}
-        by_dataset.setdefault(str(dataset), []).append(ds.expand_dims({"axis": [str(axis)]}))
-    if not by_dataset:
-        raise ValueError("no files to stack")
-    try:
-        per_dataset = [xr.concat(v, dim="axis", join=join).sortby("axis") for v in by_dataset.values()]
-        out = xr.concat(per_dataset, dim=xr.DataArray(list(by_dataset), dims="dataset", name="dataset"), join=join)
-    except ValueError as exc:
-        raise ValueError(f"files do not share one grid ({exc}); check that every dataset uses the same "
-                         "decimation rate and PSD window") from None
-    for name in out.data_vars:
-        # an integer variable (the noise type alpha) that the outer join padded with NaN: stored as float
-        # with NaN rather than cast back to its integer dtype (NaN has no integer value)
-        var = out[name]
-        stored_as_int = np.dtype(var.encoding.get("dtype", "f8")).kind in "iu"
-        if var.dtype.kind == "f" and stored_as_int and np.isnan(var.values).any():
-            var.encoding.pop("dtype", None)
-    out.attrs = {k: v for k, v in first_attrs.items() if k not in _PER_FILE}
-    out["dataset"].attrs["long_name"] = "dataset"
-    out["axis"].attrs["long_name"] = "sensor axis"
-    return out
-
-
-def included_flags(summary: dict, ds):
-    """Boolean DataArray (dataset, axis): curve used by the bound (stationarity summary's ``included``)."""
-    import numpy as np
-    import xarray as xr
-
-    flags = xr.DataArray(np.zeros((ds.sizes["dataset"], ds.sizes["axis"]), dtype=bool),
-                         coords={"dataset": ds.dataset, "axis": ds.axis}, dims=("dataset", "axis"))
-    for c in summary["curves"]:
-        flags.loc[{"dataset": c["dataset"], "axis": c["axis"]}] = bool(c["included"])
-    flags.attrs = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
-    return flags.astype("i1")
+        if len(nc.dimensions) != 1:
+            raise ValueError(f"{path}: one dimension expected, found {list(nc.dimensions)}")
+        dim = next(iter(nc.dimensions))
+        if dim not in nc.variables:
+            raise ValueError(f"{path}: no coordinate variable {dim!r}")
+        aux = {c for v in nc.variables.values() for c in getattr(v, "coordinates", "").split()}
+        data = {}
+        for name, var in nc.variables.items():
+            if name == dim or name in aux or var.dimensions != (dim,):
+                continue
+            data[name] = (np.asarray(var[:]), {k: var.getncattr(k) for k in var.ncattrs()
+                                               if k not in ("_FillValue", "coordinates")})
+        index = nc.variables[dim]
+        return _AxisFile(str(path), str(dataset), str(axis), dim, np.asarray(index[:], dtype=np.float64),
+                         {k: index.getncattr(k) for k in index.ncattrs() if k != "_FillValue"}, data, attrs)
 
 
 class Stacked:
-    """A per-sensor-type file of :func:`stack_axis_files` (``results/spectra/{sensor}.nc``,
-    ``results/allan/{sensor}.nc``) read with netCDF4 alone, for the jobs that only read it: importing
-    xarray costs ~0.35 s per process, a third of a bound job.
+    """Every curve of one sensor type: per-(dataset, axis) files stacked on (dataset, axis, <coord>)
+    (``results/spectra/{sensor}.nc``, ``results/allan/{sensor}.nc``), read and written with netCDF4 alone.
+
+    ``Stacked(path)`` reads a stacked file; :meth:`from_axis_files` stacks per-axis files;
+    :meth:`to_netcdf` writes (every variable with its attrs, floats with ``_FillValue = NaN``, the
+    ``dataset`` and ``axis`` coordinates as strings: xarray reads the file as the Dataset of
+    :meth:`to_xarray`).
 
     Attributes
     ----------
@@ -88,6 +74,8 @@ class Stacked:
         The ``dataset`` and ``axis`` coordinates, in file order.
     coords : dict
         Every 1-D coordinate variable (``frequency`` in Hz, ``tau`` in s, ...) as a float64 array.
+    coord_attrs : dict
+        Their attributes (``units``, ``long_name``).
     attrs : dict
         Global attributes (``rate_hz``, ``taper``, ...).
     variables : dict
@@ -109,15 +97,125 @@ class Stacked:
                 raise ValueError(f"{self.path}: no {', '.join(sorted(missing))} coordinate: not a per-sensor file")
             self.datasets = [str(v) for v in nc.variables["dataset"][:]]
             self.axes = [str(v) for v in nc.variables["axis"][:]]
-            self.coords, self.variables = {}, {}
+            self.coords, self.coord_attrs, self.variables = {}, {}, {}
             for name, var in nc.variables.items():
                 if name in names:
                     continue
-                attrs = {k: var.getncattr(k) for k in var.ncattrs() if k != "_FillValue"}
+                attrs = {k: var.getncattr(k) for k in var.ncattrs() if k not in ("_FillValue", "coordinates")}
                 if var.dimensions == (name,):
                     self.coords[name] = np.asarray(var[:], dtype=np.float64)
+                    self.coord_attrs[name] = attrs
                 else:
                     self.variables[name] = (np.asarray(var[:]), tuple(var.dimensions), attrs)
+
+    @classmethod
+    def from_axis_files(cls, paths, join: str = "exact") -> "Stacked":
+        """Stack per-(dataset, axis) files (global attrs ``dataset`` and ``axis``, one index coordinate such as
+        ``frequency`` or ``tau``).
+
+        Datasets in the order of `paths`, axes sorted. ``join="exact"``: every file must share the
+        coordinate (PSDs of one configuration); ``"outer"``: the sorted union, missing entries NaN (AV grids
+        of records of different lengths; an integer variable with a missing entry is stored as float with
+        NaN, since NaN has no integer value). Per-file record lengths (global attr ``n_samples``) become
+        the variable ``n_samples`` (dataset, axis); global attrs are the first file's minus per-file ones.
+        """
+        import numpy as np
+
+        if join not in ("exact", "outer"):
+            raise ValueError(f"join must be 'exact' or 'outer', got {join!r}")
+        files = [_read_axis_file(path) for path in paths]
+        if not files:
+            raise ValueError("no files to stack")
+        dim = files[0].dim
+        if any(f.dim != dim for f in files):
+            raise ValueError(f"files do not share one dimension: {sorted({f.dim for f in files})}")
+        if join == "exact":
+            bad = [f.path for f in files if not np.array_equal(f.index, files[0].index)]
+            if bad:
+                raise ValueError(f"files do not share one grid ({dim} of {bad[0]} differs from {files[0].path}); "
+                                 "check that every dataset uses the same decimation rate and PSD window")
+            index = files[0].index
+        else:
+            index = np.unique(np.concatenate([f.index for f in files]))
+        out = cls.__new__(cls)
+        out.path = None
+        out.datasets = list(dict.fromkeys(f.dataset for f in files))
+        out.axes = sorted({f.axis for f in files})
+        out.coords, out.coord_attrs = {dim: index}, {dim: files[0].index_attrs}
+        out.attrs = {k: v for k, v in files[0].attrs.items() if k not in _PER_FILE}
+        shape = (len(out.datasets), len(out.axes))
+        values, attrs, dtypes = {}, {}, {}
+        n_samples = np.full(shape, np.nan)
+        have = np.zeros(shape, dtype=bool)
+        for f in files:
+            i, j = out.datasets.index(f.dataset), out.axes.index(f.axis)
+            if have[i, j]:
+                raise ValueError(f"{f.path}: a second file for dataset {f.dataset!r}, axis {f.axis!r}")
+            have[i, j] = True
+            if f.attrs.get("n_samples") is not None:
+                n_samples[i, j] = int(f.attrs["n_samples"])
+            at = np.searchsorted(index, f.index)
+            for name, (v, a) in f.data.items():
+                if name not in values:
+                    values[name] = np.full(shape + (index.size,), np.nan)
+                    attrs[name], dtypes[name] = a, v.dtype
+                values[name][i, j, at] = v
+        out.variables = {}
+        for name, v in values.items():
+            integer = dtypes[name].kind in "iu" and not np.isnan(v).any()
+            out.variables[name] = (v.astype(dtypes[name]) if integer else v, ("dataset", "axis", dim), attrs[name])
+        if not np.isnan(n_samples).all():
+            ns = n_samples.astype(np.int64) if not np.isnan(n_samples).any() else n_samples
+            out.variables["n_samples"] = (ns, ("dataset", "axis"), {"long_name": "samples in the record", "units": "1"})
+        return out
+
+    def set_included(self, summary: dict) -> None:
+        """The ``included`` flag (dataset, axis), int8: a curve is used by the bound (``curves[*].included`` of
+        the stationarity summary; a curve not in the summary is not)."""
+        import numpy as np
+
+        flags = np.zeros((len(self.datasets), len(self.axes)), dtype=np.int8)
+        for c in summary["curves"]:
+            if c["dataset"] in self.datasets and c["axis"] in self.axes:
+                flags[self.datasets.index(c["dataset"]), self.axes.index(c["axis"])] = bool(c["included"])
+        self.variables["included"] = (flags, ("dataset", "axis"), dict(_INCLUDED_ATTRS))
+
+    def to_netcdf(self, path) -> None:
+        """Write to netCDF-4 at `path` atomically (:func:`imupipe.io.atomic_path`)."""
+        import netCDF4
+        import numpy as np
+
+        from imupipe.io import atomic_path
+
+        with atomic_path(path) as tmp:
+            with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+                for name, labels in (("dataset", self.datasets), ("axis", self.axes)):
+                    nc.createDimension(name, len(labels))
+                    var = nc.createVariable(name, str, (name,))
+                    var.long_name = "dataset" if name == "dataset" else "sensor axis"
+                    var[:] = np.array(labels, dtype=object)
+                for name, values in self.coords.items():
+                    nc.createDimension(name, values.size)
+                    var = nc.createVariable(name, "f8", (name,), fill_value=np.nan)
+                    var.setncatts(self.coord_attrs.get(name, {}))
+                    var[:] = values
+                for name, (values, dims, attrs) in self.variables.items():
+                    values = np.asarray(values)
+                    fill = np.nan if values.dtype.kind == "f" else None
+                    var = nc.createVariable(name, values.dtype.str.lstrip("<>=|"), dims, fill_value=fill)
+                    var.setncatts({k: v for k, v in attrs.items() if v is not None})
+                    var[:] = values
+                nc.setncatts({k: v for k, v in self.attrs.items() if v is not None})
+
+    def to_xarray(self):
+        """The same content as an :class:`xarray.Dataset` (imports xarray)."""
+        import xarray as xr
+
+        coords = {"dataset": ("dataset", self.datasets, {"long_name": "dataset"}),
+                  "axis": ("axis", self.axes, {"long_name": "sensor axis"})}
+        coords.update({k: (k, v, dict(self.coord_attrs.get(k, {}))) for k, v in self.coords.items()})
+        return xr.Dataset({k: (dims, v, dict(a)) for k, (v, dims, a) in self.variables.items()}, coords=coords,
+                          attrs=dict(self.attrs))
 
     def _variable(self, name):
         if name not in self.variables:

@@ -1,12 +1,12 @@
 """Per sensor type (rule collect): stationarity of every decimated axis -- the paper's Levene + KS and the
 same statistics calibrated on a null simulated from the axis's own Allan-variance fit --, the summary with
 stationarity.on_fail applied, then every axis's PSD and Allan variance in one file each with an
-`included` flag. Imports scipy and xarray once for all the axes of the sensor type."""
+`included` flag. Imports scipy once for all the axes of the sensor type, and not xarray (netCDF4 alone)."""
 
 import logging
 import zlib
 
-from imupipe.io import read_series, run_job, write_netcdf_atomic, write_yaml_atomic
+from imupipe.io import read_series, run_job, write_yaml_atomic
 
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
 
@@ -19,13 +19,11 @@ def verdict(path_decimated: str, path_allan: str, n_segments: int, alpha: float,
     out = {"dataset": attrs.get("dataset"), "sensor": attrs.get("sensor"), "axis": attrs.get("axis"),
            "rate_hz": rate, "n_samples": int(x.size), "test": test}
     if test == "calibrated":
-        import xarray as xr
-
         from imupipe.identify import fit_allan
+        from imupipe.merge import Stacked
 
-        with xr.open_dataset(path_allan) as av:
-            av = av.load()
-        fit = fit_allan(av.tau.values, av.avar.values, av.edf.values, components=NULL_COMPONENTS, n_boot=0)
+        av = Stacked.from_axis_files([path_allan])
+        fit = fit_allan(av["tau"], av["avar"][0, 0], av["edf"][0, 0], components=NULL_COMPONENTS, n_boot=0)
         label = f"{out['dataset']}/{out['sensor']}/{out['axis']}"
         cal = calibrated_stationarity(x, rate, fit.model, n_segments=n_segments, alpha=alpha, n_sim=n_sim,
                                       rng=zlib.crc32(label.encode()))  # reproducible per axis
@@ -62,7 +60,7 @@ def summarise(verdicts: list, on_fail: str, sensor: str) -> dict:
 
 def main(decimated: list, allan: list, psd: list, verdicts_out: list, n_segments: int, alpha: float, test: str,
          n_sim: int, on_fail: str, summary_out: str, spectra_out: str, allan_out: str, sensor: str) -> None:
-    from imupipe.merge import included_flags, stack_axis_files
+    from imupipe.merge import Stacked
 
     verdicts = []
     for path_dec, path_av, path_out in zip(decimated, allan, verdicts_out):
@@ -74,10 +72,10 @@ def main(decimated: list, allan: list, psd: list, verdicts_out: list, n_segments
     for paths, join, path_out in ((psd, "exact", spectra_out), (allan, "outer", allan_out)):
         # PSDs of one configuration share their frequencies; AV grids of records of different lengths do
         # not (missing entries NaN)
-        ds = stack_axis_files(paths, join=join)
-        ds["included"] = included_flags(summary, ds)
-        ds.attrs["sensor"] = sensor
-        write_netcdf_atomic(ds, path_out)
+        stacked = Stacked.from_axis_files(paths, join=join)
+        stacked.set_included(summary)
+        stacked.attrs["sensor"] = sensor
+        stacked.to_netcdf(path_out)
 
 
 if __name__ == "__main__":
