@@ -644,7 +644,7 @@ def fit_allan(
             boots[b] = [pb[k] for k in names]
             if k_deltas is not None:
                 # the replicate's fit with K held at the value it was drawn with; T searched near the
-                # replicate's own optimum (a missed better T only enlarges the threshold: conservative)
+                # replicate's own optimum (a better T missed only enlarges the threshold: conservative)
                 local = _near_grid(bgrid, sol.T[0]) if n_gm == 1 else bgrid
                 held = _profile(t, ystar, e, rest, n_gm, local, offset=k2_hat * t / 3.0)[0]
                 k_deltas[b] = max(held.chi2 - sol.chi2, 0.0)
