@@ -110,3 +110,26 @@ class TestSlopeLine:
         av = allan_variance(x, RATE, taus="octave")
         sl = slope_line(av.tau.values, np.sqrt(av.avar.values))
         assert sl["white"] == pytest.approx(1e-3, rel=0.02)
+
+
+def test_random_walk_profile_limit_brackets_its_threshold():
+    # K's upper end: the largest k with Delta(k) = chi2(K held at k) - chi2(free) <= the bootstrap threshold;
+    # the bisection returns the upper end of a 2 % bracket, so Delta crosses the threshold inside it
+    from imupipe.identify import _check_components, _profile
+
+    truth = TRUTHS["white+gm+rw"]
+    tau, avar, edf = curves(truth, 2.0, 1, seed=5)
+    n = int(2.0 * 3600 * RATE)
+    comps = ("white", "gauss_markov", "random_walk")
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    prof = fit.random_walk_profile
+    assert prof["threshold"] > 0 and prof["upper"] >= fit.params["random_walk"]
+    assert fit.intervals["random_walk"][1] == max(prof["upper"], prof["percentile_upper"])
+    t, y, e = tau[0], avar[0], edf[0]
+    rest = _check_components(("white", "gauss_markov"), 1)
+
+    def delta(k):
+        return _profile(t, y, e, rest, 1, fit.T_grid, offset=k * k * t / 3.0)[0].chi2 - fit.chi2
+
+    assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] / 1.02)
+    assert fit.to_dict()["random_walk_profile"]["upper"] == prof["upper"]
