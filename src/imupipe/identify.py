@@ -206,10 +206,12 @@ def _wnnls(A, y, edf, n_iter=30, rtol=1e-6, m0=None, offset=None):
     from scipy.optimize import nnls
 
     n, k = A.shape
-    if k == 0:
-        m = np.zeros_like(y) if offset is None else np.maximum(offset, 1e-6 * y)
+    if k == 0:  # nothing to fit: the model is the offset alone (none: no model, chi2 infinite)
+        if offset is None:
+            return np.zeros(0), np.zeros_like(y), float("inf")
+        m = np.maximum(offset, 1e-6 * y)
         r = (y - m) / m
-        return np.zeros(0), m, float("inf") if offset is None else float(np.sum(edf / 2.0 * r * r))
+        return np.zeros(0), m, float(np.sum(edf / 2.0 * r * r))
     s = np.sqrt(edf / 2.0)
     m = y.copy() if m0 is None else np.maximum(m0, 1e-6 * y)
     target = y if offset is None else y - offset

@@ -12,6 +12,7 @@ __all__ = ["Stacked", "stack_axis_files"]
 
 _PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
 _INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
+_LABEL_ATTRS = {"dataset": {"long_name": "dataset"}, "axis": {"long_name": "sensor axis"}}
 
 
 def stack_axis_files(paths, join: str = "exact"):
@@ -192,7 +193,7 @@ class Stacked:
                 for name, labels in (("dataset", self.datasets), ("axis", self.axes)):
                     nc.createDimension(name, len(labels))
                     var = nc.createVariable(name, str, (name,))
-                    var.long_name = "dataset" if name == "dataset" else "sensor axis"
+                    var.setncatts(_LABEL_ATTRS[name])
                     var[:] = np.array(labels, dtype=object)
                 for name, values in self.coords.items():
                     nc.createDimension(name, values.size)
@@ -211,8 +212,8 @@ class Stacked:
         """The same content as an :class:`xarray.Dataset` (imports xarray)."""
         import xarray as xr
 
-        coords = {"dataset": ("dataset", self.datasets, {"long_name": "dataset"}),
-                  "axis": ("axis", self.axes, {"long_name": "sensor axis"})}
+        coords = {name: (name, labels, dict(_LABEL_ATTRS[name]))
+                  for name, labels in (("dataset", self.datasets), ("axis", self.axes))}
         coords.update({k: (k, v, dict(self.coord_attrs.get(k, {}))) for k, v in self.coords.items()})
         return xr.Dataset({k: (dims, v, dict(a)) for k, (v, dims, a) in self.variables.items()}, coords=coords,
                           attrs=dict(self.attrs))

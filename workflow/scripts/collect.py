@@ -11,8 +11,9 @@ from imupipe.io import read_series, run_job, write_yaml_atomic
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
 
 
-def verdict(path_decimated: str, path_allan: str, n_segments: int, alpha: float, test: str, n_sim: int) -> dict:
-    """Stationarity verdict of one axis (plain dict)."""
+def verdict(path_decimated: str, allan, n_segments: int, alpha: float, test: str, n_sim: int) -> dict:
+    """Stationarity verdict of one axis (plain dict); `allan`: every axis's Allan variance
+    (:class:`imupipe.merge.Stacked`), for the null model of the calibrated test."""
     from imupipe.stationarity import calibrated_stationarity, stationarity_tests
 
     x, rate, attrs = read_series(path_decimated)
@@ -20,10 +21,10 @@ def verdict(path_decimated: str, path_allan: str, n_segments: int, alpha: float,
            "rate_hz": rate, "n_samples": int(x.size), "test": test}
     if test == "calibrated":
         from imupipe.identify import fit_allan
-        from imupipe.merge import Stacked
 
-        av = Stacked.from_axis_files([path_allan])
-        fit = fit_allan(av["tau"], av["avar"][0, 0], av["edf"][0, 0], components=NULL_COMPONENTS, n_boot=0)
+        d, a = str(out["dataset"]), str(out["axis"])  # the grid's missing taus (NaN) are dropped by the fit
+        fit = fit_allan(allan["tau"], allan.at("avar", d, a), allan.at("edf", d, a), components=NULL_COMPONENTS,
+                        n_boot=0)
         label = f"{out['dataset']}/{out['sensor']}/{out['axis']}"
         cal = calibrated_stationarity(x, rate, fit.model, n_segments=n_segments, alpha=alpha, n_sim=n_sim,
                                       rng=zlib.crc32(label.encode()))  # reproducible per axis
@@ -62,17 +63,17 @@ def main(decimated: list, allan: list, psd: list, verdicts_out: list, n_segments
          n_sim: int, on_fail: str, summary_out: str, spectra_out: str, allan_out: str, sensor: str) -> None:
     from imupipe.merge import Stacked
 
+    # PSDs of one configuration share their frequencies; AV grids of records of different lengths do not
+    # (missing entries NaN). Each per-axis file is read once: the AVs also give the null models.
+    allan_stacked = Stacked.from_axis_files(allan, join="outer")
     verdicts = []
-    for path_dec, path_av, path_out in zip(decimated, allan, verdicts_out):
-        v = verdict(path_dec, path_av, n_segments, alpha, test, n_sim)
+    for path_dec, path_out in zip(decimated, verdicts_out, strict=True):
+        v = verdict(path_dec, allan_stacked, n_segments, alpha, test, n_sim)
         write_yaml_atomic(v, path_out, header="stationarity verdict; p-values are probabilities, rate in Hz")
         verdicts.append(v)
     summary = summarise(verdicts, on_fail, sensor)
     write_yaml_atomic(summary, summary_out)
-    for paths, join, path_out in ((psd, "exact", spectra_out), (allan, "outer", allan_out)):
-        # PSDs of one configuration share their frequencies; AV grids of records of different lengths do
-        # not (missing entries NaN)
-        stacked = Stacked.from_axis_files(paths, join=join)
+    for stacked, path_out in ((Stacked.from_axis_files(psd, join="exact"), spectra_out), (allan_stacked, allan_out)):
         stacked.set_included(summary)
         stacked.attrs["sensor"] = sensor
         stacked.to_netcdf(path_out)
