@@ -462,7 +462,8 @@ class AllanFit:
 
         return {
             "units": "SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, "
-            "quantization u*s, ramp u/s, gm_sigma u, gm_T s",
+            "quantization u*s, ramp u/s, gm_sigma u, gm_T s; random_walk_profile: threshold 1 (a chi2 "
+            "difference), upper and percentile_upper u/sqrt(s)",
             "params": {k: fl(v) for k, v in self.params.items()},
             "intervals": {k: [fl(a), fl(b)] for k, (a, b) in self.intervals.items()},
             "p_zero": {k: fl(v) for k, v in self.p_zero.items()},
