@@ -8,6 +8,7 @@ benchmark measures 0.02-0.3 %.
 import numpy as np
 import pytest
 
+from imupipe import identify
 from imupipe.allan import allan_variance
 from imupipe.identify import fit_allan, select_components, slope_line
 from imupipe.models import NoiseModel
@@ -133,3 +134,106 @@ def test_random_walk_profile_limit_brackets_its_threshold():
 
     assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] / 1.02)
     assert fit.to_dict()["random_walk_profile"]["upper"] == prof["upper"]
+
+
+# ---------------------------------------------------------------------------------------------
+# the compiled re-weighted NNLS against scipy.optimize.nnls, and its optimality conditions
+# ---------------------------------------------------------------------------------------------
+needs_kernel = pytest.mark.skipif(identify._kernels is None, reason="imupipe._kernels not built")
+EPS = np.finfo(np.float64).eps
+
+
+def av_problem(seed, n_tau=40, components=("white", "gauss_markov", "random_walk", "flicker")):
+    """An AV fitting problem with known non-negative truth: chi^2-scattered AVs (edf 3-1000) around
+    A p_true, p_true spanning six decades with some components absent (white always present)."""
+    rng = np.random.default_rng(seed)
+    t = np.logspace(-2, 4, n_tau)
+    A, _ = identify.av_basis(t, components, (10 ** rng.uniform(-1, 3),))
+    p = np.abs(rng.standard_normal(A.shape[1])) * 10 ** rng.uniform(-3, 3, A.shape[1])
+    p[1:][rng.random(A.shape[1] - 1) < 0.3] = 0.0
+    edf = rng.uniform(3, 1000, t.size)
+    return A, A @ p * rng.chisquare(edf) / edf, edf
+
+
+def weighted_problem(A, y, edf, m):
+    """The last pass's NNLS: unit-norm columns B, target b, column norms (identify._wnnls)."""
+    w = np.sqrt(edf / 2.0) / m
+    Aw = A * w[:, None]
+    col = np.linalg.norm(Aw, axis=0)
+    return Aw / col, y * w, col
+
+
+def ls_rounding_bound(A, y, edf, m, p, offset=None):
+    """Relative rounding of a least-squares solve on the last pass's active columns:
+    eps cond(B) (1 + cond(B) ||r||/||b||) (Golub & Van Loan, Thm 5.3.1) times the Householder backward-error
+    growth ~ k sqrt(n)."""
+    B, b, col = weighted_problem(A, y if offset is None else y - offset, edf, m)
+    active = p > 0
+    cond = np.linalg.cond(B[:, active]) if active.any() else 1.0
+    r = np.linalg.norm(b - B @ (p * col))
+    return A.shape[1] * np.sqrt(A.shape[0]) * EPS * cond * (1.0 + cond * r / np.linalg.norm(b))
+
+
+@needs_kernel
+class TestWnnlsKernel:
+    @pytest.mark.parametrize("seed", range(40))
+    def test_converged_fit_matches_scipy_to_rounding(self, seed):
+        # run both to the fixed point (rtol 1e-13): the models differ by the rounding of a least-squares solve
+        A, y, edf = av_problem(seed)
+        pc, mc, cc = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
+        ps, ms, cs = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="scipy")
+        bound = ls_rounding_bound(A, y, edf, ms, ps)
+        assert np.max(np.abs(mc - ms) / ms) <= bound
+        assert abs(cc - cs) <= bound * cs
+        assert np.array_equal(pc > 0, ps > 0)
+
+    @pytest.mark.parametrize("seed", range(40))
+    def test_default_stop_matches_scipy_within_rtol(self, seed):
+        # at the default rtol the two may stop one pass apart where rounding puts the last change at rtol;
+        # the models then differ by at most that pass's move, < rtol (relative)
+        A, y, edf = av_problem(seed)
+        _, mc, cc = identify._wnnls(A, y, edf, backend="c")
+        _, ms, cs = identify._wnnls(A, y, edf, backend="scipy")
+        assert np.max(np.abs(mc - ms) / ms) < 1e-6
+        assert cc == pytest.approx(cs, rel=4e-6)  # chi2 = sum nu/2 r^2 with r ~ O(1): relative moves ~ 2 rtol
+
+    @pytest.mark.parametrize("seed", range(20))
+    def test_kkt_conditions_at_the_fixed_point(self, seed):
+        # Lawson & Hanson's optimality conditions of the last pass, independent of scipy: the gradient
+        # g = B^T (b - B x) is ~0 on the positive coefficients and <= 0 on the zero ones, to the rounding of
+        # a solve on unit columns (eps cond(B) ||b|| sqrt(n))
+        A, y, edf = av_problem(seed)
+        p, m, _ = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
+        B, b, col = weighted_problem(A, y, edf, m)
+        x = p * col
+        g = B.T @ (b - B @ x)
+        tol = 10 * np.sqrt(A.shape[0]) * EPS * np.linalg.cond(B) * np.linalg.norm(b)
+        assert np.all(x >= 0)
+        assert np.all(np.abs(g[x > 0]) <= tol)
+        assert np.all(g[x == 0] <= tol)
+
+    def test_offset_start_model_and_degenerate_columns(self):
+        # a duplicated or zero column leaves the fitted model unique (the objective is strictly convex in
+        # B x), so both agree to the rounding of the problem without it; fewer taus than columns (A[:3]) too
+        A, y, edf = av_problem(3)
+        off = 0.3 * y
+        for A2 in (A, np.column_stack([A, A[:, 0]]), np.column_stack([A, np.zeros(A.shape[0])]), A[:3]):
+            n = A2.shape[0]
+            y2, e2, o2 = y[:n], edf[:n], off[:n]
+            kw = dict(n_iter=300, rtol=1e-13, offset=o2, m0=1.1 * y2)
+            _, mc, cc = identify._wnnls(A2, y2, e2, backend="c", **kw)
+            _, ms, cs = identify._wnnls(A2, y2, e2, backend="scipy", **kw)
+            p0, m0, _ = identify._wnnls(A[:n], y2, e2, backend="scipy", **kw)
+            bound = ls_rounding_bound(A[:n], y2, e2, m0, p0, offset=o2)
+            assert np.max(np.abs(mc - ms) / ms) <= bound
+            assert abs(cc - cs) <= bound * cs
+
+    def test_bad_buffers_are_refused(self):
+        A, y, edf = av_problem(1)
+        k = identify._kernels
+        with pytest.raises(ValueError, match="len"):
+            k.wnnls(A, y, edf, None, None, 30, 1e-6, np.empty(A.shape[1] + 1), np.empty(y.size))
+        with pytest.raises(TypeError, match="float64"):
+            k.wnnls(A.astype(np.float32), y, edf, None, None, 30, 1e-6, np.empty(A.shape[1]), np.empty(y.size))
+        with pytest.raises(ValueError, match="len"):
+            k.wnnls(np.ones((4, 17)), np.ones(4), np.ones(4), None, None, 30, 1e-6, np.empty(17), np.empty(4))
