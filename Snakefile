@@ -37,3 +37,15 @@ include: "workflow/rules/outputs.smk"
 rule all:
     input:
         final_outputs(),
+
+
+# Snakemake's job-rate limiter (default 100 jobs per 1 s) re-evaluates the schedule through a threading.Timer
+# after every scheduling round; the interpreter waits for the last one at exit (up to 1 s of every run). Once
+# the run has ended nothing needs it, so cancel it. (A 0 s window avoids the wait but turns the re-evaluation
+# into a busy loop that takes CPU from the jobs while they wait for a core.)
+onsuccess:
+    cancel_pending_timers()
+
+
+onerror:
+    cancel_pending_timers()

@@ -38,7 +38,7 @@ from timing import Timing, fmt, fmt_s, md_table, timed
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 # the options `make run` adds (Makefile, SNAKEMAKE_FLAGS): the run measured is the one users get
-RUN_FLAGS = ["--max-jobs-per-timespan", "1000/0s", "--max-checksum-file-size", "0"]
+RUN_FLAGS = ["--max-checksum-file-size", "0"]
 SAMPLE_INTERVAL_S = 0.05
 MB = 1e6
 

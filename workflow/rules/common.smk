@@ -1,5 +1,6 @@
 # Configuration, dataset sheet and the helpers that name files. No numerics here.
 import csv
+import threading
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -160,3 +161,10 @@ def final_outputs():
     out += ["results/figures/inflation_effect.png"]
     out += expand("results/tables/{spec}/inflation.md", spec=SPECS)
     return out
+
+
+def cancel_pending_timers():
+    """Cancel the threading.Timer threads still waiting in this process (see onsuccess in the Snakefile)."""
+    for thread in threading.enumerate():
+        if isinstance(thread, threading.Timer):
+            thread.cancel()
