@@ -297,9 +297,17 @@ def _axes_title(ax, text, **kwargs):
 
 
 def _finish_loglog(ax, xlabel, ylabel, legend_loc="best", ncol=1):
+    """Log-log axes with Unicode tick labels, a grid and the legend. Minor ticks at 2 and 5 times each power
+    of ten rather than at 2, 3, ..., 9: over the 5-12 decades of these figures the finer grid is clutter, and
+    each tick is a matplotlib artist (a 2 x 2 figure then draws ~350 of them, ~0.15 s of a figure job).
+    Where an axis spans so little that at most one tick (major or minor) falls in view, matplotlib's
+    LogLocator falls back to linear ticks."""
+    from matplotlib.ticker import LogLocator
+
     ax.set_xscale("log")
     ax.set_yscale("log")
     for axis in (ax.xaxis, ax.yaxis):
+        axis.set_minor_locator(LogLocator(base=10.0, subs=(2.0, 5.0)))
         axis.set_major_formatter(_unicode_log_formatter_class()(base=10.0))
         axis.set_minor_formatter(_unicode_log_formatter_class()(base=10.0))
     ax.set_xlabel(xlabel)
