@@ -164,6 +164,23 @@ def test_allan_components(allan_case):
     assert not any(t.startswith("bound") for t in _legend(fig_a.axes[0]))
 
 
+def test_allan_components_marks_what_selection_dropped(allan_case):
+    tau, avar, identified = allan_case
+    fig = plot_allan_components(tau, avar, identified, BOUND, sensor="gyro", dropped=["random_walk", "flicker"])
+    ax = fig.axes[0]
+    legend = _legend(ax)
+    for name, disp in (("random_walk", "random walk"), ("flicker", "flicker")):
+        line = _by_gid(ax, f"identified:{name}")
+        assert line.get_linestyle() == ":" and f"identified: {disp} (dropped)" in legend
+        np.testing.assert_allclose(line.get_ydata(), np.sqrt(identified.components()[name].avar(tau)), rtol=1e-12)
+    assert _by_gid(ax, "identified:white").get_linestyle() == "-" and "identified: white noise" in legend
+    assert _by_gid(ax, "bound:random_walk").get_linestyle() == "--"  # the bound's components are not selected
+    # the total is the full fit's, dropped components included (it is what was fitted to the AVs)
+    np.testing.assert_allclose(_by_gid(ax, "identified").get_ydata(), np.sqrt(identified.avar(tau)), rtol=1e-12)
+    with pytest.raises(ValueError, match="unknown component"):
+        plot_allan_components(tau, avar, identified, BOUND, sensor="gyro", dropped=["gm"])
+
+
 def test_allan_components_xarray(allan_case):
     xr = pytest.importorskip("xarray")
     tau, avar, identified = allan_case

@@ -398,7 +398,7 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
 # Figure 6
 # ---------------------------------------------------------------------------------------------
 def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, avar_lower=None, avar_upper=None,
-                          labels=None, title=None):
+                          labels=None, title=None, dropped=()):
     r"""Sample Allan deviations with the identified model's and the bound's components (paper Figure 6).
 
     Each component (white, Gauss-Markov, random walk, flicker, quantization, ramp) has one colour:
@@ -425,6 +425,10 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         Per-curve labels (coloured curves), True for the DataArray's coordinates; default grey.
     title : str, optional
         Figure title; default names the sensor (and the bound's mode).
+    dropped : iterable of str, optional
+        Components of `identified_model` that model selection left out of the error model
+        (``selection.dropped`` of ``results/identify/{sensor}.yaml``): drawn dotted and thin, labelled
+        "(dropped)", so that the figure does not suggest a state the filter does not carry.
 
     Returns
     -------
@@ -433,6 +437,10 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         ``bound``, ``bound:<component>``.
     """
     sensor = _check_sensor(sensor)
+    dropped = set(dropped)
+    unknown = dropped - set(_COMPONENT_STYLE)
+    if unknown:
+        raise ValueError(f"dropped: unknown component(s) {sorted(unknown)} (known: {sorted(_COMPONENT_STYLE)})")
     tau = _grid(tau, avar, "tau")
     if np.any(tau <= 0):
         raise ValueError("tau must be > 0 s")
@@ -458,6 +466,10 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
             continue
         for name, comp in model.components().items():
             disp, colour = _component_style(name)
+            if who == "identified" and ("gauss_markov" if name.startswith("gauss_markov") else name) in dropped:
+                ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.0, ls=":", alpha=0.8, zorder=3,
+                        gid=f"{who}:{name}", label=f"{who}: {disp} (dropped)")
+                continue
             ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
                     label=f"{who}: {disp}")
         ax.plot(tau, np.sqrt(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,

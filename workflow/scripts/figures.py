@@ -21,7 +21,8 @@ def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_p
 
     bound = read_yaml(path_bound)
     model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
-    identified = NoiseModel.from_dict(read_yaml(path_identified)["model"])
+    identify = read_yaml(path_identified)
+    identified, dropped = NoiseModel.from_dict(identify["model"]), identify["selection"]["dropped"]
     sp, av = Stacked(path_spectra), Stacked(path_allan)
 
     def every_curve(stacked, name):  # (dataset x axis, n): one row per curve
@@ -34,7 +35,7 @@ def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_p
                                title=title), out_psd)
     save_figure(plot_allan_components(av["tau"], every_curve(av, "avar"), identified, model, sensor=sensor,
                                       avar_lower=every_curve(av, "avar_lower"),
-                                      avar_upper=every_curve(av, "avar_upper"),
+                                      avar_upper=every_curve(av, "avar_upper"), dropped=dropped,
                                       title=f"{sensor}: Allan deviation, identified vs bound components ({spec})"),
                 out_allan)
     hand = bound.get("paper_hand_inflation")
