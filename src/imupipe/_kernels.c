@@ -472,6 +472,49 @@ done:
  * ------------------------------------------------------------------------------------------------------- */
 #define WNNLS_MAX_K 16
 
+/* Euclidean norm of v[j..n), scaled by the largest magnitude against overflow and underflow. */
+static double tail_norm(const double *v, Py_ssize_t j, Py_ssize_t n)
+{
+    double scale = 0.0;
+    for (Py_ssize_t i = j; i < n; i++)
+        scale = fmax(scale, fabs(v[i]));
+    double norm = 0.0;
+    if (scale > 0.0) {
+        for (Py_ssize_t i = j; i < n; i++)
+            norm += (v[i] / scale) * (v[i] / scale);
+        norm = scale * sqrt(norm);
+    }
+    return norm;
+}
+
+/* One Householder step on column j of M (n rows, column-major), norm = tail_norm(column j, j, n) > 0: the
+ * reflector I - 2 v v^T / v^T v with v = x - alpha e_j is formed in place in M[j..n) of column j and applied to
+ * columns j+1 .. ncols-1 of M and to rhs. Returns alpha = R_jj (column j's own entry j is left as v_j). */
+static double householder_step(double *M, Py_ssize_t n, int j, int ncols, double *rhs, double norm)
+{
+    double *v = M + (size_t)n * j;
+    double alpha = v[j] > 0.0 ? -norm : norm;
+    v[j] -= alpha;
+    double vtv = 0.0;
+    for (Py_ssize_t i = j; i < n; i++)
+        vtv += v[i] * v[i];
+    for (int l = j + 1; l < ncols; l++) {
+        double *u = M + (size_t)n * l, d = 0.0;
+        for (Py_ssize_t i = j; i < n; i++)
+            d += v[i] * u[i];
+        d = 2.0 * d / vtv;
+        for (Py_ssize_t i = j; i < n; i++)
+            u[i] -= d * v[i];
+    }
+    double d = 0.0;
+    for (Py_ssize_t i = j; i < n; i++)
+        d += v[i] * rhs[i];
+    d = 2.0 * d / vtv;
+    for (Py_ssize_t i = j; i < n; i++)
+        rhs[i] -= d * v[i];
+    return alpha;
+}
+
 /* Least squares on the columns P[0..q) of B (n x k, column-major): z[P[j]] = argmin ||B_P z - b||, by
  * Householder QR of a copy (work: n*q + n doubles). Returns 0, or -1 when a diagonal of R is below
  * 1e-12 of its column's norm (the new column depends on the others). */
@@ -484,42 +527,15 @@ static int ls_passive(const double *B, const double *b, Py_ssize_t n, const int 
     memcpy(c, b, (size_t)n * sizeof(double));
     double rdiag[WNNLS_MAX_K];
     for (int j = 0; j < q; j++) {
-        double *v = Q + (size_t)n * j;
-        double scale = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            scale = fmax(scale, fabs(v[i]));
-        double norm = 0.0;
-        if (scale > 0.0) {
-            for (Py_ssize_t i = j; i < n; i++)
-                norm += (v[i] / scale) * (v[i] / scale);
-            norm = scale * sqrt(norm);
-        }
+        const double *v = Q + (size_t)n * j;
+        double norm = tail_norm(v, j, n);
         double colnorm = 0.0; /* the column's full norm, for the rank test */
         for (Py_ssize_t i = 0; i < n; i++)
             colnorm += v[i] * v[i];
         colnorm = sqrt(colnorm);
         if (!(norm > 1e-12 * colnorm))
             return -1;
-        double alpha = v[j] > 0.0 ? -norm : norm; /* R_jj; v := x - alpha e_j, reflector I - 2 v v^T / v^T v */
-        v[j] -= alpha;
-        double vtv = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            vtv += v[i] * v[i];
-        for (int l = j + 1; l < q; l++) {
-            double *u = Q + (size_t)n * l, d = 0.0;
-            for (Py_ssize_t i = j; i < n; i++)
-                d += v[i] * u[i];
-            d = 2.0 * d / vtv;
-            for (Py_ssize_t i = j; i < n; i++)
-                u[i] -= d * v[i];
-        }
-        double d = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            d += v[i] * c[i];
-        d = 2.0 * d / vtv;
-        for (Py_ssize_t i = j; i < n; i++)
-            c[i] -= d * v[i];
-        rdiag[j] = alpha;
+        rdiag[j] = householder_step(Q, n, j, q, c, norm);
     }
     /* back substitution R zq = c[0..q); R's off-diagonal entries are Q[n*l + j], l > j */
     for (int j = q - 1; j >= 0; j--) {
@@ -620,39 +636,11 @@ static int nnls_lh(const double *B, const double *b, Py_ssize_t n, int k, double
 static void qr_reduce(double *B, double *b, Py_ssize_t n, int k, double *R, double *c)
 {
     for (int j = 0; j < k; j++) {
-        double *v = B + (size_t)n * j;
-        double scale = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            scale = fmax(scale, fabs(v[i]));
-        double norm = 0.0;
-        if (scale > 0.0) {
-            for (Py_ssize_t i = j; i < n; i++)
-                norm += (v[i] / scale) * (v[i] / scale);
-            norm = scale * sqrt(norm);
-        }
-        if (norm == 0.0) { /* nothing left below the diagonal: no reflection */
+        double norm = tail_norm(B + (size_t)n * j, j, n);
+        if (norm == 0.0) /* nothing left below the diagonal: no reflection */
             continue;
-        }
-        double alpha = v[j] > 0.0 ? -norm : norm;
-        v[j] -= alpha;
-        double vtv = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            vtv += v[i] * v[i];
-        for (int l = j + 1; l < k; l++) {
-            double *u = B + (size_t)n * l, d = 0.0;
-            for (Py_ssize_t i = j; i < n; i++)
-                d += v[i] * u[i];
-            d = 2.0 * d / vtv;
-            for (Py_ssize_t i = j; i < n; i++)
-                u[i] -= d * v[i];
-        }
-        double d = 0.0;
-        for (Py_ssize_t i = j; i < n; i++)
-            d += v[i] * b[i];
-        d = 2.0 * d / vtv;
-        for (Py_ssize_t i = j; i < n; i++)
-            b[i] -= d * v[i];
-        v[j] = alpha; /* R_jj (entries below are the reflector, not copied) */
+        /* R_jj (the entries below it hold the reflector and are not copied to R) */
+        B[(size_t)n * j + j] = householder_step(B, n, j, k, b, norm);
     }
     for (int j = 0; j < k; j++) {
         for (int i = 0; i < k; i++)
