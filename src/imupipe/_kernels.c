@@ -650,8 +650,7 @@ static void qr_reduce(double *B, double *b, Py_ssize_t n, int k, double *R, doub
 }
 
 static double wnnls_impl(const double *A, const double *y, const double *edf, const double *m0, const double *off,
-                         Py_ssize_t n, int k, int n_iter, double rtol, double *p, double *m, double *work,
-                         int *failed)
+                         Py_ssize_t n, int k, int n_iter, double rtol, double *p, double *m, double *work)
 {
     double *s = work, *tgt = work + n, *m_new = work + 2 * n, *B = work + 3 * n, *bw = B + (size_t)n * k;
     double *nw = bw + n, col[WNNLS_MAX_K], ps[WNNLS_MAX_K], R[WNNLS_MAX_K * WNNLS_MAX_K], c[WNNLS_MAX_K];
@@ -662,7 +661,6 @@ static double wnnls_impl(const double *A, const double *y, const double *edf, co
     }
     for (int j = 0; j < k; j++)
         p[j] = 0.0;
-    *failed = 0;
     for (int it = 0; it < n_iter; it++) {
         for (int j = 0; j < k; j++) {
             double c = 0.0;
@@ -690,10 +688,8 @@ static double wnnls_impl(const double *A, const double *y, const double *edf, co
         } else {
             status = nnls_lh(B, bw, n, k, ps, 50 * k, tol, nw);
         }
-        if (status < 0) {
-            *failed = 1;
+        if (status < 0) /* NNLS step limit: keep the last pass's model, as the Python path does */
             break;
-        }
         for (int j = 0; j < k; j++)
             p[j] = ps[j] / col[j];
         double change = 0.0;
@@ -989,11 +985,9 @@ static PyObject *py_wnnls(PyObject *self, PyObject *args)
         PyErr_NoMemory();
         goto done;
     }
-    int failed;
     double chi2 = wnnls_impl((const double *)A.buf, (const double *)y.buf, (const double *)e.buf,
                              (const double *)m0.buf, (const double *)off.buf, n, (int)k, n_iter, rtol,
-                             (double *)p.buf, (double *)m.buf, work, &failed);
-    (void)failed; /* the Python path keeps its last solution too; chi2 is of the model returned */
+                             (double *)p.buf, (double *)m.buf, work);
     result = PyFloat_FromDouble(chi2);
 done:
     PyMem_Free(work);
