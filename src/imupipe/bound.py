@@ -210,6 +210,10 @@ class _Problem:
     objective_weights: np.ndarray  # weights/env where env > 0, else 0: the objective is this @ (B_rows x) (R,)
     mode: str
     details: dict = field(default_factory=dict)
+    lo_f: np.ndarray = field(default_factory=lambda: np.zeros(0))  # all-frequency grid below the bins, Hz
+    lo_t: np.ndarray = field(default_factory=lambda: np.zeros(0))  # what the bound must exceed there, u^2/Hz
+    k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
+    n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
     _columns: dict = field(default_factory=dict, repr=False)
     _kept: dict = field(default_factory=dict, repr=False)
 
@@ -239,6 +243,32 @@ class _Problem:
 
     def to_rows(self, a):
         return a if self.starts is None else _group_mean(a, self.starts, self.counts)
+
+    def all_frequency_rows(self, names, Ts):
+        """Normalised '>= 1' rows of the all-frequency conditions for basis columns `names`: the log grid
+        below the lowest bin (continuous PSDs) and the asymptotes K^2 >= k2_req, N^2 >= n2_req."""
+        from imupipe.models import NoiseModel
+
+        rows = []
+        ok = self.lo_t > 0
+        if np.any(ok):
+            f = self.lo_f[ok]
+            cols = []
+            for nm in names:
+                if nm == "white":
+                    cols.append(np.ones_like(f))
+                elif nm == "random_walk":
+                    cols.append(1.0 / (2 * np.pi * f) ** 2)
+                else:
+                    T = float(Ts[int(nm[3:]) - 1])
+                    cols.append(NoiseModel(gauss_markov=((1.0, T),)).psd(f))
+            rows.append(np.stack(cols, axis=1) / self.lo_t[ok, None])
+        for req, nm in ((self.k2_req, "random_walk"), (self.n2_req, "white")):
+            if req > 0 and nm in names:
+                r = np.zeros((1, len(names)))
+                r[0, names.index(nm)] = 1.0 / req
+                rows.append(r)
+        return np.vstack(rows) if rows else np.zeros((0, len(names)))
 
     def basis(self, comps, Ts):
         """Columns (bins (F, J), rows (R, J)), names, and whether every column is non-increasing
@@ -377,7 +407,7 @@ def _undominated(B, t, monotone=None):
     return pos[tp > later_max]
 
 
-def _constraint_matrix(prob, Bb, Br, mono_b, mono_r):
+def _constraint_matrix(prob, Bb, Br, mono_b, mono_r, names=(), Ts=()):
     """Normalised '>= 1' rows: data rows (envelope of targets; in raw mode, where rows are bins, with the
     spec) and, off raw mode, spec rows at bins; rows implied by others left out (:func:`_undominated`)."""
     tgt = prob.env if prob.starts is None else prob.envelope
@@ -386,6 +416,8 @@ def _constraint_matrix(prob, Bb, Br, mono_b, mono_r):
     if prob.starts is not None and prob.spec is not None:
         oks = prob.kept_rows(Bb, prob.spec, "spec", mono_b)
         A = np.vstack([A, Bb[oks] / prob.spec[oks, None]])
+    if names:
+        A = np.vstack([A, prob.all_frequency_rows(list(names), Ts)])
     return A
 
 
@@ -395,7 +427,27 @@ _DIRECT_LP_ROWS = 2000  # at most this many rows: no cutting planes (HiGHS solve
 _HIGHS = None  # one solver instance per process, reused (each LP replaces the previous model)
 
 
-def _highs_min(c, A):
+def _quiet_highs(highspy):
+    """A Highs instance created with file descriptor 1 redirected: the constructor prints a banner on
+    stdout before any option can be set, and a workflow script's stdout is its output."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            h = highspy.Highs()
+            h.setOptionValue("output_flag", False)
+            h.setOptionValue("log_to_console", False)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    return h
+
+
+def _highs_min(c, A, b=None):
     """argmin of c @ u subject to A u >= 1, u >= 0, by HiGHS (highspy; one thread, no output).
 
     The bounding LPs have 2-4 columns and a few dozen rows after the dominance reduction: HiGHS solves
@@ -406,7 +458,7 @@ def _highs_min(c, A):
     import highspy
 
     if _HIGHS is None:
-        _HIGHS = highspy.Highs()
+        _HIGHS = _quiet_highs(highspy)
         _HIGHS.setOptionValue("output_flag", False)
         _HIGHS.setOptionValue("threads", 1)
     m, n = A.shape
@@ -415,7 +467,7 @@ def _highs_min(c, A):
     lp.col_cost_ = np.ascontiguousarray(c, dtype=np.float64)
     lp.col_lower_ = np.zeros(n)
     lp.col_upper_ = np.full(n, highspy.kHighsInf)
-    lp.row_lower_ = np.ones(m)
+    lp.row_lower_ = np.ones(m) if b is None else np.ascontiguousarray(b, dtype=np.float64)
     lp.row_upper_ = np.full(m, highspy.kHighsInf)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
     lp.a_matrix_.start_ = np.arange(0, m * n + 1, m, dtype=np.int32)
@@ -433,7 +485,7 @@ def _solve_lp(prob, comps, Ts):
     """Tightest squared coefficients for fixed GM time constants (cutting-plane HiGHS LP)."""
     Bb, Br, names, mono_b, mono_r = prob.basis(comps, Ts)
     J = len(names)
-    A = _constraint_matrix(prob, Bb, Br, mono_b, mono_r)
+    A = _constraint_matrix(prob, Bb, Br, mono_b, mono_r, names, Ts)
     cobj = prob.objective_weights @ Br if J else np.zeros(0)
     if A.shape[0] == 0 or J == 0:
         return _LPSolution(np.zeros(J), names, tuple(Ts), 0.0, 0)
@@ -444,6 +496,11 @@ def _solve_lp(prob, comps, Ts):
         raise ValueError("no component can bound these PSDs (all basis columns vanish)")
     As = A[:, usable] / colmax[usable]
     cs = cobj[usable] / colmax[usable]
+    # rows scaled to a largest entry of 1 (right-hand side 1/rowmax): the all-frequency rows and the data rows
+    # can differ by 10+ decades in a column, and HiGHS drops matrix entries below 1e-9
+    rowmax = As.max(axis=1)
+    if np.any(rowmax <= 0):
+        raise ValueError("a bounding constraint has no component that can meet it (all its entries vanish)")
     # initial rows: the tightest row of each column and, per log-frequency cell, the row with the
     # smallest normalised basis sum (the most demanding one)
     n_rows = As.shape[0]
@@ -458,7 +515,7 @@ def _solve_lp(prob, comps, Ts):
                 active.add(int(cell[np.argmin(rs[cell])]))
     for _ in range(60):
         idx = np.fromiter(sorted(active), dtype=np.int64)
-        u = _highs_min(cs, As[idx])
+        u = _highs_min(cs, As[idx] / rowmax[idx, None], 1.0 / rowmax[idx])
         n_lp += 1
         slack = As @ u - 1.0
         viol = np.flatnonzero(slack < -1e-10)
@@ -467,7 +524,7 @@ def _solve_lp(prob, comps, Ts):
         worst = viol[np.argsort(slack[viol])[:200]]
         active.update(int(i) for i in worst)
     else:  # pragma: no cover - never seen; fall back on the full LP
-        u = _highs_min(cs, As)
+        u = _highs_min(cs, As / rowmax[:, None], 1.0 / rowmax)
         n_lp += 1
     # exact feasibility: scale up by the worst residual shortfall (all terms scale the PSD linearly)
     m = float(np.min(As @ u))
@@ -594,6 +651,84 @@ def _evaluate(prob, model):
     else:
         out.update(spec_margin=float("inf"), spec_margin_frequency=None)
     out["looseness"] = float(prob.objective_weights @ mr)  # the LP's objective
+    out.update(_all_frequency_margin(prob, model))
+    return out
+
+
+def _all_frequency_margin(prob, model):
+    """Margins of the all-frequency conditions: the grid below the lowest bin and the asymptotes."""
+    res = {"allf_margin": float("inf"), "allf_margin_frequency": None}
+    ok = prob.lo_t > 0
+    if np.any(ok):
+        r = np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64) / prob.lo_t[ok]
+        j = int(np.argmin(r))
+        res.update(allf_margin=float(r[j]), allf_margin_frequency=float(prob.lo_f[ok][j]))
+    for req, val, what in ((prob.k2_req, model.random_walk**2, 0.0), (prob.n2_req, model.white**2, float("inf"))):
+        if req > 0 and val / req < res["allf_margin"]:
+            res.update(allf_margin=float(val / req), allf_margin_frequency=what)
+    return res
+
+
+def _upper_psd(model, f):
+    return np.zeros_like(f) if model is None else np.asarray(model.psd(f), dtype=np.float64)
+
+
+def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, per_decade=10):
+    """Fill the all-frequency rows of `prob` (module docstring, "Bound over all frequencies")."""
+    f_min = float(prob.f.min())
+    if f_floor_hz is None:
+        f_floor_hz = 0.01 / float(horizon_s) if horizon_s else f_min / 100.0
+    f_floor_hz = min(float(f_floor_hz), f_min / 10.0)
+    n = max(2, int(math.ceil(math.log10(f_min / f_floor_hz) * per_decade)) + 1)
+    lo_f = np.logspace(math.log10(f_floor_hz), math.log10(f_min), n)[:-1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo_t = np.maximum(_upper_psd(spec_model, lo_f), _upper_psd(upper_model, lo_f))
+    prob.lo_f, prob.lo_t = lo_f, np.where(np.isfinite(lo_t), lo_t, 0.0)
+    k_spec = spec_model.random_walk if spec_model is not None else 0.0
+    k_up = upper_model.random_walk if upper_model is not None else 0.0
+    prob.k2_req = max(k_spec, k_up) ** 2
+    prob.n2_req = (spec_model.white if spec_model is not None else 0.0) ** 2
+    return {"f_floor_hz": float(f_floor_hz), "n_grid": int(lo_f.size), "f_top_hz": f_min,
+            "K_required": math.sqrt(prob.k2_req), "K_spec": float(k_spec), "K_upper": float(k_up),
+            "N_required": math.sqrt(prob.n2_req),
+            "flicker": "a spec or identified flicker is bounded down to f_floor_hz (no K is forced by it)",
+            "units": "Hz; K u/sqrt(s); N u/sqrt(Hz)"}
+
+
+def _apply_exclude(prob, exclude):
+    """Drop the sample-curve targets of rows inside the `exclude` intervals (never the spec or the
+    all-frequency rows); returns the list of what was excluded and why."""
+    out = []
+    if not exclude:
+        return out
+    prob.targets = np.array(prob.targets, dtype=np.float64, copy=True)
+    if prob.starts is None:
+        lo_edge = hi_edge = prob.f_rows
+    else:
+        ends = np.append(prob.starts[1:], prob.f.size) - 1
+        lo_edge, hi_edge = prob.f[prob.starts], prob.f[ends]
+    for item in exclude:
+        try:
+            f_lo, f_hi, reason = item
+            f_lo, f_hi = float(f_lo), float(f_hi)
+        except (TypeError, ValueError):
+            raise ValueError(f"exclude entries must be (f_lo_hz, f_hi_hz, reason), got {item!r}") from None
+        if not (0 <= f_lo < f_hi):
+            raise ValueError(f"exclude interval must have 0 <= f_lo_hz < f_hi_hz, got ({f_lo}, {f_hi})")
+        rows = np.flatnonzero((hi_edge >= f_lo) & (lo_edge <= f_hi))
+        prob.targets[:, rows] = 0.0
+        if prob.starts is None:
+            bins = prob.f_rows[rows]
+        else:
+            bins = np.concatenate([prob.f[prob.starts[r]:prob.starts[r] + prob.counts[r]] for r in rows]) \
+                if rows.size else np.zeros(0)
+        out.append({"f_lo_hz": f_lo, "f_hi_hz": f_hi, "reason": str(reason), "n_bins": int(bins.size),
+                    "bins_hz": [float(b) for b in bins]})
+    prob.envelope = prob.targets.max(axis=0)
+    prob.env = prob.envelope if prob.spec_rows is None else np.maximum(prob.envelope, prob.spec_rows)
+    prob.objective_weights = np.zeros_like(prob.env)
+    np.divide(prob.weights, prob.env, out=prob.objective_weights, where=prob.env > 0)
+    prob._kept.clear()
     return out
 
 
@@ -602,7 +737,8 @@ def _result(prob, model, spec_model, t0: float, **rest) -> BoundResult:
     ``bounded`` when both the target and the spec margins reach 1 - _EPS_BOUND, the inflation against
     `spec_model`, the time since `t0`; `rest` gives the other fields."""
     ev = _evaluate(prob, model)
-    bounded = ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
+    bounded = (ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
+               and ev["allf_margin"] >= 1 - _EPS_BOUND)
     return BoundResult(model=model, spec=spec_model, inflation=_inflation(model, spec_model), bounded=bool(bounded),
                        **ev, solve_time_s=time.perf_counter() - t0, **rest)
 
@@ -709,6 +845,8 @@ class BoundResult:
     n_lp: int = 0
     solve_time_s: float = 0.0
     details: dict = field(default_factory=dict)
+    allf_margin: float = float("inf")
+    allf_margin_frequency: float | None = None
 
     def to_dict(self, spec_units: dict | None = None, sensor: str | None = None) -> dict:
         """Plain dict for YAML: bound and spec in SI and, with `spec_units`, in the spec's units.
@@ -755,6 +893,8 @@ class BoundResult:
             "spec_margin": fl(self.spec_margin),
             "spec_margin_frequency_hz": fl(self.spec_margin_frequency),
             "looseness": fl(self.looseness),
+            "all_frequency_margin": fl(self.allf_margin),
+            "all_frequency_margin_frequency_hz": fl(self.allf_margin_frequency),
             "mode": self.mode,
             "components": list(self.components),
             "decisions": dict(self.decisions),
@@ -853,6 +993,11 @@ def bound_psd(
     min_edf="auto",
     add_threshold: float = 0.05,
     n_tests: int | None = None,
+    horizon_s: float | None = None,
+    upper_model=None,
+    f_floor_hz: float | None = None,
+    exclude=(),
+    narrowband=(),
 ) -> BoundResult:
     r"""Tightest white + GM + random-walk model whose PSD bounds sample PSDs and a spec sheet.
 
@@ -939,6 +1084,10 @@ def bound_psd(
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests)
+    allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz)
+    excluded = _apply_exclude(prob, exclude)
+    if narrowband:
+        raise NotImplementedError("narrowband line columns in bound_psd are not implemented on this branch yet")
     if T_grid is None:
         grid = _default_T_grid(prob)
     elif np.ndim(T_grid) == 0:  # points per decade of the default span
@@ -959,7 +1108,19 @@ def bound_psd(
         return sol, prof
 
     fixed = _normalise_keep(keep)
-    if not np.any(prob.env > 0):
+
+    def require(comps):
+        if prob.k2_req > 0 and "random_walk" not in comps:
+            decisions["random_walk"] = (f"required by the all-frequency bound: K >= {math.sqrt(prob.k2_req):.6g} "
+                                        f"u/sqrt(s) (max of spec {allf['K_spec']:.6g} and identified upper limit "
+                                        f"{allf['K_upper']:.6g})")
+            comps = [c for c in BOUND_COMPONENTS if c in comps or c == "random_walk"]
+        if prob.n2_req > 0 and "white" not in comps:
+            decisions["white"] = "required by the all-frequency bound (spec white noise, f -> inf)"
+            comps = [c for c in BOUND_COMPONENTS if c in comps or c == "white"]
+        return comps
+
+    if not np.any(prob.env > 0) and not np.any(prob.lo_t > 0) and prob.k2_req == 0 and prob.n2_req == 0:
         comps = fixed if fixed is not None else _spec_components(spec_model)
         from imupipe.models import NoiseModel
 
@@ -973,6 +1134,7 @@ def bound_psd(
                 decisions[c] = "requested by keep" if c in comps else "excluded by keep"
             if not comps:
                 raise ValueError("keep leaves no component to bound with")
+            comps = require(comps)
             sol, prof = solve(comps)
         else:
             comps = _spec_components(spec_model)
@@ -981,6 +1143,7 @@ def bound_psd(
             if not comps:
                 comps = ["white"]
                 decisions["white"] = "spec has no component: start from white noise"
+            comps = require(comps)
             sol, prof = solve(comps)
             for cand in ("gauss_markov", "random_walk", "white"):
                 if cand in comps or (cand == "gauss_markov" and n_gm == 0):
@@ -998,7 +1161,7 @@ def bound_psd(
         model = _x_to_model(sol, dt)
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
-                   dt=dt, n_gm=n_gm)
+                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded)
     return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
                    T_profile=prof, n_lp=n_lp, details=details)
 
