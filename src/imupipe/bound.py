@@ -77,6 +77,8 @@ __all__ = [
     "looseness",
     "check_allan_components",
     "gm_bounds_gm",
+    "upper_envelope",
+    "check_allan",
 ]
 
 #: Components a bound may hold (Kalman-filter states; flicker is represented by a GM).
@@ -673,7 +675,7 @@ def _upper_psd(model, f):
     return np.zeros_like(f) if model is None else np.asarray(model.psd(f), dtype=np.float64)
 
 
-def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, per_decade=10):
+def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, per_decade=10, upper_band="all"):
     """Fill the all-frequency rows of `prob` (module docstring, "Bound over all frequencies")."""
     f_min = float(prob.f.min())
     if f_floor_hz is None:
@@ -683,6 +685,14 @@ def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, p
     lo_f = np.logspace(math.log10(f_floor_hz), math.log10(f_min), n)[:-1]
     with np.errstate(divide="ignore", invalid="ignore"):
         lo_t = np.maximum(_upper_psd(spec_model, lo_f), _upper_psd(upper_model, lo_f))
+    if upper_model is not None and upper_band == "all":  # the envelope on the sampled band too (continuous PSDs)
+        f_max = float(prob.f.max())
+        n_in = max(2, int(math.ceil(math.log10(f_max / f_min) * per_decade)) + 1)
+        in_f = np.logspace(math.log10(f_min), math.log10(f_max), n_in)
+        lo_f = np.concatenate([lo_f, in_f])
+        lo_t = np.concatenate([lo_t, _upper_psd(upper_model, in_f)])
+    elif upper_band not in ("all", "below"):
+        raise ValueError(f"upper_band must be 'all' or 'below', got {upper_band!r}")
     prob.lo_f, prob.lo_t = lo_f, np.where(np.isfinite(lo_t), lo_t, 0.0)
     k_spec = spec_model.random_walk if spec_model is not None else 0.0
     k_up = upper_model.random_walk if upper_model is not None else 0.0
@@ -690,7 +700,7 @@ def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, p
     prob.n2_req = (spec_model.white if spec_model is not None else 0.0) ** 2
     return {"f_floor_hz": float(f_floor_hz), "n_grid": int(lo_f.size), "f_top_hz": f_min,
             "K_required": math.sqrt(prob.k2_req), "K_spec": float(k_spec), "K_upper": float(k_up),
-            "N_required": math.sqrt(prob.n2_req),
+            "N_required": math.sqrt(prob.n2_req), "upper_band": upper_band,
             "flicker": "a spec or identified flicker is bounded down to f_floor_hz (no K is forced by it)",
             "units": "Hz; K u/sqrt(s); N u/sqrt(Hz)"}
 
@@ -998,6 +1008,7 @@ def bound_psd(
     f_floor_hz: float | None = None,
     exclude=(),
     narrowband=(),
+    upper_band: str = "all",
 ) -> BoundResult:
     r"""Tightest white + GM + random-walk model whose PSD bounds sample PSDs and a spec sheet.
 
@@ -1084,7 +1095,7 @@ def bound_psd(
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests)
-    allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz)
+    allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     if narrowband:
         raise NotImplementedError("narrowband line columns in bound_psd are not implemented on this branch yet")
@@ -1447,3 +1458,177 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
             out[name] = {"passed": None, "margin": None, "tau_at_min": None,
                          "reason": f"identified {name} is not a Kalman-filter state; covered only through the PSD bound"}
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# identified upper envelope and the Allan-domain check against kept components
+# ---------------------------------------------------------------------------------------------
+def upper_envelope(fit, kept=None):
+    r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
+
+    Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
+    the point estimate where the interval is NaN): white :math:`N_{up}`, flicker :math:`B_{up}`, each GM
+    term as the tightest single GM dominating every GM of the box :math:`\sigma \le \sigma_{up}`,
+    :math:`T_{lo} \le T \le T_{hi}`: :math:`T_m = \sqrt{T_{lo} T_{hi}}`,
+    :math:`\sigma_m^2 = \sigma_{up}^2 \sqrt{T_{hi}/T_{lo}}` (a GM dominates another iff
+    :math:`\sigma_m^2 T_m \ge \sigma^2 T` and :math:`\sigma_m^2/T_m \ge \sigma^2/T`).
+    The random walk at its upper limit **whether or not it was kept**: a random walk the data cannot
+    exclude at the stated confidence is an integrity risk below the lowest bin (the profile limit
+    ``random_walk_profile["upper"]`` exists when K was fitted as zero).
+
+    Parameters
+    ----------
+    fit : imupipe.identify.AllanFit
+    kept : sequence of str or dict, optional
+        Components kept by model selection (names or a ``select_components`` result). Default: all of
+        the fit's components with a non-zero estimate.
+
+    Returns
+    -------
+    imupipe.models.NoiseModel
+        SI.
+    """
+    from imupipe.models import NoiseModel
+
+    if isinstance(kept, dict):
+        kept = kept.get("kept", [])
+    p, iv = fit.params, fit.intervals
+
+    def up(name):
+        v = float(p.get(name, 0.0) or 0.0)
+        lo_hi = iv.get(name)
+        if lo_hi is not None and math.isfinite(lo_hi[1]):
+            v = max(v, float(lo_hi[1]))
+        return v if math.isfinite(v) else 0.0
+
+    def is_kept(name):
+        if kept is None:
+            return name in p and float(p.get(name) or 0.0) > 0
+        return name in kept
+
+    gm = []
+    if is_kept("gauss_markov") or (kept is None):
+        i = 1
+        while f"gm_sigma_{i}" in p:
+            s, T = up(f"gm_sigma_{i}"), float(p.get(f"gm_T_{i}", float("nan")))
+            if s > 0 and math.isfinite(T) and T > 0:
+                lo_hi = iv.get(f"gm_T_{i}", (float("nan"), float("nan")))
+                T_lo = lo_hi[0] if math.isfinite(lo_hi[0]) and lo_hi[0] > 0 else T
+                T_hi = lo_hi[1] if math.isfinite(lo_hi[1]) and lo_hi[1] > 0 else T
+                a, c = min(T, T_lo), max(T, T_hi)
+                # the tightest single GM above every GM with sigma <= s and T in [a, c]: sigma_m^2 T_m >= s^2 c
+                # (f -> 0) and sigma_m^2 / T_m >= s^2 / a (f -> inf) (method.md, "The bound")
+                gm.append((s * (c / a) ** 0.25, math.sqrt(a * c)))
+            i += 1
+    k = up("random_walk")
+    prof = getattr(fit, "random_walk_profile", {}) or {}
+    if math.isfinite(prof.get("upper", float("nan")) or float("nan")):
+        k = max(k, float(prof["upper"]))
+    return NoiseModel(white=up("white") if is_kept("white") else 0.0, gauss_markov=tuple(gm), random_walk=k,
+                      flicker=up("flicker") if is_kept("flicker") else 0.0)
+
+
+def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None, sample_edf=None, labels=None,
+                horizon_s: float | None = None, confidence: float = 0.95) -> dict:
+    r"""Allan-domain check that distinguishes a real shortfall from a component without counterpart.
+
+    1. Component against component, **kept components only** (`kept`, e.g. the ``select_components``
+       result; default: every component of `identified_model`): white against white, random walk
+       against random walk, the identified GM terms against the bound's GM terms, and the identified
+       flicker against the bound's GM terms **plus** its white noise (the bound represents flicker
+       that way) over the taus where flicker is the largest identified term. A bound component with
+       no kept identified counterpart is reported as ``no counterpart`` (not a failure), and so is an
+       identified component that the bound represents by another one.
+    2. Total AV against every sample AV: the bound's total AV :math:`\sigma^2_b(\tau)` must reach the
+       lower confidence limit of each sample AV, :math:`\hat\sigma^2 \nu/\chi^2_\nu(1-\alpha/M)` (level
+       `confidence`, Bonferroni over the M curves x taus compared), for :math:`\tau \le` `horizon_s`.
+       A sample AV below the bound's by chance is not a shortfall; one whose lower limit is above it is.
+
+    Returns
+    -------
+    dict
+        ``components``: name -> {status: ``ok`` | ``shortfall`` | ``no counterpart`` | ``not a state``,
+        margin, tau_s, reason}; ``total``: {passed, worst_ratio, curve, tau_s, n_compared, shortfalls:
+        [{curve, tau_s, ratio}]}; ``passed``: no shortfall anywhere.
+    """
+    from imupipe.models import FLICKER_AV, gm_avar
+
+    t = np.asarray(tau, dtype=np.float64)
+    good = np.isfinite(t) & (t > 0)
+    t = t[good]
+    if t.size == 0:
+        raise ValueError("check_allan: tau must contain positive averaging times (s)")
+    if isinstance(kept, dict):
+        kept = kept.get("kept", [])
+    i = identified_model
+    present = {"white": i.white > 0, "random_walk": i.random_walk > 0, "gauss_markov": len(i.gauss_markov) > 0,
+               "flicker": getattr(i, "flicker", 0.0) > 0}
+    kept = [c for c, v in present.items() if v] if kept is None else [c for c in kept if present.get(c, False)]
+    b = bound_model
+
+    def gm_av(model):
+        out = np.zeros_like(t)
+        for s, T in model.gauss_markov:
+            out = out + np.asarray(gm_avar(t, s, T), dtype=np.float64)
+        return out
+
+    def compare(av_b, av_i, what, sel=None):
+        sel = np.ones_like(t, dtype=bool) if sel is None else sel
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.where(sel & (av_i > 0), av_b / av_i, np.inf)
+        k = int(np.argmin(r))
+        ok = bool(r[k] >= 1 - _EPS_BOUND)
+        return {"status": "ok" if ok else "shortfall", "margin": float(r[k]), "tau_s": float(t[k]),
+                "reason": f"bound {what}: min AV ratio {r[k]:.4g} at tau = {t[k]:.4g} s"}
+
+    comps = {}
+    if "white" in kept:
+        comps["white"] = compare(np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t, "white vs white")
+    if "random_walk" in kept:
+        comps["random_walk"] = compare(b.random_walk**2 * t / 3, i.random_walk**2 * t / 3, "random walk vs random walk")
+    if "gauss_markov" in kept:
+        comps["gauss_markov"] = compare(gm_av(b), gm_av(i), "GM vs GM")
+    if "flicker" in kept:
+        fl = np.full_like(t, FLICKER_AV * i.flicker**2)
+        others = [np.full_like(t, i.white**2) / t, i.random_walk**2 * t / 3, gm_av(i)]
+        sel = fl > np.max(np.stack(others), axis=0)
+        if not np.any(sel):
+            comps["flicker"] = {"status": "no counterpart", "margin": None, "tau_s": None,
+                                "reason": "identified flicker is never the largest AV term: covered by the others"}
+        else:
+            comps["flicker"] = compare(gm_av(b) + b.white**2 / t, fl, "GM + white vs flicker", sel)
+    for c, has in (("white", b.white > 0), ("random_walk", b.random_walk > 0),
+                   ("gauss_markov", len(b.gauss_markov) > 0)):
+        if has and c not in comps and not (c == "gauss_markov" and "flicker" in comps):
+            comps[c] = {"status": "no counterpart", "margin": None, "tau_s": None,
+                        "reason": f"bound {c} has no kept identified counterpart (covers the spec or the PSD)"}
+    for c in ("quantization", "ramp"):
+        if getattr(i, c, 0.0) > 0:
+            comps[c] = {"status": "not a state", "margin": None, "tau_s": None,
+                        "reason": f"{c} is not a Kalman-filter state; its AV is covered by the total check"}
+    total = {"passed": None, "worst_ratio": None, "curve": None, "tau_s": None, "n_compared": 0, "shortfalls": []}
+    if sample_avar is not None:
+        from scipy.stats import chi2
+
+        av = np.atleast_2d(np.asarray(sample_avar, dtype=np.float64))[:, good]
+        nu = np.broadcast_to(np.asarray(2.0 if sample_edf is None else sample_edf, dtype=np.float64),
+                             np.atleast_2d(np.asarray(sample_avar)).shape)[:, good]
+        lab = labels if labels is not None else [f"curve {j}" for j in range(av.shape[0])]
+        band = t <= (horizon_s if horizon_s is not None else np.inf)
+        ok = np.isfinite(av) & (av > 0) & np.isfinite(nu) & (nu > 0) & band[None, :]
+        M = int(ok.sum())
+        total["n_compared"] = M
+        if M:
+            alpha = (1.0 - confidence) / M
+            lower = np.where(ok, av * nu / chi2.ppf(1.0 - alpha, np.where(ok, nu, 1.0)), 0.0)
+            mb = np.asarray(b.avar(t), dtype=np.float64)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = np.where(ok & (lower > 0), mb[None, :] / lower, np.inf)
+            c, k = np.unravel_index(int(np.argmin(r)), r.shape)
+            total.update(worst_ratio=float(r[c, k]), curve=str(lab[c]), tau_s=float(t[k]),
+                         passed=bool(r[c, k] >= 1 - _EPS_BOUND))
+            for cc, kk in zip(*np.nonzero(r < 1 - _EPS_BOUND)):
+                total["shortfalls"].append({"curve": str(lab[cc]), "tau_s": float(t[kk]), "ratio": float(r[cc, kk])})
+    passed = all(v["status"] != "shortfall" for v in comps.values()) and total["passed"] is not False
+    return {"components": comps, "total": total, "passed": bool(passed), "confidence": float(confidence),
+            "units": "tau s; ratios of Allan variances (dimensionless)"}

@@ -69,6 +69,8 @@ __all__ = [
     "replay",
     "verify_model",
     "reduce_by_integrity",
+    "integrity_contract",
+    "Verification",
 ]
 
 
@@ -474,3 +476,62 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
         if ok:
             current = trial
     return current, tried
+
+
+def integrity_contract(bound, allan=None, verification=None) -> dict:
+    """The contract dict: ``bounded`` means verified.
+
+    Parameters
+    ----------
+    bound : imupipe.bound.BoundResult
+        The bound (its PSD margin, spec margin and all-frequency margin are checked).
+    allan : dict, optional
+        :func:`imupipe.bound.check_allan` result.
+    verification : dict, optional
+        Reference filter name -> :func:`verify_model` result.
+
+    Returns
+    -------
+    dict
+        ``bounded`` (every check passed AND the verification ran and passed), ``verified`` (the
+        verification ran and passed), ``failed_checks`` (list of {check, ...numbers}), ``checks_run``.
+        A failing model is still exported by the caller, marked by this dict.
+    """
+    eps = 1e-9
+    failed, run = [], []
+    run.append("psd_margin")
+    if not bound.margin >= 1 - eps:
+        failed.append({"check": "psd_margin", "margin": float(bound.margin), "curve": bound.margin_curve,
+                       "frequency_hz": float(bound.margin_frequency)})
+    run.append("spec_bound_all_f")
+    if not bound.spec_margin >= 1 - eps:
+        failed.append({"check": "spec_bound_bins", "margin": float(bound.spec_margin),
+                       "frequency_hz": bound.spec_margin_frequency})
+    if not getattr(bound, "allf_margin", float("inf")) >= 1 - eps:
+        failed.append({"check": "spec_bound_all_f", "margin": float(bound.allf_margin),
+                       "frequency_hz": bound.allf_margin_frequency,
+                       "note": "frequency 0 stands for the f -> 0 asymptote (K), inf for f -> inf (N)"})
+    if allan is not None:
+        run.append("allan_components")
+        for name, c in allan.get("components", {}).items():
+            if c.get("status") == "shortfall":
+                failed.append({"check": "allan_components", "component": name, "ratio": c["margin"],
+                               "tau_s": c["tau_s"]})
+        tot = allan.get("total", {})
+        if tot.get("passed") is False:
+            failed.append({"check": "allan_total", "worst_ratio": tot["worst_ratio"], "curve": tot["curve"],
+                           "tau_s": tot["tau_s"], "n_shortfalls": len(tot.get("shortfalls", []))})
+    verified = False
+    if verification:
+        run.append("verification")
+        verified = True
+        for filt, res in verification.items():
+            for check, c in res.get("checks", {}).items():
+                if not c["passed"]:
+                    verified = False
+                    failed.append({"check": "verification", "filter": filt, "against": check,
+                                   "worst_ratio": c["worst_ratio"], "worst_t_s": c["worst_t_s"],
+                                   "first_exceed_s": c["first_exceed_s"], "tolerance": c["tolerance"]})
+    return {"bounded": bool(verified and not failed), "verified": bool(verified), "failed_checks": failed,
+            "checks_run": run,
+            "note": "bounded: true means every check above passed, the verification included"}
