@@ -190,3 +190,17 @@ def test_full_set_more_seeds(name, seed):
         fit, sel, up, b, _ = pipeline(truth, optimistic_spec(truth), n_data, seed, n_boot=200)
         for sensor in ("accel", "gyro"):
             assert covariance_analysis(b.model, truth, sensor=sensor).passed
+
+
+def test_plot_verification_draws_P_and_each_rms(tmp_path):
+    from imupipe.plot import plot_verification, save_figure
+
+    small = NoiseModel(white=0.5e-4, gauss_markov=((2e-5, 300.0),))
+    res = {"truth": covariance_analysis(small, TRUTH), "spec": covariance_analysis(small, small)}
+    fig = plot_verification(res, unit="m", fix_s=600.0, title="accel")
+    lines = fig.axes[0].get_lines()
+    assert len(lines) == 4  # sqrt(P), two RMS curves, the outage marker
+    np.testing.assert_allclose(lines[0].get_ydata(), np.sqrt(res["truth"].P))
+    assert "FAIL" in lines[1].get_label() and "pass" in lines[2].get_label()
+    save_figure(fig, tmp_path / "v.png")
+    assert (tmp_path / "v.png").stat().st_size > 0
