@@ -254,7 +254,8 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
     -------
     Verification
         ``mse`` = :math:`c^T C c` per step, ``P`` the filter's variance (module docstring); passed when
-        mse <= P at every step (to 1e-6 relative: the Riccati and the augmented recursions round differently, measured 4e-8 on a matched filter).
+        mse <= P at every step (to 1e-6 relative: the Riccati and the augmented recursions round
+        differently, measured 4e-8 on a matched filter).
     """
     sc = scenario if scenario is not None else reference_scenario(sensor)
     Pt, Qt, P0t, Ht, st = state_space(truth_model, sc)
