@@ -466,3 +466,35 @@ class TestCheckAllan:
         assert not rep["total"]["passed"] and len(rep["total"]["shortfalls"]) == self.TAU.size
         rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=2.0, horizon_s=1e4)
         assert rep["passed"] and rep["total"]["worst_ratio"] == pytest.approx(12.82 / 2 / 1.5, rel=0.01)
+
+
+class TestNarrowband:
+    def test_line_column_closed_forms(self):
+        from imupipe.bound.engine import _line_psd, _line_psd_sampled
+
+        # variance: the two-sided PSD integrates to 1 (unit-variance column), checked by quadrature
+        f = np.linspace(-20.0, 20.0, 400_001)  # 1e-4 Hz steps: 1/10 of the line width 2 zeta f0
+        assert np.trapezoid(_line_psd(f, 0.56, 0.02), f) == pytest.approx(1.0, rel=2e-3)
+        # block means: the sampled PSD integrates over one period to the variance of the block means, which is
+        # below 1 by the sinc^2 weighting; for a line far below 1/dt it is ~ sinc^2(f0 dt)
+        g = np.linspace(-0.5, 0.5, 8001)  # 1.25e-4 Hz steps: 1/8 of the line width 2 zeta f0 = 1e-3 Hz
+        v = np.trapezoid(_line_psd_sampled(g, 0.01, 0.05, 1.0), g)
+        assert v == pytest.approx(np.sinc(0.01) ** 2, rel=2e-3)
+
+    def test_line_variance_is_an_lp_variable_and_excluded_bins_listed(self):
+        from imupipe.bound.engine import _line_psd_sampled
+
+        f = np.linspace(0, 0.5, 4001)
+        N = 1e-3
+        line = 3e-3**2 * _line_psd_sampled(f, 0.56, 0.01, 1.0)  # aliased to 0.44 Hz at dt = 1 s
+        curves = (N**2 + line)[None, :]
+        spec = NoiseModel(white=N)
+        plain = bound_psd(f, curves, spec, dt=1.0, keep=("white",))
+        r = bound_psd(f, curves, spec, dt=1.0, keep=("white",), narrowband=((0.56, 0.01),))
+        assert plain.model.white > 5 * N  # white noise inflated to cover the line
+        assert r.model.white == pytest.approx(N, rel=1e-6)  # the line column carries it instead
+        (nb,) = r.details["narrowband"]
+        assert nb["sigma"] == pytest.approx(3e-3, rel=1e-3) and nb["f0_hz"] == 0.56
+        assert r.bounded
+        with pytest.raises(ValueError, match="zeta"):
+            bound_psd(f, curves, spec, dt=1.0, narrowband=((0.56, 1.5),))

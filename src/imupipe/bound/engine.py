@@ -150,6 +150,8 @@ class _Problem:
     lo_t: np.ndarray = field(default_factory=lambda: np.zeros(0))  # what the bound must exceed there, u^2/Hz
     k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
     n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
+    narrowband: tuple = ()  # fixed-shape line columns ((f0_hz, zeta), ...), variance an LP variable
+    nb_fit: tuple = ()  # fitted lines ((sigma, f0_hz, zeta), ...) for models that cannot carry them
     _columns: dict = field(default_factory=dict, repr=False)
     _kept: dict = field(default_factory=dict, repr=False)
 
@@ -167,9 +169,15 @@ class _Problem:
                 m = NoiseModel(random_walk=1.0)
             elif kind == "gm":
                 m = NoiseModel(gauss_markov=((1.0, float(T)),))
+            elif kind == "nb":
+                m = None
             else:  # pragma: no cover
                 raise ValueError(kind)
-            b = np.asarray(m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt), dtype=np.float64)
+            if m is None:  # unit-variance line (f0_hz, zeta) = T
+                b = _line_psd(self.f, *T) if self.dt is None else _line_psd_sampled(self.f, T[0], T[1], self.dt)
+            else:
+                b = np.asarray(m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt),
+                               dtype=np.float64)
             r = self.to_rows(b)
             hit = (b, r, not np.any(np.diff(b) > 0), not np.any(np.diff(r) > 0))
             if len(self._columns) > 4000:
@@ -195,6 +203,8 @@ class _Problem:
                     cols.append(np.ones_like(f))
                 elif nm == "random_walk":
                     cols.append(1.0 / (2 * np.pi * f) ** 2)
+                elif nm.startswith("nb_"):
+                    cols.append(_line_psd(f, *self.narrowband[int(nm[3:]) - 1]))
                 else:
                     T = float(Ts[int(nm[3:]) - 1])
                     cols.append(NoiseModel(gauss_markov=((1.0, T),)).psd(f))
@@ -221,6 +231,9 @@ class _Problem:
             elif c == "random_walk":
                 cols.append(self.column("random_walk"))
                 names.append("random_walk")
+        for j, (f0, z) in enumerate(self.narrowband):
+            cols.append(self.column("nb", (float(f0), float(z))))
+            names.append(f"nb_{j + 1}")
         if not cols:
             return np.zeros((self.f.size, 0)), np.zeros((self.f_rows.size, 0)), names, True, True
         Bb = np.stack([c[0] for c in cols], axis=1)
@@ -249,8 +262,18 @@ class _Problem:
         return m
 
     def model_bins(self, model):
-        v = model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt)
-        return np.asarray(v, dtype=np.float64)
+        v = np.asarray(model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt),
+                       dtype=np.float64)
+        return v + self.extra_lines(model, self.f, sampled=self.dt is not None)
+
+    def extra_lines(self, model, f, sampled):
+        """PSD of the fitted lines when `model` cannot carry them (a NoiseModel without ``narrowband``)."""
+        if not self.nb_fit or hasattr(model, "narrowband"):
+            return 0.0
+        out = np.zeros_like(f)
+        for s, f0, z in self.nb_fit:
+            out = out + s * s * (_line_psd_sampled(f, f0, z, self.dt) if sampled else _line_psd(f, f0, z))
+        return out
 
 
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
@@ -545,13 +568,19 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
     return best, (coarse, np.array([]))
 
 
-def _x_to_model(sol, dt):
+def _x_to_model(sol, dt, narrowband=()):
+    """NoiseModel of an LP solution and the fitted lines ((sigma, f0_hz, zeta), ...); the model carries the
+    lines when NoiseModel accepts ``narrowband`` (the agreed interface), else only the tuple returns them."""
     from imupipe.models import NoiseModel
 
     N = K = 0.0
     gm = []
+    lines = []
     for name, v in zip(sol.names, sol.x):
-        if name == "white":
+        if name.startswith("nb_"):
+            f0, z = narrowband[int(name[3:]) - 1]
+            lines.append((math.sqrt(max(v, 0.0)), float(f0), float(z)))
+        elif name == "white":
             N = math.sqrt(max(v, 0.0))
         elif name == "random_walk":
             K = math.sqrt(max(v, 0.0))
@@ -560,7 +589,31 @@ def _x_to_model(sol, dt):
             if v > 0:
                 gm.append((math.sqrt(v), sol.T[i]))
     gm.sort(key=lambda st: st[1])
-    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt)
+    if lines:
+        try:
+            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt, narrowband=tuple(lines)), ()
+        except TypeError:  # a NoiseModel without line support: the lines travel beside it
+            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), tuple(lines)
+    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), ()
+
+
+def _line_psd(f, f0_hz, zeta):
+    r"""Two-sided PSD of a unit-variance second-order GM (damped oscillator), u^2/Hz:
+    :math:`S(f) = q / ((\omega_0^2 - \omega^2)^2 + (2\zeta\omega_0\omega)^2)`, :math:`\omega = 2\pi f`,
+    :math:`q = 4\zeta\omega_0^3` (variance 1; the agreed narrowband interface)."""
+    w0 = 2 * math.pi * float(f0_hz)
+    w = 2 * np.pi * np.asarray(f, dtype=np.float64)
+    return 4.0 * zeta * w0**3 / ((w0 * w0 - w * w) ** 2 + (2 * zeta * w0 * w) ** 2)
+
+
+def _line_psd_sampled(f, f0_hz, zeta, dt, n_alias=400):
+    r"""PSD of the block means over dt of a unit-variance line, on the sampled sequence (two-sided, u^2/Hz):
+    :math:`\sum_k S(f + k/\Delta t)\,\mathrm{sinc}^2((f + k/\Delta t)\Delta t)`, |k| <= n_alias (terms fall as
+    k^-6: the truncation error is below 1e-12 relative of the peak for lines inside a few 1/dt)."""
+    f = np.asarray(f, dtype=np.float64)
+    k = np.arange(-n_alias, n_alias + 1)[:, None]
+    fk = f[None, :] + k / dt
+    return np.sum(_line_psd(fk, f0_hz, zeta) * np.sinc(fk * dt) ** 2, axis=0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -596,7 +649,8 @@ def _all_frequency_margin(prob, model):
     res = {"allf_margin": float("inf"), "allf_margin_frequency": None}
     ok = prob.lo_t > 0
     if np.any(ok):
-        r = np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64) / prob.lo_t[ok]
+        r = (np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64)
+             + prob.extra_lines(model, prob.lo_f[ok], sampled=False)) / prob.lo_t[ok]
         j = int(np.argmin(r))
         res.update(allf_margin=float(r[j]), allf_margin_frequency=float(prob.lo_f[ok][j]))
     for req, val, what in ((prob.k2_req, model.random_walk**2, 0.0), (prob.n2_req, model.white**2, float("inf"))):
@@ -828,8 +882,16 @@ def bound_psd(
                     n_tests)
     allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
-    if narrowband:
-        raise NotImplementedError("narrowband line columns in bound_psd are not implemented on this branch yet")
+    nb = []
+    for item in narrowband or ():
+        try:
+            f0, z = (float(v) for v in item)
+        except (TypeError, ValueError):
+            raise ValueError(f"narrowband entries must be (f0_hz, zeta), got {item!r}") from None
+        if not (f0 > 0 and 0 < z < 1):
+            raise ValueError(f"narrowband line needs f0_hz > 0 and zeta in (0, 1), got ({f0}, {z})")
+        nb.append((f0, z))
+    prob.narrowband = tuple(nb)
     if T_grid is None:
         grid = _default_T_grid(prob)
     elif np.ndim(T_grid) == 0:  # points per decade of the default span
@@ -900,10 +962,12 @@ def bound_psd(
                 else:
                     decisions[cand] = (f"not in the spec and not needed by the data "
                                        f"(looseness gain {gain:.3g} <= {add_threshold:g})")
-        model = _x_to_model(sol, dt)
+        model, prob.nb_fit = _x_to_model(sol, dt, prob.narrowband)
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
-                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded)
+                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
+                   narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
+                               for sg, f0, z in (prob.nb_fit or getattr(model, "narrowband", ()))])
     return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
                    T_profile=prof, n_lp=n_lp, details=details)
 

@@ -128,6 +128,8 @@ class BoundResult:
                 "white": fl(m.white),
                 "gauss_markov": [{"sigma": fl(s), "T": fl(T)} for s, T in m.gauss_markov],
                 "random_walk": fl(m.random_walk),
+                "narrowband": [{"sigma": fl(sg), "f0_hz": fl(f0), "zeta": fl(z)}
+                               for sg, f0, z in getattr(m, "narrowband", ())],
             }
 
         out = {
