@@ -30,6 +30,35 @@ the 10^4 rows are ever binding). :math:`T` is profiled on a log grid and refined
 When the sample PSDs are of block-averaged data (the paper's 1 Hz averages), pass `dt`: the model
 is then compared through ``NoiseModel.psd_sampled(f, dt)`` (averaging and aliasing included).
 
+Bound over all frequencies (the paper's "for all f"). The sampled bins end at :math:`f_1 = 1/T_{win}`;
+below it a record says nothing, yet a random walk (:math:`1/f^2`) or a long-T GM dominates a filter's
+error over a long outage there. So the LP also holds, with continuous PSDs,
+
+* :math:`S_m(f) \ge \max(S_{spec}(f), S_{up}(f))` on a log grid (10 per decade) from the floor
+  :math:`f_{floor}` up to :math:`f_1`, and :math:`S_m \ge S_{up}` on up to the Nyquist frequency
+  (``upper_band="all"``, the default; ``"below"`` only below :math:`f_1`). :math:`S_{up}` is the
+  identified model's upper confidence envelope (:func:`upper_envelope`: kept components at their upper
+  limits, the random walk at its upper limit even when model selection dropped it);
+* :math:`f \to 0`: :math:`K_m \ge \max(K_{spec}, K_{up})` (a random walk the spec gives or the data
+  cannot exclude is never dropped: the component is added, ``decisions`` says so);
+* :math:`f \to \infty`: :math:`N_m \ge N_{spec}` (only white noise remains there).
+
+The floor is :math:`f_{floor} = 0.01/H` for the horizon :math:`H` (``horizon_s``: fix period plus
+outage; without it :math:`f_1/100`, and never above :math:`f_1/10`). Why it is enough: over a window of
+length :math:`H`, a component at :math:`f \ll 1/H` changes by a fraction :math:`\sim 2\pi f H` of its
+amplitude, so a PSD shortfall below :math:`0.01/H` reaches the error variance over the horizon weighted by
+:math:`(2\pi f H)^2 < 4\cdot 10^{-3}` (for white-, GM- and flicker-like shapes; the :math:`1/f^2`
+random walk, which is not integrable there, is covered exactly by its asymptote). A spec (or identified)
+flicker :math:`B^2/(2\pi f)` is therefore bounded down to the floor by whatever the LP chooses (GM,
+random walk); it does not by itself force :math:`K_m > 0`. ``BoundResult.allf_margin`` is the smallest
+ratio over these conditions (frequency 0 stands for the :math:`K` asymptote, inf for the :math:`N` one),
+and ``bounded`` needs it >= 1.
+
+``exclude=((f_lo_hz, f_hi_hz, reason), ...)`` leaves the sample-curve rows inside those closed intervals
+out (never the spec or all-frequency rows; in band modes every band that touches an interval); the
+excluded bins are listed in ``details["excluded"]``. ``narrowband=((f0_hz, zeta), ...)`` adds fixed-shape
+damped-oscillator columns whose variance is an LP variable.
+
 Modes (how the sample PSDs enter the constraints):
 
 ``raw``
