@@ -204,3 +204,17 @@ def test_plot_verification_draws_P_and_each_rms(tmp_path):
     assert "FAIL" in lines[1].get_label() and "pass" in lines[2].get_label()
     save_figure(fig, tmp_path / "v.png")
     assert (tmp_path / "v.png").stat().st_size > 0
+
+
+def test_verification_report_with_replay_and_reduction():
+    from imupipe.simulate import simulate
+    from imupipe.verify import verification_report
+
+    big = NoiseModel(white=1.2e-4, gauss_markov=((6e-5, 300.0), (1e-9, 5.0)), random_walk=1.2e-6)
+    rec = simulate(TRUTH, 20000, 1.0, rng=np.random.default_rng(3), n_records=2)
+    rep = verification_report(big, "gyro", spec=TRUTH, upper=TRUTH, records=list(rec), rate_hz=1.0,
+                              fix_s=300.0, horizon_s=900.0)
+    assert set(rep["verification"]["checks"]) == {"upper_envelope", "spec", "replay"}
+    assert rep["passed"]
+    assert "random_walk" in rep["reduction"]["refused"] and "gauss_markov T=5 s" in rep["reduction"]["accepted"]
+    assert rep["reduction"]["verification"]["passed"]

@@ -70,6 +70,7 @@ __all__ = [
     "verify_model",
     "reduce_by_integrity",
     "integrity_contract",
+    "verification_report",
     "Verification",
 ]
 
@@ -536,3 +537,36 @@ def integrity_contract(bound, allan=None, verification=None) -> dict:
     return {"bounded": bool(verified and not failed), "verified": bool(verified), "failed_checks": failed,
             "checks_run": run,
             "note": "bounded: true means every check above passed, the verification included"}
+
+
+def verification_report(bound_model, sensor: str, spec=None, upper=None, truth=None, records=None,
+                        rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
+                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True) -> dict:
+    """Everything the verification stage writes for one spec and sensor (``results/verify/{spec}/{sensor}.yaml``).
+
+    Runs :func:`verify_model` on the reference filter of `sensor` (``accel``: position fixes of `sigma_fix` m,
+    default 0.5 m; ``gyro``: angle fixes of `sigma_fix` rad, default 0.1 deg) and, with `reduce`,
+    :func:`reduce_by_integrity` against the (b) models (upper envelope, spec): the reduced model is verified
+    too and reported with what was tried and accepted or refused. All SI.
+
+    Returns
+    -------
+    dict
+        ``verification`` (the exported model's checks), ``reduction`` (``tried``, ``accepted`` and the
+        reduced model's verification, or None), ``passed``, ``units``.
+    """
+    kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s)
+    if sigma_fix is not None:
+        kw["sigma_fix"] = sigma_fix
+    sc = reference_scenario(sensor, **kw)
+    ver = verify_model(bound_model, sensor, truth=truth, upper=upper, spec=spec, records=records, rate_hz=rate_hz,
+                       scenario=sc)
+    red = None
+    if reduce and (upper is not None or spec is not None):
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec], sensor, sc)
+        red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
+               "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
+               "verification": verify_model(reduced, sensor, truth=truth, upper=upper, spec=spec, records=records,
+                                            rate_hz=rate_hz, scenario=sc) if reduced is not bound_model else None}
+    return {"sensor": sensor, "verification": ver, "reduction": red, "passed": ver["passed"],
+            "units": "SI; sigma_fix m (accel) or rad (gyro); times s; ratios dimensionless"}
