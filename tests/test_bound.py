@@ -359,3 +359,142 @@ def test_dominance_reduction_keeps_the_lp_optimum(rng):
     assert red.fun == pytest.approx(full.fun, rel=1e-9)
     # a column that increases somewhere: no reduction
     assert _undominated(np.c_[B, f], t).size == f.size
+
+
+class TestAllFrequencies:
+    """The bound dominates the spec and the identified upper envelope below the lowest bin (and the asymptotes)."""
+
+    @staticmethod
+    def white_curves(N=1e-3, n=2000):
+        f = np.linspace(0, 0.5, n + 1)
+        return f, np.full((1, f.size), N**2)
+
+    def test_spec_random_walk_is_never_dropped(self):
+        # keep says white only (identification dropped K), the spec has K: the bound keeps K >= K_spec, and
+        # its PSD is >= the spec's at 1e-7 Hz (far below the lowest bin, 2.5e-4 Hz)
+        f, c = self.white_curves()
+        spec = NoiseModel(white=1e-3, random_walk=1e-5)
+        r = bound_psd(f, c, spec, dt=1.0, keep=("white",), horizon_s=4200.0)
+        assert r.model.random_walk >= spec.random_walk * (1 - 1e-9)
+        assert "required by the all-frequency bound" in r.decisions["random_walk"]
+        assert r.model.psd(np.array([1e-7]))[0] >= spec.psd(np.array([1e-7]))[0] * (1 - 1e-9)
+        assert r.bounded and r.allf_margin >= 1 - 1e-9
+
+    def test_upper_envelope_random_walk_is_kept(self):
+        f, c = self.white_curves()
+        up = NoiseModel(white=1e-3, random_walk=3e-6)
+        r = bound_psd(f, c, NoiseModel(white=1e-3), dt=1.0, keep=("white",), upper_model=up, horizon_s=4200.0)
+        assert r.model.random_walk >= 3e-6 * (1 - 1e-9)
+        assert r.details["all_frequency"]["K_upper"] == pytest.approx(3e-6)
+
+    def test_low_frequency_gm_is_covered_below_the_bins(self):
+        # an identified GM with T = 1e5 s (corner 1.6e-6 Hz, below the lowest bin 2.5e-4 Hz) at its upper limit:
+        # only the all-frequency rows see it; they hold the bound above it down to the floor 0.01/horizon
+        f, c = self.white_curves()
+        spec = NoiseModel(white=1e-3)
+        up = NoiseModel(white=1e-3, gauss_markov=((1e-4, 1e5),))
+        r = bound_psd(f, c, spec, dt=1.0, horizon_s=4200.0, upper_model=up, keep=("white", "gauss_markov"))
+        lo = r.details["all_frequency"]["f_floor_hz"]
+        assert lo == pytest.approx(0.01 / 4200.0)
+        g = np.logspace(math.log10(lo), -3, 50)
+        assert np.all(r.model.psd(g) >= up.psd(g) * (1 - 1e-6))
+        # without the envelope the same data give a bound far below that GM there (the rows are what holds it)
+        r0 = bound_psd(f, c, spec, dt=1.0, horizon_s=4200.0, keep=("white", "gauss_markov"))
+        assert np.min(r0.model.psd(g) / up.psd(g)) < 0.5
+
+    def test_spec_white_asymptote(self):
+        # spec white noise must be met as f -> inf (a short-T GM cannot stand in for it)
+        f, c = self.white_curves()
+        spec = NoiseModel(white=1e-3)
+        r = bound_psd(f, c, spec, dt=1.0, keep=("gauss_markov", "white"))
+        assert r.model.white >= 1e-3 * (1 - 1e-9)
+
+    def test_exclude_lists_bins_and_keeps_the_spec(self):
+        f, c = self.white_curves()
+        c = c.copy()
+        line = (f >= 0.43) & (f <= 0.45)  # the interval is closed
+        c[0, line] *= 100.0
+        spec = NoiseModel(white=1e-3)
+        r_keep = bound_psd(f, c, spec, dt=1.0, keep=("white",))
+        r = bound_psd(f, c, spec, dt=1.0, keep=("white",), exclude=((0.43, 0.45, "aliased 0.56 Hz line"),))
+        (ex,) = r.details["excluded"]
+        assert ex["reason"] == "aliased 0.56 Hz line" and ex["n_bins"] == int(line.sum())
+        assert r_keep.model.white == pytest.approx(10e-3, rel=1e-6)
+        assert r.model.white == pytest.approx(1e-3, rel=1e-6)  # the spec still holds it up
+        with pytest.raises(ValueError, match="exclude"):
+            bound_psd(f, c, spec, dt=1.0, exclude=((0.5, 0.4, "x"),))
+
+    def test_solver_prints_nothing_on_stdout(self, capfd):
+        import imupipe.bound.engine as b
+
+        b._HIGHS = None  # force the solver's creation inside this test
+        f, c = self.white_curves()
+        bound_psd(f, c, NoiseModel(white=1e-3), dt=1.0)
+        assert capfd.readouterr().out == ""
+
+
+class TestCheckAllan:
+    TAU = np.logspace(0, 4, 30)
+
+    def test_flicker_against_gm_plus_white_and_no_counterpart(self):
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=1e-4, flicker=1e-5)
+        bound = NoiseModel(white=1.5e-4, gauss_markov=((2e-5, 100.0),), random_walk=1e-7)
+        rep = check_allan(bound, ident, self.TAU, kept=["white", "flicker"])
+        assert rep["components"]["white"]["status"] == "ok"
+        assert rep["components"]["random_walk"]["status"] == "no counterpart"
+        assert "GM + white" in rep["components"]["flicker"]["reason"]
+
+    def test_dropped_component_is_not_compared_but_a_real_shortfall_is_named(self):
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=1e-4, random_walk=1e-6)
+        bound = NoiseModel(white=1.2e-4)
+        rep = check_allan(bound, ident, self.TAU, kept=["white"])  # K dropped by selection: not compared
+        assert "random_walk" not in rep["components"] and rep["passed"]
+        # the total check: a sample AV whose lower limit (edf 1000) lies above the bound at long tau
+        av = ident.avar(self.TAU)[None, :]
+        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=1000.0,
+                          labels=["d1/x"], horizon_s=1e4)
+        assert not rep["passed"] and rep["total"]["curve"] == "d1/x" and rep["total"]["worst_ratio"] < 1
+        assert rep["total"]["tau_s"] == pytest.approx(self.TAU[-1])
+        # a sample AV 1.5x the bound's: with edf 1000 its Bonferroni lower limit (30 taus, 95 %) is ~1.25x the
+        # bound's (a shortfall); with edf 2 the limit is 1.5 x 2/chi2_2(1 - 0.05/30) = 0.23x (chance, no shortfall)
+        av = 1.5 * bound.avar(self.TAU)[None, :]
+        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=1000.0, horizon_s=1e4)
+        assert not rep["total"]["passed"] and len(rep["total"]["shortfalls"]) == self.TAU.size
+        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=2.0, horizon_s=1e4)
+        assert rep["passed"] and rep["total"]["worst_ratio"] == pytest.approx(12.82 / 2 / 1.5, rel=0.01)
+
+
+class TestNarrowband:
+    def test_line_column_closed_forms(self):
+        from imupipe.bound.engine import _line_psd, _line_psd_sampled
+
+        # variance: the two-sided PSD integrates to 1 (unit-variance column), checked by quadrature
+        f = np.linspace(-20.0, 20.0, 400_001)  # 1e-4 Hz steps: 1/10 of the line width 2 zeta f0
+        assert np.trapezoid(_line_psd(f, 0.56, 0.02), f) == pytest.approx(1.0, rel=2e-3)
+        # block means: the sampled PSD integrates over one period to the variance of the block means, which is
+        # below 1 by the sinc^2 weighting; for a line far below 1/dt it is ~ sinc^2(f0 dt)
+        g = np.linspace(-0.5, 0.5, 8001)  # 1.25e-4 Hz steps: 1/8 of the line width 2 zeta f0 = 1e-3 Hz
+        v = np.trapezoid(_line_psd_sampled(g, 0.01, 0.05, 1.0), g)
+        assert v == pytest.approx(np.sinc(0.01) ** 2, rel=2e-3)
+
+    def test_line_variance_is_an_lp_variable_and_excluded_bins_listed(self):
+        from imupipe.bound.engine import _line_psd_sampled
+
+        f = np.linspace(0, 0.5, 4001)
+        N = 1e-3
+        line = 3e-3**2 * _line_psd_sampled(f, 0.56, 0.01, 1.0)  # aliased to 0.44 Hz at dt = 1 s
+        curves = (N**2 + line)[None, :]
+        spec = NoiseModel(white=N)
+        plain = bound_psd(f, curves, spec, dt=1.0, keep=("white",))
+        r = bound_psd(f, curves, spec, dt=1.0, keep=("white",), narrowband=((0.56, 0.01),))
+        assert plain.model.white > 5 * N  # white noise inflated to cover the line
+        assert r.model.white == pytest.approx(N, rel=1e-6)  # the line column carries it instead
+        (nb,) = r.details["narrowband"]
+        assert nb["sigma"] == pytest.approx(3e-3, rel=1e-3) and nb["f0_hz"] == 0.56
+        assert r.bounded
+        with pytest.raises(ValueError, match="zeta"):
+            bound_psd(f, curves, spec, dt=1.0, narrowband=((0.56, 1.5),))

@@ -160,3 +160,16 @@ class TestExport:
         assert np.all(folded >= NoiseModel(gauss_markov=accel.gauss_markov, random_walk=K_ACC).psd(f))
         with pytest.warns(UserWarning, match="no longer bounds"):
             kalibr_yaml(gyro, accel, 125.0, fold_gm=False)
+
+
+def test_discretize_stiff_gm_matches_the_closed_form():
+    # a GM with T = 0.01 s at dt = 1 s: Phi = e^-100, Qd = sigma^2 (1 - e^-200) = sigma^2; the plain Van Loan
+    # block holds e^(+100) and loses Qd to cancellation
+    import math
+
+    from imupipe.kf import discretize
+
+    sigma, T = 3e-3, 0.01
+    Phi, Qd = discretize(np.array([[-1 / T]]), None, np.array([[2 * sigma**2 / T]]), 1.0)
+    assert Phi[0, 0] == pytest.approx(math.exp(-100.0), rel=1e-6, abs=1e-300)
+    assert Qd[0, 0] == pytest.approx(sigma**2, rel=1e-9)

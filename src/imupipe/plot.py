@@ -754,3 +754,47 @@ def save_figure(fig, path) -> None:
         plt = sys.modules.get("matplotlib.pyplot")
         if plt is not None:
             plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# verification
+# ---------------------------------------------------------------------------------------------
+def plot_verification(results: dict, unit: str | None = None, scale: float = 1.0, fix_s: float | None = None,
+                      title: str | None = None):
+    """sqrt(P) of the reference filter against the true or empirical RMS error, over fixes and outage.
+
+    Parameters
+    ----------
+    results : dict
+        Label -> :class:`imupipe.verify.Verification` (e.g. ``{"truth": ..., "replay": ...}``); all of
+        one filter, so ``P`` is drawn once (from the first).
+    unit : str, optional
+        Display unit of the position (angle) error, e.g. ``"m"`` or ``"deg"``; ``scale`` converts from SI
+        (m or rad) to it (``math.degrees(1)`` for deg). Default: SI, labelled ``SI``.
+    fix_s : float, optional
+        End of the fix period, s (a vertical line marks the outage start).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if not results:
+        raise ValueError("plot_verification needs at least one verification result")
+    fig, axes = _new_figure()
+    ax = axes[0, 0]
+    first = next(iter(results.values()))
+    u = unit or "SI"
+    ax.plot(first.t_s, np.sqrt(first.P) * scale, color="k", lw=1.6, label="filter sqrt(P)")
+    for label, v in results.items():
+        ax.plot(v.t_s, np.sqrt(np.maximum(v.mse, 0.0)) * scale, lw=1.0,
+                label=f"{label} RMS (worst MSE/P {v.worst_ratio:.3g}, {'pass' if v.passed else 'FAIL'})")
+    if fix_s is not None:
+        ax.axvline(fix_s, color="0.5", ls=":", lw=1.0)
+    ax.set_yscale("log")
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel(f"position / angle error [{u}]")
+    if title:
+        ax.set_title(title)
+    ax.legend(loc="upper left", fontsize="small")
+    return fig

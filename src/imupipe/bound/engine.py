@@ -1,83 +1,19 @@
-r"""PSD overbounding of IMU errors by a Kalman-filter-ready noise model (method.md section 6).
-
-Goal (Gallon, Joerger, Pervan, ION GNSS+ 2021, section II.2.e): a model of white noise, first-order
-Gauss-Markov (GM) terms and a random walk whose two-sided PSD
-
-.. math::
-
-    S_m(f) = N^2 + \sum_i \frac{2\sigma_i^2 T_i}{1 + (2\pi f T_i)^2} + \frac{K^2}{(2\pi f)^2}
-
-lies above every sample PSD of one sensor type (15 curves: 5 datasets x 3 axes) at every
-frequency and above the spec sheet's PSD. For a stationary error, :math:`S_m \ge S_{true}` at all
-:math:`f` makes every covariance of the model dominate the true one, so a linear estimator built on
-the model reports a variance that bounds its true error variance (Langel, Garcia-Crespillo,
-Joerger, PLANS 2020).
-
-For fixed time constants :math:`T_i` the model PSD is linear in
-:math:`x = (N^2, \sigma_i^2, K^2) \ge 0`, so the tightest bound is a linear program
-(HiGHS through its own Python interface ``highspy``, the solver behind :func:`scipy.optimize.linprog`):
-
-.. math::
-
-    \min_{x \ge 0}\; \sum_k w_k \frac{S_m(f_k; x)}{E(f_k)} \quad \text{s.t.} \quad
-    S_m(f_k; x) \ge \hat S_c(f_k)\ \forall c, k, \qquad S_m(f_j; x) \ge S_{spec}(f_j)\ \forall j,
-
-with :math:`E` the envelope of the targets and :math:`w_k` log-frequency weights (each decade
-counts equally). Rows are divided by their target (PSDs span 20 decades in SI) and columns by
-their largest entry; the constraints are generated lazily (cutting planes: only a few hundred of
-the 10^4 rows are ever binding). :math:`T` is profiled on a log grid and refined.
-
-When the sample PSDs are of block-averaged data (the paper's 1 Hz averages), pass `dt`: the model
-is then compared through ``NoiseModel.psd_sampled(f, dt)`` (averaging and aliasing included).
-
-Modes (how the sample PSDs enter the constraints):
-
-``raw``
-    the periodograms as they are (paper-faithful). The bound then follows the periodogram maxima:
-    for white noise the largest of :math:`n` single-window ordinates is about :math:`\ln n + 0.577`
-    times the true PSD (12.7x power, 3.6x amplitude for 15 curves x 12600 bins).
-``smoothed``
-    log-frequency band averages (:func:`imupipe.spectra.smooth_log_bands` bands, optionally
-    merged at the low end to at least `min_edf` degrees of freedom); the model is band-averaged
-    the same way.
-``confidence``
-    the upper chi-squared limit of each band average (or ordinate, with ``bands_per_decade=None``)
-    at family-wise level `confidence`, Bonferroni-corrected over all curves x bands
-    (:func:`imupipe.spectra.chi2_upper`): with that probability every curve's true band-averaged
-    PSD lies below the bound.
-
-References
-----------
-.. [1] E. Gallon, M. Joerger, B. Pervan, "Development of Stochastic IMU Error Models for INS/GNSS
-       Integration", ION GNSS+ 2021, eqs. 7, 9, 12, 13, Table 2, Appendix A.
-.. [2] S. Langel, O. Garcia-Crespillo, M. Joerger, "A New Approach for Modeling Correlated Gaussian
-       Errors Using Frequency Domain Overbounding", IEEE/ION PLANS 2020.
-.. [3] IEEE Std 952-1997, Annex C (Allan-variance forms of the components).
-.. [4] Q. Huangfu, J. A. J. Hall, "Parallelizing the dual revised simplex method", Math. Prog.
-       Comp. 10, 119-142, 2018 (HiGHS).
-"""
+"""The bounding linear program: inputs, constraint rows (sample PSDs, spec, all-frequency rows), HiGHS, the
+T profile, :func:`bound_psd`, :func:`margin`, :func:`looseness` (see :mod:`imupipe.bound`)."""
 
 from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = [
-    "BOUND_COMPONENTS",
-    "DEFAULT_MIN_EDF",
-    "MODES",
-    "BoundResult",
-    "bound_psd",
-    "paper_inflation",
-    "margin",
-    "looseness",
-    "check_allan_components",
-    "gm_bounds_gm",
-]
+from imupipe.bound.report import (  # noqa: F401
+    BoundResult,
+    _inflation,
+)
+
 
 #: Components a bound may hold (Kalman-filter states; flicker is represented by a GM).
 BOUND_COMPONENTS = ("white", "gauss_markov", "random_walk")
@@ -210,6 +146,12 @@ class _Problem:
     objective_weights: np.ndarray  # weights/env where env > 0, else 0: the objective is this @ (B_rows x) (R,)
     mode: str
     details: dict = field(default_factory=dict)
+    lo_f: np.ndarray = field(default_factory=lambda: np.zeros(0))  # all-frequency grid below the bins, Hz
+    lo_t: np.ndarray = field(default_factory=lambda: np.zeros(0))  # what the bound must exceed there, u^2/Hz
+    k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
+    n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
+    narrowband: tuple = ()  # fixed-shape line columns ((f0_hz, zeta), ...), variance an LP variable
+    nb_fit: tuple = ()  # fitted lines ((sigma, f0_hz, zeta), ...) for models that cannot carry them
     _columns: dict = field(default_factory=dict, repr=False)
     _kept: dict = field(default_factory=dict, repr=False)
 
@@ -227,9 +169,15 @@ class _Problem:
                 m = NoiseModel(random_walk=1.0)
             elif kind == "gm":
                 m = NoiseModel(gauss_markov=((1.0, float(T)),))
+            elif kind == "nb":
+                m = None
             else:  # pragma: no cover
                 raise ValueError(kind)
-            b = np.asarray(m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt), dtype=np.float64)
+            if m is None:  # unit-variance line (f0_hz, zeta) = T
+                b = _line_psd(self.f, *T) if self.dt is None else _line_psd_sampled(self.f, T[0], T[1], self.dt)
+            else:
+                b = np.asarray(m.psd(self.f) if self.dt is None else m.psd_sampled(self.f, self.dt),
+                               dtype=np.float64)
             r = self.to_rows(b)
             hit = (b, r, not np.any(np.diff(b) > 0), not np.any(np.diff(r) > 0))
             if len(self._columns) > 4000:
@@ -239,6 +187,34 @@ class _Problem:
 
     def to_rows(self, a):
         return a if self.starts is None else _group_mean(a, self.starts, self.counts)
+
+    def all_frequency_rows(self, names, Ts):
+        """Normalised '>= 1' rows of the all-frequency conditions for basis columns `names`: the log grid
+        below the lowest bin (continuous PSDs) and the asymptotes K^2 >= k2_req, N^2 >= n2_req."""
+        from imupipe.models import NoiseModel
+
+        rows = []
+        ok = self.lo_t > 0
+        if np.any(ok):
+            f = self.lo_f[ok]
+            cols = []
+            for nm in names:
+                if nm == "white":
+                    cols.append(np.ones_like(f))
+                elif nm == "random_walk":
+                    cols.append(1.0 / (2 * np.pi * f) ** 2)
+                elif nm.startswith("nb_"):
+                    cols.append(_line_psd(f, *self.narrowband[int(nm[3:]) - 1]))
+                else:
+                    T = float(Ts[int(nm[3:]) - 1])
+                    cols.append(NoiseModel(gauss_markov=((1.0, T),)).psd(f))
+            rows.append(np.stack(cols, axis=1) / self.lo_t[ok, None])
+        for req, nm in ((self.k2_req, "random_walk"), (self.n2_req, "white")):
+            if req > 0 and nm in names:
+                r = np.zeros((1, len(names)))
+                r[0, names.index(nm)] = 1.0 / req
+                rows.append(r)
+        return np.vstack(rows) if rows else np.zeros((0, len(names)))
 
     def basis(self, comps, Ts):
         """Columns (bins (F, J), rows (R, J)), names, and whether every column is non-increasing
@@ -255,6 +231,9 @@ class _Problem:
             elif c == "random_walk":
                 cols.append(self.column("random_walk"))
                 names.append("random_walk")
+        for j, (f0, z) in enumerate(self.narrowband):
+            cols.append(self.column("nb", (float(f0), float(z))))
+            names.append(f"nb_{j + 1}")
         if not cols:
             return np.zeros((self.f.size, 0)), np.zeros((self.f_rows.size, 0)), names, True, True
         Bb = np.stack([c[0] for c in cols], axis=1)
@@ -283,8 +262,18 @@ class _Problem:
         return m
 
     def model_bins(self, model):
-        v = model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt)
-        return np.asarray(v, dtype=np.float64)
+        v = np.asarray(model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt),
+                       dtype=np.float64)
+        return v + self.extra_lines(model, self.f, sampled=self.dt is not None)
+
+    def extra_lines(self, model, f, sampled):
+        """PSD of the fitted lines when `model` cannot carry them (a NoiseModel without ``narrowband``)."""
+        if not self.nb_fit or hasattr(model, "narrowband"):
+            return 0.0
+        out = np.zeros_like(f)
+        for s, f0, z in self.nb_fit:
+            out = out + s * s * (_line_psd_sampled(f, f0, z, self.dt) if sampled else _line_psd(f, f0, z))
+        return out
 
 
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
@@ -377,7 +366,7 @@ def _undominated(B, t, monotone=None):
     return pos[tp > later_max]
 
 
-def _constraint_matrix(prob, Bb, Br, mono_b, mono_r):
+def _constraint_matrix(prob, Bb, Br, mono_b, mono_r, names=(), Ts=()):
     """Normalised '>= 1' rows: data rows (envelope of targets; in raw mode, where rows are bins, with the
     spec) and, off raw mode, spec rows at bins; rows implied by others left out (:func:`_undominated`)."""
     tgt = prob.env if prob.starts is None else prob.envelope
@@ -386,6 +375,8 @@ def _constraint_matrix(prob, Bb, Br, mono_b, mono_r):
     if prob.starts is not None and prob.spec is not None:
         oks = prob.kept_rows(Bb, prob.spec, "spec", mono_b)
         A = np.vstack([A, Bb[oks] / prob.spec[oks, None]])
+    if names:
+        A = np.vstack([A, prob.all_frequency_rows(list(names), Ts)])
     return A
 
 
@@ -395,7 +386,27 @@ _DIRECT_LP_ROWS = 2000  # at most this many rows: no cutting planes (HiGHS solve
 _HIGHS = None  # one solver instance per process, reused (each LP replaces the previous model)
 
 
-def _highs_min(c, A):
+def _quiet_highs(highspy):
+    """A Highs instance created with file descriptor 1 redirected: the constructor prints a banner on
+    stdout before any option can be set, and a workflow script's stdout is its output."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            h = highspy.Highs()
+            h.setOptionValue("output_flag", False)
+            h.setOptionValue("log_to_console", False)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    return h
+
+
+def _highs_min(c, A, b=None):
     """argmin of c @ u subject to A u >= 1, u >= 0, by HiGHS (highspy; one thread, no output).
 
     The bounding LPs have 2-4 columns and a few dozen rows after the dominance reduction: HiGHS solves
@@ -406,7 +417,7 @@ def _highs_min(c, A):
     import highspy
 
     if _HIGHS is None:
-        _HIGHS = highspy.Highs()
+        _HIGHS = _quiet_highs(highspy)
         _HIGHS.setOptionValue("output_flag", False)
         _HIGHS.setOptionValue("threads", 1)
     m, n = A.shape
@@ -415,7 +426,7 @@ def _highs_min(c, A):
     lp.col_cost_ = np.ascontiguousarray(c, dtype=np.float64)
     lp.col_lower_ = np.zeros(n)
     lp.col_upper_ = np.full(n, highspy.kHighsInf)
-    lp.row_lower_ = np.ones(m)
+    lp.row_lower_ = np.ones(m) if b is None else np.ascontiguousarray(b, dtype=np.float64)
     lp.row_upper_ = np.full(m, highspy.kHighsInf)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
     lp.a_matrix_.start_ = np.arange(0, m * n + 1, m, dtype=np.int32)
@@ -433,7 +444,7 @@ def _solve_lp(prob, comps, Ts):
     """Tightest squared coefficients for fixed GM time constants (cutting-plane HiGHS LP)."""
     Bb, Br, names, mono_b, mono_r = prob.basis(comps, Ts)
     J = len(names)
-    A = _constraint_matrix(prob, Bb, Br, mono_b, mono_r)
+    A = _constraint_matrix(prob, Bb, Br, mono_b, mono_r, names, Ts)
     cobj = prob.objective_weights @ Br if J else np.zeros(0)
     if A.shape[0] == 0 or J == 0:
         return _LPSolution(np.zeros(J), names, tuple(Ts), 0.0, 0)
@@ -444,6 +455,11 @@ def _solve_lp(prob, comps, Ts):
         raise ValueError("no component can bound these PSDs (all basis columns vanish)")
     As = A[:, usable] / colmax[usable]
     cs = cobj[usable] / colmax[usable]
+    # rows scaled to a largest entry of 1 (right-hand side 1/rowmax): the all-frequency rows and the data rows
+    # can differ by 10+ decades in a column, and HiGHS drops matrix entries below 1e-9
+    rowmax = As.max(axis=1)
+    if np.any(rowmax <= 0):
+        raise ValueError("a bounding constraint has no component that can meet it (all its entries vanish)")
     # initial rows: the tightest row of each column and, per log-frequency cell, the row with the
     # smallest normalised basis sum (the most demanding one)
     n_rows = As.shape[0]
@@ -458,7 +474,7 @@ def _solve_lp(prob, comps, Ts):
                 active.add(int(cell[np.argmin(rs[cell])]))
     for _ in range(60):
         idx = np.fromiter(sorted(active), dtype=np.int64)
-        u = _highs_min(cs, As[idx])
+        u = _highs_min(cs, As[idx] / rowmax[idx, None], 1.0 / rowmax[idx])
         n_lp += 1
         slack = As @ u - 1.0
         viol = np.flatnonzero(slack < -1e-10)
@@ -467,7 +483,7 @@ def _solve_lp(prob, comps, Ts):
         worst = viol[np.argsort(slack[viol])[:200]]
         active.update(int(i) for i in worst)
     else:  # pragma: no cover - never seen; fall back on the full LP
-        u = _highs_min(cs, As)
+        u = _highs_min(cs, As / rowmax[:, None], 1.0 / rowmax)
         n_lp += 1
     # exact feasibility: scale up by the worst residual shortfall (all terms scale the PSD linearly)
     m = float(np.min(As @ u))
@@ -552,13 +568,19 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
     return best, (coarse, np.array([]))
 
 
-def _x_to_model(sol, dt):
+def _x_to_model(sol, dt, narrowband=()):
+    """NoiseModel of an LP solution and the fitted lines ((sigma, f0_hz, zeta), ...); the model carries the
+    lines when NoiseModel accepts ``narrowband`` (the agreed interface), else only the tuple returns them."""
     from imupipe.models import NoiseModel
 
     N = K = 0.0
     gm = []
+    lines = []
     for name, v in zip(sol.names, sol.x):
-        if name == "white":
+        if name.startswith("nb_"):
+            f0, z = narrowband[int(name[3:]) - 1]
+            lines.append((math.sqrt(max(v, 0.0)), float(f0), float(z)))
+        elif name == "white":
             N = math.sqrt(max(v, 0.0))
         elif name == "random_walk":
             K = math.sqrt(max(v, 0.0))
@@ -567,7 +589,31 @@ def _x_to_model(sol, dt):
             if v > 0:
                 gm.append((math.sqrt(v), sol.T[i]))
     gm.sort(key=lambda st: st[1])
-    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt)
+    if lines:
+        try:
+            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt, narrowband=tuple(lines)), ()
+        except TypeError:  # a NoiseModel without line support: the lines travel beside it
+            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), tuple(lines)
+    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), ()
+
+
+def _line_psd(f, f0_hz, zeta):
+    r"""Two-sided PSD of a unit-variance second-order GM (damped oscillator), u^2/Hz:
+    :math:`S(f) = q / ((\omega_0^2 - \omega^2)^2 + (2\zeta\omega_0\omega)^2)`, :math:`\omega = 2\pi f`,
+    :math:`q = 4\zeta\omega_0^3` (variance 1; the agreed narrowband interface)."""
+    w0 = 2 * math.pi * float(f0_hz)
+    w = 2 * np.pi * np.asarray(f, dtype=np.float64)
+    return 4.0 * zeta * w0**3 / ((w0 * w0 - w * w) ** 2 + (2 * zeta * w0 * w) ** 2)
+
+
+def _line_psd_sampled(f, f0_hz, zeta, dt, n_alias=400):
+    r"""PSD of the block means over dt of a unit-variance line, on the sampled sequence (two-sided, u^2/Hz):
+    :math:`\sum_k S(f + k/\Delta t)\,\mathrm{sinc}^2((f + k/\Delta t)\Delta t)`, |k| <= n_alias (terms fall as
+    k^-6: the truncation error is below 1e-12 relative of the peak for lines inside a few 1/dt)."""
+    f = np.asarray(f, dtype=np.float64)
+    k = np.arange(-n_alias, n_alias + 1)[:, None]
+    fk = f[None, :] + k / dt
+    return np.sum(_line_psd(fk, f0_hz, zeta) * np.sinc(fk * dt) ** 2, axis=0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -594,6 +640,93 @@ def _evaluate(prob, model):
     else:
         out.update(spec_margin=float("inf"), spec_margin_frequency=None)
     out["looseness"] = float(prob.objective_weights @ mr)  # the LP's objective
+    out.update(_all_frequency_margin(prob, model))
+    return out
+
+
+def _all_frequency_margin(prob, model):
+    """Margins of the all-frequency conditions: the grid below the lowest bin and the asymptotes."""
+    res = {"allf_margin": float("inf"), "allf_margin_frequency": None}
+    ok = prob.lo_t > 0
+    if np.any(ok):
+        r = (np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64)
+             + prob.extra_lines(model, prob.lo_f[ok], sampled=False)) / prob.lo_t[ok]
+        j = int(np.argmin(r))
+        res.update(allf_margin=float(r[j]), allf_margin_frequency=float(prob.lo_f[ok][j]))
+    for req, val, what in ((prob.k2_req, model.random_walk**2, 0.0), (prob.n2_req, model.white**2, float("inf"))):
+        if req > 0 and val / req < res["allf_margin"]:
+            res.update(allf_margin=float(val / req), allf_margin_frequency=what)
+    return res
+
+
+def _upper_psd(model, f):
+    return np.zeros_like(f) if model is None else np.asarray(model.psd(f), dtype=np.float64)
+
+
+def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, per_decade=10, upper_band="all"):
+    """Fill the all-frequency rows of `prob` (module docstring, "Bound over all frequencies")."""
+    f_min = float(prob.f.min())
+    if f_floor_hz is None:
+        f_floor_hz = 0.01 / float(horizon_s) if horizon_s else f_min / 100.0
+    f_floor_hz = min(float(f_floor_hz), f_min / 10.0)
+    n = max(2, int(math.ceil(math.log10(f_min / f_floor_hz) * per_decade)) + 1)
+    lo_f = np.logspace(math.log10(f_floor_hz), math.log10(f_min), n)[:-1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo_t = np.maximum(_upper_psd(spec_model, lo_f), _upper_psd(upper_model, lo_f))
+    if upper_model is not None and upper_band == "all":  # the envelope on the sampled band too (continuous PSDs)
+        f_max = float(prob.f.max())
+        n_in = max(2, int(math.ceil(math.log10(f_max / f_min) * per_decade)) + 1)
+        in_f = np.logspace(math.log10(f_min), math.log10(f_max), n_in)
+        lo_f = np.concatenate([lo_f, in_f])
+        lo_t = np.concatenate([lo_t, _upper_psd(upper_model, in_f)])
+    elif upper_band not in ("all", "below"):
+        raise ValueError(f"upper_band must be 'all' or 'below', got {upper_band!r}")
+    prob.lo_f, prob.lo_t = lo_f, np.where(np.isfinite(lo_t), lo_t, 0.0)
+    k_spec = spec_model.random_walk if spec_model is not None else 0.0
+    k_up = upper_model.random_walk if upper_model is not None else 0.0
+    prob.k2_req = max(k_spec, k_up) ** 2
+    prob.n2_req = (spec_model.white if spec_model is not None else 0.0) ** 2
+    return {"f_floor_hz": float(f_floor_hz), "n_grid": int(lo_f.size), "f_top_hz": f_min,
+            "K_required": math.sqrt(prob.k2_req), "K_spec": float(k_spec), "K_upper": float(k_up),
+            "N_required": math.sqrt(prob.n2_req), "upper_band": upper_band,
+            "flicker": "a spec or identified flicker is bounded down to f_floor_hz (no K is forced by it)",
+            "units": "Hz; K u/sqrt(s); N u/sqrt(Hz)"}
+
+
+def _apply_exclude(prob, exclude):
+    """Drop the sample-curve targets of rows inside the `exclude` intervals (never the spec or the
+    all-frequency rows); returns the list of what was excluded and why."""
+    out = []
+    if not exclude:
+        return out
+    prob.targets = np.array(prob.targets, dtype=np.float64, copy=True)
+    if prob.starts is None:
+        lo_edge = hi_edge = prob.f_rows
+    else:
+        ends = np.append(prob.starts[1:], prob.f.size) - 1
+        lo_edge, hi_edge = prob.f[prob.starts], prob.f[ends]
+    for item in exclude:
+        try:
+            f_lo, f_hi, reason = item
+            f_lo, f_hi = float(f_lo), float(f_hi)
+        except (TypeError, ValueError):
+            raise ValueError(f"exclude entries must be (f_lo_hz, f_hi_hz, reason), got {item!r}") from None
+        if not (0 <= f_lo < f_hi):
+            raise ValueError(f"exclude interval must have 0 <= f_lo_hz < f_hi_hz, got ({f_lo}, {f_hi})")
+        rows = np.flatnonzero((hi_edge >= f_lo) & (lo_edge <= f_hi))
+        prob.targets[:, rows] = 0.0
+        if prob.starts is None:
+            bins = prob.f_rows[rows]
+        else:
+            bins = np.concatenate([prob.f[prob.starts[r]:prob.starts[r] + prob.counts[r]] for r in rows]) \
+                if rows.size else np.zeros(0)
+        out.append({"f_lo_hz": f_lo, "f_hi_hz": f_hi, "reason": str(reason), "n_bins": int(bins.size),
+                    "bins_hz": [float(b) for b in bins]})
+    prob.envelope = prob.targets.max(axis=0)
+    prob.env = prob.envelope if prob.spec_rows is None else np.maximum(prob.envelope, prob.spec_rows)
+    prob.objective_weights = np.zeros_like(prob.env)
+    np.divide(prob.weights, prob.env, out=prob.objective_weights, where=prob.env > 0)
+    prob._kept.clear()
     return out
 
 
@@ -602,7 +735,8 @@ def _result(prob, model, spec_model, t0: float, **rest) -> BoundResult:
     ``bounded`` when both the target and the spec margins reach 1 - _EPS_BOUND, the inflation against
     `spec_model`, the time since `t0`; `rest` gives the other fields."""
     ev = _evaluate(prob, model)
-    bounded = ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
+    bounded = (ev["margin"] >= 1 - _EPS_BOUND and ev["spec_margin"] >= 1 - _EPS_BOUND
+               and ev["allf_margin"] >= 1 - _EPS_BOUND)
     return BoundResult(model=model, spec=spec_model, inflation=_inflation(model, spec_model), bounded=bool(bounded),
                        **ev, solve_time_s=time.perf_counter() - t0, **rest)
 
@@ -619,205 +753,6 @@ def _spec_components(spec):
         comps.append("random_walk")
     return comps
 
-
-def _inflation(bound, spec):
-    """Inflation factors bound/spec per parameter; None where the spec has no such component."""
-
-    def ratio(b, s):
-        if s is None or s == 0:
-            return None
-        return float(b / s)
-
-    out = {
-        "N": ratio(bound.white, spec.white if spec is not None else None),
-        "K": ratio(bound.random_walk, spec.random_walk if spec is not None else None),
-    }
-    sgm = sorted(spec.gauss_markov, key=lambda st: st[1]) if spec is not None else []
-    bgm = sorted(bound.gauss_markov, key=lambda st: st[1])
-    n = max(len(sgm), len(bgm), 1)
-    for i in range(n):
-        sfx = "" if n == 1 else f"_{i + 1}"
-        s = sgm[i] if i < len(sgm) else None
-        b = bgm[i] if i < len(bgm) else (0.0, None)
-        out["sigma" + sfx] = ratio(b[0], s[0]) if s is not None else None
-        out["T" + sfx] = ratio(b[1], s[1]) if (s is not None and b[1] is not None) else None
-    return out
-
-
-# ---------------------------------------------------------------------------------------------
-# result
-# ---------------------------------------------------------------------------------------------
-@dataclass
-class BoundResult:
-    r"""Result of :func:`bound_psd` or :func:`paper_inflation` (SI throughout).
-
-    Attributes
-    ----------
-    model : imupipe.models.NoiseModel
-        The bound: white N (u/sqrt(Hz)), GM terms (sigma u, T s), random walk K (u/sqrt(s)).
-    spec : imupipe.models.NoiseModel or None
-        The spec-sheet model the bound was asked to dominate.
-    inflation : dict
-        bound/spec per parameter (``N``, ``K``, ``sigma``, ``T``; ``sigma_i``/``T_i`` for several
-        GM terms, matched by increasing T); None where the spec has no such component.
-    bounded : bool
-        Model >= every target and >= the spec at every compared frequency (to 1e-9).
-    margin : float
-        :math:`\min_{c,k} S_m(f_k)/\hat S_c(f_k)` over the mode's targets (>= 1 - 1e-9 when bounded).
-    margin_curve, margin_frequency :
-        Label of the curve and frequency (Hz) that set `margin`.
-    raw_margin, raw_margin_curve, raw_margin_frequency :
-        The same against the raw periodograms (below 1 in smoothed/confidence modes, by design).
-    spec_margin, spec_margin_frequency :
-        :math:`\min S_m/S_{spec}` and where.
-    looseness : float
-        LP objective: log-frequency mean of :math:`S_m/E` (E = envelope of targets and spec).
-    mode : str
-        ``raw``, ``smoothed``, ``confidence`` or ``paper`` (hand inflation, raw targets).
-    components : list of str
-        Components the bound was allowed to use.
-    decisions : dict
-        Component -> reason it was used or not.
-    T_profile : tuple of numpy.ndarray
-        (T grid, looseness) of the single-GM profile.
-    n_lp : int
-        Linear programs solved.
-    solve_time_s : float
-        Wall time, s.
-    details : dict
-        Mode settings (bands, edf, confidence, number of tests) and, for the hand procedure, the
-        step history.
-    """
-
-    model: object
-    spec: object
-    inflation: dict
-    bounded: bool
-    margin: float
-    margin_curve: str
-    margin_frequency: float
-    raw_margin: float
-    raw_margin_curve: str
-    raw_margin_frequency: float
-    spec_margin: float
-    spec_margin_frequency: float | None
-    looseness: float
-    mode: str
-    components: list
-    decisions: dict
-    T_profile: tuple = field(repr=False, default=(np.zeros(0), np.zeros(0)))
-    n_lp: int = 0
-    solve_time_s: float = 0.0
-    details: dict = field(default_factory=dict)
-
-    def to_dict(self, spec_units: dict | None = None, sensor: str | None = None) -> dict:
-        """Plain dict for YAML: bound and spec in SI and, with `spec_units`, in the spec's units.
-
-        Parameters
-        ----------
-        spec_units : dict, optional
-            Unit per quantity as written in the spec sheet, keys among ``white``, ``gm_sigma``,
-            ``time``, ``random_walk`` (e.g. ``{"white": "deg/sqrt(h)", "gm_sigma": "deg/h",
-            "time": "s", "random_walk": "(deg/h)/sqrt(s)"}``). Converted with
-            :func:`imupipe.units.from_si`; without it (or without that module) only SI is written.
-        sensor : str, optional
-            ``gyro`` or ``accel`` (passed to the unit conversion).
-        """
-
-        def fl(x):
-            if x is None:
-                return None
-            x = float(x)
-            return x if math.isfinite(x) else None
-
-        def params(m):
-            if m is None:
-                return None
-            return {
-                "white": fl(m.white),
-                "gauss_markov": [{"sigma": fl(s), "T": fl(T)} for s, T in m.gauss_markov],
-                "random_walk": fl(m.random_walk),
-            }
-
-        out = {
-            "units": "SI: white u/sqrt(Hz), gauss_markov sigma u and T s, random_walk u/sqrt(s); "
-            "u = rad/s (gyro) or m/s^2 (accel); PSDs two-sided",
-            "bound": params(self.model),
-            "spec": params(self.spec),
-            "inflation": {k: fl(v) for k, v in self.inflation.items()},
-            "bounded": bool(self.bounded),
-            "margin": fl(self.margin),
-            "margin_curve": self.margin_curve,
-            "margin_frequency_hz": fl(self.margin_frequency),
-            "raw_margin": fl(self.raw_margin),
-            "raw_margin_curve": self.raw_margin_curve,
-            "raw_margin_frequency_hz": fl(self.raw_margin_frequency),
-            "spec_margin": fl(self.spec_margin),
-            "spec_margin_frequency_hz": fl(self.spec_margin_frequency),
-            "looseness": fl(self.looseness),
-            "mode": self.mode,
-            "components": list(self.components),
-            "decisions": dict(self.decisions),
-            "n_lp": int(self.n_lp),
-            "solve_time_s": fl(self.solve_time_s),
-            "details": _plain(self.details),
-        }
-        if spec_units:
-            out["bound_spec_units"], note = _to_spec_units(self.model, spec_units, sensor)
-            if self.spec is not None:
-                out["spec_spec_units"], _ = _to_spec_units(self.spec, spec_units, sensor)
-            if note:
-                out["unit_note"] = note
-        return out
-
-
-def _plain(obj):
-    """numpy scalars/arrays -> Python floats/lists (YAML-safe)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [_plain(v) for v in obj.tolist()]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    return obj
-
-
-def _to_spec_units(model, spec_units, sensor):
-    """Model parameters in the spec's units via imupipe.units.from_si (SI only if unavailable)."""
-    try:
-        from imupipe.units import from_si
-    except ImportError:
-        return None, "imupipe.units not available: values in SI only"
-    out = {}
-    try:
-        if "white" in spec_units:
-            out["white"] = {"value": float(from_si(model.white, spec_units["white"], "white", sensor, "white")),
-                            "unit": spec_units["white"]}
-        if "random_walk" in spec_units:
-            out["random_walk"] = {
-                "value": float(from_si(model.random_walk, spec_units["random_walk"], "random_walk", sensor,
-                                       "random_walk")),
-                "unit": spec_units["random_walk"],
-            }
-        gms = []
-        for s, T in model.gauss_markov:
-            d = {}
-            if "gm_sigma" in spec_units:
-                d["sigma"] = {"value": float(from_si(s, spec_units["gm_sigma"], "gm_sigma", sensor, "gm_sigma")),
-                              "unit": spec_units["gm_sigma"]}
-            if "time" in spec_units:
-                d["T"] = {"value": float(from_si(T, spec_units["time"], "time", sensor, "time")),
-                          "unit": spec_units["time"]}
-            gms.append(d)
-        out["gauss_markov"] = gms
-    except Exception as exc:  # unit helper with another signature: keep SI, say why
-        return None, f"unit conversion failed ({exc}); values in SI only"
-    return out, None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -853,6 +788,12 @@ def bound_psd(
     min_edf="auto",
     add_threshold: float = 0.05,
     n_tests: int | None = None,
+    horizon_s: float | None = None,
+    upper_model=None,
+    f_floor_hz: float | None = None,
+    exclude=(),
+    narrowband=(),
+    upper_band: str = "all",
 ) -> BoundResult:
     r"""Tightest white + GM + random-walk model whose PSD bounds sample PSDs and a spec sheet.
 
@@ -939,6 +880,18 @@ def bound_psd(
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests)
+    allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
+    excluded = _apply_exclude(prob, exclude)
+    nb = []
+    for item in narrowband or ():
+        try:
+            f0, z = (float(v) for v in item)
+        except (TypeError, ValueError):
+            raise ValueError(f"narrowband entries must be (f0_hz, zeta), got {item!r}") from None
+        if not (f0 > 0 and 0 < z < 1):
+            raise ValueError(f"narrowband line needs f0_hz > 0 and zeta in (0, 1), got ({f0}, {z})")
+        nb.append((f0, z))
+    prob.narrowband = tuple(nb)
     if T_grid is None:
         grid = _default_T_grid(prob)
     elif np.ndim(T_grid) == 0:  # points per decade of the default span
@@ -959,7 +912,19 @@ def bound_psd(
         return sol, prof
 
     fixed = _normalise_keep(keep)
-    if not np.any(prob.env > 0):
+
+    def require(comps):
+        if prob.k2_req > 0 and "random_walk" not in comps:
+            decisions["random_walk"] = (f"required by the all-frequency bound: K >= {math.sqrt(prob.k2_req):.6g} "
+                                        f"u/sqrt(s) (max of spec {allf['K_spec']:.6g} and identified upper limit "
+                                        f"{allf['K_upper']:.6g})")
+            comps = [c for c in BOUND_COMPONENTS if c in comps or c == "random_walk"]
+        if prob.n2_req > 0 and "white" not in comps:
+            decisions["white"] = "required by the all-frequency bound (spec white noise, f -> inf)"
+            comps = [c for c in BOUND_COMPONENTS if c in comps or c == "white"]
+        return comps
+
+    if not np.any(prob.env > 0) and not np.any(prob.lo_t > 0) and prob.k2_req == 0 and prob.n2_req == 0:
         comps = fixed if fixed is not None else _spec_components(spec_model)
         from imupipe.models import NoiseModel
 
@@ -973,6 +938,7 @@ def bound_psd(
                 decisions[c] = "requested by keep" if c in comps else "excluded by keep"
             if not comps:
                 raise ValueError("keep leaves no component to bound with")
+            comps = require(comps)
             sol, prof = solve(comps)
         else:
             comps = _spec_components(spec_model)
@@ -981,6 +947,7 @@ def bound_psd(
             if not comps:
                 comps = ["white"]
                 decisions["white"] = "spec has no component: start from white noise"
+            comps = require(comps)
             sol, prof = solve(comps)
             for cand in ("gauss_markov", "random_walk", "white"):
                 if cand in comps or (cand == "gauss_markov" and n_gm == 0):
@@ -995,10 +962,12 @@ def bound_psd(
                 else:
                     decisions[cand] = (f"not in the spec and not needed by the data "
                                        f"(looseness gain {gain:.3g} <= {add_threshold:g})")
-        model = _x_to_model(sol, dt)
+        model, prob.nb_fit = _x_to_model(sol, dt, prob.narrowband)
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
-                   dt=dt, n_gm=n_gm)
+                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
+                   narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
+                               for sg, f0, z in (prob.nb_fit or getattr(model, "narrowband", ()))])
     return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
                    T_profile=prof, n_lp=n_lp, details=details)
 
@@ -1033,254 +1002,3 @@ def looseness(model, frequency, curves, spec_model=None, dt: float | None = None
     """
     prob = _prepare(frequency, curves, spec_model, dt, "raw", 0.95, None, None, None, None)
     return _evaluate(prob, model)["looseness"]
-
-
-def paper_inflation(
-    frequency,
-    curves,
-    spec_model,
-    dt: float | None = None,
-    step: float = 1.05,
-    order=("sigma", "T", "K", "N"),
-    min_gain: float = 0.5,
-    max_steps: int = 5000,
-) -> BoundResult:
-    r"""The paper's hand procedure: multiplicative inflation of the spec until the PSD bounds.
-
-    Gallon et al. 2021 (Appendix A.2, Figure 8) inflate :math:`\sigma`, deflate :math:`T`, inflate
-    :math:`K`, then inflate :math:`N`, each "until its part of the curve is bounded". Here each phase
-    multiplies its parameter by `step` (divides, for T) while that keeps paying off: for
-    :math:`\sigma, K, N` a step must raise the worst margin
-    :math:`\min_{c,k} S_m/\hat S_c` (raw ordinates and spec) by at least `min_gain` of the step's
-    power factor in log (i.e. the component carries about that share of the model where the bound
-    fails); for :math:`T` any increase of the margin is accepted. Phases repeat in `order` until
-    bounded; if a full round makes no progress the parameter with the largest gain is stepped
-    (white noise always gains, so the procedure ends).
-
-    Parameters
-    ----------
-    frequency, curves, spec_model, dt :
-        As in :func:`bound_psd` (raw targets). The spec supplies the starting point; components
-        it lacks (a zero N or K, no GM) stay absent.
-    step : float, optional
-        Multiplicative step (> 1). Default 1.05.
-    order : sequence of str, optional
-        Phase order. Default ("sigma", "T", "K", "N") (the paper's).
-    min_gain : float, optional
-        Required effectiveness of a step (see above). Default 0.5.
-    max_steps : int, optional
-        Safety limit. Default 5000.
-
-    Returns
-    -------
-    BoundResult
-        ``mode = "paper"``; ``details["history"]`` lists (parameter, N, sigma, T, K, margin) after
-        every accepted step (for the inflation-steps figure).
-    """
-    from imupipe.models import NoiseModel
-
-    if not step > 1:
-        raise ValueError("step must be > 1")
-    t0 = time.perf_counter()
-    prob = _prepare(frequency, curves, spec_model, dt, "raw", 0.95, None, None, None, None)
-    gm = sorted(spec_model.gauss_markov, key=lambda st: st[1])
-    state = {
-        "N": float(spec_model.white),
-        "sigma": float(gm[0][0]) if gm else 0.0,
-        "T": float(gm[0][1]) if gm else 0.0,
-        "K": float(spec_model.random_walk),
-    }
-    extra_gm = tuple(gm[1:])
-
-    def model_of(s):
-        g = ((s["sigma"], s["T"]),) + extra_gm if s["sigma"] > 0 else extra_gm
-        return NoiseModel(white=s["N"], gauss_markov=g, random_walk=s["K"], dt=dt)
-
-    def worst(s):
-        return prob.worst_margin(model_of(s))
-
-    def moved(s, p):
-        s2 = dict(s)
-        s2[p] = s[p] / step if p == "T" else s[p] * step
-        return s2
-
-    active = [p for p in order if state[p] > 0]
-    cur = worst(state)
-    history = [("spec", state["N"], state["sigma"], state["T"], state["K"], cur)]
-    n = 0
-    log_pow = math.log(step**2)
-    while cur < 1 - _EPS_BOUND and n < max_steps:
-        progress = False
-        for p in active:
-            while cur < 1 - _EPS_BOUND and n < max_steps:
-                cand = moved(state, p)
-                m = worst(cand)
-                gain = math.log(m / cur) / log_pow if m > 0 and cur > 0 else 0.0
-                ok = m > cur * (1 + 1e-12) if p == "T" else gain >= min_gain
-                if not ok:
-                    break
-                state, cur = cand, m
-                n += 1
-                progress = True
-                history.append((p, state["N"], state["sigma"], state["T"], state["K"], cur))
-        if not progress and cur < 1 - _EPS_BOUND:
-            best_p, best_m = None, cur
-            for p in active:
-                if p == "T":
-                    continue
-                m = worst(moved(state, p))
-                if m > best_m:
-                    best_p, best_m = p, m
-            if best_p is None:
-                if "N" not in active:  # a spec without white noise: white is the last resort
-                    state["N"] = max(state["N"], 1e-30)
-                    active.append("N")
-                    continue
-                break
-            state, cur = moved(state, best_p), best_m
-            n += 1
-            history.append((best_p, state["N"], state["sigma"], state["T"], state["K"], cur))
-    result = _result(
-        prob, model_of(state), spec_model, t0,
-        mode="paper",
-        components=_spec_components(spec_model),
-        decisions={"procedure": f"multiplicative steps of {step:g} in the order {list(order)}"},
-        n_lp=0,
-        details={"history": [list(h) for h in history], "n_steps": n, "step": step, "order": list(order),
-                 "history_columns": ["parameter", "N", "sigma", "T", "K", "margin"]},
-    )
-    if not result.bounded:
-        warnings.warn(f"paper_inflation stopped after {n} steps without a bound (margin {cur:.3g})",
-                      RuntimeWarning, stacklevel=2)
-    return result
-
-
-def gm_bounds_gm(sigma_m: float, T_m: float, sigma: float, T: float, rtol: float = 0.0) -> bool:
-    r"""Whether GM (sigma_m, T_m) bounds GM (sigma, T) in PSD at every frequency.
-
-    With :math:`a = (2\pi f)^2`, the difference of the two PSDs over the positive common
-    denominator is
-
-    .. math::
-
-        2(\sigma_m^2 T_m - \sigma^2 T) + 2 a\, T T_m (\sigma_m^2 T - \sigma^2 T_m),
-
-    linear in :math:`a \ge 0`, so it is non-negative for all :math:`f` iff both coefficients are:
-
-    .. math::
-
-        \sigma_m^2 T_m \ge \sigma^2 T \quad (f \to 0) \qquad\text{and}\qquad
-        \sigma_m^2 / T_m \ge \sigma^2 / T \quad (f \to \infty).
-
-    Parameters
-    ----------
-    sigma_m, T_m : float
-        Bounding GM: standard deviation (u) and time constant (s).
-    sigma, T : float
-        Bounded GM.
-    rtol : float, optional
-        Relative slack on both inequalities. Default 0.
-
-    Returns
-    -------
-    bool
-    """
-    lo = sigma_m**2 * T_m >= sigma**2 * T * (1 - rtol)
-    hi = sigma_m**2 / T_m >= sigma**2 / T * (1 - rtol)
-    return bool(lo and hi)
-
-
-def check_allan_components(bound_model, identified_model, tau) -> dict:
-    r"""Component-wise AV check: does each bound component dominate its identified counterpart?
-
-    The paper (Gallon et al. 2021, Figure 6) verifies in the AV domain that the bound's white noise
-    dominates the identified white noise, its random walk the identified random walk, and its GM
-    the identified bias instability. Here, on the grid `tau`:
-
-    * ``white``: :math:`N_b^2/\tau \ge N^2/\tau`, margin :math:`N_b^2/N^2`;
-    * ``random_walk``: margin :math:`K_b^2/K^2`;
-    * ``gauss_markov``: :math:`\sum_i AV_{GM}(\tau; \sigma_{b,i}, T_{b,i}) \ge
-      \sum_j AV_{GM}(\tau; \sigma_j, T_j)`, margin = min over `tau` of the ratio;
-    * ``flicker``: the bound's GM terms against the flicker AV :math:`(2\ln 2/\pi) B^2` over the
-      taus where flicker is the identified model's largest AV term (a GM's AV vanishes as
-      :math:`\tau \to 0`, so no GM covers flat flicker at every tau; elsewhere the other components
-      carry the AV); ``passed = None`` if flicker never dominates. A GM with :math:`\sigma = B`
-      does not cover it: its ADEV peaks at :math:`0.6174\sigma < 0.664 B` (method.md 2.3);
-    * ``bias (gauss_markov + flicker)``: the bound's GM terms against the identified GM and flicker
-      together, when both are present;
-    * ``quantization``, ``ramp``: not Kalman-filter states; reported with ``passed = None``.
-
-    The check holds on the `tau` grid only (use the AV grid of the data).
-
-    Parameters
-    ----------
-    bound_model, identified_model : imupipe.models.NoiseModel
-        SI models.
-    tau : array_like
-        Averaging times, s.
-
-    Returns
-    -------
-    dict
-        Component -> ``{"passed": bool or None, "margin": float, "tau_at_min": float or None,
-        "reason": str}``; margin is min over tau of AV_bound/AV_identified (inf if the identified
-        component is absent).
-    """
-    from imupipe.models import FLICKER_AV, gm_avar
-
-    t = np.asarray(tau, dtype=np.float64)
-    t = t[np.isfinite(t) & (t > 0)]
-    if t.size == 0:
-        raise ValueError("tau must contain positive averaging times (s)")
-
-    def gm_av(model):
-        out = np.zeros_like(t)
-        for s, T in model.gauss_markov:
-            out = out + np.asarray(gm_avar(t, s, T), dtype=np.float64)
-        return out
-
-    def entry(av_b, av_i, what, t=t):
-        if not np.any(av_i > 0):
-            return {"passed": True, "margin": float("inf"), "tau_at_min": None,
-                    "reason": f"no identified {what}"}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r = np.where(av_i > 0, av_b / av_i, np.inf)
-        k = int(np.argmin(r))
-        ok = bool(r[k] >= 1 - _EPS_BOUND)
-        return {"passed": ok, "margin": float(r[k]), "tau_at_min": float(t[k]),
-                "reason": f"bound {'dominates' if ok else 'falls below'} the identified {what} in AV "
-                          f"(min ratio {r[k]:.4g} at tau = {t[k]:.4g} s)"}
-
-    b, i = bound_model, identified_model
-    out = {
-        "white": entry(np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t, "white noise"),
-        "random_walk": entry(b.random_walk**2 * t / 3, np.full_like(t, i.random_walk**2) * t / 3, "random walk"),
-        "gauss_markov": entry(gm_av(b), gm_av(i), "Gauss-Markov"),
-    }
-    flick = np.full_like(t, FLICKER_AV * getattr(i, "flicker", 0.0) ** 2)
-    # A GM's AV vanishes as tau -> 0 while flicker's is flat, so no GM covers flicker at every tau;
-    # what matters is the plateau, the taus where flicker is the identified model's largest term
-    # (elsewhere other components carry the AV and are checked on their own).
-    parts = [np.full_like(t, i.white**2) / t, i.random_walk**2 * t / 3, gm_av(i),
-             3.0 * getattr(i, "quantization", 0.0) ** 2 / t**2, getattr(i, "ramp", 0.0) ** 2 * t**2 / 2]
-    window = flick > np.max(np.stack(parts), axis=0)
-    if np.any(flick > 0) and not np.any(window):
-        out["flicker"] = {"passed": None, "margin": None, "tau_at_min": None,
-                          "reason": "identified flicker is never the largest AV term on this tau grid; covered by the "
-                                    "other components' checks"}
-    else:
-        sel = window if np.any(window) else np.ones_like(t, dtype=bool)
-        sub = t[sel]
-        res = entry(gm_av(b)[sel], flick[sel], "flicker (by the bound's GM, where flicker dominates)", t=sub)
-        if res["tau_at_min"] is not None and np.any(window):
-            res["tau_window"] = [float(sub.min()), float(sub.max())]
-        out["flicker"] = res
-        if len(i.gauss_markov) and getattr(i, "flicker", 0.0) > 0 and np.any(window):
-            out["gauss_markov+flicker"] = entry(gm_av(b)[sel], (gm_av(i) + flick)[sel],
-                                                "GM + flicker (by the bound's GM, where flicker dominates)", t=sub)
-    for name in ("quantization", "ramp"):
-        v = getattr(i, name, 0.0)
-        if v > 0:
-            out[name] = {"passed": None, "margin": None, "tau_at_min": None,
-                         "reason": f"identified {name} is not a Kalman-filter state; covered only through the PSD bound"}
-    return out

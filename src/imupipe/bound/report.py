@@ -1,0 +1,215 @@
+"""Reporting of a bound: :class:`BoundResult`, inflation factors, YAML-ready dicts in SI and spec units."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+
+def _inflation(bound, spec):
+    """Inflation factors bound/spec per parameter; None where the spec has no such component."""
+
+    def ratio(b, s):
+        if s is None or s == 0:
+            return None
+        return float(b / s)
+
+    out = {
+        "N": ratio(bound.white, spec.white if spec is not None else None),
+        "K": ratio(bound.random_walk, spec.random_walk if spec is not None else None),
+    }
+    sgm = sorted(spec.gauss_markov, key=lambda st: st[1]) if spec is not None else []
+    bgm = sorted(bound.gauss_markov, key=lambda st: st[1])
+    n = max(len(sgm), len(bgm), 1)
+    for i in range(n):
+        sfx = "" if n == 1 else f"_{i + 1}"
+        s = sgm[i] if i < len(sgm) else None
+        b = bgm[i] if i < len(bgm) else (0.0, None)
+        out["sigma" + sfx] = ratio(b[0], s[0]) if s is not None else None
+        out["T" + sfx] = ratio(b[1], s[1]) if (s is not None and b[1] is not None) else None
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# result
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class BoundResult:
+    r"""Result of :func:`bound_psd` or :func:`paper_inflation` (SI throughout).
+
+    Attributes
+    ----------
+    model : imupipe.models.NoiseModel
+        The bound: white N (u/sqrt(Hz)), GM terms (sigma u, T s), random walk K (u/sqrt(s)).
+    spec : imupipe.models.NoiseModel or None
+        The spec-sheet model the bound was asked to dominate.
+    inflation : dict
+        bound/spec per parameter (``N``, ``K``, ``sigma``, ``T``; ``sigma_i``/``T_i`` for several
+        GM terms, matched by increasing T); None where the spec has no such component.
+    bounded : bool
+        Model >= every target and >= the spec at every compared frequency (to 1e-9).
+    margin : float
+        :math:`\min_{c,k} S_m(f_k)/\hat S_c(f_k)` over the mode's targets (>= 1 - 1e-9 when bounded).
+    margin_curve, margin_frequency :
+        Label of the curve and frequency (Hz) that set `margin`.
+    raw_margin, raw_margin_curve, raw_margin_frequency :
+        The same against the raw periodograms (below 1 in smoothed/confidence modes, by design).
+    spec_margin, spec_margin_frequency :
+        :math:`\min S_m/S_{spec}` and where.
+    looseness : float
+        LP objective: log-frequency mean of :math:`S_m/E` (E = envelope of targets and spec).
+    mode : str
+        ``raw``, ``smoothed``, ``confidence`` or ``paper`` (hand inflation, raw targets).
+    components : list of str
+        Components the bound was allowed to use.
+    decisions : dict
+        Component -> reason it was used or not.
+    T_profile : tuple of numpy.ndarray
+        (T grid, looseness) of the single-GM profile.
+    n_lp : int
+        Linear programs solved.
+    solve_time_s : float
+        Wall time, s.
+    details : dict
+        Mode settings (bands, edf, confidence, number of tests) and, for the hand procedure, the
+        step history.
+    """
+
+    model: object
+    spec: object
+    inflation: dict
+    bounded: bool
+    margin: float
+    margin_curve: str
+    margin_frequency: float
+    raw_margin: float
+    raw_margin_curve: str
+    raw_margin_frequency: float
+    spec_margin: float
+    spec_margin_frequency: float | None
+    looseness: float
+    mode: str
+    components: list
+    decisions: dict
+    T_profile: tuple = field(repr=False, default=(np.zeros(0), np.zeros(0)))
+    n_lp: int = 0
+    solve_time_s: float = 0.0
+    details: dict = field(default_factory=dict)
+    allf_margin: float = float("inf")
+    allf_margin_frequency: float | None = None
+
+    def to_dict(self, spec_units: dict | None = None, sensor: str | None = None) -> dict:
+        """Plain dict for YAML: bound and spec in SI and, with `spec_units`, in the spec's units.
+
+        Parameters
+        ----------
+        spec_units : dict, optional
+            Unit per quantity as written in the spec sheet, keys among ``white``, ``gm_sigma``,
+            ``time``, ``random_walk`` (e.g. ``{"white": "deg/sqrt(h)", "gm_sigma": "deg/h",
+            "time": "s", "random_walk": "(deg/h)/sqrt(s)"}``). Converted with
+            :func:`imupipe.units.from_si`; without it (or without that module) only SI is written.
+        sensor : str, optional
+            ``gyro`` or ``accel`` (passed to the unit conversion).
+        """
+
+        def fl(x):
+            if x is None:
+                return None
+            x = float(x)
+            return x if math.isfinite(x) else None
+
+        def params(m):
+            if m is None:
+                return None
+            return {
+                "white": fl(m.white),
+                "gauss_markov": [{"sigma": fl(s), "T": fl(T)} for s, T in m.gauss_markov],
+                "random_walk": fl(m.random_walk),
+                "narrowband": [{"sigma": fl(sg), "f0_hz": fl(f0), "zeta": fl(z)}
+                               for sg, f0, z in getattr(m, "narrowband", ())],
+            }
+
+        out = {
+            "units": "SI: white u/sqrt(Hz), gauss_markov sigma u and T s, random_walk u/sqrt(s); "
+            "u = rad/s (gyro) or m/s^2 (accel); PSDs two-sided",
+            "bound": params(self.model),
+            "spec": params(self.spec),
+            "inflation": {k: fl(v) for k, v in self.inflation.items()},
+            "bounded": bool(self.bounded),
+            "margin": fl(self.margin),
+            "margin_curve": self.margin_curve,
+            "margin_frequency_hz": fl(self.margin_frequency),
+            "raw_margin": fl(self.raw_margin),
+            "raw_margin_curve": self.raw_margin_curve,
+            "raw_margin_frequency_hz": fl(self.raw_margin_frequency),
+            "spec_margin": fl(self.spec_margin),
+            "spec_margin_frequency_hz": fl(self.spec_margin_frequency),
+            "looseness": fl(self.looseness),
+            "all_frequency_margin": fl(self.allf_margin),
+            "all_frequency_margin_frequency_hz": fl(self.allf_margin_frequency),
+            "mode": self.mode,
+            "components": list(self.components),
+            "decisions": dict(self.decisions),
+            "n_lp": int(self.n_lp),
+            "solve_time_s": fl(self.solve_time_s),
+            "details": _plain(self.details),
+        }
+        if spec_units:
+            out["bound_spec_units"], note = _to_spec_units(self.model, spec_units, sensor)
+            if self.spec is not None:
+                out["spec_spec_units"], _ = _to_spec_units(self.spec, spec_units, sensor)
+            if note:
+                out["unit_note"] = note
+        return out
+
+
+def _plain(obj):
+    """numpy scalars/arrays -> Python floats/lists (YAML-safe)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [_plain(v) for v in obj.tolist()]
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    return obj
+
+
+def _to_spec_units(model, spec_units, sensor):
+    """Model parameters in the spec's units via imupipe.units.from_si (SI only if unavailable)."""
+    try:
+        from imupipe.units import from_si
+    except ImportError:
+        return None, "imupipe.units not available: values in SI only"
+    out = {}
+    try:
+        if "white" in spec_units:
+            out["white"] = {"value": float(from_si(model.white, spec_units["white"], "white", sensor, "white")),
+                            "unit": spec_units["white"]}
+        if "random_walk" in spec_units:
+            out["random_walk"] = {
+                "value": float(from_si(model.random_walk, spec_units["random_walk"], "random_walk", sensor,
+                                       "random_walk")),
+                "unit": spec_units["random_walk"],
+            }
+        gms = []
+        for s, T in model.gauss_markov:
+            d = {}
+            if "gm_sigma" in spec_units:
+                d["sigma"] = {"value": float(from_si(s, spec_units["gm_sigma"], "gm_sigma", sensor, "gm_sigma")),
+                              "unit": spec_units["gm_sigma"]}
+            if "time" in spec_units:
+                d["T"] = {"value": float(from_si(T, spec_units["time"], "time", sensor, "time")),
+                          "unit": spec_units["time"]}
+            gms.append(d)
+        out["gauss_markov"] = gms
+    except Exception as exc:  # unit helper with another signature: keep SI, say why
+        return None, f"unit conversion failed ({exc}); values in SI only"
+    return out, None
