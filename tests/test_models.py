@@ -220,11 +220,12 @@ class TestFlickerSampled:
     def test_equals_brute_force(self):
         m = NoiseModel(flicker=1e-3)
         for dt in (1.0, 0.01):
-            f = np.linspace(1e-4, 0.5, 57) / dt
+            f = np.linspace(1e-4, 1.7, 57) / dt  # beyond the Nyquist frequency too (the sum is periodic in x)
             x = f * dt
             ref = _alias_sum_nb(m, f, dt, 200_000)
-            # truncation error of the reference: sum_{|k|>M} sin^2(pi x)/(pi^2 |x+k|^3) <= sin^2/(pi^2 (M-1)^2),
-            # while the sum is >= sin^2/(pi^2 x^3) >= 8 sin^2/pi^2: relative error <= 1/(8 M^2) = 3e-12;
+            # truncation error of the reference: sum_{|k|>M} sin^2(pi x)/(pi^2 |x+k|^3) <= sin^2/(pi^2 (M-2)^2),
+            # while the sum is >= sin^2/(pi^2 x'^3) >= 8 sin^2/pi^2 (x' = distance to the nearest whole number
+            # <= 1/2): relative error <= 1/(8 (M-2)^2) = 3e-12;
             # plus summation rounding of 4e5 terms (~1e-12)
             np.testing.assert_allclose(m.psd_sampled(f, dt), ref, rtol=2e-11)
             assert np.all(x > 0)

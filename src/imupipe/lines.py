@@ -217,12 +217,27 @@ class LineSearch:
         return xr.Dataset(data, attrs=attrs)
 
 
+def _gamma_median(K: int) -> float:
+    """Median of Gamma(K, 1/K) (mean 1)."""
+    from scipy.special import gammaincinv
+
+    return float(gammaincinv(K, 0.5)) / K
+
+
+def _gamma_logsf(t, K: int):
+    """log P(G/K > t), G ~ Gamma(K, 1) (regularised upper incomplete gamma; -inf where it underflows)."""
+    from scipy.special import gammaincc
+
+    with np.errstate(divide="ignore"):
+        return np.log(gammaincc(K, K * np.asarray(t, dtype=np.float64)))
+
+
 def _gamma_median_sd(K: int, W: int) -> float:
     """Relative standard deviation of the sample median of W Hann-correlated Gamma(K, 1/K) bins."""
-    from scipy.stats import gamma
+    from scipy.special import gammaln
 
-    m = gamma.median(K, scale=1.0 / K)
-    g = gamma.pdf(m, K, scale=1.0 / K)
+    m = _gamma_median(K)
+    g = K * math.exp((K - 1) * math.log(K * m) - K * m - float(gammaln(K)))  # Gamma(K, 1/K) density at m
     return math.sqrt(_HANN_CORR_FACTOR) / (2.0 * g * m * math.sqrt(W))
 
 
@@ -230,37 +245,41 @@ def detection_threshold(alpha: float, n_tested: int, n_segments: int = 1, floor_
     r"""Bin-to-floor ratio threshold t giving per-bin false-alarm probability alpha / n_tested.
 
     :math:`E_\eta[P(G/K > t e^\eta)] = \alpha/M`, G ~ Gamma(K, 1), :math:`\eta \sim N(0, s^2)` the log error
-    of the running-median floor (module docstring; s = 0 when ``floor_window_bins`` is None). With K = 1 and
-    s = 0 this is :math:`-\ln(\alpha/M)`.
+    of the running-median floor (module docstring; s = 0 when ``floor_window_bins`` is None), solved by bisection
+    in log t (60 Gauss-Hermite nodes). With K = 1 and s = 0 this is :math:`-\ln(\alpha/M)`.
     """
-    from scipy.optimize import brentq
-    from scipy.stats import gamma
+    from scipy.special import gammainccinv
 
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
     K = int(n_segments)
     p = alpha / max(int(n_tested), 1)
+    t0 = float(gammainccinv(K, p)) / K
     if floor_window_bins is None:
-        return float(gamma.isf(p, K, scale=1.0 / K))
+        return t0
     s = _gamma_median_sd(K, int(floor_window_bins))
     x, w = np.polynomial.hermite_e.hermegauss(60)
-    w = w / w.sum()
+    logw = np.log(w / w.sum())
     scale = np.exp(s * x)  # floor / true level, log-normal with log-sd s (positive, unlike 1 + N(0, s^2))
 
-    logw = np.log(w)
-
     def excess(logt):
-        ls = gamma.logsf(np.exp(logt) * scale, K, scale=1.0 / K) + logw
+        ls = _gamma_logsf(math.exp(logt) * scale, K) + logw
         top = ls.max()
         if not np.isfinite(top):
             return -1e3
         return top + math.log(float(np.sum(np.exp(ls - top)))) - math.log(p)
 
-    a = math.log(float(gamma.isf(p, K, scale=1.0 / K)))
+    a = math.log(t0)  # excess(a) >= 0: the floor's error only adds tail
     b = a + math.log(2.0)
     while excess(b) > 0:
         b += math.log(2.0)
-    return float(math.exp(brentq(excess, a, b)))
+    for _ in range(60):  # bisection to ~1e-18 in log t
+        c = 0.5 * (a + b)
+        if excess(c) > 0:
+            a = c
+        else:
+            b = c
+    return float(math.exp(0.5 * (a + b)))
 
 
 def _spectrum(x: np.ndarray, rate: float, nperseg: int):
@@ -311,9 +330,6 @@ def find_lines(
     label : str, optional
         Name of the series (e.g. ``imu1/accel/x``), carried into the outputs.
     """
-    from scipy.ndimage import median_filter
-    from scipy.stats import gamma
-
     x = np.asarray(x, dtype=np.float64).ravel()
     if not np.all(np.isfinite(x)):
         raise ValueError(f"find_lines{'(' + label + ')' if label else ''}: the series has non-finite samples")
@@ -332,7 +348,9 @@ def find_lines(
     W += 1 - W % 2
     f, p, K = _spectrum(x, rate, nperseg)
     df = f[1] - f[0]
-    floor = median_filter(p, size=W, mode="reflect") / gamma.median(K, scale=1.0 / K)
+    # running median over W bins (edges mirrored), normalised to the mean level
+    win = np.lib.stride_tricks.sliding_window_view(np.pad(p, W // 2, mode="symmetric"), W)
+    floor = np.median(win, axis=1) / _gamma_median(K)
     lo = (W // 2 + 1) * df if f_min_hz is None else float(f_min_hz)
     hi = f[-1] - (W // 2) * df if f_max_hz is None else float(f_max_hz)
     tested = (f >= lo) & (f <= hi) & (floor > 0)
