@@ -116,7 +116,7 @@ class TestDetection:
 
         res = find_lines(_record(rng, 100_000, [(2.5, AMP)]), RATE, units="m/s^2", label="sim/accel/x")
         d = res.to_dict()
-        assert d["n_lines"] == 1 and d["units"]["amplitude"] == "m/s^2" and d["units"]["power"] == "m/s^2^2"
+        assert d["n_lines"] == 1 and d["units"]["amplitude"] == "m/s^2" and d["units"]["power"] == "(m/s^2)^2"
         assert d["lines"][0]["frequency_hz"] == pytest.approx(2.5, abs=res.resolution_hz)
         path = tmp_path / "lines.nc"
         res.to_dataset().to_netcdf(path)

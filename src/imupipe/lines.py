@@ -156,6 +156,15 @@ _LINE_UNITS = {
 }
 
 
+def _unit(template: str, u: str) -> str:
+    """'u' -> the series unit, 'u^2' -> its square (parenthesised when compound), others unchanged."""
+    if template == "u":
+        return u
+    if template == "u^2":
+        return f"({u})^2" if any(c in u for c in "/*^ ") else f"{u}^2"
+    return template
+
+
 @dataclass(frozen=True)
 class LineSearch:
     """Result of :func:`find_lines` on one series: the lines and everything needed to restate the test."""
@@ -197,7 +206,7 @@ class LineSearch:
             "f_max_hz": float(self.f_max_hz),
             "n_lines": len(self.lines),
             "lines": [{k: float(v) for k, v in asdict(line).items()} for line in self.lines],
-            "units": {k: v.replace("u", u) if "u" in v else v for k, v in _LINE_UNITS.items()},
+            "units": {k: _unit(v, u) for k, v in _LINE_UNITS.items()},
         }
 
     def to_dataset(self):
@@ -208,7 +217,7 @@ class LineSearch:
         data = {}
         for name in names:
             vals = np.array([getattr(line, name) for line in self.lines], dtype=np.float64)
-            unit = _LINE_UNITS[name].replace("u", self.units) if "u" in _LINE_UNITS[name] else _LINE_UNITS[name]
+            unit = _unit(_LINE_UNITS[name], self.units)
             data[name] = xr.Variable(("line",), vals, attrs={"units": unit, "long_name": name.replace("_", " ")})
         attrs = {k: v for k, v in self.to_dict().items() if k not in ("lines", "units", "label", "method")}
         attrs["method"] = self.to_dict()["method"]
