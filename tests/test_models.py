@@ -142,8 +142,7 @@ class TestNarrowband:
     @pytest.mark.parametrize("p", params)
     def test_avar_equals_psd_integral(self, p):
         # closed form against 4 int S2 sin^4/(pi f tau)^2 df on a dense log grid (trapezoid on a smooth
-        # integrand in log f: errors measured below 1e-11; 1e-8 leaves room); quadpack's avar_from_psd
-        # does not resolve a peak of relative width 0.02, hence the grid
+        # integrand in log f: errors measured below 1e-11; 1e-8 leaves room): a check independent of QUADPACK
         m = NoiseModel(narrowband=(p,))
         u = np.linspace(np.log(1e-9), np.log(1e5), 1_000_001)
         f = np.exp(u)
@@ -152,10 +151,17 @@ class TestNarrowband:
             ref = np.trapezoid(4 * s * np.sin(np.pi * f * tau) ** 4 / (np.pi * f * tau) ** 2 * f, u)
             assert m.avar(np.array([tau]))[0] == pytest.approx(ref, rel=1e-8)
 
-    def test_avar_against_quadpack_for_a_broad_term(self):
-        m = NoiseModel(white=1e-3, narrowband=((1.0, 3.0, 0.3),))
-        taus = np.logspace(-3, 3, 7)
-        np.testing.assert_allclose(m.avar(taus), m.avar_from_psd(taus), rtol=1e-5)
+    @pytest.mark.parametrize("p", params)
+    def test_avar_equals_avar_from_psd(self, p):
+        # QUADPACK with the peak kept in the split head interval (avar_from_psd): measured agreement <= 5e-8
+        # (the slowest case, f0 = 1 mHz with zeta = 0.9, is limited by the QAWF tail); 1e-6 leaves room
+        import warnings
+
+        m = NoiseModel(white=1e-3, narrowband=(p,))
+        taus = np.logspace(-3, 1, 5)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # QUADPACK's round-off notes on the tiny head of long-T cases
+            np.testing.assert_allclose(m.avar(taus), m.avar_from_psd(taus), rtol=1e-6)
 
     def test_avar_limits(self):
         sigma, f0, zeta = 1e-2, 0.56, 0.01
@@ -220,14 +226,14 @@ class TestFlickerSampled:
     def test_equals_brute_force(self):
         m = NoiseModel(flicker=1e-3)
         for dt in (1.0, 0.01):
-            f = np.linspace(1e-4, 1.7, 57) / dt  # beyond the Nyquist frequency too (the sum is periodic in x)
+            f = np.linspace(1e-4, 1.7, 25) / dt  # beyond the Nyquist frequency too (the sum is periodic in x)
             x = f * dt
-            ref = _alias_sum_nb(m, f, dt, 200_000)
+            ref = _alias_sum_nb(m, f, dt, 20_000)
             # truncation error of the reference: sum_{|k|>M} sin^2(pi x)/(pi^2 |x+k|^3) <= sin^2/(pi^2 (M-2)^2),
             # while the sum is >= sin^2/(pi^2 x'^3) >= 8 sin^2/pi^2 (x' = distance to the nearest whole number
-            # <= 1/2): relative error <= 1/(8 (M-2)^2) = 3e-12;
-            # plus summation rounding of 4e5 terms (~1e-12)
-            np.testing.assert_allclose(m.psd_sampled(f, dt), ref, rtol=2e-11)
+            # <= 1/2): relative error <= 1/(8 (M-2)^2) = 3.1e-10 at M = 20000, plus summation rounding of
+            # 4e4 terms (~1e-13)
+            np.testing.assert_allclose(m.psd_sampled(f, dt), ref, rtol=5e-10)
             assert np.all(x > 0)
 
     def test_low_frequency_limit_and_zero(self):

@@ -402,7 +402,9 @@ class NoiseModel:
         \cos 4\pi u)/8` turns the oscillatory integral into one plain and two Fourier integrals (QUADPACK
         QAGI and QAWF). Quantization is band-limited at 1/(2 dt), where the integral is elementary:
         :math:`16 Q^2 dt\,\tau^{-3} (3U/8 - \sin 2\pi U/(4\pi) + \sin 4\pi U/(32\pi))`, U = tau/(2 dt).
-        The ramp has no PSD and is not included.
+        The ramp has no PSD and is not included. With narrowband terms the head interval reaches past every
+        peak u0 = f0 tau by 10 half-widths and is split at the peaks, their half-power points and every whole u
+        (cost grows with f0 tau: meant for tests, not for long tau grids).
         """
         from scipy.integrate import quad
 
@@ -419,11 +421,23 @@ class NoiseModel:
                     return 0.0
                 return g(u) * math.sin(math.pi * u) ** 4
 
-            a, _ = quad(head, 0.0, 1.0, epsabs=0.0, epsrel=1e-13, limit=200)
-            plain, _ = quad(g, 1.0, np.inf, epsabs=0.0, epsrel=1e-13, limit=200)
+            # narrowband peaks (u0 = f0 tau, half-power half-width zeta u0) stay in the finite head [0, U]:
+            # U = 1, or an integer beyond every peak by 10 half-widths (the rest is a smooth u^-6 tail for QAWF),
+            # each piece between breakpoints
+            # (peaks, their half-power points, whole numbers of oscillations) integrated separately
+            U, pts = 1.0, []
+            for _, f0, zeta in self.narrowband:
+                u0, hw = f0 * t, zeta * f0 * t
+                U = max(U, float(math.ceil(u0 + 10.0 * hw)))
+                pts += [u0 - hw, u0, u0 + hw]
+            edges = sorted({0.0, U, *[p for p in pts if 0.0 < p < U], *np.arange(1.0, U).tolist()})
+            a = 0.0
+            for lo, hi in zip(edges[:-1], edges[1:]):
+                a += quad(head, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)[0]
+            plain, _ = quad(g, U, np.inf, epsabs=0.0, epsrel=1e-13, limit=200)
             scale = abs(plain) + abs(a) + 1e-300
-            c2, _ = quad(g, 1.0, np.inf, weight="cos", wvar=2.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
-            c4, _ = quad(g, 1.0, np.inf, weight="cos", wvar=4.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
+            c2, _ = quad(g, U, np.inf, weight="cos", wvar=2.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
+            c4, _ = quad(g, U, np.inf, weight="cos", wvar=4.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
             out[i] = 4.0 / t * (a + (3.0 * plain - 4.0 * c2 + c4) / 8.0)
         if self.quantization:
             if self.dt is None:
