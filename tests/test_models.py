@@ -253,3 +253,20 @@ class TestFlickerSampled:
             m.psd_sampled(f, 1.0)
         # the former alias sum took ~0.3 s per call here; the closed form ~1 ms: 0.5 s for 20 calls is lenient
         assert time.perf_counter() - t0 < 0.5
+
+
+def test_flicker_cache_is_content_keyed():
+    # the cache is keyed by the grid's content: a changed grid gives its own values, a repeated one the same
+    import imupipe.models as models
+
+    m = NoiseModel(flicker=1e-3)
+    f = np.linspace(1e-3, 0.5, 101)
+    a = m.psd_sampled(f, 1.0)
+    f2 = f.copy()
+    f2[50] = 0.3
+    b = m.psd_sampled(f2, 1.0)
+    assert b[50] == pytest.approx(m.psd_sampled(np.array([0.3]), 1.0)[0], rel=1e-14)
+    np.testing.assert_array_equal(m.psd_sampled(f, 1.0), a)
+    a[:] = 0.0  # the returned PSD is the caller's to modify
+    assert np.all(m.psd_sampled(f, 1.0) > 0)
+    assert not models._flicker_alias_sum(f).flags.writeable

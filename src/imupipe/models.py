@@ -235,15 +235,32 @@ def _check_narrowband(i: int, term) -> tuple:
     return (sigma, f0, zeta)
 
 
+_FLICKER_CACHE: dict = {}
+_FLICKER_CACHE_SIZE = 8
+
+
 def _flicker_alias_sum(x) -> np.ndarray:
     r""":math:`\sum_k \mathrm{sinc}^2(x+k) / (2\pi |x+k|)` for x = f dt, 1/(Hz s) units folded: times B^2 dt.
 
     Exact: :math:`\sin^2(\pi x)/(2\pi^3)\,[\zeta(3, x') + \zeta(3, 1 - x')]`, x' = x mod 1 (Hurwitz zeta);
-    infinite at whole x (the flicker PSD at f = 0 and its aliases).
+    infinite at whole x (the flicker PSD at f = 0 and its aliases). The last few grids are cached by content
+    (a bound job evaluates the same f dt grid for every LP): a read-only array is returned.
     """
+    x = np.abs(np.asarray(x, dtype=np.float64))
+    key = (x.shape, x.tobytes())
+    hit = _FLICKER_CACHE.get(key)
+    if hit is None:
+        hit = _flicker_alias_sum_eval(x)
+        hit.setflags(write=False)
+        if len(_FLICKER_CACHE) >= _FLICKER_CACHE_SIZE:
+            _FLICKER_CACHE.pop(next(iter(_FLICKER_CACHE)))
+        _FLICKER_CACHE[key] = hit
+    return hit
+
+
+def _flicker_alias_sum_eval(x: np.ndarray) -> np.ndarray:
     from scipy.special import zeta
 
-    x = np.abs(np.asarray(x, dtype=np.float64))
     xr = np.mod(x, 1.0)
     out = np.full_like(x, np.inf)
     ok = xr > 0
