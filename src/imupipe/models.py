@@ -16,7 +16,17 @@ random walk (RRW / AcRW)  K, u/sqrt(s)           K^2 / (2 pi f)^2               
 flicker (bias instab.)    B, u                   B^2 / (2 pi f)                  (2 ln2 / pi) B^2
 quantization              Q, u*s                 (2 pi f)^2 Q^2 dt, f < 1/(2 dt)   3 Q^2 / tau^2
 rate ramp                 R, u/s                 (none: not stationary)          R^2 tau^2 / 2
+narrowband (2nd-order GM) sigma (u), f0 (Hz),    q / ((w0^2-w^2)^2+(2 zeta w0 w)^2) :func:`narrowband_avar`
+                          zeta (-)
 ========================  =====================  ==============================  ==========================
+
+The narrowband term (a spectral line, e.g. a vibration or a coupled oscillation) is the damped oscillator
+:math:`\ddot x + 2\zeta\omega_0\dot x + \omega_0^2 x = w`, :math:`\omega_0 = 2\pi f_0`, w white with two-sided
+PSD q; :math:`\omega = 2\pi f`, variance :math:`\sigma^2 = q/(4\zeta\omega_0^3)`, 0 < zeta < 1. Its
+autocovariance is :math:`R(t) = \mathrm{Re}[A e^{\lambda |t|}]` with :math:`\lambda = -\zeta\omega_0 +
+i\omega_0\sqrt{1-\zeta^2}` and :math:`A = \sigma^2 (1 - i\zeta/\sqrt{1-\zeta^2})`: every closed form of the
+first-order GM (autocovariance :math:`\sigma^2 e^{-|t|/T}`) holds for it with :math:`-1/T \to \lambda` and the real
+part of A times the result taken, which is how :func:`narrowband_avar` and ``psd_sampled`` are written.
 
 References
 ----------
@@ -24,6 +34,8 @@ References
 .. [2] W. J. Riley, NIST SP 1065 (2008).
 .. [3] E. Gallon, M. Joerger, B. Pervan, "Development of Stochastic IMU Error Models for INS/GNSS Integration",
        ION GNSS+ 2021, eqs. 5-13.
+.. [4] A. Papoulis, S. U. Pillai, *Probability, Random Variables and Stochastic Processes*, 4th ed. (2002):
+       spectra of linear systems driven by white noise (the damped oscillator).
 """
 
 from __future__ import annotations
@@ -33,13 +45,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["NoiseModel", "gm_avar", "FLICKER_AV", "COMPONENTS"]
+__all__ = ["NoiseModel", "gm_avar", "narrowband_avar", "narrowband_psd", "FLICKER_AV", "COMPONENTS"]
 
 #: Allan variance of flicker noise of coefficient B is FLICKER_AV * B^2 (ADEV = 0.664 B).
 FLICKER_AV = 2.0 * math.log(2.0) / math.pi
 
 #: Component names, in the order used by ``components()`` and ``to_dict()``.
-COMPONENTS = ("white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp")
+COMPONENTS = ("white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp", "narrowband")
 
 # Series of the GM Allan variance: AV = -sigma^2 * sum_{n>=3} (-1)^n (2^n - 4) x^(n-2) / n!,  x = tau/T.
 _GM_SERIES = np.array([-((-1.0) ** n) * (2.0**n - 4.0) / math.factorial(n) for n in range(3, 40)])
@@ -109,6 +121,154 @@ def _check_nonneg(name: str, value: float) -> float:
     return value
 
 
+# Series in z of g(z) = (4 e^z - e^{2z} - 3 - 2z) / z^2 = sum_{n>=3} (4 - 2^n) z^(n-2) / n!  (complex z;
+# the n = 2 coefficient is 0, kept so that the coefficient list starts at z^0 like the others)
+_NB_AV_SERIES = np.array([(4.0 - 2.0**n) / math.factorial(n) for n in range(2, 40)])
+# e1(z) = (e^z - 1)/z = sum_{n>=1} z^(n-1)/n!;  e2(z) = 2 (e^z - 1 - z)/z^2 = 2 sum_{n>=2} z^(n-2)/n!
+_E1_SERIES = np.array([1.0 / math.factorial(n) for n in range(1, 40)])
+_E2_SERIES = np.array([2.0 / math.factorial(n) for n in range(2, 40)])
+_SERIES_SWITCH = 0.5
+
+
+def _horner(coef, z):
+    acc = np.zeros_like(z)
+    for c in coef[::-1]:
+        acc = acc * z + c
+    return acc
+
+
+def _complex_fn(z, series, direct):
+    """Evaluate a function of complex z by its power series where |z| < 0.5 (no cancellation), else directly."""
+    z = np.asarray(z, dtype=np.complex128)
+    out = np.empty_like(z)
+    small = np.abs(z) < _SERIES_SWITCH
+    out[small] = _horner(series, z[small])
+    zl = z[~small]
+    out[~small] = direct(zl)
+    return out
+
+
+def _nb_lambda(f0_hz: float, zeta: float):
+    """Pole lambda = -zeta w0 + i w0 sqrt(1 - zeta^2) (1/s) and the coefficient c = zeta/sqrt(1 - zeta^2)."""
+    w0 = 2.0 * math.pi * f0_hz
+    r = math.sqrt((1.0 - zeta) * (1.0 + zeta))
+    return complex(-zeta * w0, w0 * r), zeta / r
+
+
+def narrowband_psd(f, sigma: float, f0_hz: float, zeta: float) -> np.ndarray:
+    r"""Two-sided PSD of the damped oscillator (second-order Gauss-Markov), u^2/Hz.
+
+    .. math:: S_2(f) = \frac{q}{(\omega_0^2 - \omega^2)^2 + (2\zeta\omega_0\omega)^2},\quad
+              q = 4\zeta\omega_0^3\sigma^2,\ \omega = 2\pi f,\ \omega_0 = 2\pi f_0
+
+    The peak is near f0 with height about :math:`\sigma^2/(2\pi f_0\zeta)` and half-power width
+    about :math:`2\zeta f_0` Hz (small zeta); the integral over all f is sigma^2.
+
+    Parameters
+    ----------
+    f : array_like
+        Frequencies, Hz.
+    sigma : float
+        Standard deviation, u.
+    f0_hz : float
+        Undamped natural frequency, Hz (> 0).
+    zeta : float
+        Damping ratio, 0 < zeta < 1.
+    """
+    f = np.asarray(f, dtype=np.float64)
+    w0 = 2.0 * math.pi * f0_hz
+    w = 2.0 * np.pi * f
+    q = 4.0 * zeta * w0**3 * sigma**2
+    return q / ((w0 * w0 - w * w) ** 2 + (2.0 * zeta * w0 * w) ** 2)
+
+
+def narrowband_avar(tau, sigma: float, f0_hz: float, zeta: float) -> np.ndarray:
+    r"""Allan variance of the damped oscillator (second-order Gauss-Markov), u^2.
+
+    The AV is :math:`c_0(\tau) - c_1(\tau)` of the covariances of adjacent tau-means; with the autocovariance
+    :math:`\mathrm{Re}[A e^{\lambda |t|}]` (module docstring) and :math:`z = \lambda\tau`:
+
+    .. math:: \sigma^2_A(\tau) = \mathrm{Re}\left[A\,\frac{4e^{z} - e^{2z} - 3 - 2z}{z^2}\right]
+
+    (with :math:`z = -\tau/T`, A = sigma^2 this is the first-order GM's :func:`gm_avar`). Below |z| = 0.5 the
+    power series :math:`\sum_{n\ge3} (4 - 2^n) z^{n-2}/n!` (37 terms) avoids the cancellation. Tested against
+    :meth:`NoiseModel.avar_from_psd`.
+
+    Parameters
+    ----------
+    tau : array_like
+        Averaging times, s (> 0).
+    sigma, f0_hz, zeta : float
+        Standard deviation (u), natural frequency (Hz), damping ratio (0 < zeta < 1).
+    """
+    tau = np.asarray(tau, dtype=np.float64)
+    lam, c = _nb_lambda(f0_hz, zeta)
+    z = lam * tau
+    g = _complex_fn(z, _NB_AV_SERIES, lambda z: (4.0 * np.exp(z) - np.exp(2.0 * z) - 3.0 - 2.0 * z) / z**2)
+    return sigma**2 * np.real((1.0 - 1j * c) * g)
+
+
+def _narrowband_psd_sampled(f, dt: float, sigma: float, f0_hz: float, zeta: float) -> np.ndarray:
+    """Two-sided PSD of the oscillator block-averaged over dt and sampled every dt (see NoiseModel.psd_sampled)."""
+    lam, c = _nb_lambda(f0_hz, zeta)
+    z = np.array([lam * dt])
+    a = np.exp(z)[0]
+    c0 = _complex_fn(z, _E2_SERIES, lambda z: 2.0 * (np.expm1(z) - z) / z**2)[0]
+    b = _complex_fn(z, _E1_SERIES, lambda z: np.expm1(z) / z)[0] ** 2
+    cw = np.cos(2.0 * np.pi * np.asarray(f, dtype=np.float64) * dt)
+    val = c0 + 2.0 * b * (cw - a) / (1.0 - 2.0 * a * cw + a * a)
+    return dt * sigma**2 * np.real((1.0 - 1j * c) * val)
+
+
+def _check_narrowband(i: int, term) -> tuple:
+    try:
+        sigma, f0, zeta = term
+    except (TypeError, ValueError):
+        raise ValueError(f"narrowband[{i}] must be a triple (sigma, f0_hz, zeta), got {term!r}") from None
+    sigma = _check_nonneg(f"narrowband[{i}].sigma", sigma)
+    f0 = _check_nonneg(f"narrowband[{i}].f0_hz", f0)
+    zeta = float(zeta)
+    if f0 == 0:
+        raise ValueError(f"narrowband[{i}].f0_hz must be > 0 Hz")
+    if not 0.0 < zeta < 1.0:
+        raise ValueError(f"narrowband[{i}].zeta must be in (0, 1) (a lightly damped oscillator), got {zeta!r}")
+    return (sigma, f0, zeta)
+
+
+_FLICKER_CACHE: dict = {}
+_FLICKER_CACHE_SIZE = 8
+
+
+def _flicker_alias_sum(x) -> np.ndarray:
+    r""":math:`\sum_k \mathrm{sinc}^2(x+k) / (2\pi |x+k|)` for x = f dt, 1/(Hz s) units folded: times B^2 dt.
+
+    Exact: :math:`\sin^2(\pi x)/(2\pi^3)\,[\zeta(3, x') + \zeta(3, 1 - x')]`, x' = x mod 1 (Hurwitz zeta);
+    infinite at whole x (the flicker PSD at f = 0 and its aliases). The last few grids are cached by content
+    (a bound job evaluates the same f dt grid for every LP): a read-only array is returned.
+    """
+    x = np.abs(np.asarray(x, dtype=np.float64))
+    key = (x.shape, x.tobytes())
+    hit = _FLICKER_CACHE.get(key)
+    if hit is None:
+        hit = _flicker_alias_sum_eval(x)
+        hit.setflags(write=False)
+        if len(_FLICKER_CACHE) >= _FLICKER_CACHE_SIZE:
+            _FLICKER_CACHE.pop(next(iter(_FLICKER_CACHE)))
+        _FLICKER_CACHE[key] = hit
+    return hit
+
+
+def _flicker_alias_sum_eval(x: np.ndarray) -> np.ndarray:
+    from scipy.special import zeta
+
+    xr = np.mod(x, 1.0)
+    out = np.full_like(x, np.inf)
+    ok = xr > 0
+    xo = xr[ok]
+    out[ok] = np.sin(np.pi * xo) ** 2 / (2.0 * np.pi**3) * (zeta(3.0, xo) + zeta(3.0, 1.0 - xo))
+    return out
+
+
 @dataclass(frozen=True)
 class NoiseModel:
     """Sum of independent noise components of one rate signal, in SI units (see the module table).
@@ -129,6 +289,9 @@ class NoiseModel:
         R, rate ramp, u/s (not stationary: no PSD).
     dt : float or None
         Sample interval, s; needed by the quantization PSD.
+    narrowband : sequence of (sigma, f0_hz, zeta)
+        Second-order Gauss-Markov (damped oscillator) terms: standard deviation sigma (u), the true full-rate
+        natural frequency f0_hz (Hz; aliasing is done by :meth:`psd_sampled`) and the damping ratio zeta in (0, 1).
     """
 
     white: float = 0.0
@@ -138,6 +301,7 @@ class NoiseModel:
     quantization: float = 0.0
     ramp: float = 0.0
     dt: float | None = None
+    narrowband: tuple = field(default_factory=tuple)
 
     def __post_init__(self):
         for name in ("white", "random_walk", "flicker", "quantization", "ramp"):
@@ -154,6 +318,9 @@ class NoiseModel:
                 raise ValueError(f"gauss_markov[{i}].T must be > 0 s")
             terms.append((sigma, T))
         object.__setattr__(self, "gauss_markov", tuple(terms))
+        object.__setattr__(
+            self, "narrowband", tuple(_check_narrowband(i, t) for i, t in enumerate(self.narrowband or ()))
+        )
         if self.dt is not None:
             dt = _check_nonneg("dt", self.dt)
             if dt == 0:
@@ -176,6 +343,8 @@ class NoiseModel:
                 s = s + self.random_walk**2 / w**2
             if self.flicker:
                 s = s + self.flicker**2 / w
+        for sigma, f0, zeta in self.narrowband:
+            s = s + narrowband_psd(f, sigma, f0, zeta)
         if self.quantization:
             if self.dt is None:
                 raise ValueError("the quantization PSD needs the sample interval: set NoiseModel(dt=...)")
@@ -194,7 +363,15 @@ class NoiseModel:
         - Gauss-Markov, a = exp(-dt/T), w = 2 pi f dt: from the autocovariance of the block means,
           :math:`c_0 = 2\sigma^2 (T/dt)^2 (a - 1 + dt/T)`, :math:`c_j = \sigma^2 (T/dt)^2 (1-a)^2 a^{j-1}`,
           :math:`S_d = dt\,[c_0 + 2\sigma^2 (T/dt)^2 (1-a)^2 (\cos w - a)/(1 - 2a\cos w + a^2)]`;
-        - flicker: the alias sum truncated at |k| <= 2000 with the integral tail added;
+        - flicker: with x = f dt, :math:`\mathrm{sinc}^2(x+k) = \sin^2(\pi x)/(\pi (x+k))^2`, so
+          :math:`S_d = \frac{B^2 dt}{2\pi^3}\sin^2(\pi x)\,[\zeta(3, x') + \zeta(3, 1-x')]`, x' = x mod 1, with
+          the Hurwitz zeta :math:`\zeta(3, a) = \sum_{k\ge0} (k+a)^{-3}` (``scipy.special.zeta``): exact, no alias
+          sum (the sum over k of :math:`|x+k|^{-3}` is split into k >= 0 and k < 0);
+        - narrowband (damped oscillator): as the Gauss-Markov with :math:`a = e^{\lambda dt}` complex and the real
+          part of :math:`A\,[\dots]` (module docstring):
+          :math:`S_d = dt\,\mathrm{Re}\{A[e_2 + 2 e_1^2 (\cos w - a)/(1 - 2a\cos w + a^2)]\}`,
+          :math:`e_1 = (e^{z}-1)/z`, :math:`e_2 = 2(e^{z}-1-z)/z^2`, :math:`z = \lambda dt` (power series below
+          |z| = 0.5): the aliases of f0 above 1/(2 dt) land where block averaging folds them;
         - quantization (band-limited, no aliases): :math:`S_2(f)\,\mathrm{sinc}^2(f dt)`.
         """
         f = np.abs(np.asarray(f, dtype=np.float64))
@@ -215,14 +392,9 @@ class NoiseModel:
                 sn = np.sin(np.pi * f * dt)
                 s = s + self.random_walk**2 * dt**2 * (1.0 / sn**2 - 2.0 / 3.0) / 4.0
             if self.flicker:
-                x = f * dt
-                k = np.arange(-2000, 2001)[:, None]
-                u = np.abs(x[None, :] + k)
-                terms = np.where(u > 0, np.sinc(u) ** 2 / (2.0 * np.pi * u / dt), 0.0)
-                # tail |k| > 2000: sinc^2 averages 1/(2 pi^2 u^2); sum_{|k|>M} 1/u^3 ~ 1/M^2
-                tail = dt / (2.0 * np.pi) * (np.sin(np.pi * x) ** 2 / np.pi**2) / 2000.5**2
-                fl = self.flicker**2 * (terms.sum(axis=0) + tail)
-                s = s + np.where(x > 0, fl, np.inf)
+                s = s + self.flicker**2 * _flicker_alias_sum(f * dt) * dt
+        for sigma, f0, zeta in self.narrowband:
+            s = s + _narrowband_psd_sampled(f, dt, sigma, f0, zeta)
         if self.quantization:
             s = s + NoiseModel(quantization=self.quantization, dt=dt).psd(f) * np.sinc(f * dt) ** 2
         return s
@@ -235,6 +407,8 @@ class NoiseModel:
         for sigma, T in self.gauss_markov:
             av = av + gm_avar(tau, sigma, T)
         av = av + FLICKER_AV * self.flicker**2 + 3.0 * self.quantization**2 / tau**2 + self.ramp**2 * tau**2 / 2.0
+        for sigma, f0, zeta in self.narrowband:
+            av = av + narrowband_avar(tau, sigma, f0, zeta)
         return av
 
     def avar_from_psd(self, tau) -> np.ndarray:
@@ -245,7 +419,9 @@ class NoiseModel:
         \cos 4\pi u)/8` turns the oscillatory integral into one plain and two Fourier integrals (QUADPACK
         QAGI and QAWF). Quantization is band-limited at 1/(2 dt), where the integral is elementary:
         :math:`16 Q^2 dt\,\tau^{-3} (3U/8 - \sin 2\pi U/(4\pi) + \sin 4\pi U/(32\pi))`, U = tau/(2 dt).
-        The ramp has no PSD and is not included.
+        The ramp has no PSD and is not included. With narrowband terms the head interval reaches past every
+        peak u0 = f0 tau by 10 half-widths and is split at the peaks, their half-power points and every whole u
+        (cost grows with f0 tau: meant for tests, not for long tau grids).
         """
         from scipy.integrate import quad
 
@@ -262,11 +438,23 @@ class NoiseModel:
                     return 0.0
                 return g(u) * math.sin(math.pi * u) ** 4
 
-            a, _ = quad(head, 0.0, 1.0, epsabs=0.0, epsrel=1e-13, limit=200)
-            plain, _ = quad(g, 1.0, np.inf, epsabs=0.0, epsrel=1e-13, limit=200)
+            # narrowband peaks (u0 = f0 tau, half-power half-width zeta u0) stay in the finite head [0, U]:
+            # U = 1, or an integer beyond every peak by 10 half-widths (the rest is a smooth u^-6 tail for QAWF),
+            # each piece between breakpoints
+            # (peaks, their half-power points, whole numbers of oscillations) integrated separately
+            U, pts = 1.0, []
+            for _, f0, zeta in self.narrowband:
+                u0, hw = f0 * t, zeta * f0 * t
+                U = max(U, float(math.ceil(u0 + 10.0 * hw)))
+                pts += [u0 - hw, u0, u0 + hw]
+            edges = sorted({0.0, U, *[p for p in pts if 0.0 < p < U], *np.arange(1.0, U).tolist()})
+            a = 0.0
+            for lo, hi in zip(edges[:-1], edges[1:]):
+                a += quad(head, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)[0]
+            plain, _ = quad(g, U, np.inf, epsabs=0.0, epsrel=1e-13, limit=200)
             scale = abs(plain) + abs(a) + 1e-300
-            c2, _ = quad(g, 1.0, np.inf, weight="cos", wvar=2.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
-            c4, _ = quad(g, 1.0, np.inf, weight="cos", wvar=4.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
+            c2, _ = quad(g, U, np.inf, weight="cos", wvar=2.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
+            c4, _ = quad(g, U, np.inf, weight="cos", wvar=4.0 * np.pi, epsabs=1e-12 * scale, limlst=200)
             out[i] = 4.0 / t * (a + (3.0 * plain - 4.0 * c2 + c4) / 8.0)
         if self.quantization:
             if self.dt is None:
@@ -288,11 +476,18 @@ class NoiseModel:
         for name in ("random_walk", "flicker", "quantization", "ramp"):
             if getattr(self, name):
                 out[name] = NoiseModel(**{name: getattr(self, name)}, dt=self.dt)
+        for i, term in enumerate(self.narrowband):
+            key = "narrowband" if len(self.narrowband) == 1 else f"narrowband_{i}"
+            out[key] = NoiseModel(narrowband=(term,), dt=self.dt)
         return out
 
     def to_dict(self) -> dict:
-        """Plain-Python dict (SI) for YAML; inverse of :meth:`from_dict`."""
-        return {
+        """Plain-Python dict (SI) for YAML; inverse of :meth:`from_dict`.
+
+        ``narrowband`` (sigma in u, f0_hz in Hz, zeta dimensionless) is present only when the model has such
+        terms, so a model without lines writes the same dict as before.
+        """
+        d = {
             "white": float(self.white),
             "gauss_markov": [{"sigma": float(s), "T": float(T)} for s, T in self.gauss_markov],
             "random_walk": float(self.random_walk),
@@ -301,17 +496,32 @@ class NoiseModel:
             "ramp": float(self.ramp),
             "dt": None if self.dt is None else float(self.dt),
         }
+        if self.narrowband:
+            d["narrowband"] = [
+                {"sigma": float(s), "f0_hz": float(f0), "zeta": float(z)} for s, f0, z in self.narrowband
+            ]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "NoiseModel":
         """Build from :meth:`to_dict` output; unknown keys are an error naming the key."""
-        unknown = set(d) - {"white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp", "dt"}
+        unknown = set(d) - {"white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp", "dt",
+                            "narrowband"}
         if unknown:
             raise ValueError(f"unknown NoiseModel key(s): {sorted(unknown)}")
         kw = dict(d)
         kw["gauss_markov"] = tuple(
             (g["sigma"], g["T"]) if isinstance(g, dict) else tuple(g) for g in kw.get("gauss_markov") or ()
         )
+        nb = []
+        for i, g in enumerate(kw.get("narrowband") or ()):
+            if isinstance(g, dict):
+                missing = {"sigma", "f0_hz", "zeta"} - set(g)
+                if missing:
+                    raise ValueError(f"narrowband[{i}] lacks key(s) {sorted(missing)} (expected sigma, f0_hz, zeta)")
+                g = (g["sigma"], g["f0_hz"], g["zeta"])
+            nb.append(tuple(g))
+        kw["narrowband"] = tuple(nb)
         return cls(**kw)
 
     def __repr__(self) -> str:
@@ -321,6 +531,10 @@ class NoiseModel:
         for name in ("random_walk", "flicker", "quantization", "ramp"):
             if getattr(self, name):
                 parts.append(f"{name}={getattr(self, name):.6g}")
+        if self.narrowband:
+            parts.append(
+                "narrowband=(" + ", ".join(f"({s:.6g}, {f0:.6g}, {z:.6g})" for s, f0, z in self.narrowband) + ")"
+            )
         if self.dt is not None:
             parts.append(f"dt={self.dt:.6g}")
         return "NoiseModel(" + ", ".join(parts) + ")"

@@ -10,7 +10,13 @@ Each component is simulated as point samples of the continuous process every dt 
   (DC bin set to zero, so no component below 1/(n dt));
 - quantization: rate :math:`(e_{k+1} - e_k)/dt` of an i.i.d. angle error of standard deviation Q
   (its AV is 3 Q^2/tau^2);
-- ramp: the deterministic R t.
+- ramp: the deterministic R t;
+- narrowband (damped oscillator, state [x, x']): the exact discretisation of
+  :math:`\dot s = F s + G w`, :math:`F = [[0, 1], [-\omega_0^2, -2\zeta\omega_0]]`, G = [0, 1]^T, white w of
+  two-sided PSD :math:`q = 4\zeta\omega_0^3\sigma^2`: :math:`\Phi = e^{F dt}` and :math:`Q_d` from Van Loan's block
+  exponential (C. F. Van Loan, IEEE TAC 23(3), 1978), started at the steady state
+  :math:`P_\infty = \mathrm{diag}(\sigma^2, \omega_0^2\sigma^2)`. The recursion is run on the complex modal
+  coordinate of :math:`\Phi` (one complex first-order recursion; x = 2 Re(v s)), which is the same linear map.
 """
 
 from __future__ import annotations
@@ -22,7 +28,65 @@ try:  # optional compiled kernel; scipy.signal.lfilter does the same recursion
 except ImportError:  # pragma: no cover
     _kernels = None
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "narrowband_discrete"]
+
+
+def narrowband_discrete(sigma: float, f0_hz: float, zeta: float, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact discrete model of the damped oscillator over dt: (Phi, Qd, P0), state [x (u), x' (u/s)].
+
+    Phi = expm(F dt); Qd = int_0^dt e^{F s} G q G^T e^{F^T s} ds by Van Loan's method (the upper-right block
+    of expm([[-F, G q G^T], [0, F^T]] dt) premultiplied by Phi); P0 = diag(sigma^2, w0^2 sigma^2) is the
+    steady-state covariance (solves F P + P F^T + G q G^T = 0). Units: Qd and P0 in u^2, u^2/s, u^2/s^2.
+    """
+    from scipy.linalg import expm
+
+    w0 = 2.0 * np.pi * f0_hz
+    q = 4.0 * zeta * w0**3 * sigma**2
+    F = np.array([[0.0, 1.0], [-w0 * w0, -2.0 * zeta * w0]])
+    Qc = np.array([[0.0, 0.0], [0.0, q]])
+    M = np.zeros((4, 4))
+    M[:2, :2] = -F
+    M[:2, 2:] = Qc
+    M[2:, 2:] = F.T
+    E = expm(M * dt)
+    phi = E[2:, 2:].T
+    Qd = phi @ E[:2, 2:]
+    Qd = 0.5 * (Qd + Qd.T)
+    P0 = np.diag([sigma**2, w0 * w0 * sigma**2])
+    return phi, Qd, P0
+
+
+def _narrowband(rng, shape, sigma: float, f0_hz: float, zeta: float, dt: float) -> np.ndarray:
+    """Samples of x of the damped oscillator (steady state), exact in distribution; see the module docstring."""
+    from scipy.signal import lfilter
+
+    phi, Qd, P0 = narrowband_discrete(sigma, f0_hz, zeta, dt)
+    mu, V = np.linalg.eig(phi)
+    k = int(np.argmax(mu.imag)) if np.any(mu.imag != 0) else 0
+    Vinv = np.linalg.inv(V)
+    # real driving noise eta ~ N(0, Qd) and initial state ~ N(0, P0), mapped to the modal coordinate
+    L = _psd_sqrt(Qd)  # L L^T = Qd (symmetric square root: Qd is near-singular for small w0 dt)
+    e = rng.standard_normal(shape + (2,))
+    eta = e @ L.T
+    x0 = rng.standard_normal(shape[:-1] + (2,)) * np.sqrt(np.diag(P0))
+    drive = np.empty(shape, dtype=np.complex128)
+    drive[..., 1:] = eta[..., :-1, :] @ Vinv[k]
+    drive[..., 0] = x0 @ Vinv[k]
+    if np.iscomplexobj(mu) and abs(mu[k].imag) > 0:
+        s = lfilter([1.0], [1.0, -mu[k]], drive, axis=-1)
+        return 2.0 * np.real(V[0, k] * s)
+    # real eigenvalues (not reached for 0 < zeta < 1): the plain two-state recursion
+    out = np.empty(shape)
+    st = x0
+    for i in range(shape[-1]):
+        out[..., i] = st[..., 0]
+        st = st @ phi.T + eta[..., i, :]
+    return out
+
+
+def _psd_sqrt(Q: np.ndarray) -> np.ndarray:
+    w, U = np.linalg.eigh(Q)
+    return U * np.sqrt(np.clip(w, 0.0, None))
 
 
 def _ar1(e: np.ndarray, phi: float) -> np.ndarray:
@@ -102,6 +166,8 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
         z *= spec
         z *= np.sqrt(m / dt / 2.0)
         add(np.fft.irfft(z, n=m, axis=-1)[..., :n])
+    for sigma, f0, zeta in getattr(model, "narrowband", ()):
+        add(_narrowband(rng, shape, sigma, f0, zeta, dt))
     if x is None:
         x = np.zeros(shape)
     if model.quantization:

@@ -1,0 +1,224 @@
+r"""Outliers (spikes) in full-rate IMU series: a block-wise Hampel/MAD rule, counts, and a fail/warn/remove policy.
+
+Rule (:func:`hampel`)
+---------------------
+The series is cut into consecutive blocks of ``window`` samples (the last, partial block joins the previous one).
+In each block b, with median :math:`m_b` and median absolute deviation :math:`\mathrm{MAD}_b`, a sample is an
+outlier when
+
+.. math:: |x_i - m_b| > k \cdot 1.4826\,\mathrm{MAD}_b
+
+(1.4826 = 1/Phi^{-1}(3/4) makes the MAD a consistent estimate of a Gaussian standard deviation). Defaults
+k = 7 and window = 100 samples (1 s at 100 Hz): long enough for a stable scale, short enough that a slow GM/random
+walk does not move the median within a block. Block medians cost one partition per block (O(n)), not a running
+median. Where the MAD is 0 (coarsely quantised data), the scale is :math:`\sqrt{\pi/2}` times the mean absolute
+deviation; where that is 0 too, nothing in the block is flagged.
+
+Expected false detections on Gaussian noise (:func:`expected_false_count`): per sample
+:math:`E_\eta[2\Phi(-k_e e^{\eta})]`, :math:`k_e = k\,(1 - 0.8/W)/\sqrt{1 + \pi/(2W)}` (the MAD scale's
+finite-sample bias, factor (W - 0.8)/W [3]_, and the block median's own error, which adds :math:`\pi\sigma^2/(2W)`
+to the variance of :math:`x - m_b`), :math:`\eta \sim N(0, s^2)` the log error of the MAD scale,
+:math:`s = 1.1664/\sqrt{W}` (asymptotic standard deviation of the normalised MAD, efficiency 37 %): at k = 7,
+W = 100 about 1e-8 per sample, i.e. ~0.01 false detections in 1e6 samples (checked by simulation at k = 4-5,
+where the counts are measurable).
+
+Policy (:func:`screen_outliers`)
+--------------------------------
+- ``fail``: any outlier raises ``ValueError`` naming the series, the count and the first indices;
+- ``warn`` (default): a ``UserWarning`` with the count; the data are returned unchanged (and counted in outputs);
+- ``remove``: each outlier is replaced by its block median :math:`m_b`. Effect on the Allan variance: a spike of
+  amplitude A (above the local level) adds about :math:`A^2/(m L)` to AV(m dt) of an L-sample record at small m,
+  so a few spikes dominate the white-noise estimate; the replacement removes that term and changes the AV of the
+  remaining noise by at most the removed samples' own share (count/L), negligible for a few outliers. The
+  replacement value carries no noise, which under-states the variance of those samples by sigma^2 each: also
+  count/L relative.
+
+References
+----------
+.. [1] F. R. Hampel, "The influence curve and its role in robust estimation", JASA 69 (1974) 383-393.
+.. [2] P. J. Rousseeuw, C. Croux, "Alternatives to the median absolute deviation", JASA 88 (1993) 1273-1283
+       (MAD consistency constant and efficiency).
+.. [3] C. Croux, P. J. Rousseeuw, "Time-efficient algorithms for two highly robust estimators of scale",
+       Computational Statistics 1 (1992) 411-428 (small-sample correction of the MAD).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["OutlierReport", "hampel", "expected_false_count", "screen_outliers", "POLICIES", "MAD_TO_SIGMA"]
+
+#: Consistency constant of the MAD for a Gaussian: sigma = 1.4826 MAD.
+MAD_TO_SIGMA = 1.482602218505602
+#: Accepted values of the outlier policy.
+POLICIES = ("fail", "warn", "remove")
+
+
+def _blocks(n: int, window: int) -> np.ndarray:
+    """Start indices of the blocks (the last partial block joins the previous one)."""
+    nb = max(n // window, 1)
+    return np.arange(nb) * window
+
+
+def hampel(x, window: int = 100, k: float = 7.0):
+    """Block-wise Hampel rule (module docstring).
+
+    Parameters
+    ----------
+    x : array_like
+        Full-rate series (any unit u).
+    window : int
+        Block length, samples (>= 5).
+    k : float
+        Threshold in robust standard deviations (> 0).
+
+    Returns
+    -------
+    mask : numpy.ndarray of bool
+        True at outliers.
+    center : numpy.ndarray
+        Block median at every sample, u.
+    scale : numpy.ndarray
+        Robust standard deviation (1.4826 MAD) at every sample, u.
+    """
+    x = np.asarray(x, dtype=np.float64).ravel()
+    window = int(window)
+    if window < 5:
+        raise ValueError(f"outlier window must be >= 5 samples, got {window}")
+    if not k > 0:
+        raise ValueError(f"outlier threshold k must be > 0, got {k!r}")
+    n = x.size
+    if n < window:
+        window = n
+    starts = _blocks(n, window)
+    nb = starts.size
+    main = x[: nb * window].reshape(nb, window)
+    med = np.median(main, axis=1)
+    mad = np.median(np.abs(main - med[:, None]), axis=1)
+    tail = x[nb * window :]
+    if tail.size:  # the partial block joins the last one
+        last = np.concatenate([main[-1], tail])
+        med[-1] = np.median(last)
+        mad[-1] = np.median(np.abs(last - med[-1]))
+    scale = MAD_TO_SIGMA * mad
+    zero = scale == 0
+    if np.any(zero):
+        for b in np.flatnonzero(zero):
+            seg = x[starts[b] : (starts[b] + window if b < nb - 1 else n)]
+            scale[b] = math.sqrt(math.pi / 2.0) * float(np.mean(np.abs(seg - med[b])))
+    scale = np.where(scale > 0, scale, np.inf)
+    counts = np.full(nb, window)
+    counts[-1] += tail.size
+    center = np.repeat(med, counts)
+    sc = np.repeat(scale, counts)
+    mask = np.abs(x - center) > k * sc
+    return mask, center, sc
+
+
+def expected_false_count(n: int, k: float = 7.0, window: int = 100) -> float:
+    """Expected number of Gaussian samples flagged by :func:`hampel` in n samples (module docstring)."""
+    from scipy.special import ndtr
+
+    W = int(window)
+    s = 1.1664 / math.sqrt(W)
+    # finite-sample bias of the MAD scale: E[1.4826 MAD] ~ sigma (W - 0.8)/W (Croux and Rousseeuw 1992)
+    ke = k * (W - 0.8) / W / math.sqrt(1.0 + math.pi / (2.0 * W))
+    z, w = np.polynomial.hermite_e.hermegauss(60)
+    w = w / w.sum()
+    p = float(np.sum(w * 2.0 * ndtr(-ke * np.exp(s * z))))
+    return n * p
+
+
+@dataclass(frozen=True)
+class OutlierReport:
+    """Outcome of :func:`screen_outliers` on one series (counts, positions, rule and action), YAML-ready."""
+
+    label: str | None
+    n_samples: int
+    n_outliers: int
+    k: float
+    window: int
+    policy: str
+    expected_false: float
+    indices: np.ndarray = field(repr=False, compare=False)
+    max_abs_deviation: float = 0.0
+    units: str = "u"
+
+    def to_dict(self, max_indices: int = 100) -> dict:
+        """Counts and the first ``max_indices`` sample indices, with the rule and the action stated."""
+        action = {
+            "fail": "any outlier is an error",
+            "warn": "data unchanged; outliers counted and reported",
+            "remove": "each outlier replaced by its block median",
+        }[self.policy]
+        return {
+            "label": self.label,
+            "rule": f"|x - block median| > {self.k:g} * 1.4826 * MAD over blocks of {self.window} samples",
+            "policy": self.policy,
+            "action": action,
+            "n_samples": int(self.n_samples),
+            "n_outliers": int(self.n_outliers),
+            "fraction": float(self.n_outliers / max(self.n_samples, 1)),
+            "expected_false_gaussian": float(self.expected_false),
+            "max_abs_deviation": float(self.max_abs_deviation),
+            "indices": [int(i) for i in self.indices[:max_indices]],
+            "indices_truncated": bool(self.indices.size > max_indices),
+            "units": {"max_abs_deviation": self.units, "k": "robust standard deviations", "window": "samples"},
+        }
+
+
+def screen_outliers(x, policy: str = "warn", k: float = 7.0, window: int = 100, label: str | None = None,
+                    units: str = "u"):
+    """Apply the Hampel rule and the outlier policy to one full-rate series.
+
+    Parameters
+    ----------
+    x : array_like
+        Full-rate series, u.
+    policy : {'fail', 'warn', 'remove'}
+        See the module docstring.
+    k, window : float, int
+        Rule parameters (:func:`hampel`).
+    label : str, optional
+        Name of the series for messages (e.g. ``imu1/accel/x``).
+    units : str
+        Unit of x for the report.
+
+    Returns
+    -------
+    x_out : numpy.ndarray
+        The series (a cleaned copy under ``remove``; the input values otherwise), float64.
+    report : OutlierReport
+    """
+    if policy not in POLICIES:
+        raise ValueError(f"outlier policy must be one of {POLICIES}, got {policy!r}")
+    x = np.asarray(x, dtype=np.float64).ravel()
+    mask, center, scale = hampel(x, window=window, k=k)
+    idx = np.flatnonzero(mask)
+    dev = float(np.max(np.abs(x[idx] - center[idx]))) if idx.size else 0.0
+    report = OutlierReport(
+        label=label, n_samples=x.size, n_outliers=int(idx.size), k=float(k), window=int(window), policy=policy,
+        expected_false=expected_false_count(x.size, k, window), indices=idx, max_abs_deviation=dev, units=units,
+    )
+    name = label or "series"
+    if idx.size and policy == "fail":
+        raise ValueError(
+            f"{name}: {idx.size} outlier(s) (|x - block median| > {k:g} robust sd, blocks of {window} samples) "
+            f"at sample(s) {idx[:10].tolist()}{' ...' if idx.size > 10 else ''}; set the outlier policy to "
+            "'warn' or 'remove' to continue"
+        )
+    if idx.size and policy == "warn":
+        warnings.warn(
+            f"{name}: {idx.size} outlier(s) kept (|x - block median| > {k:g} robust sd; largest deviation "
+            f"{dev:.4g} {units}); expected on Gaussian noise: {report.expected_false:.2g}",
+            UserWarning,
+            stacklevel=2,
+        )
+    if policy == "remove" and idx.size:
+        x = x.copy()
+        x[idx] = center[idx]
+    return x, report
