@@ -493,3 +493,16 @@ def test_svg_and_pdf_written_on_request(tmp_path, suffix, magic):
     save_figure(plot_allan_deviation(TAU_WR, _white_rw_avar(TAU_WR), sensor="gyro"), path)
     data = path.read_bytes()
     assert magic in data[:400]
+
+
+@pytest.mark.parametrize("sensor, unit, factor", [("gyro", "deg/h", math.degrees(1.0) * 3600.0),
+                                                  ("accel", "ug", 1e6 / 9.80665)])
+def test_allan_components_in_user_units(allan_case, sensor, unit, factor):
+    tau, avar, identified = allan_case
+    display = "spec" if sensor == "gyro" else "ug"
+    fig = plot_allan_components(tau, avar, identified, BOUND, sensor=sensor, display_unit=display)
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == f"Allan deviation [{unit}]"
+    np.testing.assert_allclose(_by_gid(ax, "identified").get_ydata(), np.sqrt(identified.avar(tau)) * factor,
+                               rtol=1e-12)
+    np.testing.assert_allclose(_by_gid(ax, "sample:2").get_ydata(), np.sqrt(avar[2]) * factor, rtol=1e-12)

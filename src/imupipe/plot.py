@@ -450,7 +450,7 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
 # Figure 6
 # ---------------------------------------------------------------------------------------------
 def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, avar_lower=None, avar_upper=None,
-                          labels=None, title=None, dropped=()):
+                          labels=None, title=None, dropped=(), display_unit=None):
     r"""Sample Allan deviations with the identified model's and the bound's components (paper Figure 6).
 
     Each component (white, Gauss-Markov, random walk, flicker, quantization, ramp) has one colour:
@@ -481,6 +481,9 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         Components of `identified_model` that model selection left out of the error model
         (``selection.dropped`` of ``results/identify/{sensor}.yaml``): drawn dotted and thin, labelled
         "(dropped)", so that the figure does not suggest a state the filter does not carry.
+    display_unit : None, "spec" or str, optional
+        None (default): SI (rad/s, m/s^2). ``"spec"``: deg/h (gyro) or mg (accel). Any other string is
+        taken as a rate unit (``"deg/s"``, ``"ug"``).
 
     Returns
     -------
@@ -498,7 +501,13 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         raise ValueError("tau must be > 0 s")
     arr, auto = _as_curves(avar, tau.size, "tau")
     bound, mode = _unwrap_bound(bound_model)
-    unit = RATE_UNITS[sensor]
+    scale2, psd_unit = _psd_scale(display_unit, sensor)  # (display/SI)^2 and "(unit)^2/Hz"
+    unit = RATE_UNITS[sensor] if scale2 == 1.0 and display_unit in (None, "SI", "si") else psd_unit[1:-len(")^2/Hz")]
+    c = math.sqrt(scale2)
+
+    def sq(v):
+        v = np.sqrt(v)
+        return v * c if c != 1.0 else v
 
     fig, axes = _new_figure()
     ax = axes[0, 0]
@@ -508,10 +517,10 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         if lo.shape != arr.shape or hi.shape != arr.shape:
             raise ValueError("avar_lower and avar_upper must have the shape of avar")
         for i in range(arr.shape[0]):
-            ax.fill_between(tau, np.sqrt(np.clip(lo[i], 0, None)), np.sqrt(np.clip(hi[i], 0, None)),
+            ax.fill_between(tau, sq(np.clip(lo[i], 0, None)), sq(np.clip(hi[i], 0, None)),
                             color=_SAMPLE_COLOUR, alpha=0.15, lw=0, zorder=0, gid=f"band:{i}",
                             label="confidence interval" if i == 0 else "_nolegend_")
-    _draw_samples(ax, tau, np.sqrt(np.clip(arr, 0, None)), _resolve_labels(labels, auto), "ADEVs", lw=0.8)
+    _draw_samples(ax, tau, sq(np.clip(arr, 0, None)), _resolve_labels(labels, auto), "ADEVs", lw=0.8)
 
     for model, who, ls in ((identified_model, "identified", "-"), (bound, "bound", "--")):
         if model is None:
@@ -519,12 +528,12 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         for name, comp in model.components().items():
             disp, colour = _component_style(name)
             if who == "identified" and ("gauss_markov" if name.startswith("gauss_markov") else name) in dropped:
-                ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.0, ls=":", alpha=0.8, zorder=3,
+                ax.plot(tau, sq(comp.avar(tau)), color=colour, lw=1.0, ls=":", alpha=0.8, zorder=3,
                         gid=f"{who}:{name}", label=f"{who}: {disp} (dropped)")
                 continue
-            ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
+            ax.plot(tau, sq(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
                     label=f"{who}: {disp}")
-        ax.plot(tau, np.sqrt(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,
+        ax.plot(tau, sq(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,
                 label=f"{who}: total")
     if title is None:
         title = f"{sensor}: Allan deviation, identified and bound components" + (f" (mode {mode})" if mode else "")
