@@ -551,7 +551,7 @@ def table3_model(dt: float = 1.0):
 
     sigma_bs = 1e-2 g = 9.80665e-2 m/s^2, T = 1e3 s, velocity random walk 0.1 m/s/sqrt(h)
     (N = 0.1/60 m/s^2/sqrt(Hz)), K = 1e-4 m/s^2/sqrt(s) (the unit of K the paper's values imply,
-    method.md 2.4), sample interval `dt` (1 s in the paper).
+    docs/method.md, section "Slip: units of K"), sample interval `dt` (1 s in the paper).
     """
     from imupipe.models import NoiseModel
 
