@@ -101,3 +101,22 @@ def test_version_and_help():
     assert proc.returncode == 0 and proc.stdout.startswith("imupipe ")
     proc = subprocess.run([sys.executable, "-m", "imupipe", "--help"], capture_output=True, text=True)
     assert all(c in proc.stdout for c in ("run", "allan", "check"))
+
+
+@pytest.mark.slow
+def test_run_tiny_config_prints_the_summary(tmp_path):
+    import shutil
+
+    import yaml
+
+    shutil.copytree(ROOT / "config" / "specs", tmp_path / "specs")
+    cfg = yaml.safe_load(TINY.read_text())
+    cfg["spec_dir"] = str(tmp_path / "specs")
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "run", str(config), "--cores", "2", "--directory",
+                           str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "# imupipe run summary: stim300" in proc.stdout
+    assert "## gyro: " in proc.stdout and "## accel: " in proc.stdout
+    assert "rule bound" not in proc.stdout + proc.stderr  # job blocks quiet by default (details in logs/)

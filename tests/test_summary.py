@@ -91,3 +91,21 @@ def test_stationarity_inclusion_is_stated(on_fail_included, phrase):
                         "included": on_fail_included}]}
     (flag,) = flags_of("accel", stationarity=stat)
     assert phrase in flag.detail and flag.where == "d/accel/x"
+
+
+def test_summarise_run_finds_the_files_of_a_results_folder(tmp_path):
+    from imupipe.io import write_yaml_atomic
+    from imupipe.summary import discover_run, summarise_run
+
+    res = tmp_path / "results" / "myrun"  # a run-name level is found as well
+    write_yaml_atomic({**_bound(), "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
+    write_yaml_atomic({"curve": "sim1/x", "bounded": True, "sensor": "gyro"},
+                      res / "bound" / "stim300" / "axes" / "sim1" / "gyro" / "x.yaml")  # per-axis: not a contract
+    write_yaml_atomic(IDENTIFY, res / "identify" / "gyro.yaml")
+    write_yaml_atomic(STATIONARITY, res / "stationarity" / "gyro.yaml")
+    found = discover_run(tmp_path / "results")
+    assert list(found) == ["stim300"] and list(found["stim300"]) == ["gyro"]
+    text = summarise_run(tmp_path / "results")
+    assert text.startswith("# imupipe run summary: stim300")
+    assert "FLAG stationarity [sim2/gyro/z]" in text and "states kept: white, gauss_markov" in text
+    assert summarise_run(tmp_path / "empty") == ""

@@ -252,12 +252,29 @@ def _cmd_run(args) -> int:
         extra = extra[1:]
     if args.dry_run:
         extra.append("--dry-run")
+    if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
+        extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
+    workdir = Path(args.directory).resolve() if args.directory else checkout_root()
     cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
     import os
 
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
-    return subprocess.call(cmd, env=env)
+    status = subprocess.call(cmd, env=env)
+    if status == 0 and not args.dry_run and "--dry-run" not in extra and "-n" not in extra:
+        _print_summary(workdir / "results")
+    return status
+
+
+def _print_summary(results: Path) -> None:
+    """Print the run's summary: ``summary.md`` where the workflow wrote one, else rendered from its files."""
+    from imupipe.summary import summarise_run
+
+    written = sorted(results.rglob("summary.md")) if results.is_dir() else []
+    text = "\n".join(p.read_text() for p in written) if written else summarise_run(results) if results.is_dir() else ""
+    if text:
+        print()
+        print(text.rstrip())
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -273,6 +290,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--cores", type=int, default=2, help="cores for Snakemake (default 2)")
     r.add_argument("--directory", help="working directory for results/ and logs/ (default: the checkout)")
     r.add_argument("--dry-run", action="store_true", help="list the jobs without running them")
+    r.add_argument("--verbose", action="store_true", help="Snakemake's full job output (default: progress only, "
+                   "details in logs/)")
     r.add_argument("snakemake_args", nargs=argparse.REMAINDER, help="after --: passed to snakemake as they are")
     r.set_defaults(func=_cmd_run)
 

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Flag", "flags_of", "load_sensor_files", "render_summary", "write_summary"]
+__all__ = ["Flag", "discover_run", "flags_of", "load_sensor_files", "render_summary", "sensors_from_paths",
+           "summarise_run", "write_summary"]
 
 
 @dataclass(frozen=True)
@@ -314,3 +315,45 @@ def sensors_from_paths(sensors: Sequence[str], bounds: Sequence[str], identify: 
                        stationarity: Sequence[str]) -> dict:
     """Sensor -> files dict from parallel lists of paths (the order of `sensors`)."""
     return {s: load_sensor_files(b, i, st) for s, b, i, st in zip(sensors, bounds, identify, stationarity, strict=True)}
+
+
+def discover_run(results: str | Path) -> dict:
+    """The per-sensor files of a finished run under `results`, by spec sheet.
+
+    Looks for ``bound/{spec}/{sensor}.yaml`` (a bound contract: has ``bounded`` and ``sensor``),
+    ``identify/{sensor}.yaml`` and ``stationarity/{sensor}.yaml`` anywhere below `results` (so a
+    ``results/<run name>/`` level is found as well).
+
+    Returns
+    -------
+    dict
+        ``{spec: {sensor: {"bound": path, "identify": path or None, "stationarity": path or None}}}``.
+    """
+    from imupipe.io import read_yaml
+
+    results = Path(results)
+    out: dict = {}
+    for path in sorted(results.rglob("bound/*/*.yaml")):
+        if path.parent.name == "axes" or "axes" in path.parts[len(results.parts):-1]:
+            continue
+        try:
+            head = read_yaml(path)
+        except Exception:  # not a YAML mapping: not a contract
+            continue
+        if not isinstance(head, Mapping) or "bounded" not in head or "sensor" not in head:
+            continue
+        sensor, spec = str(head["sensor"]), path.parent.name
+        base = path.parent.parent.parent  # the folder holding bound/, identify/, stationarity/
+        ident, stat = base / "identify" / f"{sensor}.yaml", base / "stationarity" / f"{sensor}.yaml"
+        out.setdefault(spec, {})[sensor] = {"bound": path, "identify": ident if ident.is_file() else None,
+                                            "stationarity": stat if stat.is_file() else None}
+    return out
+
+
+def summarise_run(results: str | Path) -> str:
+    """The summary text of every spec sheet of a finished run under `results` ("" when none is found)."""
+    texts = []
+    for spec, sensors in discover_run(results).items():
+        runs = {s: load_sensor_files(**paths) for s, paths in sensors.items()}
+        texts.append(render_summary(runs, title=f"imupipe run summary: {spec}"))
+    return "\n".join(texts)
