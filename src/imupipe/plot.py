@@ -35,8 +35,14 @@ import os
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from imupipe.models import NoiseModel
 
 __all__ = [
     "PSD_UNITS",
@@ -366,7 +372,7 @@ def _fmt(x):
 # Figure 5
 # ---------------------------------------------------------------------------------------------
 def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=None, labels=None, title=None,
-                   display_unit=None, samples="lines"):
+                   display_unit=None, samples="lines") -> "Figure":
     r"""Sample PSDs of one sensor type with the spec-sheet PSD and the bounding model (paper Figure 5).
 
     Parameters
@@ -450,7 +456,7 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
 # Figure 6
 # ---------------------------------------------------------------------------------------------
 def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, avar_lower=None, avar_upper=None,
-                          labels=None, title=None, dropped=(), display_unit=None):
+                          labels=None, title=None, dropped=(), display_unit=None) -> "Figure":
     r"""Sample Allan deviations with the identified model's and the bound's components (paper Figure 6).
 
     Each component (white, Gauss-Markov, random walk, flicker, quantization, ramp) has one colour:
@@ -546,7 +552,7 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
 # ---------------------------------------------------------------------------------------------
 # Figure 7
 # ---------------------------------------------------------------------------------------------
-def table3_model(dt: float = 1.0):
+def table3_model(dt: float = 1.0) -> "NoiseModel":
     r"""The paper's Appendix Table 3 example accelerometer model, SI.
 
     sigma_bs = 1e-2 g = 9.80665e-2 m/s^2, T = 1e3 s, velocity random walk 0.1 m/s/sqrt(h)
@@ -562,7 +568,8 @@ def _factor_text(k):
     return f"{k:g}"
 
 
-def plot_inflation_effect(base_model=None, *, duration_s=36000.0, dt=1.0, factors=(1, 2, 5, 10), sensor="accel"):
+def plot_inflation_effect(base_model=None, *, duration_s: float = 36000.0, dt: float = 1.0, factors=(1, 2, 5, 10),
+                          sensor: str = "accel") -> "Figure":
     r"""Effect on the model PSD of inflating one parameter at a time (paper Figure 7, Appendix A.1).
 
     A 2x2 grid in the paper's order: (a) white noise N, (b) random walk K, (c) Gauss-Markov sigma,
@@ -697,7 +704,8 @@ def _spread(ends, m):
     return sorted(chosen)
 
 
-def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=None, title=None, max_phases=6):
+def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str, dt: float | None = None,
+                         title: str | None = None, max_phases: int = 6) -> "Figure":
     r"""The paper's hand inflation, step by step (paper Figure 8, Appendix A.2).
 
     Draws the sample PSDs (grey), the spec-sheet PSD (red) and the model PSD at the end of each
@@ -838,7 +846,8 @@ def allan_readoffs(tau, avar) -> dict:
             "adev_min": sl["adev_min"], "tau_min": sl["tau_min"], "tau": t[ok], "adev": adev[ok]}
 
 
-def plot_allan_deviation(tau, avar, *, sensor, labels=None, display_unit="spec", title=None, max_labelled=3):
+def plot_allan_deviation(tau, avar, *, sensor: str, labels=None, display_unit: str = "spec", title: str | None = None,
+                         max_labelled: int = 3) -> "Figure":
     r"""Allan deviations with the -1/2, 0 and +1/2 slope lines and the N, B, K read-offs marked.
 
     Read-offs (:func:`allan_readoffs`, on the median curve): N where the -1/2 line crosses
@@ -932,7 +941,7 @@ def plot_allan_deviation(tau, avar, *, sensor, labels=None, display_unit="spec",
 # ---------------------------------------------------------------------------------------------
 # output
 # ---------------------------------------------------------------------------------------------
-def save_figure(fig, path) -> None:
+def save_figure(fig: "Figure", path: str | os.PathLike) -> None:
     """Write `fig` to `path` atomically (temporary file in the same directory, then :func:`os.replace`).
 
     The format comes from the suffix (``.png``, ``.pdf``, ``.svg``, ...), at 150 dpi (PNG: fast
