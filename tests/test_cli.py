@@ -120,3 +120,17 @@ def test_run_tiny_config_prints_the_summary(tmp_path):
     assert "# imupipe run summary: stim300" in proc.stdout
     assert "## gyro: " in proc.stdout and "## accel: " in proc.stdout
     assert "rule bound" not in proc.stdout + proc.stderr  # job blocks quiet by default (details in logs/)
+
+
+def test_run_options_after_the_config_are_imupipes_and_after_dashes_snakemakes(monkeypatch, tmp_path):
+    import imupipe.cli as cli
+
+    calls = []
+    monkeypatch.setattr(cli.subprocess, "call", lambda cmd, env=None: calls.append(cmd) or 0)
+    monkeypatch.setattr(cli, "_print_summary", lambda results: calls.append(("summary", results)))
+    assert main(["run", str(TINY), "--cores", "3", "--directory", str(tmp_path), "--", "--keep-going"]) == 0
+    cmd = calls[0]
+    assert cmd[cmd.index("--cores") + 1] == "3"
+    assert cmd[cmd.index("--directory") + 1] == str(tmp_path.resolve())
+    assert "--keep-going" in cmd and cmd[cmd.index("--quiet") + 1] == "rules"
+    assert calls[1] == ("summary", tmp_path.resolve() / "results")

@@ -248,8 +248,6 @@ def _cmd_run(args) -> int:
     if not config.is_file():
         raise ValueError(f"{args.config}: config file not found")
     extra = list(args.snakemake_args or [])
-    if extra and extra[0] == "--":
-        extra = extra[1:]
     if args.dry_run:
         extra.append("--dry-run")
     if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
@@ -285,14 +283,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"imupipe {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
-    r = sub.add_parser("run", help="run the Snakemake workflow on a config")
+    r = sub.add_parser("run", help="run the Snakemake workflow on a config (arguments after -- go to snakemake)")
     r.add_argument("config", help="config YAML (e.g. config/config.yaml)")
     r.add_argument("--cores", type=int, default=2, help="cores for Snakemake (default 2)")
     r.add_argument("--directory", help="working directory for results/ and logs/ (default: the checkout)")
     r.add_argument("--dry-run", action="store_true", help="list the jobs without running them")
     r.add_argument("--verbose", action="store_true", help="Snakemake's full job output (default: progress only, "
                    "details in logs/)")
-    r.add_argument("snakemake_args", nargs=argparse.REMAINDER, help="after --: passed to snakemake as they are")
     r.set_defaults(func=_cmd_run)
 
     a = sub.add_parser("allan", help="Allan deviation table (and figure) of one record")
@@ -322,7 +319,13 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``imupipe`` console script; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    passthrough = []
+    if "--" in argv:  # everything after -- goes to snakemake as it is
+        i = argv.index("--")
+        argv, passthrough = argv[:i], argv[i + 1:]
     args = _parser().parse_args(argv)
+    args.snakemake_args = passthrough
     try:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, KeyError) as exc:
