@@ -92,3 +92,19 @@ def test_model_of_bound_contract_and_plain_yaml():
     assert yaml.safe_load(text)["gyroscope_random_walk"] == pytest.approx(math.sqrt(2e-10 / 100.0), rel=1e-6)
     with pytest.raises(ValueError, match="'bound'"):
         model_of_bound({})
+
+
+def test_rostopic_from_the_dataset_sheet():
+    from imupipe.kalibr import rostopic_of
+
+    assert rostopic_of({"a": "/imu/data", "b": None, "c": ""}) == "/imu/data"
+    assert rostopic_of({"a": None, "b": float("nan")}) == "/imu0"
+    with pytest.raises(ValueError, match=r"different topics \(a: /imu/data, b: /imu1\)"):
+        rostopic_of({"a": "/imu/data", "b": "/imu1"})
+
+
+def test_read_kalibr_names_a_missing_field(tmp_path):
+    path = tmp_path / "imu.yaml"
+    path.write_text("gyroscope_noise_density: 1e-4\n")
+    with pytest.raises(ValueError, match=r"imu.yaml: Kalibr field 'accelerometer_noise_density' \(m/s\^2/sqrt\(Hz\)\)"):
+        read_kalibr(path)

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 from imupipe.models import NoiseModel
 
-__all__ = ["KALIBR_UNITS", "KalibrIMU", "imu_rate", "kalibr_imu", "kalibr_text", "read_kalibr",
-           "write_kalibr", "model_of_bound"]
+__all__ = ["KALIBR_UNITS", "KalibrIMU", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound", "read_kalibr",
+           "rostopic_of", "write_kalibr"]
 
 #: Unit of every Kalibr field (SI, continuous time).
 KALIBR_UNITS = {
@@ -149,6 +149,32 @@ def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:
         raise ValueError(f"update_rate: the datasets differ in sample rate ({listing}); Kalibr's update_rate is "
                          "the IMU's one sample rate: export one Kalibr file per rate")
     return first
+
+
+def rostopic_of(topics: Mapping[str, str | None], default: str = "/imu0") -> str:
+    """The one ``sensor_msgs/Imu`` topic of a run's datasets (the dataset sheet's ``topic`` column).
+
+    Parameters
+    ----------
+    topics : mapping of str to str or None
+        Dataset name -> topic cell (None or empty for files that are not bags).
+    default : str, optional
+        Returned when no dataset names a topic (default ``"/imu0"``, Kalibr's example).
+
+    Raises
+    ------
+    ValueError
+        When the datasets name different topics (one Kalibr file describes one IMU topic).
+    """
+    named = {k: str(v).strip() for k, v in topics.items() if v is not None and str(v).strip()
+             and str(v).strip().lower() != "nan"}
+    if not named:
+        return default
+    distinct = sorted(set(named.values()))
+    if len(distinct) > 1:
+        listing = ", ".join(f"{k}: {v}" for k, v in named.items())
+        raise ValueError(f"rostopic: the datasets name different topics ({listing}); a Kalibr imu.yaml names one")
+    return distinct[0]
 
 
 def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", identified_gyro=None,
