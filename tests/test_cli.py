@@ -134,3 +134,18 @@ def test_run_options_after_the_config_are_imupipes_and_after_dashes_snakemakes(m
     assert cmd[cmd.index("--directory") + 1] == str(tmp_path.resolve())
     assert "--keep-going" in cmd and cmd[cmd.index("--quiet") + 1] == "rules"
     assert calls[1] == ("summary", tmp_path.resolve() / "results")
+
+
+def test_summary_command_writes_markdown_and_html(tmp_path, capsys):
+    from imupipe.io import write_yaml_atomic
+
+    res = tmp_path / "results"
+    write_yaml_atomic({"sensor": "accel", "bounded": False, "margin": 0.5, "margin_curve": "d/x",
+                       "margin_frequency_hz": 0.1}, res / "bound" / "spec1" / "accel.yaml")
+    md, page = tmp_path / "s.md", tmp_path / "s.html"
+    assert main(["summary", str(res), "--markdown", str(md), "--html", str(page)]) == 0
+    out = capsys.readouterr().out
+    assert "## accel: NOT BOUNDED" in out and md.read_text().rstrip() == out.rstrip()
+    assert "<h2>accel: NOT BOUNDED</h2>" in page.read_text()
+    assert main(["summary", str(tmp_path / "none")]) == 1
+    assert "no such results folder" in capsys.readouterr().err

@@ -109,3 +109,25 @@ def test_summarise_run_finds_the_files_of_a_results_folder(tmp_path):
     assert text.startswith("# imupipe run summary: stim300")
     assert "FLAG stationarity [sim2/gyro/z]" in text and "states kept: white, gauss_markov" in text
     assert summarise_run(tmp_path / "empty") == ""
+
+
+def test_markdown_to_html_renders_the_summary_and_the_inflation_table():
+    import re
+
+    from imupipe.summary import markdown_to_html
+
+    bound = _bound(bounded=False, margin=0.9)
+    page = markdown_to_html(render_summary({"gyro": {"bound": bound, "identify": IDENTIFY,
+                                                     "stationarity": STATIONARITY}}))
+    assert page.startswith("<!DOCTYPE html>")
+    assert "<h2>gyro: NOT BOUNDED</h2>" in page
+    # the inflation table as an HTML table: header + 4 rows (N, K, GM sigma, GM T)
+    (table,) = re.findall(r"<table>.*?</table>", page)
+    assert table.count("<tr>") == 5 and "<th>bound/spec</th>" in table
+    assert "<td>deg/sqrt(h)</td><td>0.15</td><td>0.41</td><td>2.73</td>" in table
+    assert '<li class="fail">FAIL bound [sim1/y at 0.0123 Hz]' in page
+    assert '<li class="flag">FLAG stationarity [sim2/gyro/z]' in page
+    assert "<strong>Verdict:</strong>" in page
+    # nested reasons list, and text is escaped
+    assert "<ul><li>white (kept): significant</li>" in page
+    assert "<li>random_walk (dropped): contributes &lt; 5 % in the application band</li></ul></ul>" in page

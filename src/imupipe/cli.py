@@ -6,12 +6,14 @@
     imupipe allan FILE [--format F] [--rate-hz R] [--sensor S] [--units U] [--channel K=COL ...]
                        [--time-column C] [--time-unit U] [--variable V] [--topic T] [--plot OUT] [--si]
     imupipe check CONFIG [--directory D] [--no-dry-run]
+    imupipe summary [RESULTS] [--markdown OUT] [--html OUT] [--quiet]
 
 ``run`` runs the Snakemake workflow of this checkout through the snakemake command line; ``allan`` prints
 the Allan deviation of every channel of one file, read with :func:`imupipe.readers.read_dataset` (and
 writes a figure with ``--plot``, format from the file name: .png, .svg, .pdf); ``check`` validates a
 config, its dataset sheet and its spec sheets without running anything (and, unless ``--no-dry-run``,
-asks Snakemake for a dry run of the DAG).
+asks Snakemake for a dry run of the DAG); ``summary`` prints (and writes) the run summary of a finished run
+(:mod:`imupipe.summary`).
 
 Exit status: 0 on success, 1 on an input error (one line ``imupipe: error: ...`` on stderr), the
 snakemake status for ``run``.
@@ -243,6 +245,25 @@ def _cmd_check(args) -> int:
     return 0
 
 
+def _cmd_summary(args) -> int:
+    from imupipe.io import write_text_atomic
+    from imupipe.summary import markdown_to_html, summarise_run
+
+    results = Path(args.results)
+    if not results.is_dir():
+        raise ValueError(f"{results}: no such results folder")
+    text = summarise_run(results)
+    if not text:
+        raise ValueError(f"{results}: no bound contract (bound/<spec>/<sensor>.yaml) found: has the run finished?")
+    if args.markdown:
+        write_text_atomic(text, args.markdown)
+    if args.html:
+        write_text_atomic(markdown_to_html(text, title="imupipe run summary"), args.html)
+    if not args.quiet:
+        print(text.rstrip())
+    return 0
+
+
 def _cmd_run(args) -> int:
     config = Path(args.config).resolve()
     if not config.is_file():
@@ -308,6 +329,13 @@ def _parser() -> argparse.ArgumentParser:
     a.add_argument("--plot", help="write a figure (format from the suffix: .png, .svg, .pdf)")
     a.add_argument("--si", action="store_true", help="figure axes in SI instead of spec-sheet units")
     a.set_defaults(func=_cmd_allan)
+
+    m = sub.add_parser("summary", help="the run summary of a finished run (verdicts, inflation, flagged checks)")
+    m.add_argument("results", nargs="?", default="results", help="results folder (default: results)")
+    m.add_argument("--markdown", help="also write it to this file (markdown / plain text)")
+    m.add_argument("--html", help="also write it as an HTML page (tables rendered)")
+    m.add_argument("--quiet", action="store_true", help="do not print it")
+    m.set_defaults(func=_cmd_summary)
 
     c = sub.add_parser("check", help="validate a config, its dataset sheet and spec sheets without running")
     c.add_argument("config")
