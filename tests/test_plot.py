@@ -391,3 +391,118 @@ def test_envelope_has_one_column_per_pixel_of_its_axes():
 
     _draw_samples(panel, f, np.random.default_rng(1).chisquare(2, (1, f.size)), None, "PSDs")
     assert panel.get_lines()[0].get_xdata().size <= 4 * quarter
+
+
+# ---------------------------------------------------------------------------------------------
+# Allan deviation with slope lines and N / B / K read-offs; spec-sheet units; envelope; SVG / PDF
+# ---------------------------------------------------------------------------------------------
+N_WR, K_WR = 1.0e-4, 1.0e-7  # rad/s/sqrt(Hz), rad/s/sqrt(s)
+TAU_WR = np.geomspace(1e-2, 1e6, 8 * 200 + 1)  # 200 taus per decade
+
+
+def _white_rw_avar(tau):
+    return N_WR**2 / tau + K_WR**2 * tau / 3.0
+
+
+def test_allan_readoffs_equal_the_closed_forms():
+    from imupipe.plot import allan_readoffs
+
+    ro = allan_readoffs(TAU_WR, _white_rw_avar(TAU_WR))
+    # N read on the -1/2 line at the smallest tau: N sqrt(1 + K^2 tau^2 / (3 N^2)), relative excess 2e-11
+    assert ro["white"] == pytest.approx(N_WR, rel=1e-9)
+    # K on the +1/2 line at the largest tau: K sqrt(1 + 3 N^2 / (K^2 tau^2)), relative excess 1.5e-6
+    assert ro["random_walk"] == pytest.approx(K_WR, rel=1e-5)
+    # minimum of N^2/tau + K^2 tau/3 at tau* = sqrt(3) N / K: ADEV_min = sqrt(2 N K / sqrt(3)); the grid's
+    # nearest tau is within half a step (ln ratio 0.0058) -> relative error <= (0.0058)^2 / 4 ~ 1e-5
+    adev_min = math.sqrt(2 * N_WR * K_WR / math.sqrt(3.0))
+    assert ro["adev_min"] == pytest.approx(adev_min, rel=2e-5)
+    assert ro["flicker"] == pytest.approx(adev_min / math.sqrt(2 * math.log(2) / math.pi), rel=2e-5)
+    assert ro["tau_min"] == pytest.approx(math.sqrt(3.0) * N_WR / K_WR, rel=0.012)
+
+
+@pytest.mark.parametrize("display, rate_unit, n_text, factor", [
+    ("spec", "deg/h", "deg/sqrt(h)", math.degrees(1.0) * 3600.0),
+    ("SI", "rad/s", "rad/s/sqrt(Hz)", 1.0),
+])
+def test_allan_deviation_figure_units_marks_and_legend(display, rate_unit, n_text, factor):
+    from imupipe.plot import plot_allan_deviation
+
+    avar = np.vstack([_white_rw_avar(TAU_WR) * s for s in np.linspace(0.9, 1.1, 15)])  # 15 curves
+    fig = plot_allan_deviation(TAU_WR, avar, sensor="gyro", display_unit=display,
+                               labels=[f"c{i}" for i in range(15)])
+    ax = fig.axes[0]
+    assert f"[{rate_unit}]" in ax.get_ylabel() and "[s]" in ax.get_xlabel()
+    legend = _legend(ax)
+    assert len(legend) <= 7  # 15 curves under one entry + 3 lines
+    # markers at tau = 1 s (N), the minimum (0.664 B) and tau = 3 s (K), in the display unit
+    ro = fig.readoffs["si"]
+    np.testing.assert_allclose(_by_gid(ax, "readoff:N").get_xdata(), [1.0])
+    np.testing.assert_allclose(_by_gid(ax, "readoff:N").get_ydata(), [ro["white"] * factor], rtol=1e-12)
+    np.testing.assert_allclose(_by_gid(ax, "readoff:K").get_xdata(), [3.0])
+    np.testing.assert_allclose(_by_gid(ax, "readoff:K").get_ydata(), [ro["random_walk"] * factor], rtol=1e-12)
+    np.testing.assert_allclose(_by_gid(ax, "readoff:B").get_ydata(), [ro["adev_min"] * factor], rtol=1e-12)
+    # the median of the 15 scaled curves is the unscaled one: N as in the closed form
+    assert ro["white"] == pytest.approx(N_WR, rel=1e-9)
+    # slope lines have the slopes -1/2, 0, +1/2 (log-log)
+    for gid, slope in (("slope:-1/2", -0.5), ("slope:0", 0.0), ("slope:+1/2", 0.5)):
+        ln = _by_gid(ax, gid)
+        x, y = np.log(ln.get_xdata()), np.log(ln.get_ydata())
+        assert (y[-1] - y[0]) / (x[-1] - x[0]) == pytest.approx(slope, abs=1e-12)
+    n_entry = next(t for t in legend if t.startswith("−1/2 line"))
+    assert n_text in n_entry
+    if display == "spec":  # N = 1e-4 rad/s/sqrt(Hz) = 1e-4 * 180/pi * 60 deg/sqrt(h) = 0.344
+        assert "N = 0.344 deg/sqrt(h)" in n_entry
+
+
+def test_allan_deviation_accel_in_ug():
+    from imupipe.plot import plot_allan_deviation
+
+    fig = plot_allan_deviation(TAU_WR, _white_rw_avar(TAU_WR), sensor="accel")
+    ax = fig.axes[0]
+    assert "[ug]" in ax.get_ylabel()
+    # 1 m/s^2 = 1e6 / 9.80665 ug
+    np.testing.assert_allclose(_by_gid(ax, "readoff:N").get_ydata(), [N_WR * 1e6 / 9.80665], rtol=1e-9)
+
+
+def test_psd_envelope_covers_every_sample_with_two_legend_entries(psd_case):
+    f, curves = psd_case
+    fig = plot_psd_bound(f, curves, SPEC, BOUND, sensor="gyro", dt=DT, samples="envelope", display_unit="spec")
+    ax = fig.axes[0]
+    legend = _legend(ax)
+    assert legend[:2] == [f"sample PSDs: min-max of {N_CURVES} curves", "sample PSDs: median (smoothed)"]
+    assert len(legend) <= 7
+    assert "(deg/h)^2/Hz" in ax.get_ylabel()
+    (band,) = [c for c in ax.collections if c.get_gid() == "samples:envelope"]
+    verts = np.vstack([p.vertices for p in band.get_paths()])
+    scale = (math.degrees(1.0) * 3600.0) ** 2
+    # the band reaches exactly the highest and lowest sample values (f > 0): no extreme hidden
+    np.testing.assert_allclose(verts[:, 1].max(), curves[:, 1:].max() * scale, rtol=1e-12)
+    np.testing.assert_allclose(verts[:, 1].min(), curves[:, 1:].min() * scale, rtol=1e-12)
+    med = _by_gid(ax, "samples:median").get_ydata()
+    assert med.size < f.size  # smoothed in log bins
+    assert np.all(med <= verts[:, 1].max()) and np.all(med >= verts[:, 1].min())
+    with pytest.raises(ValueError, match="samples"):
+        plot_psd_bound(f, curves, SPEC, BOUND, sensor="gyro", samples="blob")
+
+
+@pytest.mark.parametrize("suffix, magic", [(".svg", b"<svg"), (".pdf", b"%PDF")])
+def test_svg_and_pdf_written_on_request(tmp_path, suffix, magic):
+    from imupipe.plot import plot_allan_deviation
+
+    path = tmp_path / f"adev{suffix}"
+    save_figure(plot_allan_deviation(TAU_WR, _white_rw_avar(TAU_WR), sensor="gyro"), path)
+    data = path.read_bytes()
+    assert magic in data[:400]
+
+
+@pytest.mark.parametrize("sensor, unit, factor", [("gyro", "deg/h", math.degrees(1.0) * 3600.0),
+                                                  ("accel", "ug", 1e6 / 9.80665)])
+def test_allan_components_in_user_units(allan_case, sensor, unit, factor):
+    tau, avar, identified = allan_case
+    display = "spec" if sensor == "gyro" else "ug"
+    fig = plot_allan_components(tau, avar, identified, BOUND, sensor=sensor, display_unit=display)
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == f"Allan deviation [{unit}]"
+    np.testing.assert_allclose(_by_gid(ax, "identified").get_ydata(), np.sqrt(identified.avar(tau)) * factor,
+                               rtol=1e-12)
+    np.testing.assert_allclose(_by_gid(ax, "sample:2").get_ydata(), np.sqrt(avar[2]) * factor, rtol=1e-12)

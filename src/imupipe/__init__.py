@@ -6,11 +6,14 @@ Public API (imported lazily so that workflow jobs pay only for what they use)::
     imupipe.psd(x, rate, ...)                                           # xarray.Dataset, two-sided
     imupipe.NoiseModel(white=N, gauss_markov=[(sigma, T)], random_walk=K, ...)
     imupipe.units                                                       # spec-sheet units <-> SI
+    imupipe.noise_model(curves, rate_hz, sensor, spec)                  # identification + bound + KF, one call
+
+Command line: ``imupipe run|allan|check`` (:mod:`imupipe.cli`), also ``python -m imupipe``.
 """
 
 from importlib import import_module
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 _LAZY = {
     "allan_variance": ("imupipe.allan", "allan_variance"),
@@ -19,12 +22,16 @@ _LAZY = {
     "NoiseModel": ("imupipe.models", "NoiseModel"),
     "simulate": ("imupipe.simulate", "simulate"),
     "units": ("imupipe.units", None),
+    "noise_model": ("imupipe.api", "noise_model"),
+    "NoiseModelResult": ("imupipe.api", "NoiseModelResult"),
+    "render_summary": ("imupipe.summary", "render_summary"),
+    "kalibr_imu": ("imupipe.kalibr", "kalibr_imu"),
 }
 
 __all__ = sorted(_LAZY)
 
 
-def __getattr__(name):
+def __getattr__(name: str):
     try:
         module_name, attribute = _LAZY[name]
     except KeyError:
@@ -35,5 +42,5 @@ def __getattr__(name):
     return value
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(list(globals()) + __all__)

@@ -35,11 +35,20 @@ import os
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from imupipe.models import NoiseModel
+
 __all__ = [
     "PSD_UNITS",
+    "READOFF_UNITS",
+    "allan_readoffs",
+    "plot_allan_deviation",
     "RATE_UNITS",
     "plot_allan_components",
     "plot_inflation_effect",
@@ -281,6 +290,44 @@ def _draw_samples(ax, x, arr, labels, what, lw=0.6):
         ax.plot(x[keep], y[keep], lw=lw, zorder=1, gid=f"sample:{i}", label=lab, **style)
 
 
+#: Log-frequency bins per decade of the sample envelope and smoothed median (:func:`_draw_envelope`).
+_ENVELOPE_BINS_PER_DECADE = 40
+
+
+def _log_bins(x, per_decade):
+    """(start index of each bin, counts) of sorted x > 0 cut into bins of 1/per_decade decade."""
+    b = np.floor(np.log10(x) * per_decade).astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]])
+    return starts, np.diff(np.r_[starts, x.size])
+
+
+def _draw_envelope(ax, x, arr, what, per_decade=_ENVELOPE_BINS_PER_DECADE):
+    """Shaded min-max band over the curves and their median, both per log-x bin (two legend entries).
+
+    In each bin of 1/per_decade decade: the band spans the lowest and the highest value of any curve (the
+    extremes the bound must lie above are all inside the band), the line is the mean over the bin of the
+    per-frequency median over curves (a smoothed "typical" curve). Bins holding one point keep it as is.
+    Returns (x_bin, low, high, median).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    a = np.asarray(arr, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        lo = np.nanmin(a, axis=0)
+        hi = np.nanmax(a, axis=0)
+        med = np.nanmedian(a, axis=0)
+    ok = np.isfinite(lo) & np.isfinite(hi) & (x > 0)
+    x, lo, hi, med = x[ok], lo[ok], hi[ok], med[ok]
+    starts, counts = _log_bins(x, per_decade)
+    xb = np.exp(np.add.reduceat(np.log(x), starts) / counts)
+    lob = np.minimum.reduceat(lo, starts)
+    hib = np.maximum.reduceat(hi, starts)
+    medb = np.add.reduceat(med, starts) / counts
+    ax.fill_between(xb, lob, hib, color=_SAMPLE_COLOUR, alpha=0.45, lw=0, zorder=1, gid="samples:envelope",
+                    label=f"sample {what}: min-max of {a.shape[0]} curves")
+    ax.plot(xb, medb, color="0.25", lw=1.0, zorder=2, gid="samples:median", label=f"sample {what}: median (smoothed)")
+    return xb, lob, hib, medb
+
+
 def _resolve_labels(labels, auto):
     if labels is True:
         return auto
@@ -325,7 +372,7 @@ def _fmt(x):
 # Figure 5
 # ---------------------------------------------------------------------------------------------
 def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=None, labels=None, title=None,
-                   display_unit=None):
+                   display_unit=None, samples="lines") -> "Figure":
     r"""Sample PSDs of one sensor type with the spec-sheet PSD and the bounding model (paper Figure 5).
 
     Parameters
@@ -355,6 +402,12 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
         None (default): SI, y label ``two-sided PSD [(rad/s)^2/Hz]`` or ``[(m/s^2)^2/Hz]``.
         ``"spec"``: (deg/h)^2/Hz for a gyro, (mg)^2/Hz for an accelerometer. Any other string is
         taken as a rate unit (``"deg/s"``, ``"ug"``) and the PSD is shown in (unit)^2/Hz.
+    samples : {"lines", "envelope"}, optional
+        ``"lines"`` (default): every sample curve drawn. ``"envelope"``: the min-max envelope over the
+        curves as one shaded band (gid ``samples:envelope``; per log-frequency bin of 1/40 decade the
+        lowest and highest value of any curve, so no extreme is hidden) and the median over the curves,
+        averaged in the same bins, as one line (gid ``samples:median``); `labels` is then ignored. Two
+        legend entries whatever the number of curves.
 
     Returns
     -------
@@ -368,7 +421,12 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
 
     fig, axes = _new_figure()
     ax = axes[0, 0]
-    _draw_samples(ax, f, arr * scale if scale != 1.0 else arr, _resolve_labels(labels, auto), "PSDs")
+    if samples == "envelope":
+        _draw_envelope(ax, f, arr * scale if scale != 1.0 else arr, "PSDs")
+    elif samples == "lines":
+        _draw_samples(ax, f, arr * scale if scale != 1.0 else arr, _resolve_labels(labels, auto), "PSDs")
+    else:
+        raise ValueError(f"samples: expected 'lines' or 'envelope', got {samples!r}")
 
     def y(model):
         s = _model_psd(model, f, dt)
@@ -398,7 +456,7 @@ def plot_psd_bound(frequency, curves, spec_model, bound_model, *, sensor, dt=Non
 # Figure 6
 # ---------------------------------------------------------------------------------------------
 def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, avar_lower=None, avar_upper=None,
-                          labels=None, title=None, dropped=()):
+                          labels=None, title=None, dropped=(), display_unit=None) -> "Figure":
     r"""Sample Allan deviations with the identified model's and the bound's components (paper Figure 6).
 
     Each component (white, Gauss-Markov, random walk, flicker, quantization, ramp) has one colour:
@@ -429,6 +487,9 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         Components of `identified_model` that model selection left out of the error model
         (``selection.dropped`` of ``results/identify/{sensor}.yaml``): drawn dotted and thin, labelled
         "(dropped)", so that the figure does not suggest a state the filter does not carry.
+    display_unit : None, "spec" or str, optional
+        None (default): SI (rad/s, m/s^2). ``"spec"``: deg/h (gyro) or mg (accel). Any other string is
+        taken as a rate unit (``"deg/s"``, ``"ug"``).
 
     Returns
     -------
@@ -446,7 +507,13 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         raise ValueError("tau must be > 0 s")
     arr, auto = _as_curves(avar, tau.size, "tau")
     bound, mode = _unwrap_bound(bound_model)
-    unit = RATE_UNITS[sensor]
+    scale2, psd_unit = _psd_scale(display_unit, sensor)  # (display/SI)^2 and "(unit)^2/Hz"
+    unit = RATE_UNITS[sensor] if scale2 == 1.0 and display_unit in (None, "SI", "si") else psd_unit[1:-len(")^2/Hz")]
+    c = math.sqrt(scale2)
+
+    def sq(v):
+        v = np.sqrt(v)
+        return v * c if c != 1.0 else v
 
     fig, axes = _new_figure()
     ax = axes[0, 0]
@@ -456,10 +523,10 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         if lo.shape != arr.shape or hi.shape != arr.shape:
             raise ValueError("avar_lower and avar_upper must have the shape of avar")
         for i in range(arr.shape[0]):
-            ax.fill_between(tau, np.sqrt(np.clip(lo[i], 0, None)), np.sqrt(np.clip(hi[i], 0, None)),
+            ax.fill_between(tau, sq(np.clip(lo[i], 0, None)), sq(np.clip(hi[i], 0, None)),
                             color=_SAMPLE_COLOUR, alpha=0.15, lw=0, zorder=0, gid=f"band:{i}",
                             label="confidence interval" if i == 0 else "_nolegend_")
-    _draw_samples(ax, tau, np.sqrt(np.clip(arr, 0, None)), _resolve_labels(labels, auto), "ADEVs", lw=0.8)
+    _draw_samples(ax, tau, sq(np.clip(arr, 0, None)), _resolve_labels(labels, auto), "ADEVs", lw=0.8)
 
     for model, who, ls in ((identified_model, "identified", "-"), (bound, "bound", "--")):
         if model is None:
@@ -467,12 +534,12 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
         for name, comp in model.components().items():
             disp, colour = _component_style(name)
             if who == "identified" and ("gauss_markov" if name.startswith("gauss_markov") else name) in dropped:
-                ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.0, ls=":", alpha=0.8, zorder=3,
+                ax.plot(tau, sq(comp.avar(tau)), color=colour, lw=1.0, ls=":", alpha=0.8, zorder=3,
                         gid=f"{who}:{name}", label=f"{who}: {disp} (dropped)")
                 continue
-            ax.plot(tau, np.sqrt(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
+            ax.plot(tau, sq(comp.avar(tau)), color=colour, lw=1.5, ls=ls, zorder=3, gid=f"{who}:{name}",
                     label=f"{who}: {disp}")
-        ax.plot(tau, np.sqrt(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,
+        ax.plot(tau, sq(model.avar(tau)), color="k", lw=2.0, ls=ls, zorder=4, gid=who,
                 label=f"{who}: total")
     if title is None:
         title = f"{sensor}: Allan deviation, identified and bound components" + (f" (mode {mode})" if mode else "")
@@ -485,12 +552,12 @@ def plot_allan_components(tau, avar, identified_model, bound_model, *, sensor, a
 # ---------------------------------------------------------------------------------------------
 # Figure 7
 # ---------------------------------------------------------------------------------------------
-def table3_model(dt: float = 1.0):
+def table3_model(dt: float = 1.0) -> "NoiseModel":
     r"""The paper's Appendix Table 3 example accelerometer model, SI.
 
     sigma_bs = 1e-2 g = 9.80665e-2 m/s^2, T = 1e3 s, velocity random walk 0.1 m/s/sqrt(h)
     (N = 0.1/60 m/s^2/sqrt(Hz)), K = 1e-4 m/s^2/sqrt(s) (the unit of K the paper's values imply,
-    method.md 2.4), sample interval `dt` (1 s in the paper).
+    docs/method.md, section "Slip: units of K"), sample interval `dt` (1 s in the paper).
     """
     from imupipe.models import NoiseModel
 
@@ -501,7 +568,8 @@ def _factor_text(k):
     return f"{k:g}"
 
 
-def plot_inflation_effect(base_model=None, *, duration_s=36000.0, dt=1.0, factors=(1, 2, 5, 10), sensor="accel"):
+def plot_inflation_effect(base_model=None, *, duration_s: float = 36000.0, dt: float = 1.0, factors=(1, 2, 5, 10),
+                          sensor: str = "accel") -> "Figure":
     r"""Effect on the model PSD of inflating one parameter at a time (paper Figure 7, Appendix A.1).
 
     A 2x2 grid in the paper's order: (a) white noise N, (b) random walk K, (c) Gauss-Markov sigma,
@@ -636,7 +704,8 @@ def _spread(ends, m):
     return sorted(chosen)
 
 
-def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=None, title=None, max_phases=6):
+def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str, dt: float | None = None,
+                         title: str | None = None, max_phases: int = 6) -> "Figure":
     r"""The paper's hand inflation, step by step (paper Figure 8, Appendix A.2).
 
     Draws the sample PSDs (grey), the spec-sheet PSD (red) and the model PSD at the end of each
@@ -730,9 +799,149 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor, dt=N
 
 
 # ---------------------------------------------------------------------------------------------
+# Allan deviation with slope lines and read-offs
+# ---------------------------------------------------------------------------------------------
+#: Display units of the read-offs: (rate unit of the ADEV axis, N unit, B unit, K unit) per sensor.
+READOFF_UNITS = {
+    "spec": {"gyro": ("deg/h", "deg/sqrt(h)", "deg/h", "(deg/h)/sqrt(s)"),
+             "accel": ("ug", "m/s/sqrt(h)", "ug", "m/s^2/sqrt(s)")},
+    "SI": {"gyro": ("rad/s", "rad/s/sqrt(Hz)", "rad/s", "rad/s/sqrt(s)"),
+           "accel": ("m/s^2", "m/s^2/sqrt(Hz)", "m/s^2", "m/s^2/sqrt(s)")},
+}
+
+
+def allan_readoffs(tau, avar) -> dict:
+    r"""N, B and K read off an Allan deviation by the slope lines (IEEE Std 952 Annex C), SI.
+
+    On the median over curves of the ADEV :math:`\sigma(\tau) = \sqrt{AVAR}` (u):
+    the :math:`-1/2` line :math:`\sigma = N/\sqrt{\tau}` read at :math:`\tau = 1` s gives N (u/sqrt(Hz));
+    the flat line at the minimum gives :math:`B = \min\sigma/0.664` (u, flicker constant
+    :math:`\sqrt{2\ln 2/\pi}`); the :math:`+1/2` line :math:`\sigma = K\sqrt{\tau/3}` read at
+    :math:`\tau = 3` s gives K (u/sqrt(s)). The lines go through the points whose local slope is closest to
+    -1/2 and +1/2 (:func:`imupipe.identify.slope_line`); a value is None when no part of the curve has that
+    slope (within 0.25).
+
+    Parameters
+    ----------
+    tau : array_like
+        Averaging times, s.
+    avar : array_like
+        Allan variance(s), u^2, shape (n_tau,) or (n_curves, n_tau).
+
+    Returns
+    -------
+    dict
+        ``white`` (N), ``flicker`` (B), ``random_walk`` (K), ``adev_min`` (u), ``tau_min`` (s), ``tau`` and
+        ``adev`` (the median curve read, u).
+    """
+    from imupipe.identify import slope_line
+
+    t = np.asarray(tau, dtype=np.float64)
+    a = np.atleast_2d(np.asarray(avar, dtype=np.float64))
+    with np.errstate(all="ignore"):
+        adev = np.sqrt(np.nanmedian(np.clip(a, 0, None), axis=0))
+    ok = np.isfinite(adev) & (adev > 0) & (t > 0)
+    sl = slope_line(t[ok], adev[ok])
+    return {"white": sl["white"], "flicker": sl["flicker"], "random_walk": sl["random_walk"],
+            "adev_min": sl["adev_min"], "tau_min": sl["tau_min"], "tau": t[ok], "adev": adev[ok]}
+
+
+def plot_allan_deviation(tau, avar, *, sensor: str, labels=None, display_unit: str = "spec", title: str | None = None,
+                         max_labelled: int = 3) -> "Figure":
+    r"""Allan deviations with the -1/2, 0 and +1/2 slope lines and the N, B, K read-offs marked.
+
+    Read-offs (:func:`allan_readoffs`, on the median curve): N where the -1/2 line crosses
+    :math:`\tau = 1` s, B at the minimum (:math:`\sigma_{min} = 0.664 B`, the 0 line), K where the +1/2 line
+    crosses :math:`\tau = 3` s; each line and its marker share one legend entry giving the value in the
+    display units. At most `max_labelled` curves get a legend entry of their own (more are drawn grey under
+    one entry): at most 1 + 3 + `max_labelled` entries.
+
+    Parameters
+    ----------
+    tau : array_like
+        Averaging times, s, shape (n_tau,).
+    avar : array_like
+        Allan variances, u^2 (SI: rad^2/s^2 or m^2/s^4), shape (n_curves, n_tau) or (n_tau,).
+    sensor : {"gyro", "accel"}
+    labels : sequence of str, optional
+        One per curve.
+    display_unit : {"spec", "SI"}, optional
+        ``"spec"`` (default): ADEV in deg/h (gyro) or ug (accel), N in deg/sqrt(h) or m/s/sqrt(h), B in
+        deg/h or ug, K in (deg/h)/sqrt(s) or m/s^2/sqrt(s). ``"SI"``: rad/s or m/s^2 and SI read-offs.
+    title : str, optional
+    max_labelled : int, optional
+        Default 3.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One log-log axes. Gids: ``sample:i``, ``slope:-1/2``, ``slope:0``, ``slope:+1/2``, ``readoff:N``
+        (point (1 s, N)), ``readoff:B`` (point (tau_min, 0.664 B)), ``readoff:K`` (point (3 s, K)), all in
+        the display rate unit. ``fig.readoffs`` holds the SI values and the displayed ones.
+    """
+    from imupipe.units import from_si
+
+    sensor = _check_sensor(sensor)
+    if display_unit not in READOFF_UNITS:
+        raise ValueError(f"display_unit: expected 'spec' or 'SI', got {display_unit!r}")
+    t = np.asarray(tau, dtype=np.float64)
+    a = np.atleast_2d(np.asarray(avar, dtype=np.float64))
+    if a.shape[-1] != t.size:
+        raise ValueError(f"avar has {a.shape[-1]} taus, tau {t.size}")
+    rate_u, n_u, b_u, k_u = READOFF_UNITS[display_unit][sensor]
+    c = float(from_si(1.0, rate_u, "rate", sensor, key="display_unit"))  # display rate per SI rate
+    ro = allan_readoffs(t, a)
+
+    fig, axes = _new_figure()
+    ax = axes[0, 0]
+    adev = np.sqrt(np.clip(a, 0, None)) * c
+    lab = list(labels) if labels is not None else None
+    if lab is not None and len(lab) != a.shape[0]:
+        raise ValueError(f"{len(lab)} labels for {a.shape[0]} curves")
+    for i, y in enumerate(adev):
+        if lab is not None and a.shape[0] <= max_labelled:
+            ax.plot(t, y, lw=1.0, alpha=0.9, zorder=2, gid=f"sample:{i}", label=lab[i])
+        else:
+            ax.plot(t, y, lw=0.8, color=_SAMPLE_COLOUR, alpha=0.8, zorder=1, gid=f"sample:{i}",
+                    label=f"sample ADEVs ({a.shape[0]} curves)" if i == 0 else "_nolegend_")
+    tt = np.geomspace(t[np.isfinite(t) & (t > 0)].min(), t[np.isfinite(t) & (t > 0)].max(), 64)
+    shown = {}
+    if ro["white"] is not None:
+        n_disp = float(from_si(ro["white"], n_u, "white", sensor, key="N"))
+        shown["N"] = (n_disp, n_u)
+        ax.plot(tt, ro["white"] * c / np.sqrt(tt), color="C0", lw=1.0, ls="--", zorder=3, gid="slope:-1/2",
+                label=f"−1/2 line: N = {_fmt(n_disp)} {n_u} (τ = 1 s)")
+        ax.plot([1.0], [ro["white"] * c], "o", color="C0", ms=6, zorder=5, gid="readoff:N", label="_nolegend_")
+    b_disp = float(from_si(ro["flicker"], b_u, "rate", sensor, key="B"))
+    shown["B"] = (b_disp, b_u)
+    ax.plot(tt, np.full(tt.size, ro["adev_min"] * c), color="C3", lw=1.0, ls="--", zorder=3, gid="slope:0",
+            label=f"0 line: B = min/0.664 = {_fmt(b_disp)} {b_u}")
+    ax.plot([ro["tau_min"]], [ro["adev_min"] * c], "s", color="C3", ms=6, zorder=5, gid="readoff:B",
+            label="_nolegend_")
+    if ro["random_walk"] is not None:
+        k_disp = float(from_si(ro["random_walk"], k_u, "random_walk", sensor, key="K"))
+        shown["K"] = (k_disp, k_u)
+        ax.plot(tt, ro["random_walk"] * c * np.sqrt(tt / 3.0), color="C2", lw=1.0, ls="--", zorder=3,
+                gid="slope:+1/2", label=f"+1/2 line: K = {_fmt(k_disp)} {k_u} (τ = 3 s)")
+        ax.plot([3.0], [ro["random_walk"] * c], "^", color="C2", ms=6, zorder=5, gid="readoff:K",
+                label="_nolegend_")
+    lo = np.nanmin(adev[adev > 0]) if np.any(adev > 0) else 1.0
+    hi = np.nanmax(adev) if np.any(np.isfinite(adev)) else 1.0
+    ax.set_ylim(lo / 3.0, hi * 3.0)
+    if title is None:
+        title = f"{sensor}: Allan deviation with slope-line read-offs"
+    fig.suptitle(title)
+    _axes_title(ax, "read-offs on the median curve (IEEE Std 952 Annex C)", fontsize="small")
+    _finish_loglog(ax, "averaging time τ [s]", f"Allan deviation [{rate_u}]")
+    fig.readoffs = {"si": {k: ro[k] for k in ("white", "flicker", "random_walk", "adev_min", "tau_min")},
+                    "display": shown, "rate_unit": rate_u}
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
 # output
 # ---------------------------------------------------------------------------------------------
-def save_figure(fig, path) -> None:
+def save_figure(fig: "Figure", path: str | os.PathLike) -> None:
     """Write `fig` to `path` atomically (temporary file in the same directory, then :func:`os.replace`).
 
     The format comes from the suffix (``.png``, ``.pdf``, ``.svg``, ...), at 150 dpi (PNG: fast

@@ -1,0 +1,5 @@
+import sys
+
+from imupipe.cli import main
+
+sys.exit(main())

@@ -1,0 +1,280 @@
+r"""One call from in-memory records to a bounding noise model: :func:`noise_model`.
+
+The steps are the workflow's, in its order, with its defaults (``config/config.yaml``): per curve (one
+axis of one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block
+average to ``decimate_hz`` and its two-sided Welch PSD; then, over every curve of the sensor type, the pooled
+Allan-variance fit (:func:`imupipe.identify.fit_allan`) and the model selection for the application band
+(:func:`imupipe.identify.select_components`); the global PSD bound against the spec sheet
+(:func:`imupipe.bound.bound_psd`, restricted to the components the selection kept); and the Kalman-filter
+matrices of the bound at the filter step (:func:`imupipe.kf.export_kf`). Stationarity tests, figures and
+tables are left to the workflow.
+
+Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
+
+Example
+-------
+>>> import numpy as np, imupipe.api as api                                      # doctest: +SKIP
+>>> rng = np.random.default_rng(1)
+>>> curves = {"rec1/x": 4.4e-5 * np.sqrt(20.0) * rng.standard_normal(20 * 5400)}  # rad/s at 20 Hz
+>>> res = api.noise_model(curves, rate_hz=20.0, sensor="gyro", spec="config/specs/stim300.yaml",
+...                       window_s=1800.0, step_s=900.0)
+>>> res.bounded, res.bound.model.white
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["NoiseModelResult", "noise_model"]
+
+
+@dataclass
+class NoiseModelResult:
+    """Everything :func:`noise_model` computed for one sensor type (SI throughout).
+
+    Attributes
+    ----------
+    sensor : str
+        ``gyro`` or ``accel``.
+    spec_name : str
+        Name of the spec sheet.
+    bound : imupipe.bound.BoundResult
+        The global bound; ``bound.model`` is the :class:`~imupipe.models.NoiseModel` to use.
+    fit : imupipe.identify.AllanFit
+        Pooled Allan-variance fit; ``fit.model`` is the identified model.
+    selection : dict
+        :func:`imupipe.identify.select_components` result (``kept``, ``dropped``, ``reasons``, ...).
+    kf : dict
+        :func:`imupipe.kf.export_kf` of the bound at ``kf_dt_s`` (F, G, Qc, Phi, Qd, P0, ...).
+    allan : dict
+        Curve label -> ``xarray.Dataset`` of :func:`imupipe.allan_variance` (full rate).
+    spectra : dict
+        Curve label -> ``xarray.Dataset`` of :func:`imupipe.psd` (decimated, two-sided).
+    rate_hz, decimate_hz, kf_dt_s : float
+        Record rate (Hz), decimated rate (Hz), filter step (s).
+    """
+
+    sensor: str
+    spec_name: str
+    bound: Any
+    fit: Any
+    selection: dict
+    kf: dict
+    allan: dict = field(repr=False)
+    spectra: dict = field(repr=False)
+    rate_hz: float = 0.0
+    decimate_hz: float = 1.0
+    kf_dt_s: float = 1.0
+
+    @property
+    def model(self):
+        """The bounding :class:`~imupipe.models.NoiseModel` (SI)."""
+        return self.bound.model
+
+    @property
+    def bounded(self) -> bool:
+        """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``)."""
+        return bool(self.bound.bounded)
+
+    def to_dict(self) -> dict:
+        """Plain, YAML-ready dict: ``bound`` (the bound contract's fields), ``identify`` (fit, model,
+        selection), ``kf``; SI units, PSDs two-sided."""
+        from imupipe.bound import _plain
+
+        sel = {k: self.selection.get(k) for k in ("kept", "dropped", "reasons", "band_hz")}
+        return {
+            "sensor": self.sensor,
+            "spec_name": self.spec_name,
+            "rate_hz": float(self.rate_hz),
+            "decimate_hz": float(self.decimate_hz),
+            "curves": list(self.allan),
+            "bound": self.bound.to_dict(sensor=self.sensor),
+            "identify": {"fit": self.fit.to_dict(), "model": self.fit.model.to_dict(), "selection": _plain(sel)},
+            "kf": _plain(self.kf),
+        }
+
+
+@contextmanager
+def _no_stdout_fd():
+    """Point file descriptor 1 at the null device for the duration (a compiled solver's banner, e.g.
+    HiGHS's on creating its first instance, is written there directly, past ``sys.stdout``)."""
+    import os
+    import sys
+
+    try:
+        fd = sys.__stdout__.fileno() if sys.__stdout__ is not None else 1
+        saved = os.dup(fd)
+    except (OSError, ValueError, AttributeError):  # no real stdout (embedded interpreter): nothing to guard
+        yield
+        return
+    for stream in (sys.stdout, sys.__stdout__):
+        try:
+            stream.flush()
+        except (AttributeError, ValueError, OSError):
+            pass
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, fd)
+        yield
+    finally:
+        try:
+            sys.__stdout__.flush()
+        except (AttributeError, ValueError, OSError):
+            pass
+        os.dup2(saved, fd)
+        os.close(saved)
+        os.close(null)
+
+
+def _spec_of(spec):
+    from imupipe.specsheet import SpecSheet, load_spec
+
+    if isinstance(spec, SpecSheet):
+        return spec
+    if isinstance(spec, (str, Path)):
+        return load_spec(spec)
+    raise TypeError(f"spec: expected a spec-sheet path or an imupipe.specsheet.SpecSheet, got {type(spec).__name__}")
+
+
+def noise_model(
+    curves: Mapping[str, Sequence[float]],
+    rate_hz: float,
+    sensor: str,
+    spec,
+    *,
+    decimate_hz: float = 1.0,
+    window_s: float = 25200.0,
+    step_s: float = 36000.0,
+    taper: str = "hann",
+    detrend: str = "constant",
+    psd_confidence: float = 0.95,
+    taus="octave",
+    allan_confidence: float = 0.683,
+    components: Sequence[str] = ("white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"),
+    n_gm: int = 1,
+    n_boot: int = 0,
+    fit_confidence: float = 0.95,
+    significance: float = 0.05,
+    relevance: float = 0.05,
+    application_rate_hz: float = 1.0,
+    horizon_s: float = 600.0,
+    mode: str = "raw",
+    bound_confidence: float = 0.95,
+    bands_per_decade: int = 10,
+    seed: int = 20211,
+) -> NoiseModelResult:
+    r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
+
+    Parameters
+    ----------
+    curves : mapping of str to array_like
+        Curve label (e.g. ``"lab1/x"``) -> 1-D static record of one axis, in SI (rad/s for a gyro,
+        m/s^2 for an accelerometer; a constant offset such as gravity is harmless), sampled at `rate_hz`.
+    rate_hz : float
+        Sample rate of every record, Hz.
+    sensor : {"gyro", "accel"}
+        Sensor type (selects the spec sheet's section).
+    spec : str, pathlib.Path or imupipe.specsheet.SpecSheet
+        The manufacturer's spec sheet (YAML file or parsed).
+    decimate_hz : float, optional
+        Block-average rate for the PSD, Hz (default 1.0, the paper's).
+    window_s, step_s, taper, detrend, psd_confidence :
+        Welch settings (window and step in s; defaults the paper's 7 h / 10 h, Hann, mean removed, 0.95).
+    taus, allan_confidence :
+        Allan-variance taus (default ``"octave"``) and confidence of its limits (default 0.683).
+    components, n_gm, n_boot, fit_confidence, significance, relevance :
+        :func:`imupipe.identify.fit_allan` and :func:`~imupipe.identify.select_components` settings
+        (defaults ``config/config.yaml``'s; ``n_boot=0`` skips the bootstrap intervals).
+    application_rate_hz : float, optional
+        Filter rate, Hz (default 1.0): the KF step is 1/application_rate_hz, and with `horizon_s` (s,
+        default 600) it sets the band the selection keeps components for.
+    mode, bound_confidence, bands_per_decade :
+        :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
+    seed : int, optional
+        Seed of the fit's bootstrap (default 20211, the workflow's).
+
+    Returns
+    -------
+    NoiseModelResult
+
+    Raises
+    ------
+    ValueError
+        No curves, a curve that is not 1-D or too short for one PSD window, a non-positive rate, an
+        unknown sensor, or a spec sheet without that sensor.
+    """
+    from imupipe.allan import allan_variance
+    from imupipe.bound import bound_psd
+    from imupipe.identify import fit_allan, select_components
+    from imupipe.kf import export_kf
+    from imupipe.models import NoiseModel
+    from imupipe.spectra import decimate, psd
+
+    if sensor not in ("gyro", "accel"):
+        raise ValueError(f"sensor: expected 'gyro' or 'accel', got {sensor!r}")
+    if not (float(rate_hz) > 0):
+        raise ValueError(f"rate_hz: expected a positive sample rate in Hz, got {rate_hz!r}")
+    if not curves:
+        raise ValueError("curves: no record given (expected label -> 1-D array)")
+    spec_sheet = _spec_of(spec)
+    if sensor not in spec_sheet.models:
+        raise ValueError(f"spec {spec_sheet.name!r}: no '{sensor}' section")
+    rate = float(rate_hz)
+    units = "rad/s" if sensor == "gyro" else "m/s^2"
+
+    allan, spectra = {}, {}
+    for label, x in curves.items():
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 1:
+            raise ValueError(f"curves[{label!r}]: expected a 1-D record, got shape {x.shape}")
+        y, new_rate = decimate(x, rate, decimate_hz)
+        if y.size * (1.0 / new_rate) < window_s:
+            raise ValueError(f"curves[{label!r}]: {x.size / rate:g} s long, shorter than window_s = {window_s:g} s")
+        allan[label] = allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
+        spectra[label] = psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
+                             detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
+
+    taus_l, avars, edfs, ns = [], [], [], []
+    for label, x in curves.items():
+        av = allan[label]
+        a, e = av["avar"].values, av["edf"].values
+        ok = np.isfinite(a) & np.isfinite(e)
+        taus_l.append(av["tau"].values[ok])
+        avars.append(a[ok])
+        edfs.append(e[ok])
+        ns.append(int(np.asarray(x).size))
+    fit = fit_allan(taus_l, avars, edfs, components=list(components), n_gm=n_gm, n_boot=n_boot,
+                    confidence=fit_confidence, rng=seed, dt=1.0 / rate, rate=rate, n_samples=ns)
+    selection = select_components(fit, taus_l, avars, edfs, rate_hz=application_rate_hz, horizon_s=horizon_s,
+                                  significance=significance, relevance=relevance)
+    kept = selection["kept"]
+
+    first = next(iter(spectra.values()))
+    f = first["frequency"].values
+    psd_curves, edf = {}, []
+    for label, sp in spectra.items():
+        if sp["frequency"].size != f.size:
+            raise ValueError(f"curves[{label!r}]: its PSD has {sp['frequency'].size} bins, the first curve's "
+                             f"{f.size}: give records whose decimated length covers the same windows")
+        psd_curves[label] = sp["psd"].values
+        edf.append(np.broadcast_to(sp["edf"].values, f.shape))
+    dt = 1.0 / float(first.attrs.get("rate_hz", decimate_hz))
+    with _no_stdout_fd():
+        result = bound_psd(f, psd_curves, spec_sheet.models[sensor], dt=dt, mode=mode, n_gm=n_gm,
+                           confidence=bound_confidence, bands_per_decade=bands_per_decade, edf=np.array(edf),
+                           keep=kept, taper=first.attrs.get("taper", taper))
+
+    m = result.model
+    m = NoiseModel(white=m.white, random_walk=m.random_walk, gauss_markov=tuple(m.gauss_markov))
+    kf_dt = 1.0 / float(application_rate_hz)
+    p0_rw = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+    kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw)
+    return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=result, fit=fit, selection=selection,
+                            kf=kf, allan=allan, spectra=spectra, rate_hz=rate, decimate_hz=float(decimate_hz),
+                            kf_dt_s=kf_dt)

@@ -1,0 +1,365 @@
+"""The ``imupipe`` command (also ``python -m imupipe``).
+
+::
+
+    imupipe run CONFIG [--cores N] [--directory D] [--dry-run] [-- SNAKEMAKE_ARGS...]
+    imupipe allan FILE [--format F] [--rate-hz R] [--sensor S] [--units U] [--channel K=COL ...]
+                       [--time-column C] [--time-unit U] [--variable V] [--topic T] [--plot OUT] [--si]
+    imupipe check CONFIG [--directory D] [--no-dry-run]
+    imupipe summary [RESULTS] [--markdown OUT] [--html OUT] [--quiet]
+
+``run`` runs the Snakemake workflow of this checkout through the snakemake command line; ``allan`` prints
+the Allan deviation of every channel of one file, read with :func:`imupipe.readers.read_dataset` (and
+writes a figure with ``--plot``, format from the file name: .png, .svg, .pdf); ``check`` validates a
+config, its dataset sheet and its spec sheets without running anything (and, unless ``--no-dry-run``,
+asks Snakemake for a dry run of the DAG); ``summary`` prints (and writes) the run summary of a finished run
+(:mod:`imupipe.summary`).
+
+Exit status: 0 on success, 1 on an input error (one line ``imupipe: error: ...`` on stderr), the
+snakemake status for ``run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+__all__ = ["main", "checkout_root", "check_config", "allan_table"]
+
+
+def checkout_root() -> Path:
+    """The project checkout holding the Snakefile (the package is installed from it in editable mode).
+
+    Raises
+    ------
+    FileNotFoundError
+        When the installed package is not inside a checkout with a Snakefile.
+    """
+    root = Path(__file__).resolve().parents[2]
+    if not (root / "Snakefile").is_file():
+        raise FileNotFoundError(f"no Snakefile at {root}: 'imupipe run' and 'check' need a clone of the project "
+                                "installed with 'pip install -e .'")
+    return root
+
+
+def _snakemake_exe() -> list[str]:
+    exe = Path(sys.executable).with_name("snakemake")
+    if exe.is_file():
+        return [str(exe)]
+    found = shutil.which("snakemake")
+    if found:
+        return [found]
+    raise FileNotFoundError("snakemake not found: install the workflow extra ('pip install -e .[workflow]')")
+
+
+def _snakemake_cmd(config: Path, cores: int | None, directory: Path | None, extra: Sequence[str]) -> list[str]:
+    root = checkout_root()
+    cmd = _snakemake_exe() + ["--snakefile", str(root / "Snakefile"), "--configfile", str(config)]
+    if cores is not None:
+        cmd += ["--cores", str(cores)]
+    if directory is not None:
+        cmd += ["--directory", str(directory)]
+    return cmd + list(extra)
+
+
+def check_config(config: str | Path) -> list[str]:
+    """Validate a config, its dataset sheet and spec sheets without running the workflow.
+
+    Checks: the config is a YAML mapping; every spec sheet ``{spec_dir}/{name}.yaml`` of ``specs`` parses
+    (:func:`imupipe.specsheet.load_spec`: every value with a known unit) and has a section for every sensor
+    of ``sensors``; the dataset sheet (when ``datasets`` is not null) exists, each row converts to reader
+    arguments (:func:`imupipe.readers.sheet_row_to_kwargs`) and names an existing file. Paths are relative
+    to the checkout (as in the workflow).
+
+    Returns
+    -------
+    list of str
+        One line per check passed.
+
+    Raises
+    ------
+    ValueError
+        The first problem, naming the file and key / row.
+    """
+    import csv
+
+    from imupipe.io import read_yaml
+    from imupipe.specsheet import load_spec
+
+    config = Path(config)
+    if not config.is_file():
+        raise ValueError(f"{config}: config file not found")
+    cfg = read_yaml(config)
+    if not isinstance(cfg, dict):
+        raise ValueError(f"{config}: expected a YAML mapping of config keys")
+    try:
+        root = checkout_root()
+    except FileNotFoundError:
+        root = Path.cwd()
+    done = [f"config {config}: YAML mapping with {len(cfg)} keys"]
+    sensors = cfg.get("sensors") or ["gyro", "accel"]
+    spec_dir = root / str(cfg.get("spec_dir", "config/specs"))
+    specs = cfg.get("specs") or []
+    if not specs:
+        raise ValueError(f"{config}: key 'specs' is empty (expected names of {spec_dir}/<name>.yaml)")
+    for name in specs:
+        path = spec_dir / f"{name}.yaml"
+        if not path.is_file():
+            raise ValueError(f"{config}: specs lists {name!r} but {path} does not exist")
+        spec = load_spec(path)
+        missing = [s for s in sensors if s not in spec.models]
+        if missing:
+            raise ValueError(f"{path}: no section for {', '.join(missing)} (the config's sensors: {sensors})")
+        done.append(f"spec sheet {path.name}: {spec.name}, sensors {', '.join(sensors)}")
+    sheet = cfg.get("datasets")
+    if sheet:
+        from imupipe.readers import sheet_row_to_kwargs
+
+        sheet_path = root / str(sheet)
+        if not sheet_path.is_file():
+            raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
+        with open(sheet_path, newline="") as fh:
+            rows = list(csv.DictReader(fh, delimiter="\t"))
+        if not rows:
+            raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
+        for i, row in enumerate(rows, start=2):
+            if "path" not in row:
+                raise ValueError(f"{sheet_path}: no 'path' column (columns: {', '.join(row)})")
+            kw = sheet_row_to_kwargs(row, base_dir=root)
+            if not Path(kw["path"]).exists():
+                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): file {kw['path']} "
+                                 "does not exist")
+        done.append(f"dataset sheet {sheet_path.name}: {len(rows)} rows, every file present")
+    elif not cfg.get("simulation"):
+        raise ValueError(f"{config}: 'datasets' is null and 'simulation' is empty: nothing to analyse")
+    else:
+        done.append("datasets: simulated")
+    return done
+
+
+def allan_table(rec, taus="octave") -> tuple[list[str], list[list[float]], dict]:
+    """Allan deviation of every channel of a :class:`imupipe.readers.Recording`.
+
+    Returns
+    -------
+    header : list of str
+        ``tau_s`` then one column per channel ``<sensor>_<axis> [unit]``.
+    rows : list of list of float
+        tau (s) and ADEV (rad/s or m/s^2) per tau; NaN where a channel has no such tau.
+    avs : dict
+        (sensor, axis) -> the ``xarray.Dataset`` of :func:`imupipe.allan_variance`.
+    """
+    import numpy as np
+
+    from imupipe.allan import allan_variance
+
+    avs = {k: allan_variance(x, rec.rate_hz, taus=taus, units=rec.units[k]) for k, x in rec.items()}
+    tau = np.unique(np.concatenate([av["tau"].values for av in avs.values()]))
+    header = ["tau_s"] + [f"{s}_{a} [{rec.units[(s, a)]}]" for (s, a) in avs]
+    rows = []
+    for t in tau:
+        row = [float(t)]
+        for av in avs.values():
+            hit = np.flatnonzero(av["tau"].values == t)
+            row.append(float(np.sqrt(av["avar"].values[hit[0]])) if hit.size else float("nan"))
+        rows.append(row)
+    return header, rows, avs
+
+
+def _cmd_allan(args) -> int:
+    from imupipe.readers import read_dataset
+
+    channels = None
+    if args.channel:
+        channels = {}
+        for item in args.channel:
+            if "=" not in item:
+                raise ValueError(f"--channel {item!r}: expected SENSOR_AXIS=COLUMN, e.g. gyro_x=wx")
+            k, v = item.split("=", 1)
+            channels[k.strip()] = int(v) if v.strip().isdigit() else v.strip()
+    units = None
+    if args.units:
+        units = {}
+        for item in args.units:
+            if "=" not in item:
+                raise ValueError(f"--units {item!r}: expected SENSOR=UNIT, e.g. gyro=deg/s")
+            k, v = item.split("=", 1)
+            units[k.strip()] = v.strip()
+    kwargs = dict(time_column=args.time_column, time_unit=args.time_unit, variable=args.variable, topic=args.topic,
+                  delimiter=args.delimiter)
+    rec = read_dataset(args.file, format=args.format, rate_hz=args.rate_hz, channels=channels, units=units,
+                       **{k: v for k, v in kwargs.items() if v is not None})
+    if args.sensor:
+        keep = {k: v for k, v in rec.items() if k[0] == args.sensor}
+        if not keep:
+            raise ValueError(f"{args.file}: no {args.sensor} channel (channels: {sorted(rec.keys())})")
+    header, rows, avs = allan_table(rec)
+    if args.sensor:
+        cols = [0] + [i + 1 for i, k in enumerate(avs) if k[0] == args.sensor]
+        header = [header[i] for i in cols]
+        rows = [[r[i] for i in cols] for r in rows]
+    print(f"# {rec.source}: {rec.n_samples} samples at {rec.rate_hz:g} Hz; overlapping Allan deviation")
+    print("\t".join(header))
+    for r in rows:
+        print("\t".join(f"{v:.6g}" for v in r))
+    if args.plot:
+        from imupipe.plot import plot_allan_deviation, save_figure
+
+        by_sensor = {}
+        for (s, a), av in avs.items():
+            if args.sensor and s != args.sensor:
+                continue
+            by_sensor.setdefault(s, []).append((a, av))
+        out = Path(args.plot)
+        for s, items in by_sensor.items():
+            import numpy as np
+
+            tau = np.unique(np.concatenate([av["tau"].values for _, av in items]))
+            arr = np.full((len(items), tau.size), np.nan)
+            for i, (_, av) in enumerate(items):
+                arr[i, np.searchsorted(tau, av["tau"].values)] = av["avar"].values
+            fig = plot_allan_deviation(tau, arr, sensor=s, labels=[f"{s} {a}" for a, _ in items],
+                                       display_unit="SI" if args.si else "spec",
+                                       title=f"{Path(args.file).name}: {s} Allan deviation")
+            path = out if len(by_sensor) == 1 else out.with_name(f"{out.stem}_{s}{out.suffix}")
+            save_figure(fig, path)
+            print(f"# figure: {path}")
+    return 0
+
+
+def _cmd_check(args) -> int:
+    for line in check_config(args.config):
+        print(f"ok  {line}")
+    if not args.no_dry_run:
+        cmd = _snakemake_cmd(Path(args.config).resolve(), 1, Path(args.directory).resolve() if args.directory else None,
+                             ["--dry-run", "--quiet", "all"])
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-15:]
+            raise ValueError("Snakemake dry run failed:\n" + "\n".join(tail))
+        print("ok  snakemake dry run: the workflow's DAG builds")
+    return 0
+
+
+def _cmd_summary(args) -> int:
+    from imupipe.io import write_text_atomic
+    from imupipe.summary import markdown_to_html, summarise_run
+
+    results = Path(args.results)
+    if not results.is_dir():
+        raise ValueError(f"{results}: no such results folder")
+    text = summarise_run(results)
+    if not text:
+        raise ValueError(f"{results}: no bound contract (bound/<spec>/<sensor>.yaml) found: has the run finished?")
+    if args.markdown:
+        write_text_atomic(text, args.markdown)
+    if args.html:
+        write_text_atomic(markdown_to_html(text, title="imupipe run summary"), args.html)
+    if not args.quiet:
+        print(text.rstrip())
+    return 0
+
+
+def _cmd_run(args) -> int:
+    config = Path(args.config).resolve()
+    if not config.is_file():
+        raise ValueError(f"{args.config}: config file not found")
+    extra = list(args.snakemake_args or [])
+    if args.dry_run:
+        extra.append("--dry-run")
+    if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
+        extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
+    workdir = Path(args.directory).resolve() if args.directory else checkout_root()
+    cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
+    import os
+
+    env = dict(os.environ)
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    status = subprocess.call(cmd, env=env)
+    if status == 0 and not args.dry_run and "--dry-run" not in extra and "-n" not in extra:
+        _print_summary(workdir / "results")
+    return status
+
+
+def _print_summary(results: Path) -> None:
+    """Print the run's summary: ``summary.md`` where the workflow wrote one, else rendered from its files."""
+    from imupipe.summary import summarise_run
+
+    written = sorted(results.rglob("summary.md")) if results.is_dir() else []
+    text = "\n".join(p.read_text() for p in written) if written else summarise_run(results) if results.is_dir() else ""
+    if text:
+        print()
+        print(text.rstrip())
+
+
+def _parser() -> argparse.ArgumentParser:
+    from imupipe import __version__
+
+    p = argparse.ArgumentParser(prog="imupipe", description="Bounding IMU noise models from static records and a "
+                                "spec sheet (PSD overbound, Gallon, Joerger & Pervan, ION GNSS+ 2021).")
+    p.add_argument("--version", action="version", version=f"imupipe {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run the Snakemake workflow on a config (arguments after -- go to snakemake)")
+    r.add_argument("config", help="config YAML (e.g. config/config.yaml)")
+    r.add_argument("--cores", type=int, default=2, help="cores for Snakemake (default 2)")
+    r.add_argument("--directory", help="working directory for results/ and logs/ (default: the checkout)")
+    r.add_argument("--dry-run", action="store_true", help="list the jobs without running them")
+    r.add_argument("--verbose", action="store_true", help="Snakemake's full job output (default: progress only, "
+                   "details in logs/)")
+    r.set_defaults(func=_cmd_run)
+
+    a = sub.add_parser("allan", help="Allan deviation table (and figure) of one record")
+    a.add_argument("file", help="record: CSV/TSV, netCDF, .npy/.npz, R .rda/.rds, ROS bag or MCAP")
+    a.add_argument("--format", default="auto", help="reader format (default: from the extension)")
+    a.add_argument("--rate-hz", type=float, help="sample rate, Hz (default: the file's or its timestamps')")
+    a.add_argument("--channel", action="append", metavar="SENSOR_AXIS=COLUMN",
+                   help="channel column, e.g. gyro_x=wx (repeatable; default columns gyro_x ... accel_z)")
+    a.add_argument("--units", action="append", metavar="SENSOR=UNIT", help="stored unit, e.g. gyro=deg/s")
+    a.add_argument("--time-column", help="timestamp column")
+    a.add_argument("--time-unit", help="timestamp unit: s, ms, us, ns")
+    a.add_argument("--delimiter", help="text delimiter: ',', tab, semicolon, space")
+    a.add_argument("--variable", help="R object / npz array / netCDF variable")
+    a.add_argument("--topic", help="bag topic of the sensor_msgs/Imu messages")
+    a.add_argument("--sensor", choices=("gyro", "accel"), help="only this sensor's channels")
+    a.add_argument("--plot", help="write a figure (format from the suffix: .png, .svg, .pdf)")
+    a.add_argument("--si", action="store_true", help="figure axes in SI instead of spec-sheet units")
+    a.set_defaults(func=_cmd_allan)
+
+    m = sub.add_parser("summary", help="the run summary of a finished run (verdicts, inflation, flagged checks)")
+    m.add_argument("results", nargs="?", default="results", help="results folder (default: results)")
+    m.add_argument("--markdown", help="also write it to this file (markdown / plain text)")
+    m.add_argument("--html", help="also write it as an HTML page (tables rendered)")
+    m.add_argument("--quiet", action="store_true", help="do not print it")
+    m.set_defaults(func=_cmd_summary)
+
+    c = sub.add_parser("check", help="validate a config, its dataset sheet and spec sheets without running")
+    c.add_argument("config")
+    c.add_argument("--directory", help="working directory for the dry run")
+    c.add_argument("--no-dry-run", action="store_true", help="skip the Snakemake dry run")
+    c.set_defaults(func=_cmd_check)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``imupipe`` console script; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    passthrough = []
+    if "--" in argv:  # everything after -- goes to snakemake as it is
+        i = argv.index("--")
+        argv, passthrough = argv[:i], argv[i + 1:]
+    args = _parser().parse_args(argv)
+    args.snakemake_args = passthrough
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError, KeyError) as exc:
+        print(f"imupipe: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,299 @@
+r"""Kalibr ``imu.yaml`` from a bounding noise model (gyroscope and accelerometer of one IMU).
+
+Kalibr's IMU model has, per axis, a continuous-time white measurement noise :math:`n(t)` with
+:math:`E[n(t_1) n(t_2)] = \sigma^2 \delta(t_1 - t_2)` and a bias random walk :math:`\dot b = \sigma_b w(t)`
+(``w`` unit white noise). The autocorrelation :math:`\sigma^2 \delta(\cdot)` is a **two-sided** PSD
+:math:`\sigma^2`, which is imupipe's white noise :math:`S_2 = N^2`; the random walk's two-sided PSD is
+:math:`\sigma_b^2/(2\pi f)^2`, imupipe's :math:`K^2/(2\pi f)^2`. Hence, in SI:
+
+==============================  ==============  ====================================
+Kalibr field                    imupipe         unit
+==============================  ==============  ====================================
+``gyroscope_noise_density``     N (gyro)        rad/s/sqrt(Hz)
+``gyroscope_random_walk``       K_eff (gyro)    rad/s^2/sqrt(Hz)  (= (rad/s)/sqrt(s))
+``accelerometer_noise_density`` N (accel)       m/s^2/sqrt(Hz)
+``accelerometer_random_walk``   K_eff (accel)   m/s^3/sqrt(Hz)    (= (m/s^2)/sqrt(s))
+``update_rate``                 IMU sample rate Hz
+==============================  ==============  ====================================
+
+Kalibr discretises with the IMU's own sample interval :math:`\Delta t = 1/\text{update\_rate}`:
+:math:`\sigma_d = \sigma/\sqrt{\Delta t}` (white) and :math:`\sigma_{b,d} = \sigma_b\sqrt{\Delta t}` (random
+walk), the same rules as docs/method.md, section "Discrete noise". ``update_rate`` must therefore be the
+rate of the recorded IMU messages, not the filter rate.
+
+Kalibr has no Gauss-Markov state. Each GM term (sigma, T) is folded into the random walk so that the PSD
+still bounds: :math:`2\sigma^2 T/(1 + (2\pi f T)^2) \le (2\sigma^2/T)/(2\pi f)^2` for every f > 0, so
+:math:`K_{eff} = \sqrt{K^2 + \sum_i 2\sigma_i^2/T_i}` dominates GM + random walk at every frequency. A
+narrowband (second-order GM) term of variance :math:`\sigma^2` cannot be folded into these two terms and
+is refused.
+
+The values written are **bounding** values: they already contain the inflation the bound found necessary.
+Do not inflate them again (Kalibr's documentation suggests inflating identified values, e.g. x10; these
+are not identified values). The file's comment block states this and the factor against the identified
+values.
+
+References
+----------
+.. [1] Kalibr wiki, "IMU Noise Model" (ethz-asl/kalibr), continuous-time noise densities and their
+       discretisation.
+.. [2] E. Gallon, M. Joerger, B. Pervan, "Development of Stochastic IMU Error Models for INS/GNSS
+       Integration", ION GNSS+ 2021.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from imupipe.models import NoiseModel
+
+__all__ = ["KALIBR_UNITS", "KalibrIMU", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound", "read_kalibr",
+           "rostopic_of", "write_kalibr"]
+
+#: Unit of every Kalibr field (SI, continuous time).
+KALIBR_UNITS = {
+    "accelerometer_noise_density": "m/s^2/sqrt(Hz)",
+    "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
+    "gyroscope_noise_density": "rad/s/sqrt(Hz)",
+    "gyroscope_random_walk": "rad/s^2/sqrt(Hz)",
+    "update_rate": "Hz",
+}
+_FIELDS = tuple(KALIBR_UNITS)
+
+
+@dataclass(frozen=True)
+class KalibrIMU:
+    """The five Kalibr fields plus the topic (SI, continuous time) and the inflation against identification.
+
+    Attributes
+    ----------
+    accelerometer_noise_density : float
+        m/s^2/sqrt(Hz).
+    accelerometer_random_walk : float
+        m/s^3/sqrt(Hz) (GM terms folded in).
+    gyroscope_noise_density : float
+        rad/s/sqrt(Hz).
+    gyroscope_random_walk : float
+        rad/s^2/sqrt(Hz) (GM terms folded in).
+    update_rate : float
+        IMU sample rate, Hz.
+    rostopic : str
+        Topic of the ``sensor_msgs/Imu`` messages.
+    inflation : dict
+        Field -> written value / the same quantity of the identified model (None where unknown or zero).
+    """
+
+    accelerometer_noise_density: float
+    accelerometer_random_walk: float
+    gyroscope_noise_density: float
+    gyroscope_random_walk: float
+    update_rate: float
+    rostopic: str
+    inflation: dict
+
+    def to_dict(self) -> dict:
+        """The Kalibr fields in Kalibr's order of its example file (no inflation, no comments)."""
+        return {k: float(getattr(self, k)) for k in _FIELDS} | {"rostopic": self.rostopic}
+
+
+def _model(m, name: str) -> NoiseModel:
+    if isinstance(m, NoiseModel):
+        return m
+    if isinstance(m, Mapping):
+        return NoiseModel.from_dict(m)
+    raise TypeError(f"{name}: expected a NoiseModel or its to_dict(), got {type(m).__name__}")
+
+
+def _k_eff(m: NoiseModel, name: str) -> float:
+    """Random walk that bounds m's random walk plus its GM terms in PSD (u/sqrt(s))."""
+    lines = getattr(m, "narrowband", ()) or ()
+    if lines:
+        raise ValueError(f"{name}: the model has {len(lines)} narrowband line(s); Kalibr's two-term model cannot "
+                         "bound them (use the full Kalman-filter export instead)")
+    return math.sqrt(m.random_walk**2 + sum(2.0 * s**2 / T for s, T in m.gauss_markov if T > 0))
+
+
+def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:
+    """The one IMU sample rate of a run's datasets, Hz.
+
+    Parameters
+    ----------
+    rates : mapping of str to float, or float
+        Dataset name -> sample rate (Hz) from the dataset sheet, or one rate.
+    rtol : float, optional
+        Relative tolerance for "the same rate" (default 1e-9).
+
+    Raises
+    ------
+    ValueError
+        When the datasets differ in rate (Kalibr's ``update_rate`` is one number: write one file per rate)
+        or a rate is not a positive number.
+    """
+    if not isinstance(rates, Mapping):
+        rates = {"rate": rates}
+    if not rates:
+        raise ValueError("update_rate: no dataset rate given")
+    vals = {}
+    for k, v in rates.items():
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise ValueError(f"update_rate: dataset {k!r} has rate_hz {v!r}, expected a positive number (Hz)") from None
+        if not (v > 0 and math.isfinite(v)):
+            raise ValueError(f"update_rate: dataset {k!r} has rate_hz {v!r}, expected a positive number (Hz)")
+        vals[k] = v
+    first = next(iter(vals.values()))
+    if any(abs(v - first) > rtol * first for v in vals.values()):
+        listing = ", ".join(f"{k}: {v:g} Hz" for k, v in vals.items())
+        raise ValueError(f"update_rate: the datasets differ in sample rate ({listing}); Kalibr's update_rate is "
+                         "the IMU's one sample rate: export one Kalibr file per rate")
+    return first
+
+
+def rostopic_of(topics: Mapping[str, str | None], default: str = "/imu0") -> str:
+    """The one ``sensor_msgs/Imu`` topic of a run's datasets (the dataset sheet's ``topic`` column).
+
+    Parameters
+    ----------
+    topics : mapping of str to str or None
+        Dataset name -> topic cell (None or empty for files that are not bags).
+    default : str, optional
+        Returned when no dataset names a topic (default ``"/imu0"``, Kalibr's example).
+
+    Raises
+    ------
+    ValueError
+        When the datasets name different topics (one Kalibr file describes one IMU topic).
+    """
+    named = {k: str(v).strip() for k, v in topics.items() if v is not None and str(v).strip()
+             and str(v).strip().lower() != "nan"}
+    if not named:
+        return default
+    distinct = sorted(set(named.values()))
+    if len(distinct) > 1:
+        listing = ", ".join(f"{k}: {v}" for k, v in named.items())
+        raise ValueError(f"rostopic: the datasets name different topics ({listing}); a Kalibr imu.yaml names one")
+    return distinct[0]
+
+
+def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", identified_gyro=None,
+               identified_accel=None) -> KalibrIMU:
+    r"""Kalibr fields of a bounding gyro and accel model.
+
+    Parameters
+    ----------
+    gyro, accel : imupipe.models.NoiseModel or dict
+        Bounding models, SI (rad/s, m/s^2): white N u/sqrt(Hz), GM sigma u and T s, random walk K u/sqrt(s).
+    update_rate_hz : float
+        IMU sample rate, Hz (the recorded messages' rate; see :func:`imu_rate`).
+    rostopic : str, optional
+        Topic of the IMU messages (the dataset sheet's ``topic``), default ``"/imu0"``.
+    identified_gyro, identified_accel : NoiseModel or dict, optional
+        Models identified from the Allan variance; give the inflation factors of the comment block.
+
+    Returns
+    -------
+    KalibrIMU
+        ``*_noise_density`` = N, ``*_random_walk`` = :math:`\sqrt{K^2 + \sum 2\sigma_i^2/T_i}`.
+    """
+    rate = imu_rate(update_rate_hz)
+    if not isinstance(rostopic, str) or not rostopic.strip():
+        raise ValueError(f"rostopic: expected a topic name such as '/imu0', got {rostopic!r}")
+    g, a = _model(gyro, "gyro"), _model(accel, "accel")
+    vals = {
+        "gyroscope_noise_density": float(g.white),
+        "gyroscope_random_walk": _k_eff(g, "gyro"),
+        "accelerometer_noise_density": float(a.white),
+        "accelerometer_random_walk": _k_eff(a, "accel"),
+    }
+    for k, v in vals.items():
+        if not v > 0:
+            raise ValueError(f"{k}: the bound gives {v!r}; Kalibr needs a positive value")
+    inflation = {}
+    for prefix, ident in (("gyroscope", identified_gyro), ("accelerometer", identified_accel)):
+        im = _model(ident, prefix) if ident is not None else None
+        for kind, ref in (("noise_density", im.white if im else None),
+                          ("random_walk", math.sqrt(im.random_walk**2 + sum(2.0 * s**2 / T for s, T in im.gauss_markov
+                                                                             if T > 0)) if im else None)):
+            key = f"{prefix}_{kind}"
+            inflation[key] = (vals[key] / ref) if ref else None
+    return KalibrIMU(update_rate=rate, rostopic=rostopic.strip(), inflation=inflation, **vals)
+
+
+def kalibr_text(imu: KalibrIMU, *, source: str = "") -> str:
+    """The ``imu.yaml`` text: a comment block (bounding values, units, inflation) and the six fields.
+
+    Parameters
+    ----------
+    imu : KalibrIMU
+    source : str, optional
+        One line naming where the values come from (spec sheet, run), written in the comment block.
+    """
+    lines = [
+        "# Kalibr IMU noise model (imu.yaml) written by imupipe.",
+        "# BOUNDING VALUES: these densities already bound the recorded noise and the spec sheet (PSD overbound,",
+        "# Gallon, Joerger & Pervan, ION GNSS+ 2021). Use them as they are: no further inflation is needed",
+        "# (do not apply the customary x10 for identified values).",
+        "# Continuous time, SI, as Kalibr defines them; Kalibr discretises with dt = 1/update_rate.",
+        "# Gauss-Markov terms are folded into the random walk: K_eff = sqrt(K^2 + sum 2 sigma^2/T) (bounds in PSD).",
+    ]
+    if source:
+        lines.append(f"# Source: {source}")
+    known = {k: v for k, v in imu.inflation.items() if v is not None}
+    if known:
+        lines.append("# Inflation against the values identified from the Allan variance (written / identified):")
+        for k, v in known.items():
+            lines.append(f"#   {k}: x{v:.3g}")
+    body = [
+        f"accelerometer_noise_density: {imu.accelerometer_noise_density:.6e}  # m/s^2/sqrt(Hz)",
+        f"accelerometer_random_walk: {imu.accelerometer_random_walk:.6e}  # m/s^3/sqrt(Hz)",
+        f"gyroscope_noise_density: {imu.gyroscope_noise_density:.6e}  # rad/s/sqrt(Hz)",
+        f"gyroscope_random_walk: {imu.gyroscope_random_walk:.6e}  # rad/s^2/sqrt(Hz)",
+        f"update_rate: {imu.update_rate:.10g}  # Hz, IMU sample rate",
+        f"rostopic: {imu.rostopic}",
+    ]
+    return "\n".join(lines + body) + "\n"
+
+
+def write_kalibr(imu: KalibrIMU, path, *, source: str = "") -> None:
+    """Write :func:`kalibr_text` to `path` atomically."""
+    from imupipe.io import write_text_atomic
+
+    write_text_atomic(kalibr_text(imu, source=source), path)
+
+
+def read_kalibr(path) -> dict:
+    """Read an ``imu.yaml`` back: Kalibr's six fields, checked present and numeric (SI, Hz).
+
+    Raises
+    ------
+    ValueError
+        Naming the file and the missing or non-numeric field.
+    """
+    import yaml
+
+    with open(path) as fh:
+        data = yaml.safe_load(fh)
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a YAML mapping of Kalibr's IMU fields")
+    out = {}
+    for k in _FIELDS:
+        if k not in data:
+            raise ValueError(f"{path}: Kalibr field {k!r} ({KALIBR_UNITS[k]}) is missing")
+        try:
+            out[k] = float(data[k])
+        except (TypeError, ValueError):
+            raise ValueError(f"{path}: {k} = {data[k]!r}, expected a number in {KALIBR_UNITS[k]}") from None
+    out["rostopic"] = str(data.get("rostopic", ""))
+    return out
+
+
+def model_of_bound(bound_yaml: Mapping) -> NoiseModel:
+    """The bound model of a per-sensor bound contract (``results/.../bound/{sensor}.yaml``), SI."""
+    try:
+        b = bound_yaml["bound"]
+    except (KeyError, TypeError):
+        raise ValueError("bound YAML: no 'bound' section (expected the per-sensor bound contract)") from None
+    return NoiseModel(white=b.get("white") or 0.0, random_walk=b.get("random_walk") or 0.0,
+                      gauss_markov=tuple((g["sigma"], g["T"]) for g in b.get("gauss_markov") or ()))

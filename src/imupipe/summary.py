@@ -1,0 +1,436 @@
+"""The run summary: the answer of a run in a few lines of plain text / markdown (``results/.../summary.md``).
+
+Per sensor type: bounded yes/no and the margin (min over curves and frequencies of S_model/S_sample), the
+inflation table (spec sheet vs bound, in the spec sheet's units), the states the filter keeps and why, and
+every failed or flagged check (stationarity, fit adequacy, Allan-domain check, narrowband lines, outliers,
+gaps, verification) with where it is (dataset/axis, frequency, tau). Built from the per-sensor YAML files a
+run writes (the bound contract, the identification, the stationarity summary); keys that a run does not
+write are simply absent from the summary (every lookup is tolerant).
+
+Nothing here prints: :func:`render_summary` returns the text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+__all__ = ["Flag", "discover_run", "flags_of", "load_sensor_files", "markdown_to_html", "render_summary",
+           "sensors_from_paths", "summarise_run", "write_summary"]
+
+
+@dataclass(frozen=True)
+class Flag:
+    """One failed or flagged check.
+
+    Attributes
+    ----------
+    sensor : str
+    check : str
+        ``bound``, ``stationarity``, ``fit adequacy``, ``allan check``, ``lines``, ``outliers``, ``gaps``,
+        ``verification``, ``per-axis bound``, ``parameter on boundary``.
+    where : str
+        Curve (dataset/axis), frequency or component.
+    detail : str
+        What was found.
+    severity : str
+        ``fail`` (the integrity claim does not hold as stated) or ``flag`` (look at it).
+    """
+
+    sensor: str
+    check: str
+    where: str
+    detail: str
+    severity: str = "flag"
+
+
+def _g(d: Any, *keys, default=None):
+    """Nested .get tolerant of None and non-dicts."""
+    for k in keys:
+        if not isinstance(d, Mapping):
+            return default
+        d = d.get(k)
+    return default if d is None else d
+
+
+def _num(v, fmt="{:.3g}") -> str:
+    try:
+        return fmt.format(float(v))
+    except (TypeError, ValueError):
+        return "-" if v is None else str(v)
+
+
+def _where_of(item: Mapping) -> str:
+    parts = []
+    for k in ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
+              "index", "time_s", "row", "file"):
+        if k in item and item[k] is not None:
+            v = item[k]
+            parts.append(f"{k}={_num(v, '{:.6g}') if isinstance(v, float) else v}")
+    return ", ".join(parts) or "-"
+
+
+def _detail_of(item: Mapping, skip=()) -> str:
+    shown = ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
+             "index", "time_s", "row", "file")
+    parts = [f"{k}={_num(v) if isinstance(v, float) else v}" for k, v in item.items()
+             if k not in shown and k not in skip and not isinstance(v, (Mapping, list))]
+    return ", ".join(parts)
+
+
+def _items(obj) -> list:
+    """A list of findings from a list, a dict of lists (keyed by curve) or a dict with a list under 'items'."""
+    if obj is None or obj is False:
+        return []
+    if isinstance(obj, list):
+        return obj
+    if isinstance(obj, Mapping):
+        for key in ("items", "found", "lines", "outliers", "gaps"):
+            if isinstance(obj.get(key), list):
+                return obj[key]
+        out = []
+        for k, v in obj.items():
+            if isinstance(v, list):
+                out += [{"curve": k, **x} if isinstance(x, Mapping) else {"curve": k, "value": x} for x in v]
+            elif isinstance(v, Mapping):
+                out.append({"curve": k, **{kk: vv for kk, vv in v.items() if not isinstance(vv, (Mapping, list))}})
+        return out
+    return [{"value": obj}]
+
+
+def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
+             stationarity: Mapping | None = None) -> list[Flag]:
+    """Every failed or flagged check of one sensor type, from its run files (plain dicts).
+
+    Parameters
+    ----------
+    sensor : str
+    bound : dict, optional
+        The bound contract (``bounded``, ``margin``, ``margin_curve``, ``margin_frequency_hz``,
+        ``allan_check``, ``per_axis``; optionally ``verified``, ``failed_checks``, ``narrowband``,
+        ``excluded``).
+    identify : dict, optional
+        The identification file (``fit.adequacy``, per-parameter ``on_boundary``, ``lines`` when present).
+    stationarity : dict, optional
+        The stationarity summary (``curves`` with ``stationary``, ``p_value``, ``included``;
+        optionally ``outliers``, ``gaps``).
+    """
+    out: list[Flag] = []
+    bound, identify, stationarity = bound or {}, identify or {}, stationarity or {}
+    if bound and bound.get("bounded") is False:
+        out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
+                        f"{_num(bound.get('margin_frequency_hz'))} Hz",
+                        f"not bounded: margin {_num(bound.get('margin'), '{:.4g}')} < 1", "fail"))
+    if bound.get("verified") is False:
+        out.append(Flag(sensor, "verification", "bound", "the bound's verification failed", "fail"))
+    for fc in bound.get("failed_checks") or []:
+        if isinstance(fc, Mapping):
+            out.append(Flag(sensor, str(fc.get("check", fc.get("name", "check"))), _where_of(fc),
+                            _detail_of(fc, skip=("check", "name")) or "failed", "fail"))
+        else:
+            out.append(Flag(sensor, "check", "-", str(fc), "fail"))
+    for comp, v in (bound.get("allan_check") or {}).items():
+        if isinstance(v, Mapping) and v.get("passed") is False:
+            tau = v.get("tau_at_min")
+            out.append(Flag(sensor, "allan check", f"{comp}" + (f" at tau {_num(tau)} s" if tau is not None else ""),
+                            "bound component below its identified counterpart in the Allan domain"
+                            + (f" (margin {_num(v.get('margin'))})" if v.get("margin") is not None else "")
+                            + (f": {v['reason']}" if v.get("reason") else ""), "fail"))
+    for ax in bound.get("per_axis") or []:
+        if isinstance(ax, Mapping) and ax.get("bounded") is False:
+            out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),
+                            f"not bounded alone (margin {_num(ax.get('margin'))})"))
+    for ex in _items(bound.get("excluded")):
+        out.append(Flag(sensor, "excluded bins", _where_of(ex), _detail_of(ex) or "left out of the sample constraints"))
+    for c in stationarity.get("curves") or []:
+        if isinstance(c, Mapping) and c.get("stationary") is False:
+            where = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}"
+            inc = c.get("included")
+            out.append(Flag(sensor, "stationarity", where,
+                            f"non-stationary (p = {_num(c.get('p_value'))}, {c.get('test', 'test')})"
+                            + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")))
+    adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
+    if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
+        out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
+                        f"chi2/dof = {_num(adequacy.get('chi2_per_dof'))}, p = {_num(adequacy.get('p_value'))}: "
+                        "the model does not describe the Allan variance within its confidence"))
+    on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
+    if isinstance(on_b, Mapping):
+        for p, v in on_b.items():
+            if v:
+                out.append(Flag(sensor, "parameter on boundary", str(p), "fitted value at a limit of its range"))
+    for key in ("lines", "narrowband"):
+        for src in (identify, stationarity, bound):
+            for it in _items(src.get(key)):
+                if isinstance(it, Mapping):
+                    out.append(Flag(sensor, "lines", _where_of(it), _detail_of(it) or "narrowband line"))
+    for key in ("outliers", "gaps"):
+        for src in (stationarity, identify, bound):
+            for it in _items(src.get(key)):
+                if isinstance(it, Mapping):
+                    out.append(Flag(sensor, key, _where_of(it), _detail_of(it) or key[:-1]))
+                else:
+                    out.append(Flag(sensor, key, "-", str(it)))
+    return out
+
+
+def _inflation_rows(bound: Mapping) -> list[tuple]:
+    """(parameter, unit, spec, bound, ratio) rows from bound_spec_units / spec_spec_units (spec-sheet units),
+    falling back to SI."""
+    b, s = bound.get("bound_spec_units"), bound.get("spec_spec_units")
+    rows = []
+    if isinstance(b, Mapping):
+        s = s if isinstance(s, Mapping) else {}
+
+        def val(d, *k):
+            v = _g(d, *k)
+            return (v.get("value"), v.get("unit")) if isinstance(v, Mapping) else (None, None)
+
+        for name, key in (("white noise N", "white"), ("random walk K", "random_walk")):
+            bv, unit = val(b, key)
+            sv, sunit = val(s, key)
+            rows.append((name, unit or sunit or "-", sv, bv))
+        bgm, sgm = b.get("gauss_markov") or [], (s.get("gauss_markov") or [])
+        for i in range(max(len(bgm), len(sgm))):
+            tag = f" {i + 1}" if max(len(bgm), len(sgm)) > 1 else ""
+            for name, key in ((f"GM sigma{tag}", "sigma"), (f"GM T{tag}", "T")):
+                bv, unit = val(bgm[i] if i < len(bgm) else {}, key)
+                sv, sunit = val(sgm[i] if i < len(sgm) else {}, key)
+                rows.append((name, unit or sunit or "-", sv, bv))
+    else:
+        si_b, si_s = bound.get("bound") or {}, bound.get("spec") or {}
+        rows.append(("white noise N (SI)", "u/sqrt(Hz)", si_s.get("white"), si_b.get("white")))
+        rows.append(("random walk K (SI)", "u/sqrt(s)", si_s.get("random_walk"), si_b.get("random_walk")))
+        for i, g in enumerate(si_b.get("gauss_markov") or []):
+            sg = (si_s.get("gauss_markov") or [{}] * (i + 1))
+            sg = sg[i] if i < len(sg) else {}
+            rows.append((f"GM sigma {i + 1} (SI)", "u", sg.get("sigma"), g.get("sigma")))
+            rows.append((f"GM T {i + 1}", "s", sg.get("T"), g.get("T")))
+    out = []
+    for name, unit, sv, bv in rows:
+        try:
+            ratio = float(bv) / float(sv) if sv else None
+        except (TypeError, ValueError):
+            ratio = None
+        out.append((name, unit, sv, bv, ratio))
+    return out
+
+
+def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary") -> str:
+    """Markdown summary of a run (also readable as plain text).
+
+    Parameters
+    ----------
+    runs : mapping
+        Sensor -> ``{"bound": dict, "identify": dict, "stationarity": dict}`` (each optional), the
+        run's per-sensor YAML files as read (:func:`load_sensor_files`).
+    title : str, optional
+        First heading.
+
+    Returns
+    -------
+    str
+        One section per sensor: verdict line (``BOUNDED`` / ``NOT BOUNDED``, margin, spec sheet, mode),
+        inflation table (spec-sheet units), states kept and dropped with the reasons, and the checks
+        (``FAIL`` / ``FLAG`` lines, or "none flagged").
+    """
+    lines = [f"# {title}", ""]
+    all_flags: list[Flag] = []
+    verdicts = []
+    for sensor, files in runs.items():
+        bound = files.get("bound") or {}
+        identify = files.get("identify") or {}
+        stat = files.get("stationarity") or {}
+        flags = flags_of(sensor, bound, identify, stat)
+        all_flags += flags
+        bounded = bound.get("bounded")
+        fails = [f for f in flags if f.severity == "fail"]
+        verdict = ("NOT BOUNDED" if bounded is False else "BOUNDED" if bounded else "no bound")
+        if bounded and fails:
+            verdict += " (with failed checks)"
+        verdicts.append(f"{sensor}: {verdict}")
+        lines.append(f"## {sensor}: {verdict}")
+        lines.append("")
+        lines.append(f"- margin (min S_model/S_sample): {_num(bound.get('margin'), '{:.4g}')}"
+                     + (f" at {bound.get('margin_curve')}, {_num(bound.get('margin_frequency_hz'))} Hz"
+                        if bound.get("margin_curve") else ""))
+        if bound.get("spec_name") or bound.get("mode"):
+            lines.append(f"- spec sheet: {bound.get('spec_name', '-')}; bound mode: {bound.get('mode', '-')}; "
+                         f"curves: {bound.get('n_curves', len(bound.get('curves') or []))}")
+        rows = _inflation_rows(bound) if bound else []
+        if rows:
+            lines += ["", "| parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|"]
+            lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
+                      for n, u, s, b, r in rows]
+            lines.append("")
+        sel = identify.get("selection") or {}
+        kept = sel.get("kept") or bound.get("states_kept_by_identification")
+        if kept is not None:
+            lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
+            reasons = sel.get("reasons") or {}
+            for comp in list(kept) + list(sel.get("dropped") or []):
+                why = reasons.get(comp) if isinstance(reasons, Mapping) else None
+                mark = "kept" if comp in kept else "dropped"
+                lines.append(f"  - {comp} ({mark}): {why if why else '-'}")
+        lines.append("")
+        if flags:
+            lines.append("Checks:")
+            for f in flags:
+                lines.append(f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}")
+        else:
+            lines.append("Checks: none failed or flagged.")
+        lines.append("")
+    n_fail = sum(f.severity == "fail" for f in all_flags)
+    n_flag = len(all_flags) - n_fail
+    lines.insert(2, f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).")
+    lines.insert(3, "")
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def load_sensor_files(bound: str | Path | None = None, identify: str | Path | None = None,
+                      stationarity: str | Path | None = None) -> dict:
+    """Read one sensor's run files (any may be None or missing: then absent from the result)."""
+    from imupipe.io import read_yaml
+
+    out = {}
+    for key, path in (("bound", bound), ("identify", identify), ("stationarity", stationarity)):
+        if path is not None and Path(path).exists():
+            out[key] = read_yaml(path)
+    return out
+
+
+def write_summary(runs: Mapping[str, Mapping[str, Any]], path: str | Path, *, title: str = "imupipe run summary"
+                  ) -> str:
+    """Render the summary, write it to `path` atomically and return the text."""
+    from imupipe.io import write_text_atomic
+
+    text = render_summary(runs, title=title)
+    write_text_atomic(text, path)
+    return text
+
+
+def sensors_from_paths(sensors: Sequence[str], bounds: Sequence[str], identify: Sequence[str],
+                       stationarity: Sequence[str]) -> dict:
+    """Sensor -> files dict from parallel lists of paths (the order of `sensors`)."""
+    return {s: load_sensor_files(b, i, st) for s, b, i, st in zip(sensors, bounds, identify, stationarity, strict=True)}
+
+
+def discover_run(results: str | Path) -> dict:
+    """The per-sensor files of a finished run under `results`, by spec sheet.
+
+    Looks for ``bound/{spec}/{sensor}.yaml`` (a bound contract: has ``bounded`` and ``sensor``),
+    ``identify/{sensor}.yaml`` and ``stationarity/{sensor}.yaml`` anywhere below `results` (so a
+    ``results/<run name>/`` level is found as well).
+
+    Returns
+    -------
+    dict
+        ``{spec: {sensor: {"bound": path, "identify": path or None, "stationarity": path or None}}}``.
+    """
+    from imupipe.io import read_yaml
+
+    results = Path(results)
+    out: dict = {}
+    for path in sorted(results.rglob("bound/*/*.yaml")):
+        if path.parent.name == "axes" or "axes" in path.parts[len(results.parts):-1]:
+            continue
+        try:
+            head = read_yaml(path)
+        except Exception:  # not a YAML mapping: not a contract
+            continue
+        if not isinstance(head, Mapping) or "bounded" not in head or "sensor" not in head:
+            continue
+        sensor, spec = str(head["sensor"]), path.parent.name
+        base = path.parent.parent.parent  # the folder holding bound/, identify/, stationarity/
+        ident, stat = base / "identify" / f"{sensor}.yaml", base / "stationarity" / f"{sensor}.yaml"
+        out.setdefault(spec, {})[sensor] = {"bound": path, "identify": ident if ident.is_file() else None,
+                                            "stationarity": stat if stat.is_file() else None}
+    return out
+
+
+def summarise_run(results: str | Path) -> str:
+    """The summary text of every spec sheet of a finished run under `results` ("" when none is found)."""
+    texts = []
+    for spec, sensors in discover_run(results).items():
+        runs = {s: load_sensor_files(**paths) for s, paths in sensors.items()}
+        texts.append(render_summary(runs, title=f"imupipe run summary: {spec}"))
+    return "\n".join(texts)
+
+
+def markdown_to_html(text: str, *, title: str = "imupipe") -> str:
+    """A self-contained HTML page of the small markdown subset the run files use (for the HTML report).
+
+    Handles ``#``/``##``/``###`` headings, ``|``-tables with a ``|---|`` separator line, ``-`` bullet lists
+    (two-space indented items nested), ``**bold**``, inline ``code`` and paragraphs; everything else is
+    escaped text. Lines starting with ``- FAIL`` / ``- FLAG`` get the classes ``fail`` / ``flag``.
+    """
+    import html
+    import re
+
+    def inline(s: str) -> str:
+        s = html.escape(s)
+        s = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", s)
+        return re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
+
+    out, lines, i = [], text.splitlines(), 0
+    para: list[str] = []
+
+    def flush():
+        if para:
+            out.append(f"<p>{inline(' '.join(para))}</p>")
+            para.clear()
+
+    while i < len(lines):
+        ln = lines[i]
+        m = re.match(r"^(#{1,3}) (.*)$", ln)
+        if m:
+            flush()
+            n = len(m.group(1))
+            out.append(f"<h{n}>{inline(m.group(2))}</h{n}>")
+            i += 1
+        elif ln.startswith("|") and i + 1 < len(lines) and re.match(r"^\|(\s*:?-+:?\s*\|)+\s*$", lines[i + 1]):
+            flush()
+            cells = [c.strip() for c in ln.strip().strip("|").split("|")]
+            rows = ["<tr>" + "".join(f"<th>{inline(c)}</th>" for c in cells) + "</tr>"]
+            i += 2
+            while i < len(lines) and lines[i].startswith("|"):
+                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                rows.append("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in cells) + "</tr>")
+                i += 1
+            out.append("<table>" + "".join(rows) + "</table>")
+        elif re.match(r"^\s*- ", ln):
+            flush()
+            items = []
+            while i < len(lines) and re.match(r"^\s*- ", lines[i]):
+                item = lines[i]
+                nested = item.startswith("  ")
+                body = item.strip()[2:]
+                cls = " class=\"fail\"" if body.startswith("FAIL") else " class=\"flag\"" if body.startswith("FLAG") else ""
+                items.append((nested, f"<li{cls}>{inline(body)}</li>"))
+                i += 1
+            html_items, open_nested = [], False
+            for nested, li in items:
+                if nested and not open_nested:
+                    html_items.append("<ul>")
+                    open_nested = True
+                if not nested and open_nested:
+                    html_items.append("</ul>")
+                    open_nested = False
+                html_items.append(li)
+            if open_nested:
+                html_items.append("</ul>")
+            out.append("<ul>" + "".join(html_items) + "</ul>")
+        elif not ln.strip():
+            flush()
+            i += 1
+        else:
+            para.append(ln.strip())
+            i += 1
+    flush()
+    style = ("body{font-family:sans-serif;max-width:60em;margin:1em auto}table{border-collapse:collapse}"
+             "td,th{border:1px solid #999;padding:2px 8px;text-align:right}th{background:#eee}"
+             "td:first-child,th:first-child{text-align:left}.fail{color:#b00;font-weight:bold}.flag{color:#a60}")
+    return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
+            f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")

@@ -1,0 +1,151 @@
+"""The imupipe command (imupipe.cli): run, allan, check; exit codes and error messages naming the file."""
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imupipe.cli import check_config, main
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ROOT / "tests" / "configs" / "tiny.yaml"
+
+
+@pytest.fixture
+def white_csv(tmp_path):
+    """A CSV of white gyro noise, density N = 0.01 deg/s/sqrt(Hz) at 50 Hz (column gx in deg/s)."""
+    rate, n, N = 50.0, 200_000, 0.01
+    rng = np.random.default_rng(11)
+    x = N * math.sqrt(rate) * rng.standard_normal(n)
+    path = tmp_path / "rec.csv"
+    np.savetxt(path, x[:, None], header="gx", comments="", fmt="%.9e")
+    return path, rate, N
+
+
+def test_allan_table_of_a_csv(white_csv, capsys):
+    path, rate, N = white_csv
+    assert main(["allan", str(path), "--rate-hz", str(rate), "--channel", "gyro_x=gx", "--units", "gyro=deg/s"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"# {path}") and "50 Hz" in out[0]
+    assert out[1] == "tau_s\tgyro_x [rad/s]"
+    rows = np.array([[float(v) for v in ln.split("\t")] for ln in out[2:]])
+    tau, adev = rows[:, 0], rows[:, 1]
+    # octave taus from 1/rate: 0.02 * 2^k s
+    np.testing.assert_allclose(tau[:3], [0.02, 0.04, 0.08], rtol=1e-12)
+    # white noise: ADEV = N / sqrt(tau) (N in rad/s/sqrt(Hz)); at tau = 1.28 s the record holds 4000 s / 1.28 s
+    # = 3125 independent averages -> relative s.e. of the ADEV <= 1/sqrt(2 * 3125) = 1.3 % (the overlapping
+    # estimate does better); 5 s.e. = 6.3 %
+    i = int(np.argmin(abs(tau - 1.28)))
+    np.testing.assert_allclose(adev[i] * math.sqrt(tau[i]), math.radians(N), rtol=0.063)
+
+
+@pytest.mark.parametrize("suffix", [".svg", ".pdf"])
+def test_allan_plot_written_in_the_format_of_its_name(white_csv, tmp_path, suffix, capsys):
+    path, rate, _ = white_csv
+    out = tmp_path / f"adev{suffix}"
+    assert main(["allan", str(path), "--rate-hz", str(rate), "--channel", "gyro_x=gx", "--units", "gyro=deg/s",
+                 "--plot", str(out)]) == 0
+    head = out.read_bytes()[:200]
+    assert (b"<svg" in head or b"<?xml" in head) if suffix == ".svg" else head.startswith(b"%PDF")
+
+
+def test_allan_bad_file_is_named(tmp_path, capsys):
+    missing = tmp_path / "nope.csv"
+    assert main(["allan", str(missing), "--rate-hz", "10"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("imupipe: error:") and "nope.csv" in err
+
+
+def test_check_tiny_config_passes(capsys):
+    lines = check_config(TINY)
+    assert any("spec sheet stim300.yaml" in ln for ln in lines)
+    assert any("datasets: simulated" in ln for ln in lines)
+
+
+def test_check_names_a_missing_spec_sheet(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(TINY.read_text().replace("specs: [stim300]", "specs: [no_such_imu]"))
+    assert main(["check", str(bad), "--no-dry-run"]) == 1
+    err = capsys.readouterr().err
+    assert "no_such_imu" in err and "does not exist" in err
+
+
+def test_check_names_a_missing_dataset_file(tmp_path, capsys):
+    sheet = tmp_path / "sheet.tsv"
+    sheet.write_text("dataset\tpath\tformat\trate_hz\tgyro_unit\nlab1\t/nonexistent/lab1.csv\tcsv\t100\tdeg/s\n")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(TINY.read_text().replace("datasets: null", f"datasets: {sheet}"))
+    assert main(["check", str(cfg), "--no-dry-run"]) == 1
+    err = capsys.readouterr().err
+    assert "line 2" in err and "lab1" in err and "does not exist" in err
+
+
+def test_check_with_dry_run_and_run_dry(tmp_path):
+    # the snakemake command line of the checkout, in a scratch working directory (nothing is run)
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "check", str(TINY), "--directory", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "ok  snakemake dry run" in proc.stdout
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "run", str(TINY), "--cores", "1", "--directory",
+                           str(tmp_path), "--dry-run"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "rule bound" in proc.stdout + proc.stderr or "bound" in proc.stdout + proc.stderr
+    assert not (tmp_path / "results").exists()  # a dry run writes no result
+
+
+def test_version_and_help():
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "--version"], capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout.startswith("imupipe ")
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "--help"], capture_output=True, text=True)
+    assert all(c in proc.stdout for c in ("run", "allan", "check"))
+
+
+@pytest.mark.slow
+def test_run_tiny_config_prints_the_summary(tmp_path):
+    import shutil
+
+    import yaml
+
+    shutil.copytree(ROOT / "config" / "specs", tmp_path / "specs")
+    cfg = yaml.safe_load(TINY.read_text())
+    cfg["spec_dir"] = str(tmp_path / "specs")
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "run", str(config), "--cores", "2", "--directory",
+                           str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "# imupipe run summary: stim300" in proc.stdout
+    assert "## gyro: " in proc.stdout and "## accel: " in proc.stdout
+    assert "rule bound" not in proc.stdout + proc.stderr  # job blocks quiet by default (details in logs/)
+
+
+def test_run_options_after_the_config_are_imupipes_and_after_dashes_snakemakes(monkeypatch, tmp_path):
+    import imupipe.cli as cli
+
+    calls = []
+    monkeypatch.setattr(cli.subprocess, "call", lambda cmd, env=None: calls.append(cmd) or 0)
+    monkeypatch.setattr(cli, "_print_summary", lambda results: calls.append(("summary", results)))
+    assert main(["run", str(TINY), "--cores", "3", "--directory", str(tmp_path), "--", "--keep-going"]) == 0
+    cmd = calls[0]
+    assert cmd[cmd.index("--cores") + 1] == "3"
+    assert cmd[cmd.index("--directory") + 1] == str(tmp_path.resolve())
+    assert "--keep-going" in cmd and cmd[cmd.index("--quiet") + 1] == "rules"
+    assert calls[1] == ("summary", tmp_path.resolve() / "results")
+
+
+def test_summary_command_writes_markdown_and_html(tmp_path, capsys):
+    from imupipe.io import write_yaml_atomic
+
+    res = tmp_path / "results"
+    write_yaml_atomic({"sensor": "accel", "bounded": False, "margin": 0.5, "margin_curve": "d/x",
+                       "margin_frequency_hz": 0.1}, res / "bound" / "spec1" / "accel.yaml")
+    md, page = tmp_path / "s.md", tmp_path / "s.html"
+    assert main(["summary", str(res), "--markdown", str(md), "--html", str(page)]) == 0
+    out = capsys.readouterr().out
+    assert "## accel: NOT BOUNDED" in out and md.read_text().rstrip() == out.rstrip()
+    assert "<h2>accel: NOT BOUNDED</h2>" in page.read_text()
+    assert main(["summary", str(tmp_path / "none")]) == 1
+    assert "no such results folder" in capsys.readouterr().err

@@ -1,0 +1,110 @@
+"""Kalibr export (imupipe.kalibr): Kalibr's field names, units and conventions, read back from the file."""
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from imupipe.kalibr import KALIBR_UNITS, imu_rate, kalibr_imu, kalibr_text, model_of_bound, read_kalibr, write_kalibr
+from imupipe.models import NoiseModel
+
+GYRO = NoiseModel(white=1.3e-4, gauss_markov=((2.2e-5, 300.0),), random_walk=3.0e-7)  # rad/s
+ACCEL = NoiseModel(white=2.5e-3, gauss_markov=((6.0e-4, 120.0),), random_walk=5.0e-5)  # m/s^2
+GYRO_ID = NoiseModel(white=0.5e-4, gauss_markov=((1.0e-5, 300.0),), random_walk=1.0e-7)
+ACCEL_ID = NoiseModel(white=1.0e-3, random_walk=2.0e-5)
+
+
+def _k_eff(m):
+    return math.sqrt(m.random_walk**2 + sum(2 * s**2 / T for s, T in m.gauss_markov))
+
+
+def test_file_reads_back_with_kalibrs_fields_and_values(tmp_path):
+    imu = kalibr_imu(GYRO, ACCEL, update_rate_hz=125.0, rostopic="/imu/data", identified_gyro=GYRO_ID,
+                     identified_accel=ACCEL_ID)
+    path = tmp_path / "imu.yaml"
+    write_kalibr(imu, path, source="unit test")
+    back = read_kalibr(path)
+    # Kalibr's five fields plus the topic, nothing renamed
+    assert set(back) == set(KALIBR_UNITS) | {"rostopic"}
+    assert back["update_rate"] == 125.0  # the IMU's sample rate, not a filter rate
+    assert back["rostopic"] == "/imu/data"
+    # the white noise density is the two-sided N (Kalibr: E[n(t1) n(t2)] = sigma^2 delta(t1 - t2));
+    # written with 7 significant digits -> rtol 1e-6
+    np.testing.assert_allclose(back["gyroscope_noise_density"], GYRO.white, rtol=1e-6)
+    np.testing.assert_allclose(back["accelerometer_noise_density"], ACCEL.white, rtol=1e-6)
+    np.testing.assert_allclose(back["gyroscope_random_walk"], _k_eff(GYRO), rtol=1e-6)
+    np.testing.assert_allclose(back["accelerometer_random_walk"], _k_eff(ACCEL), rtol=1e-6)
+    text = path.read_text()
+    # units as Kalibr defines them, in the comments next to the fields
+    for field, unit in KALIBR_UNITS.items():
+        line = next(ln for ln in text.splitlines() if ln.startswith(field + ":"))
+        assert unit in line, (field, line)
+    assert "BOUNDING VALUES" in text and "no further inflation" in text
+    # inflation against the identified values: 1.3e-4 / 0.5e-4 = 2.6
+    assert "gyroscope_noise_density: x2.6" in text
+    assert imu.inflation["accelerometer_noise_density"] == pytest.approx(2.5)
+
+
+def test_folded_random_walk_bounds_gm_plus_rw_psd():
+    imu = kalibr_imu(GYRO, ACCEL, update_rate_hz=200.0)
+    f = np.geomspace(1e-6, 100.0, 400)
+    kalibr_model = NoiseModel(white=imu.gyroscope_noise_density, random_walk=imu.gyroscope_random_walk)
+    assert np.all(kalibr_model.psd(f) >= GYRO.psd(f) * (1 - 1e-12))
+    # and it is not loose at high frequency: the white noise is passed unchanged
+    assert kalibr_model.psd(f[-1:]) == pytest.approx(GYRO.psd(f[-1:]), rel=1e-3)
+
+
+def test_discretisation_matches_kalibrs_rule():
+    # Kalibr: sigma_d = sigma / sqrt(dt) (white), sigma_bd = sigma_b sqrt(dt) (random walk), dt = 1/update_rate;
+    # a simulated white sequence at 125 Hz with that sigma_d has PSD N^2 (two-sided) -> the density is N.
+    rate = 125.0
+    imu = kalibr_imu(GYRO, ACCEL, update_rate_hz=rate)
+    rng = np.random.default_rng(5)
+    x = imu.gyroscope_noise_density * math.sqrt(rate) * rng.standard_normal(2**18)
+    # two-sided PSD estimate of white noise: var / rate; relative s.e. of the variance sqrt(2/n) = 0.28 %
+    np.testing.assert_allclose(x.var() / rate, GYRO.white**2, rtol=5 * math.sqrt(2 / x.size))
+
+
+def test_update_rate_refuses_datasets_of_different_rates():
+    assert imu_rate({"a": 125.0, "b": 125.0}) == 125.0
+    with pytest.raises(ValueError, match=r"differ in sample rate.*a: 125 Hz, b: 200 Hz"):
+        imu_rate({"a": 125.0, "b": 200.0})
+    with pytest.raises(ValueError, match="positive number"):
+        imu_rate({"a": 0.0})
+
+
+def test_narrowband_lines_are_refused():
+    class WithLine:
+        white, random_walk, gauss_markov, narrowband = 1e-4, 1e-7, (), ((1e-4, 10.0, 0.01),)
+
+    from imupipe import kalibr
+
+    with pytest.raises(ValueError, match="narrowband"):
+        kalibr._k_eff(WithLine(), "gyro")
+
+
+def test_model_of_bound_contract_and_plain_yaml():
+    contract = {"bound": {"white": 1e-4, "gauss_markov": [{"sigma": 1e-5, "T": 100.0}], "random_walk": None}}
+    m = model_of_bound(contract)
+    assert m.white == 1e-4 and m.gauss_markov == ((1e-5, 100.0),) and m.random_walk == 0.0
+    text = kalibr_text(kalibr_imu(m, ACCEL, update_rate_hz=100.0))
+    assert yaml.safe_load(text)["gyroscope_random_walk"] == pytest.approx(math.sqrt(2e-10 / 100.0), rel=1e-6)
+    with pytest.raises(ValueError, match="'bound'"):
+        model_of_bound({})
+
+
+def test_rostopic_from_the_dataset_sheet():
+    from imupipe.kalibr import rostopic_of
+
+    assert rostopic_of({"a": "/imu/data", "b": None, "c": ""}) == "/imu/data"
+    assert rostopic_of({"a": None, "b": float("nan")}) == "/imu0"
+    with pytest.raises(ValueError, match=r"different topics \(a: /imu/data, b: /imu1\)"):
+        rostopic_of({"a": "/imu/data", "b": "/imu1"})
+
+
+def test_read_kalibr_names_a_missing_field(tmp_path):
+    path = tmp_path / "imu.yaml"
+    path.write_text("gyroscope_noise_density: 1e-4\n")
+    with pytest.raises(ValueError, match=r"imu.yaml: Kalibr field 'accelerometer_noise_density' \(m/s\^2/sqrt\(Hz\)\)"):
+        read_kalibr(path)
