@@ -5,8 +5,8 @@ tests/configs/tiny.yaml through ``--profile workflow/profiles/slurm`` with snake
 every job is an sbatch job. The same config runs once locally (``--cores 2``), each run in a
 ``--directory`` of its own. Every .nc and .yaml file the two runs write must be present in both and equal:
 netCDF files by variables, coordinates, values (bit for bit: same code, same machine, one BLAS thread, seeded
-simulation, so any difference is the executor's doing) and attributes; YAML files by their parsed content, with
-wall-clock fields left out. Nothing here names a rule or a result path: the comparison walks the trees.
+simulation, so any difference is the executor's doing) and attributes; YAML files by their parsed content,
+with wall-clock fields left out. Nothing here names a rule or a result path: the comparison walks the trees.
 
 Run it with ``make test-slurm`` (installs Debian's slurm-wlm and munge when missing, needs root) or
 ``pytest -m slurm tests/test_slurm.py`` where the daemons are installed. It skips with the reason where the
@@ -58,7 +58,8 @@ def _missing() -> str | None:
         return "snakemake-executor-plugin-slurm not installed (pip install -e '.[test]')"
     absent = [c for c in COMMANDS if shutil.which(c, path=SEARCH_PATH) is None]
     if absent:
-        return f"SLURM/munge commands not found: {', '.join(absent)} (apt-get install slurm-wlm munge, or make test-slurm)"
+        return (f"SLURM/munge commands not found: {', '.join(absent)} "
+                "(apt-get install slurm-wlm munge, or make test-slurm)")
     return None
 
 
@@ -77,8 +78,8 @@ def cluster():
         started = subprocess.run(["bash", str(START), str(home)], capture_output=True, text=True, env=env,
                                  timeout=120)
         if started.returncode != 0:
-            pytest.skip(f"the one-node SLURM cluster did not start (start_cluster.sh exit {started.returncode}):\n"
-                        f"{started.stderr[-3000:]}")
+            pytest.skip(f"the one-node SLURM cluster did not start (start_cluster.sh exit "
+                        f"{started.returncode}):\n{started.stderr[-3000:]}")
         yield {**env, "SLURM_CONF": str(home / "slurm.conf")}
     finally:
         subprocess.run(["bash", str(STOP), str(home)], capture_output=True, text=True, env=env, timeout=120)
@@ -86,9 +87,9 @@ def cluster():
 
 
 def _snakemake(workdir: Path, *args: str, env: dict) -> tuple[subprocess.CompletedProcess, float]:
-    """Run the workflow on tests/configs/tiny.yaml in WORKDIR from the project root; (process, wall seconds)."""
-    cmd = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"), "--directory", str(workdir),
-           "--configfile", str(TINY), *args]
+    """Run the workflow on tests/configs/tiny.yaml in WORKDIR from the project root: (process, wall s)."""
+    cmd = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"),
+           "--directory", str(workdir), "--configfile", str(TINY), *args]
     start = time.perf_counter()
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env, timeout=TIMEOUT_S)
     wall = time.perf_counter() - start
@@ -96,8 +97,8 @@ def _snakemake(workdir: Path, *args: str, env: dict) -> tuple[subprocess.Complet
         logs = ""
         for log in sorted((workdir / "logs").rglob("*.log"))[-5:]:
             logs += f"\n---- {log.relative_to(workdir)}\n{log.read_text()[-1500:]}"
-        raise AssertionError(f"snakemake {' '.join(args)} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n"
-                             f"{proc.stderr[-5000:]}{logs}")
+        raise AssertionError(f"snakemake {' '.join(args)} failed ({proc.returncode}):\n"
+                             f"{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}{logs}")
     return proc, wall
 
 
@@ -214,7 +215,9 @@ def test_comparison_accepts_equal_runs_and_timing_fields(tmp_path):
     assert compare_runs(*_write_pair(tmp_path, only_timing)) == []
 
 
-@pytest.mark.parametrize("what", ["value", "nc_attr", "yaml_number", "yaml_key", "yaml_result_time", "missing_file"])
+@pytest.mark.parametrize(
+    "what", ["value", "nc_attr", "yaml_number", "yaml_key", "yaml_result_time", "missing_file"]
+)
 def test_comparison_finds_each_kind_of_difference(tmp_path, what):
     def change(ds, doc):
         if what == "value":

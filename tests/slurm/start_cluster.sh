@@ -5,12 +5,13 @@
 #   source DIR/env                        # SLURM_CONF for sbatch, squeue, sacct, scontrol
 #   tests/slurm/stop_cluster.sh DIR       # stops exactly the daemons this script started
 #
-# Everything lives under DIR (but for the link /run/slurm/conf -> DIR, see below; stop_cluster.sh removes it): its own munge key and socket (a munged already running on the machine is left
-# alone), its own ports, state, spool, logs and pid files. No cgroups (proctrack/linuxproc, task/none) and no
-# accounting database (accounting_storage/none: sacct then asks slurmctld, which keeps finished jobs for
+# Everything lives under DIR but for the link /run/slurm/conf -> DIR (see below; stop_cluster.sh removes it):
+# its own munge key and socket (a munged already running on the machine is left alone), its own ports, state,
+# spool, logs and pid files. No cgroups (proctrack/linuxproc, task/none) and no accounting database
+# (accounting_storage/none: sacct and sacctmgr have nothing to report; squeue shows finished jobs for
 # MinJobAge seconds). Needs root or a user that may run the daemons (Debian: apt-get install slurm-wlm munge).
 # Exit status: 0 when the node is IDLE, 2 when a command is missing, 1 when a daemon does not come up (its log
-# is printed).
+# is printed) or another cluster's configuration is in the way.
 set -euo pipefail
 
 DIR=${1:?usage: start_cluster.sh DIR}
@@ -94,7 +95,7 @@ EOF
 # then looks for /etc/slurm/slurm.conf and next for /run/slurm/conf/slurm.conf (where a configless slurmd
 # keeps its copy). A machine with its own /etc/slurm/slurm.conf would send those steps to its own cluster.
 if [ -e /etc/slurm/slurm.conf ]; then
-    echo "start_cluster.sh: /etc/slurm/slurm.conf exists: job steps inside the test's jobs would use that cluster" >&2
+    echo "start_cluster.sh: /etc/slurm/slurm.conf exists: job steps would use that cluster" >&2
     exit 1
 fi
 if [ -e /run/slurm/conf ] || [ -L /run/slurm/conf ]; then
