@@ -43,3 +43,17 @@ report: env
 
 clean:
 	rm -rf results logs .snakemake
+
+# The workflow on a one-node SLURM cluster on localhost (tests/test_slurm.py, a few minutes): installs Debian's
+# slurm-wlm and munge first when their commands are missing (needs root; the test skips with the reason when
+# they are still missing or the daemons do not start). The test starts and stops its own daemons.
+.PHONY: test-slurm
+test-slurm: env
+	@missing=""; for c in munged slurmctld slurmd sbatch squeue srun; do \
+	    command -v $$c >/dev/null 2>&1 || [ -x /usr/sbin/$$c ] || missing="$$missing $$c"; done; \
+	if [ -n "$$missing" ]; then \
+	    echo "missing:$$missing; installing slurm-wlm and munge"; \
+	    { apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y slurm-wlm munge; } \
+	        || echo "could not install slurm-wlm and munge (not root?): the SLURM test will skip"; \
+	fi
+	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q -m slurm -s tests/test_slurm.py
