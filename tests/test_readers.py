@@ -449,7 +449,7 @@ class TestBadInputs:
     def test_sheet_rate_disagreeing_with_timestamps(self, tmp_path, signals):
         path = write_csv(tmp_path / "imu.csv", csv_columns(signals))
         with pytest.raises(
-            DataError, match=r"rate_hz = 102 Hz in the sheet but the timestamps \('t'\) give 100 Hz"
+            DataError, match=r"rate_hz = 102 Hz but the timestamps \('t'\) give a mean rate of 100 Hz"
         ):
             read_dataset(path, "csv", 102.0, NAMES, UNITS, time_column="t")
         read_dataset(path, "csv", 100.5, NAMES, UNITS, time_column="t")  # within 1 %

@@ -39,16 +39,37 @@ __all__ = [
     "GAP_POLICIES",
     "SENSORS",
     "SHEET_COLUMNS",
+    "ConfigError",
     "DataError",
+    "FROM_FILE",
+    "FilledGap",
+    "Probe",
     "GapWarning",
     "Recording",
     "Segment",
+    "check_against_config",
+    "check_file",
+    "check_sheet_header",
+    "check_unchanged",
+    "check_values",
     "parse_axis_map",
+    "probe",
+    "probe_row",
     "read_dataset",
     "read_dataset_row",
+    "read_channel",
     "sheet_row_to_kwargs",
+    "snap_rate",
+    "validate_dataset_name",
 ]
 from imupipe.readers._common import (  # noqa: F401
     AXES, FORMATS, GAP_POLICIES, SENSORS, SHEET_COLUMNS, DataError, GapWarning, Recording, Segment, parse_axis_map,
 )
-from imupipe.readers.core import read_dataset, read_dataset_row, sheet_row_to_kwargs  # noqa: F401
+from imupipe.readers.checks import (  # noqa: F401
+    PLAUSIBLE_SI, ConfigError, check_against_config, check_file, check_sheet_header, check_unchanged, check_values,
+    validate_dataset_name,
+)
+from imupipe.readers.core import (  # noqa: F401
+    FROM_FILE, FilledGap, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
+)
+from imupipe.readers.probe import Probe, probe, probe_row  # noqa: F401

@@ -17,7 +17,7 @@ from imupipe.units import SI_UNITS, UnitError, rate_factor
 
 SENSORS = ("gyro", "accel")
 AXES = ("x", "y", "z")
-GAP_POLICIES = ("fail", "split")
+GAP_POLICIES = ("fail", "split", "fill")
 
 #: Accepted ``format`` values (and the sheet's ``format`` column) -> reader used.
 FORMATS = {
@@ -76,7 +76,10 @@ SHEET_COLUMNS = {
     "variable": "rda: object name; npz / netCDF: name of a 2-D array whose columns the channels index",
     "topic": "rosbag: topic of the sensor_msgs/Imu messages; empty: the only Imu topic",
     "axis_map": "body axis <- signed file axis, e.g. 'x:-y,y:x,z:z'; empty: identity",
-    "gap_policy": "fail (default) or split (keep the longest contiguous segment, warn)",
+    "gap_policy": "fail (default), split (keep the longest contiguous segment, warn) or fill (interpolate short gaps)",
+    "fill_max_samples": "gap_policy fill: longest gap filled, in missing samples (default 10)",
+    "fill_max_s": "gap_policy fill: longest gap filled, in s (instead of fill_max_samples)",
+    "long_gap_policy": "gap_policy fill: fail (default) or split for longer gaps",
 }
 
 _SI_UNITS = SI_UNITS
@@ -166,6 +169,9 @@ class Recording:
         All contiguous segments of the record (one unless ``gap_policy="split"`` found gaps).
     selected : int
         Index in ``segments`` of the segment held in ``channels`` (the longest).
+    filled : tuple of FilledGap
+        Gaps filled by ``gap_policy="fill"`` (row before the gap, samples inserted); rows of
+        ``channels`` then count the inserted samples. Empty otherwise.
     """
 
     channels: dict[Key, np.ndarray]
@@ -176,6 +182,7 @@ class Recording:
     columns: dict[Key, str]
     segments: tuple[Segment, ...]
     selected: int = 0
+    filled: tuple = ()
     _full: dict[Key, np.ndarray] = field(default_factory=dict, repr=False)
 
     def __getitem__(self, key: Key) -> np.ndarray:
@@ -211,6 +218,11 @@ class Recording:
     def n_samples(self) -> int:
         """Number of samples per channel in ``channels``."""
         return len(next(iter(self.channels.values())))
+
+    @property
+    def n_filled(self) -> int:
+        """Samples inserted by ``gap_policy="fill"`` (0 when nothing was filled)."""
+        return int(sum(g.n_missing for g in self.filled))
 
     @property
     def duration_s(self) -> float:

@@ -23,6 +23,7 @@ __all__ = [
     "SQUARE_SAFE_MIN",
     "ConfigError",
     "check_file",
+    "check_sheet_header",
     "check_unchanged",
     "check_values",
     "validate_dataset_name",
@@ -326,3 +327,50 @@ def check_against_config(
                     f"for config key stationarity.n_segments = {n_segments} (need >= {min_segment_samples} per "
                     f"segment, {n_segments * min_segment_samples} in all)"
                 )
+
+
+def check_sheet_header(path: str | Path, delimiter: str = "\t") -> list[str]:
+    """Read the header line of the dataset sheet and refuse duplicated or empty column names.
+
+    A TSV reader such as pandas renames a second ``gyro_x`` column to ``gyro_x.1`` silently, so that a
+    channel would be read from whichever column the sheet names first; the workflow calls this before
+    reading the sheet. Lines starting with ``#`` are comments.
+
+    Parameters
+    ----------
+    path : str or Path
+        Dataset sheet.
+    delimiter : str, optional
+        Defaults to a tab.
+
+    Returns
+    -------
+    list of str
+        Column names, in order.
+
+    Raises
+    ------
+    DataError
+        Naming the sheet, the duplicated name and its column numbers (1-based, as a spreadsheet shows them).
+    """
+    path = Path(path)
+    check_file(path, "csv")
+    with open(path, encoding="utf-8-sig") as fh:
+        for number, line in enumerate(fh, start=1):
+            if line.strip() and not line.lstrip().startswith("#"):
+                break
+        else:
+            raise DataError(f"dataset sheet {str(path)!r}: no header line")
+    names = [c.strip() for c in line.rstrip("\r\n").split(delimiter)]
+    dup = sorted({c for c in names if c and names.count(c) > 1})
+    if dup:
+        listed = "; ".join(
+            f"{c!r} in columns {', '.join(str(i + 1) for i, d in enumerate(names) if d == c)}" for c in dup
+        )
+        raise DataError(
+            f"dataset sheet {str(path)!r}, line {number}: duplicated column header {listed}; expected each column once"
+        )
+    empty = [i + 1 for i, c in enumerate(names) if not c and any(names[i + 1 :])]  # trailing tabs are fine
+    if empty:
+        raise DataError(f"dataset sheet {str(path)!r}, line {number}: column(s) {empty} have an empty header")
+    return names

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import re
@@ -14,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from imupipe.readers._common import *  # noqa: F403
-from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _SI_UNITS, _cell, _example_unit, _normalise_channels, _normalise_units, _unit_factor, _EXTENSIONS
+from imupipe.readers._common import _ROS_FIELDS, _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _SI_UNITS, _cell, _example_unit, _normalise_channels, _normalise_units, _unit_factor, _EXTENSIONS
 
 
 from imupipe.readers.arrays import _load_npy, _load_npz
@@ -22,6 +23,12 @@ from imupipe.readers.netcdf import _load_netcdf
 from imupipe.readers.rdata import _load_rdata
 from imupipe.readers.rosbag import _load_rosbag
 from imupipe.readers.text import _load_text
+from imupipe.readers.checks import check_file, check_unchanged, check_values
+
+#: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
+FROM_FILE = "from_file"
+#: Longest gap ``gap_policy="fill"`` fills when neither fill_max_samples nor fill_max_s is given.
+DEFAULT_FILL_MAX_SAMPLES = 10
 
 
 def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = None) -> dict[str, Any]:
@@ -66,6 +73,19 @@ def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = No
     for key in ("time_column", "time_unit", "delimiter", "variable", "topic", "axis_map", "gap_policy"):
         if r.get(key) is not None:
             kwargs[key] = r[key]
+    for key, kind in (("fill_max_samples", int), ("fill_max_s", float)):
+        if r.get(key) is not None:
+            try:
+                value = kind(r[key])
+                if kind is int and float(r[key]) != value:
+                    raise ValueError
+            except (TypeError, ValueError):
+                raise DataError(
+                    f"dataset {name!r}: {key} = {r[key]!r} is not {'an integer number of samples' if kind is int else 'a number of s'}"
+                ) from None
+            kwargs[key] = value
+    if r.get("long_gap_policy") is not None:
+        kwargs["long_gap_policy"] = r["long_gap_policy"]
     return kwargs
 
 
@@ -109,6 +129,9 @@ def read_dataset(
     min_duration_s: float | None = None,
     rate_rtol: float = 0.01,
     gap_factor: float = 1.5,
+    fill_max_samples: int | None = None,
+    fill_max_s: float | None = None,
+    long_gap_policy: str = "fail",
 ) -> Recording:
     r"""Read, convert to SI and validate one static IMU record.
 
@@ -159,11 +182,14 @@ def read_dataset(
     axis_map : str or mapping, optional
         Body axis <- signed file axis, e.g. ``"x:-y,y:x,z:z"`` (see :func:`parse_axis_map`), applied
         to both sensors after the SI conversion. Defaults to None (identity).
-    gap_policy : {"fail", "split"}, optional
+    gap_policy : {"fail", "split", "fill"}, optional
         What a timestamp gap does: ``"fail"`` raises :class:`DataError` naming the first gap;
         ``"split"`` keeps the longest contiguous segment in ``channels``, lists every segment in
         ``Recording.segments`` (data via ``Recording.segment(i)``) and warns (:class:`GapWarning`)
-        naming the gaps. Duplicated or decreasing timestamps are always an error. Defaults to ``"fail"``.
+        naming the gaps. ``"fill"`` fills every gap of at most ``fill_max_samples`` missing samples
+        (or ``fill_max_s`` seconds) by linear interpolation between its two neighbours (timestamps
+        and every channel), lists them in ``Recording.filled`` and handles longer gaps by
+        ``long_gap_policy``. Duplicated or decreasing timestamps are always an error. Defaults to ``"fail"``.
     min_duration_s : float, optional
         Shortest usable record (s), e.g. ``2 * tau_max`` for the largest Allan tau or the PSD
         window length; the (selected) record must last at least this long (``n / rate_hz``).
@@ -172,7 +198,17 @@ def read_dataset(
         Relative tolerance between the sheet's rate and the file's or timestamps' rate.
         Defaults to 0.01 (1 %).
     gap_factor : float, optional
-        A timestamp interval longer than ``gap_factor / rate_hz`` is a gap. Defaults to 1.5.
+        A timestamp interval longer than ``gap_factor / rate_hz`` is a gap; shorter positive ones are
+        sample steps (jitter and clock quantisation, e.g. integer-ms stamps at 300 Hz, are accepted).
+        Defaults to 1.5.
+    fill_max_samples : int, optional
+        ``gap_policy="fill"``: longest gap filled, in missing samples. Defaults to None: 10 samples
+        unless ``fill_max_s`` is given.
+    fill_max_s : float, optional
+        ``gap_policy="fill"``: longest gap filled, in s of missing data (``fill_max_s * rate`` samples,
+        rounded down). Defaults to None.
+    long_gap_policy : {"fail", "split"}, optional
+        ``gap_policy="fill"``: what a longer gap does. Defaults to ``"fail"``.
 
     Returns
     -------
@@ -198,22 +234,33 @@ def read_dataset(
     fmt = _format_of(path, format)
     if gap_policy not in GAP_POLICIES:
         raise DataError(f"{where}: gap_policy {gap_policy!r} not one of {GAP_POLICIES}")
+    if long_gap_policy not in ("fail", "split"):
+        raise DataError(f"{where}: long_gap_policy {long_gap_policy!r} not one of ('fail', 'split')")
+    for name, value in (("fill_max_samples", fill_max_samples), ("fill_max_s", fill_max_s)):
+        if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise DataError(f"{where}: {name} = {value!r}; expected a non-negative number")
     if rate_hz is not None and not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(f"{where}: rate_hz = {rate_hz!r}; expected a positive number of Hz")
     if min_duration_s is not None and not (min_duration_s >= 0):
         raise DataError(f"{where}: min_duration_s = {min_duration_s!r}; expected a non-negative number of s")
-    if not path.exists():
-        raise DataError(f"{where}: file not found")
-    if path.is_dir() and fmt != "rosbag":
-        raise DataError(f"{where}: is a directory, not a {fmt} file")
+    before = check_file(path, fmt)
     specs = _normalise_channels(channels)
     if specs is not None and not specs:
         raise DataError(f"{where}: no channel given (all of gyro_x ... accel_z are empty)")
+    if specs is not None:
+        seen: dict[str, Key] = {}
+        for key, spec in specs.items():
+            other = seen.setdefault(str(spec), key)
+            if other != key:
+                raise DataError(
+                    f"{where}: {_chname(other)} and {_chname(key)} both name column {spec!r}; expected one column "
+                    "per channel (a duplicated or mistyped dataset-sheet column?)"
+                )
     sheet_units = _normalise_units(units)
     amap = parse_axis_map(axis_map)
     if specs is not None:  # units known from the sheet are checked before reading a large file
         for key in specs:
-            if sheet_units.get(key) is not None:
+            if sheet_units.get(key) is not None and sheet_units[key] != FROM_FILE:
                 _unit_factor(sheet_units[key], key[0], f"{where}: {key[0]}_unit")
 
     if fmt == "csv":
@@ -228,8 +275,14 @@ def read_dataset(
         raw = _load_rdata(path, specs, variable, time_column, time_unit, where)
     else:
         raw = _load_rosbag(path, specs, topic, time_column, where)
+    check_unchanged(path, before)
+    row_map = None  # filled record row -> file row (-1: inserted), after gap filling
 
     def row_text(row: int) -> str:
+        if row_map is not None:
+            if row_map[row] < 0:
+                return f"row {row} of the gap-filled record (an inserted sample)"
+            row = int(row_map[row])
         text = f"row {row} (0-based)"
         if raw.line_of_row is not None:
             text += f", line {raw.line_of_row(row)}"
@@ -263,8 +316,27 @@ def read_dataset(
     elif rate is None:
         rate = raw.file_rate
     segments = [Segment(0, n)]
+    filled: tuple[FilledGap, ...] = ()
+    policy = gap_policy
+    if raw.time is not None and gap_policy == "fill":
+        if not np.isfinite(raw.time).all() or len(raw.time) < 2:
+            pass  # _check_time names the bad value
+        else:
+            guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
+            max_missing = (
+                fill_max_samples if fill_max_samples is not None
+                else int(math.floor(fill_max_s * guess)) if fill_max_s is not None
+                else DEFAULT_FILL_MAX_SAMPLES
+            )
+            filled, row_map = _fill_gaps(raw, rate, gap_factor, max_missing, where, row_text)
+            n = len(raw.time)
+            if not filled:
+                row_map = None
+        policy = long_gap_policy
+    elif raw.time is None and gap_policy == "fill":
+        pass  # no timestamps: no gaps to see
     if raw.time is not None:
-        segments, rate = _check_time(raw, rate, rate_hz, gap_policy, rate_rtol, gap_factor, where, row_text)
+        segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text)
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
     selected = max(range(len(segments)), key=lambda i: segments[i].n)
@@ -293,6 +365,22 @@ def read_dataset(
         sensor = key[0]
         unit = sheet_units.get(key)
         origin = f"{where}: {sensor}_unit"
+        stored_unit = raw.file_units.get(key)
+        if stored_unit is not None and not _blank(stored_unit):  # a unit the file states must be readable
+            try:
+                stored_factor = _unit_factor(stored_unit, sensor, f"{where}: variable {raw.names[key]} units attribute")
+            except DataError as exc:
+                raise DataError(
+                    f"{exc}; the file's own unit must parse (and agree with {sensor}_unit, or set "
+                    f"{sensor}_unit: {FROM_FILE})"
+                ) from None
+        if unit == FROM_FILE:
+            if stored_unit is None or _blank(stored_unit):
+                raise DataError(
+                    f"{where}: {sensor}_unit = {FROM_FILE!r} but {_chname(key)} (variable {raw.names[key]}) has no "
+                    "units attribute; give the unit in the sheet"
+                )
+            unit = None
         if unit is None:
             unit = raw.file_units.get(key) or raw.default_units.get(sensor)
             origin = f"{where}: {_chname(key)} unit (from the file)"
@@ -302,13 +390,7 @@ def read_dataset(
                     f"expected e.g. {_SI_UNITS[sensor]!r} or {_example_unit(sensor)!r}"
                 )
         elif raw.file_units.get(key):
-            try:
-                stored = _unit_factor(raw.file_units[key], sensor, origin)
-            except DataError:
-                stored = None
-            if stored is not None and not math.isclose(
-                stored, _unit_factor(unit, sensor, origin), rel_tol=1e-9
-            ):
+            if not math.isclose(stored_factor, _unit_factor(unit, sensor, origin), rel_tol=1e-9):
                 raise DataError(
                     f"{where}: {sensor}_unit = {unit!r} in the sheet but variable {raw.names[key]} "
                     f"has units {raw.file_units[key]!r}"
@@ -318,6 +400,7 @@ def read_dataset(
         # (a .npy opened as a memory map) is copied (a 36 MB copy costs ~50 ms, mostly page faults)
         si[key] = x * factor if factor != 1.0 else (x if x.flags.writeable else np.array(x, dtype=np.float64))
         file_units[key] = unit
+        check_values(si[key], sensor, f"{_chname(key)} (column {raw.names[key]})", where, row_text)
 
     mapped: dict[Key, np.ndarray] = {}
     columns: dict[Key, str] = {}
@@ -356,6 +439,7 @@ def read_dataset(
         columns={k: columns[k] for k in keys},
         segments=tuple(segments),
         selected=selected,
+        filled=filled,
         _full=full,
     )
 
@@ -376,8 +460,51 @@ def _format_of(path: Path, format: str | None) -> str:
     return fmt
 
 
+def _find_gaps(dt: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
+    """Indices i of intervals t[i] -> t[i+1] longer than ``gap_factor * nominal`` (s)."""
+    return np.flatnonzero(dt > gap_factor * nominal)
+
+
+def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
+    """(rate in Hz used to find gaps, mean rate in Hz over the intervals that are not gaps).
+
+    The mean interval over the record (gap-free intervals only) is the rate's estimate: jitter and a
+    quantised clock (integer-millisecond stamps at 128 or 300 Hz) average out, while a median interval
+    would report the clock's quantum (1/0.003 s = 333.3 Hz for 300 Hz stamped in ms). Gaps are found
+    against `rate` when known, else against the median interval, then the mean is taken without them.
+    """
+    dt = np.diff(t)
+    guess = rate if rate is not None else 1.0 / float(np.median(dt))
+    ok = dt <= gap_factor / guess
+    mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else guess
+    if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
+        ok = dt <= gap_factor / mean_rate
+        mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else mean_rate
+    return (rate if rate is not None else mean_rate), mean_rate
+
+
+def snap_rate(rate_hz: float, rtol: float = 1e-3) -> float:
+    """The round rate a measured mean rate stands for: the coarsest of ``round(rate_hz, d)``, d = 0..3,
+    within `rtol` (relative), else `rate_hz` itself.
+
+    Timestamps give the rate to the clock's accuracy (crystal error ~1e-5 .. 1e-4, jitter averaging out
+    as 1/duration); the processing needs the nominal rate (decimation by an integer ratio), so a mean of
+    2.00035 Hz stands for 2 Hz and 124.998 Hz for 125 Hz. Tolerance 1e-3 (1000 ppm, 10x a poor crystal).
+    """
+    for digits in range(4):
+        candidate = round(rate_hz, digits)
+        if candidate > 0 and abs(candidate - rate_hz) <= rtol * rate_hz:
+            return float(candidate)
+    return float(rate_hz)
+
+
 def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, row_text):
-    """Check timestamps; return (segments, rate in Hz)."""
+    """Check timestamps; return (segments, rate in Hz).
+
+    Tolerance: an interval in (0, gap_factor / rate] is a sample step (jitter and clock quantisation
+    accepted); a longer one is a gap; zero or negative is an error. The rate is the mean over the gap-free
+    intervals and must agree with the sheet's (or the file's) within `rtol`.
+    """
     t = raw.time
     tname = raw.time_name
     finite = np.isfinite(t)
@@ -390,31 +517,21 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     if n < 2:
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
     dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0])
-        if dt[i] == 0:
-            raise DataError(
-                f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have t = {float(t[i]):.9g} s "
-                f"({int(np.count_nonzero(dt == 0))} duplicates in all)"
-            )
+    _check_increasing(t, dt, tname, where, row_text)
+    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
+    if rate_hz is not None and abs(mean_rate - rate_hz) > rtol * rate_hz:
         raise DataError(
-            f"{where}: time in {tname} is not increasing: t = {float(t[i + 1]):.9g} s at {row_text(i + 1)} comes after "
-            f"t = {float(t[i]):.9g} s at {row_text(i)}"
+            f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
+            f"(mean interval {1.0 / mean_rate:.6g} s over the gap-free intervals); expected agreement within "
+            f"{rtol:g} relative (rate_rtol)"
         )
-    median_rate = 1.0 / float(np.median(dt))
-    if rate_hz is not None and abs(median_rate - rate_hz) > rtol * rate_hz:
-        raise DataError(
-            f"{where}: rate_hz = {rate_hz:g} Hz in the sheet but the timestamps ({tname}) give {median_rate:.6g} Hz "
-            f"(median interval {1.0 / median_rate:.6g} s)"
-        )
-    if rate is not None and rate_hz is None and abs(median_rate - rate) > rtol * rate:
+    if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
         raise DataError(
             f"{where}: the file says {rate:g} Hz ({raw.file_rate_from}) but the timestamps ({tname}) "
-            f"give {median_rate:.6g} Hz"
+            f"give {mean_rate:.6g} Hz (mean interval)"
         )
-    nominal = 1.0 / (rate if rate is not None else median_rate)
-    gaps = np.flatnonzero(dt > gap_factor * nominal)
+    nominal = 1.0 / nominal_rate
+    gaps = _find_gaps(dt, nominal, gap_factor)
     if gaps.size:
 
         def describe(i: int) -> str:
@@ -425,8 +542,9 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
 
         if gap_policy == "fail":
             raise DataError(
-                f"{where}: timestamp gap of {describe(int(gaps[0]))}, expected {nominal:.6g} s "
-                f"({gaps.size} gap(s) in all; gap_policy='split' keeps the longest contiguous segment)"
+                f"{where}: timestamp gap of {describe(int(gaps[0]))} in {tname}, expected {nominal:.6g} s "
+                f"(at most {gap_factor:g} x); {gaps.size} gap(s) in all; gap_policy='fill' fills short gaps, "
+                "'split' keeps the longest contiguous segment"
             )
     bounds = [0, *(int(i) + 1 for i in gaps), n]
     segments = [Segment(a, b, float(t[a]), float(t[b - 1])) for a, b in itertools.pairwise(bounds)]
@@ -440,15 +558,125 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
             GapWarning,
             stacklevel=3,
         )
-    if longest.n > 1:
-        mean_rate = (longest.n - 1) / (longest.t_stop - longest.t_start)
-        reference = rate_hz if rate_hz is not None else rate
-        if reference is not None and abs(mean_rate - reference) > rtol * reference:
-            raise DataError(
-                f"{where}: rate_hz = {reference:g} Hz but the timestamps ({tname}) give a mean rate of "
-                f"{mean_rate:.6g} Hz over rows {longest.start}..{longest.stop - 1}"
-            )
-        if rate is None:
-            rate = mean_rate
+    if rate is None:
+        rate = snap_rate(mean_rate)
     return segments, rate
 
+
+def _check_increasing(t, dt, tname, where, row_text) -> None:
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0])
+        if dt[i] == 0:
+            raise DataError(
+                f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
+                f"t = {float(t[i]):.9g} s ({int(np.count_nonzero(dt == 0))} duplicates in all)"
+            )
+        raise DataError(
+            f"{where}: time in {tname} is not increasing: t = {float(t[i + 1]):.9g} s at {row_text(i + 1)} comes after "
+            f"t = {float(t[i]):.9g} s at {row_text(i)}"
+        )
+
+
+@dataclass(frozen=True)
+class FilledGap:
+    """A timestamp gap filled by ``gap_policy="fill"``.
+
+    Attributes
+    ----------
+    row : int
+        0-based row (in the file) of the last sample before the gap.
+    n_missing : int
+        Samples inserted, ``round(dt * rate) - 1``.
+    t_start, dt_s : float
+        File time (s) of that sample and the gap's interval (s).
+    """
+
+    row: int
+    n_missing: int
+    t_start: float
+    dt_s: float
+
+
+def _fill_gaps(raw: _Raw, rate, gap_factor, max_missing, where, row_text):
+    """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map).
+
+    Method: the k missing samples of a gap between rows i and i+1 are placed at t_i + j dt/(k+1),
+    j = 1..k, with values on the straight line between samples i and i+1 (every channel). Longer gaps
+    are left for the long-gap policy. The row map gives, for each row of the filled record, its 0-based
+    row in the file (-1 for an inserted sample).
+    """
+    t = raw.time
+    dt = np.diff(t)
+    _check_increasing(t, dt, raw.time_name, where, row_text)
+    nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
+    gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
+    missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
+    fill = missing <= max_missing
+    gaps, missing = gaps[fill], np.maximum(missing[fill], 1)
+    rows = np.arange(len(t))
+    if not gaps.size:
+        return (), rows
+    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(dt[i])) for i, k in zip(gaps, missing))
+    # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
+    pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]
+    for g, (a, b) in enumerate(itertools.pairwise(cuts)):
+        pieces.append(np.arange(a, b, dtype=np.float64))
+        if g < len(gaps):
+            k = int(missing[g])
+            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
+    pos = np.concatenate(pieces)
+    base = np.arange(len(t), dtype=np.float64)
+    raw.time = np.interp(pos, base, t)
+    raw.data = {key: np.interp(pos, base, x) for key, x in raw.data.items()}
+    row_map = np.where(pos == np.floor(pos), pos, -1).astype(np.int64)
+    return filled, row_map
+
+
+def read_channel(key: Key | str, path: str | Path, format: str = "auto", **kwargs: Any) -> Recording:
+    """Read one channel of a record (for ingest with a memory peak of about one channel).
+
+    Reads only the file column that body channel `key` comes from (through the axis map) and returns
+    a :class:`Recording` holding that channel alone, with the same checks as :func:`read_dataset`.
+    Memory per format: netCDF reads one variable; ``.npy`` is memory-mapped and copies one column; ``.npz``
+    decompresses one named array (the whole 2-D array when ``variable`` is given); text files, R files and
+    bags are parsed whole (their layout has no per-column access), so for them reading all channels at
+    once with :func:`read_dataset` is cheaper.
+
+    Parameters
+    ----------
+    key : (sensor, axis) or "sensor_axis"
+        Body channel, e.g. ``("gyro", "x")``.
+    path, format, **kwargs
+        As :func:`read_dataset` (``channels``, ``units``, ``axis_map``, ``time_column``, ...).
+
+    Returns
+    -------
+    Recording
+        One channel, in SI, after the axis map's sign.
+    """
+    sensor, _, axis = key.partition("_") if isinstance(key, str) else (key[0], "_", key[1])
+    if sensor not in SENSORS or axis not in AXES:
+        raise DataError(f"channel {key!r}: expected (sensor, axis) with sensor in {SENSORS}, axis in {AXES}")
+    path = Path(path)
+    fmt = _format_of(path, format)
+    amap = parse_axis_map(kwargs.pop("axis_map", None))
+    sign, src = amap[axis]
+    specs = _normalise_channels(kwargs.pop("channels", None))
+    if specs is None:
+        spec = _ROS_FIELDS[(sensor, src)] if fmt == "rosbag" else f"{sensor}_{src}"
+    elif (sensor, src) in specs:
+        spec = specs[(sensor, src)]
+    else:
+        raise DataError(f"{path}: {sensor}_{src} (body {sensor}_{axis} via the axis map) not given in the channels")
+    rec = read_dataset(path, fmt, channels={(sensor, src): spec}, **kwargs)
+    x = rec.channels[(sensor, src)]
+    k = (sensor, axis)
+    return dataclasses.replace(
+        rec,
+        channels={k: -x if sign < 0 else x},
+        units={k: rec.units[(sensor, src)]},
+        file_units={k: rec.file_units[(sensor, src)]},
+        columns={k: ("-" if sign < 0 else "") + rec.columns[(sensor, src)]},
+        _full={k: -v if sign < 0 else v for v in rec._full.values()} if rec._full else {},
+    )

@@ -25,6 +25,26 @@ def _is_number(token: str) -> bool:
     return True
 
 
+def _names_columns(spec: Any) -> bool:
+    return isinstance(spec, str) and re.fullmatch(r"\s*\d+\s*", spec) is None
+
+
+def _is_header(tokens: list[str], specs, time_column) -> bool:
+    """Whether the first content line is a header.
+
+    A line with a non-number is a header. A line of numbers is a header too when the sheet names the
+    columns (a name that is not a 0-based index: the names must come from a header), or when it reads
+    ``0,1,2,...,n-1`` (what ``pandas.DataFrame.to_csv(index=False)`` writes for unnamed columns);
+    otherwise it is the first data row.
+    """
+    if not all(_is_number(t) for t in tokens):
+        return True
+    given = list((specs or {}).values()) + ([] if _blank(time_column) else [time_column])
+    if any(_names_columns(v) for v in given):
+        return True
+    return len(tokens) >= 2 and tokens == [str(i) for i in range(len(tokens))]
+
+
 def _split(line: str, delimiter: str | None) -> list[str]:
     fields = line.split(delimiter) if delimiter is not None else line.split()
     return [f.strip().strip('"').strip("'").strip() for f in fields]
@@ -59,7 +79,14 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
             raise DataError(f"{where}: unknown delimiter {delimiter!r}; use ',', tab, semicolon, space")
         delim = _DELIMITERS[key]
     tokens = _split(header, delim)
-    has_header = not all(_is_number(t) for t in tokens)
+    has_header = _is_header(tokens, specs, time_column)
+    if has_header:
+        dup = sorted({t for t in tokens if tokens.count(t) > 1})
+        if dup:
+            where_dup = ", ".join(f"{t!r} (columns {[i for i, u in enumerate(tokens) if u == t]})" for t in dup)
+            raise DataError(
+                f"{where}: line {header_line}: duplicated column header {where_dup}; expected unique column names"
+            )
     names = tokens if has_header else None
     ncols = len(tokens)
     first_data_line = header_line + 1 if has_header else header_line
