@@ -11,10 +11,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import logging
+import time
+
 import numpy as np
 
 from imupipe.readers._common import *  # noqa: F403
 from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _ROS_FIELDS, _SI_UNITS
+
+log = logging.getLogger(__name__)
 
 
 def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
@@ -52,43 +57,40 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
             raise DataError(f"{where}: topic {topic!r} not found; topics: {listing}")
         if not all(c in imu for c in conns):
             raise DataError(f"{where}: topic {topic!r} carries {conns[0].msgtype}, not sensor_msgs/Imu")
-        paths = {k: str(v).split(".") for k, v in specs.items()}
-        values: dict[Key, list[float]] = {k: [] for k in specs}
-        stamps: list[int] = []
-        messages = reader.messages(connections=conns)
-        while True:
-            try:
-                conn, bag_ns, raw = next(messages)
-                msg = reader.deserialize(raw, conn.msgtype)
-            except StopIteration:
-                break
-            except Exception as exc:  # rosbags' reader and deserializer errors on a corrupt bag
-                raise DataError(
-                    f"{where}: message {len(stamps)} (0-based) on {topic!r} cannot be read (truncated or corrupt "
-                    f"file?): {exc}"
-                ) from exc
-            if source == "header":
-                stamps.append(int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec))
-            else:
-                stamps.append(int(bag_ns))
-            for key, fields in paths.items():
-                value = msg
-                try:
-                    for f in fields:
-                        value = getattr(value, f)
-                except AttributeError:
-                    raise DataError(
-                        f"{where}: {_chname(key)} field {specs[key]!r} not in sensor_msgs/Imu; fields: "
-                        "angular_velocity.{x,y,z}, linear_acceleration.{x,y,z}"
-                    ) from None
-                values[key].append(float(value))
+        unknown = [k for k, v in specs.items() if str(v) not in _FIELD_OFFSETS]
+        if unknown:
+            k = unknown[0]
+            raise DataError(
+                f"{where}: {_chname(k)} field {specs[k]!r} not in sensor_msgs/Imu; fields: "
+                "angular_velocity.{x,y,z}, linear_acceleration.{x,y,z}"
+            )
+        total = sum(int(getattr(c, "msgcount", 0) or 0) for c in conns)
+        log.info("%s: reading %s sensor_msgs/Imu messages of %r", where, total or "the", topic)
+        t0 = time.perf_counter()
+        raws: list[bytes] = []
+        bag_ns: list[int] = []
+        keep_raw, keep_ns = raws.append, bag_ns.append
+        try:
+            for _, ns, raw in reader.messages(connections=conns):
+                keep_raw(raw)
+                keep_ns(ns)
+        except Exception as exc:  # rosbags' reader errors on a corrupt bag
+            raise DataError(
+                f"{where}: message {len(raws)} (0-based) on {topic!r} cannot be read (truncated or corrupt "
+                f"file?): {exc}"
+            ) from exc
+        if not raws:
+            raise DataError(f"{where}: topic {topic!r} holds no messages")
+        stamps, values = _decode_imu(raws, cdr=reader.is2, where=where, topic=topic)
+        if source == "bag":
+            stamps = np.asarray(bag_ns, dtype=np.int64)
+        values = {k: values[str(v)] for k, v in specs.items()}
+        log.info("%s: decoded %d messages of %r in %.2f s", where, len(raws), topic, time.perf_counter() - t0)
     finally:
         reader.close()
-    if not stamps:
-        raise DataError(f"{where}: topic {topic!r} holds no messages")
-    ns = np.asarray(stamps, dtype=np.int64)
+    ns = stamps
     return _Raw(
-        data={k: np.asarray(v, dtype=np.float64) for k, v in values.items()},
+        data=values,
         names={k: f"{topic}:{specs[k]}" for k in specs},
         time=(ns - ns[0]).astype(np.float64) * 1e-9,  # s after the first message: no loss of precision
         time_name=f"{topic} {'header.stamp' if source == 'header' else 'bag time'} (t from the first message)",
@@ -97,3 +99,75 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
     )
 
 
+# sensor_msgs/Imu after the header: orientation (4 float64), orientation_covariance (9),
+# angular_velocity (3), angular_velocity_covariance (9), linear_acceleration (3), its covariance (9)
+_FIELD_OFFSETS = {
+    **{f"angular_velocity.{a}": 8 * (13 + i) for i, a in enumerate(AXES)},
+    **{f"linear_acceleration.{a}": 8 * (25 + i) for i, a in enumerate(AXES)},
+}
+_BODY_BYTES = 8 * 37
+
+
+def _gather(buf: np.ndarray, offsets: np.ndarray, dtype: str, stride: int = 0) -> np.ndarray:
+    """Values of `dtype` at byte `offsets` of `buf` (one per message).
+
+    With ``stride`` > 0 (all messages of that length and ``offsets`` equally spaced by it, the usual case
+    of one frame_id) a strided view of the byte matrix, else one fancy-indexing gather.
+    """
+    size = np.dtype(dtype).itemsize
+    if stride and offsets.size and np.all(offsets - offsets[0] == np.arange(offsets.size) * stride):
+        first = int(offsets[0])
+        rows = np.lib.stride_tricks.as_strided(buf[first:], shape=(offsets.size, size), strides=(stride, 1))
+        return np.ascontiguousarray(rows).view(dtype).ravel()
+    idx = offsets[:, None] + np.arange(size)
+    return np.ascontiguousarray(buf[idx]).view(dtype).ravel()
+
+
+def _decode_imu(raws: list[bytes], *, cdr: bool, where: str, topic: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Header stamps (ns) and the six rate fields of serialised sensor_msgs/Imu messages, in bulk.
+
+    Layouts: ROS 2 CDR (4-byte encapsulation header, then ``stamp.sec`` int32, ``stamp.nanosec`` uint32,
+    ``frame_id`` (uint32 length incl. NUL, bytes), padding to 8 bytes counted from the end of the
+    encapsulation header, 37 float64); ROS 1 (``seq``, ``stamp.secs``, ``stamp.nsecs`` uint32,
+    ``frame_id`` (uint32 length, bytes), 37 float64, no padding). The frame_id length is read per message,
+    so messages of different frame ids decode together. Every message's length is checked against the
+    layout: a message that does not fit is named.
+    """
+    n = len(raws)
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
+    starts = np.zeros(n, dtype=np.int64)
+    np.cumsum(lengths[:-1], out=starts[1:])
+    buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
+    stride = int(lengths[0]) if np.all(lengths == lengths[0]) else 0  # one message size: strided views
+    g = lambda offsets, dtype: _gather(buf, offsets, dtype, stride)  # noqa: E731
+    short = np.flatnonzero(lengths < 16)
+    if short.size:
+        i = int(short[0])
+        raise DataError(f"{where}: message {i} (0-based) on {topic!r} is {lengths[i]} bytes: too short for sensor_msgs/Imu")
+    if cdr:
+        kind = buf[starts + 1]
+        if not np.all(kind == kind[0]) or kind[0] not in (0, 1):
+            i = int(np.flatnonzero(kind != kind[0])[0]) if not np.all(kind == kind[0]) else 0
+            raise DataError(f"{where}: message {i} (0-based) on {topic!r}: unsupported CDR encapsulation {int(kind[i])}")
+        e = "<" if kind[0] == 1 else ">"
+        base = 4
+        sec = g(starts + base, f"{e}i4").astype(np.int64)
+        nsec = g(starts + base + 4, f"{e}u4").astype(np.int64)
+        strlen = g(starts + base + 8, f"{e}u4").astype(np.int64)
+        pos = base + 12 + strlen
+        body = base + ((pos - base + 7) // 8) * 8
+    else:
+        e = "<"
+        sec = g(starts + 4, "<u4").astype(np.int64)
+        nsec = g(starts + 8, "<u4").astype(np.int64)
+        strlen = g(starts + 12, "<u4").astype(np.int64)
+        body = 16 + strlen
+    bad = np.flatnonzero(body + _BODY_BYTES > lengths)
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(
+            f"{where}: message {i} (0-based) on {topic!r} is {lengths[i]} bytes, shorter than a sensor_msgs/Imu "
+            f"with a {strlen[i]}-byte frame_id ({body[i] + _BODY_BYTES} bytes): truncated or another type"
+        )
+    values = {name: g(starts + body + off, f"{e}f8").astype(np.float64) for name, off in _FIELD_OFFSETS.items()}
+    return sec * 1_000_000_000 + nsec, values
