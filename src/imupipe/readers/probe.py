@@ -121,7 +121,8 @@ def probe(
                 for name, info in members.items():
                     with zf.open(info) as fh:
                         version = np.lib.format.read_magic(fh)
-                        shapes[name] = np.lib.format._read_array_header(fh, version)[0]
+                        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                        shapes[name] = read(fh)[0]
         except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
             raise DataError(f"{where}: not a readable .npz file (empty or truncated?): {exc}") from exc
         key = variable if not _blank(variable) else next((k for k in names if k in (f"{s}_{a}" for s in SENSORS for a in AXES)), None)
