@@ -124,7 +124,7 @@ def _quantity(sensor_block, key, quantity, sensor, where, path=None):
     limit = PLAUSIBLE_SI["time" if quantity == "time" else sensor]
     if not (math.isfinite(si) and si <= limit and math.isfinite(si * si)):
         raise SpecError(
-            f"{label}.value = {item['value']!r} {item['unit']} is {si:.3g} in SI, beyond the plausible limit "
+            f"{label}.value = {value:g} {item['unit']} is {si:.3g} in SI, beyond the plausible limit "
             f"{limit:g} for a {sensor} {quantity} (a typo or a wrong unit?)"
         )
     return si, value, item["unit"]

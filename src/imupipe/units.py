@@ -234,7 +234,8 @@ _SYMBOLS = (
 _SQRT_WORD = re.compile(r"(?:\bsqrt|\brt|\bsq)\s*(Hz|h|hr|s|sec|min)\b|\brt(Hz|h|hr|s)\b")
 _DPS = re.compile(r"\bdps\b")
 _DPH = re.compile(r"\bdph\b")
-_SEC = re.compile(r"\bsecs?\b")
+_SEC = re.compile(r"\b(?:secs?|seconds?)\b")
+_WORDS = ((re.compile(r"\bdegrees?\b"), "deg"), (re.compile(r"\bradians?\b"), "rad"), (re.compile(r"\bhours?\b"), "h"))
 _HR = re.compile(r"\bhrs\b")
 
 
@@ -264,6 +265,8 @@ def normalise_unit(unit):
     text = _DPS.sub("(deg/s)", text)
     text = _DPH.sub("(deg/h)", text)
     text = _SEC.sub("s", text)
+    for pattern, repl in _WORDS:
+        text = pattern.sub(repl, text)
     text = _HR.sub("h", text)
     text = text.replace("**", "^")
     return " ".join(text.split())
