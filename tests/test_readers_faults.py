@@ -338,3 +338,16 @@ def test_read_channel_equals_read_dataset(tmp_path, table):
     one = read_channel(("gyro", "x"), path, "netcdf", rate_hz=100.0, channels=CHANNELS, axis_map="x:-y,y:x,z:z")
     assert list(one) == [("gyro", "x")] and one.columns[("gyro", "x")] == "-'wy'"
     np.testing.assert_array_equal(one["gyro", "x"], full["gyro", "x"])
+
+
+def test_bag_row_needs_no_channel_columns():
+    from imupipe.readers import missing_channel_columns
+
+    assert missing_channel_columns({"dataset": "b", "path": "imu.mcap"}, ["gyro", "accel"]) == []
+    assert missing_channel_columns({"path": "x.csv", "gyro_x": "wx", "gyro_y": "wy"}, ["gyro"]) == ["gyro_z"]
+
+
+def test_too_short_names_the_config_key(tmp_path, table):
+    path = write_csv(tmp_path / "imu.csv", table)
+    with pytest.raises(DataError, match=r"imu\.csv: record lasts 6 s .* shorter than the 25200 s needed \(psd\.window_s\)"):
+        read_dataset(path, "csv", 100.0, CHANNELS, UNITS, min_duration_s=25200.0, min_duration_key="psd.window_s")

@@ -52,6 +52,7 @@ __all__ = [
     "check_sheet_header",
     "check_unchanged",
     "check_values",
+    "missing_channel_columns",
     "parse_axis_map",
     "probe",
     "probe_row",
@@ -70,6 +71,6 @@ from imupipe.readers.checks import (  # noqa: F401
     validate_dataset_name,
 )
 from imupipe.readers.core import (  # noqa: F401
-    FROM_FILE, FilledGap, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
+    FROM_FILE, FilledGap, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
 )
 from imupipe.readers.probe import Probe, probe, probe_row  # noqa: F401

@@ -15,6 +15,19 @@ import numpy as np
 
 from imupipe.units import SI_UNITS, UnitError, rate_factor
 
+__all__ = [
+    "AXES",
+    "FORMATS",
+    "GAP_POLICIES",
+    "SENSORS",
+    "SHEET_COLUMNS",
+    "DataError",
+    "GapWarning",
+    "Recording",
+    "Segment",
+    "parse_axis_map",
+]
+
 SENSORS = ("gyro", "accel")
 AXES = ("x", "y", "z")
 GAP_POLICIES = ("fail", "split", "fill")

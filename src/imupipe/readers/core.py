@@ -90,7 +90,11 @@ def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = No
 
 
 def read_dataset_row(
-    row: Mapping[str, Any], *, base_dir: str | Path | None = None, min_duration_s: float | None = None
+    row: Mapping[str, Any],
+    *,
+    base_dir: str | Path | None = None,
+    min_duration_s: float | None = None,
+    min_duration_key: str = "min_duration_s",
 ) -> Recording:
     """Read the record described by one dataset-sheet row (see :data:`SHEET_COLUMNS`).
 
@@ -103,13 +107,17 @@ def read_dataset_row(
     min_duration_s : float, optional
         Shortest usable record (s), e.g. what the largest Allan tau or PSD window needs.
         Defaults to None (no check).
+    min_duration_key : str, optional
+        Setting quoted when the record is too short (e.g. ``"psd.window_s"``). Defaults to ``"min_duration_s"``.
 
     Returns
     -------
     Recording
         The channels in SI units, as :func:`read_dataset` returns them.
     """
-    return read_dataset(**sheet_row_to_kwargs(row, base_dir), min_duration_s=min_duration_s)
+    return read_dataset(
+        **sheet_row_to_kwargs(row, base_dir), min_duration_s=min_duration_s, min_duration_key=min_duration_key
+    )
 
 
 def read_dataset(
@@ -132,6 +140,7 @@ def read_dataset(
     fill_max_samples: int | None = None,
     fill_max_s: float | None = None,
     long_gap_policy: str = "fail",
+    min_duration_key: str = "min_duration_s",
 ) -> Recording:
     r"""Read, convert to SI and validate one static IMU record.
 
@@ -160,9 +169,11 @@ def read_dataset(
         Defaults to None: columns named ``gyro_x`` ... ``accel_z`` (bags: all six Imu fields).
     units : mapping, optional
         Stored unit per sensor, ``{"gyro": "deg/s", "accel": "g"}`` (keys ``(sensor, axis)``
-        also accepted). Gyro units: rad/s, mrad/s, rad/h, deg/s, mdeg/s, deg/min, deg/h; accel
-        units: m/s^2, mm/s^2, g, mg, ug (``g`` = 9.80665 m/s^2). Defaults to None: the netCDF
-        ``units`` attribute, SI for ROS bags, an error otherwise.
+        also accepted). Any rate unit :func:`imupipe.units.rate_factor` accepts: rad/s, mrad/s,
+        deg/s, dps, °/s, mdeg/s, deg/h, rad s-1 (CF); m/s^2, m s-2, mm/s^2, g, mg, ug, µg
+        (``g`` = 9.80665 m/s^2); table in docs/inputs.md. ``"from_file"``: the file's own unit
+        attribute (netCDF ``units``), which must then exist. A unit the file states must parse and
+        agree with the sheet's. Defaults to None: the file's unit, SI for ROS bags, an error otherwise.
     time_column : str or int, optional
         Column / variable / array of timestamps. For bags ``"header"`` (``header.stamp``, the
         default) or ``"bag"`` (recording time). Defaults to None: no timestamps, uniform sampling
@@ -209,6 +220,9 @@ def read_dataset(
         rounded down). Defaults to None.
     long_gap_policy : {"fail", "split"}, optional
         ``gap_policy="fill"``: what a longer gap does. Defaults to ``"fail"``.
+    min_duration_key : str, optional
+        Name of the setting ``min_duration_s`` comes from, quoted in the error (the workflow passes
+        ``"psd.window_s"``). Defaults to ``"min_duration_s"``.
 
     Returns
     -------
@@ -348,7 +362,7 @@ def read_dataset(
         part = "longest contiguous segment" if len(segments) > 1 else "record"
         raise DataError(
             f"{where}: {part} lasts {duration:.6g} s ({seg.n} samples at {rate:g} Hz), shorter than the "
-            f"{min_duration_s:g} s needed (min_duration_s)"
+            f"{min_duration_s:g} s needed ({min_duration_key})"
         )
     for key, x in raw.data.items():
         part = x[seg.start : seg.stop]
@@ -680,3 +694,32 @@ def read_channel(key: Key | str, path: str | Path, format: str = "auto", **kwarg
         columns={k: ("-" if sign < 0 else "") + rec.columns[(sensor, src)]},
         _full={k: -v if sign < 0 else v for v in rec._full.values()} if rec._full else {},
     )
+
+
+def missing_channel_columns(row: Mapping[str, Any], sensors: tuple[str, ...] | list[str] = SENSORS) -> list[str]:
+    """Sheet columns ``{sensor}_{axis}`` a row must fill for `sensors`, given the format's defaults.
+
+    A ROS bag / MCAP row may leave all six empty (``sensor_msgs/Imu`` has them: ``angular_velocity.x`` ...);
+    a row of another format may leave all of a sensor's empty when the file has columns named
+    ``gyro_x`` ... (checked when the file is read). A sensor given partly is missing the empty ones.
+
+    Parameters
+    ----------
+    row : mapping
+        One dataset-sheet row.
+    sensors : sequence of str
+        Sensors the config processes. Defaults to both.
+
+    Returns
+    -------
+    list of str
+        Column names to fill (empty: nothing missing).
+    """
+    r = {k: _cell(v) for k, v in row.items()}
+    missing = []
+    for sensor in sensors:
+        cols = [f"{sensor}_{a}" for a in AXES]
+        given = [c for c in cols if r.get(c) is not None]
+        if given and len(given) != len(cols):
+            missing += [c for c in cols if c not in given]
+    return missing
