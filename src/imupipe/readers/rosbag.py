@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import logging
+import struct
 import time
 
 import numpy as np
@@ -32,11 +33,34 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
         ) from exc
     if specs is None:
         specs = dict(_ROS_FIELDS)
+    unknown = [k for k, v in specs.items() if str(v) not in _FIELD_OFFSETS]
+    if unknown:
+        k = unknown[0]
+        raise DataError(
+            f"{where}: {_chname(k)} field {specs[k]!r} not in sensor_msgs/Imu; fields: "
+            "angular_velocity.{x,y,z}, linear_acceleration.{x,y,z}"
+        )
     source = "header" if _blank(time_column) else str(time_column).strip().lower()
     if source not in ("header", "bag"):
         raise DataError(
             f"{where}: time_column {time_column!r} for a bag must be 'header' (message stamps) or 'bag'"
         )
+    files = _mcap_files(Path(path))
+    if files is not None:  # MCAP: read directly, ~10x faster than through the rosbags reader
+        t0 = time.perf_counter()
+        try:
+            found, raws, bag_ns = _scan_mcap(files, topic, where)
+        except (_Unsupported, struct.error, UnicodeDecodeError, IndexError, ValueError):
+            files = None  # rosbags reads it (or names what is wrong with it)
+        else:
+            if raws:
+                log.info("%s: reading %d sensor_msgs/Imu messages of %r (MCAP)", where, len(raws), found)
+                stamps, values = _decode_imu(raws, cdr=True, where=where, topic=found)
+                if source == "bag":
+                    stamps = bag_ns
+                log.info("%s: decoded %d messages of %r in %.2f s", where, len(raws), found, time.perf_counter() - t0)
+                return _imu_raw(values, stamps, specs, found, source)
+            files = None
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
@@ -57,13 +81,6 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
             raise DataError(f"{where}: topic {topic!r} not found; topics: {listing}")
         if not all(c in imu for c in conns):
             raise DataError(f"{where}: topic {topic!r} carries {conns[0].msgtype}, not sensor_msgs/Imu")
-        unknown = [k for k, v in specs.items() if str(v) not in _FIELD_OFFSETS]
-        if unknown:
-            k = unknown[0]
-            raise DataError(
-                f"{where}: {_chname(k)} field {specs[k]!r} not in sensor_msgs/Imu; fields: "
-                "angular_velocity.{x,y,z}, linear_acceleration.{x,y,z}"
-            )
         total = sum(int(getattr(c, "msgcount", 0) or 0) for c in conns)
         log.info("%s: reading %s sensor_msgs/Imu messages of %r", where, total or "the", topic)
         t0 = time.perf_counter()
@@ -84,11 +101,14 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
         stamps, values = _decode_imu(raws, cdr=reader.is2, where=where, topic=topic)
         if source == "bag":
             stamps = np.asarray(bag_ns, dtype=np.int64)
-        values = {k: values[str(v)] for k, v in specs.items()}
         log.info("%s: decoded %d messages of %r in %.2f s", where, len(raws), topic, time.perf_counter() - t0)
     finally:
         reader.close()
-    ns = stamps
+    return _imu_raw(values, stamps, specs, topic, source)
+
+
+def _imu_raw(values, ns, specs, topic, source) -> _Raw:
+    values = {k: values[str(v)] for k, v in specs.items()}
     return _Raw(
         data=values,
         names={k: f"{topic}:{specs[k]}" for k in specs},
@@ -171,3 +191,108 @@ def _decode_imu(raws: list[bytes], *, cdr: bool, where: str, topic: str) -> tupl
         )
     values = {name: g(starts + body + off, f"{e}f8").astype(np.float64) for name, off in _FIELD_OFFSETS.items()}
     return sec * 1_000_000_000 + nsec, values
+
+
+# --- MCAP, read directly ---------------------------------------------------------------------
+# The MCAP container (https://mcap.dev/spec): magic b"\x89MCAP0\r\n", then records of opcode (uint8),
+# length (uint64 LE) and content; strings are uint32 length + UTF-8, byte arrays uint64 length + bytes.
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK = 0x03, 0x04, 0x05, 0x06
+
+
+class _Unsupported(Exception):
+    """An MCAP feature the direct reader does not handle: the caller falls back to rosbags."""
+
+
+def _mcap_files(path: Path) -> list[Path] | None:
+    if path.is_file():
+        return [path] if path.suffix.lower() == ".mcap" else None
+    files = sorted(path.glob("*.mcap"))
+    others = [p for p in path.iterdir() if p.suffix.lower() in (".db3", ".bag")]
+    return files if files and not others else None
+
+
+def _string(buf, pos):
+    (n,) = struct.unpack_from("<I", buf, pos)
+    return bytes(buf[pos + 4 : pos + 4 + n]).decode("utf-8"), pos + 4 + n
+
+
+def _decompress(kind: str, data: bytes, size: int) -> bytes:
+    if kind == "":
+        return data
+    if kind == "lz4":
+        import lz4.frame
+
+        return lz4.frame.decompress(data)
+    if kind == "zstd":
+        try:
+            from compression import zstd  # Python >= 3.14
+        except ImportError:
+            try:
+                from backports import zstd  # what rosbags depends on
+            except ImportError:
+                raise _Unsupported("zstd") from None
+        return zstd.decompress(data)
+    raise _Unsupported(kind)
+
+
+def _scan_mcap(files: list[Path], topic: str | None, where: str):
+    """(topic, message bytes, log times ns) of the sensor_msgs/Imu channel of MCAP files, in log-time order.
+
+    Reads the file once: schema and channel records at the top level or in chunks, message records of
+    the selected channel sliced out of each (decompressed) chunk. One tight loop per message record
+    (struct.unpack_from), no deserialisation.
+    """
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, int, str]] = {}
+    raws: list[bytes] = []
+    times: list[int] = []
+    wanted: set[int] = set()
+
+    def records(buf, pos, end, top):
+        nonlocal wanted
+        unpack = struct.unpack_from
+        keep_raw, keep_t = raws.append, times.append
+        while pos + 9 <= end:
+            op = buf[pos]
+            (length,) = unpack("<Q", buf, pos + 1)
+            body = pos + 9
+            pos = body + length
+            if op == _OP_MESSAGE:
+                cid, _, log_time = unpack("<HIQ", buf, body)
+                if cid in wanted:
+                    keep_raw(buf[body + 22 : pos])
+                    keep_t(log_time)
+            elif op == _OP_CHUNK and top:
+                kind, p = _string(buf, body + 28)
+                (size,) = unpack("<Q", buf, p)
+                data = _decompress(kind, bytes(buf[p + 8 : p + 8 + size]), unpack("<Q", buf, body + 16)[0])
+                records(memoryview(data), 0, len(data), False)
+            elif op == _OP_SCHEMA:
+                (sid,) = unpack("<H", buf, body)
+                name, _ = _string(buf, body + 2)
+                schemas[sid] = name
+            elif op == _OP_CHANNEL:
+                cid, sid = unpack("<HH", buf, body)
+                name, p = _string(buf, body + 4)
+                encoding, _ = _string(buf, p)
+                channels[cid] = (name, sid, encoding)
+                is_imu = schemas.get(sid, "").replace("/msg/", "/") == "sensor_msgs/Imu"
+                if is_imu and (_blank(topic) or name == topic):
+                    if encoding != "cdr":
+                        raise _Unsupported(f"message encoding {encoding}")
+                    wanted = wanted | {cid}
+
+    for file in files:
+        with open(file, "rb") as fh:
+            data = fh.read()
+        if not data.startswith(_MCAP_MAGIC):
+            raise _Unsupported("not an MCAP file")
+        records(memoryview(data), len(_MCAP_MAGIC), len(data) - len(_MCAP_MAGIC), True)
+    imu_topics = sorted({channels[c][0] for c in wanted})
+    if len(imu_topics) != 1:
+        raise _Unsupported("topic selection")  # rosbags names the topics in its message
+    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
+    if np.any(order != np.arange(order.size)):
+        raws = [raws[i] for i in order]
+    return imu_topics[0], raws, np.asarray(times, dtype=np.int64)[order]
