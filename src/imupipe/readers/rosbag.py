@@ -257,6 +257,11 @@ def _scan_mcap(files: list[Path], topic: str | None, where: str):
             op = buf[pos]
             (length,) = unpack("<Q", buf, pos + 1)
             body = pos + 9
+            if body + length > end:
+                raise DataError(
+                    f"{where}: not a readable MCAP file (empty or truncated?): a record at byte {pos} runs "
+                    f"{body + length - end} bytes past the end{' of its chunk' if not top else ''}"
+                )
             pos = body + length
             if op == _OP_MESSAGE:
                 cid, _, log_time = unpack("<HIQ", buf, body)
@@ -288,7 +293,10 @@ def _scan_mcap(files: list[Path], topic: str | None, where: str):
             data = fh.read()
         if not data.startswith(_MCAP_MAGIC):
             raise _Unsupported("not an MCAP file")
-        records(memoryview(data), len(_MCAP_MAGIC), len(data) - len(_MCAP_MAGIC), True)
+        if not data.endswith(_MCAP_MAGIC) or len(data) < 2 * len(_MCAP_MAGIC):
+            raise DataError(f"{file}: not a readable MCAP file (empty or truncated?): no closing magic bytes")
+        end = len(data) - len(_MCAP_MAGIC)
+        records(memoryview(data), len(_MCAP_MAGIC), end, True)
     imu_topics = sorted({channels[c][0] for c in wanted})
     if len(imu_topics) != 1:
         raise _Unsupported("topic selection")  # rosbags names the topics in its message
