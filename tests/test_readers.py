@@ -355,6 +355,14 @@ class TestRosbag:
             np.testing.assert_array_equal(direct["accel", a], want)
         np.testing.assert_array_equal(direct.segments[0].t_stop, (stamps[-1] - stamps[0]) * 1e-9)
 
+    @pytest.mark.parametrize("kind", ["ros2", "mcap"])
+    def test_probe_reads_the_index(self, tmp_path, si_signals, kind):
+        from imupipe.readers import probe
+
+        path = self.write(tmp_path / "imu", *si_signals, kind)
+        meta = probe(path, "rosbag", topic="/imu")
+        assert (meta.n_samples, meta.rate_hz, meta.rate_from) == (N, RATE, "timestamps")
+
     def test_unknown_topic_lists_the_topics(self, tmp_path, si_signals):
         path = self.write(tmp_path / "imu", *si_signals)
         with pytest.raises(
