@@ -342,8 +342,8 @@ class TestRosbag:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             conns = [c for c in reader.connections if c.topic == "/imu"]
             msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
-        topic, raws, _ = rb._scan_mcap(rb._mcap_files(path), None, str(path))  # the direct path applies
-        assert topic == "/imu" and len(raws) == len(msgs)
+        topic, _, log_ns = rb._scan_mcap(rb._mcap_files(path), None, str(path))  # the direct path applies
+        assert topic == "/imu" and log_ns.size == len(msgs)
         direct = read_dataset(path, "rosbag")
         monkeypatch.setattr(rb, "_mcap_files", lambda p: None)  # through rosbags' reader instead
         via_rosbags = read_dataset(path, "rosbag")

@@ -351,3 +351,40 @@ def test_too_short_names_the_config_key(tmp_path, table):
     path = write_csv(tmp_path / "imu.csv", table)
     with pytest.raises(DataError, match=r"imu\.csv: record lasts 6 s .* shorter than the 25200 s needed \(psd\.window_s\)"):
         read_dataset(path, "csv", 100.0, CHANNELS, UNITS, min_duration_s=25200.0, min_duration_key="psd.window_s")
+
+
+def test_mcap_chunks_of_equal_messages_decode_as_blocks(tmp_path, rng):
+    """A bag large enough for several MCAP chunks: the chunks of equal-length records are read as one array
+    view each (the fast path), and the values equal what rosbags' own reader and deserialiser give."""
+    pytest.importorskip("rosbags")
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from imupipe.readers import rosbag as rb
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    Imu = T["sensor_msgs/msg/Imu"]
+    n = 6000  # x 324 bytes: ~1.9 MB, more than one chunk of rosbags' MCAP writer
+    w = rng.normal(0.0, 0.01, (n, 3))
+    path = tmp_path / "imu"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as wr:
+        conn = wr.add_connection("/imu", Imu.__msgtype__, typestore=ts)
+        for i in range(n):
+            ns = 10**18 + i * 5_000_000  # 200 Hz
+            msg = Imu(
+                T["std_msgs/msg/Header"](T["builtin_interfaces/msg/Time"](ns // 10**9, ns % 10**9), "imu_link"),
+                T["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0), np.zeros(9),
+                T["geometry_msgs/msg/Vector3"](*w[i]), np.zeros(9),
+                T["geometry_msgs/msg/Vector3"](*(w[i] + [0.0, 0.1 * i / n, 9.8])), np.zeros(9),
+            )
+            wr.write(conn, ns, ts.serialize_cdr(msg, Imu.__msgtype__))
+    _, blocks, _ = rb._scan_mcap(rb._mcap_files(path), None, str(path))
+    assert any(isinstance(b, np.ndarray) and b.shape[0] > 1 for b in blocks)
+    rec = read_dataset(path, "rosbag")
+    with AnyReader([path], default_typestore=ts) as reader:
+        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()]
+    np.testing.assert_array_equal(rec["gyro", "y"], [m.angular_velocity.y for m in msgs])
+    np.testing.assert_array_equal(rec["accel", "y"], [m.linear_acceleration.y for m in msgs])
+    assert rec.rate_hz == 200.0 and rec.n_samples == n

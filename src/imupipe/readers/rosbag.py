@@ -54,11 +54,15 @@ def _load_rosbag(path, specs, topic, time_column, where) -> _Raw:
             files = None  # rosbags reads it (or names what is wrong with it)
         else:
             if raws:
-                log.info("%s: reading %d sensor_msgs/Imu messages of %r (MCAP)", where, len(raws), found)
+                log.info("%s: reading %d sensor_msgs/Imu messages of %r (MCAP)", where, bag_ns.size, found)
                 stamps, values = _decode_imu(raws, cdr=True, where=where, topic=found)
+                order = np.argsort(bag_ns, kind="stable")
+                if np.any(order != np.arange(order.size)):  # chunks out of log-time order
+                    stamps, bag_ns = stamps[order], bag_ns[order]
+                    values = {k: v[order] for k, v in values.items()}
                 if source == "bag":
                     stamps = bag_ns
-                log.info("%s: decoded %d messages of %r in %.2f s", where, len(raws), found, time.perf_counter() - t0)
+                log.info("%s: decoded %d messages of %r in %.2f s", where, bag_ns.size, found, time.perf_counter() - t0)
                 return _imu_raw(values, stamps, specs, found, source)
             files = None
     try:
@@ -143,7 +147,7 @@ def _gather(buf: np.ndarray, offsets: np.ndarray, dtype: str, stride: int = 0) -
     return np.ascontiguousarray(buf[idx]).view(dtype).ravel()
 
 
-def _decode_imu(raws: list[bytes], *, cdr: bool, where: str, topic: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def _decode_imu(raws: list, *, cdr: bool, where: str, topic: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Header stamps (ns) and the six rate fields of serialised sensor_msgs/Imu messages, in bulk.
 
     Layouts: ROS 2 CDR (4-byte encapsulation header, then ``stamp.sec`` int32, ``stamp.nanosec`` uint32,
@@ -151,10 +155,16 @@ def _decode_imu(raws: list[bytes], *, cdr: bool, where: str, topic: str) -> tupl
     encapsulation header, 37 float64); ROS 1 (``seq``, ``stamp.secs``, ``stamp.nsecs`` uint32,
     ``frame_id`` (uint32 length, bytes), 37 float64, no padding). The frame_id length is read per message,
     so messages of different frame ids decode together. Every message's length is checked against the
-    layout: a message that does not fit is named.
+    layout: a message that does not fit is named. `raws` holds one bytes-like object per message, or
+    2-D uint8 arrays of equal-length messages (one per row).
     """
-    n = len(raws)
-    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
+    if any(isinstance(e, np.ndarray) for e in raws):  # blocks of equal-length messages (direct MCAP reader)
+        lengths = np.concatenate(
+            [np.full(e.shape[0], e.shape[1]) if isinstance(e, np.ndarray) else [len(e)] for e in raws]
+        ).astype(np.int64)
+    else:
+        lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
+    n = lengths.size
     starts = np.zeros(n, dtype=np.int64)
     np.cumsum(lengths[:-1], out=starts[1:])
     buf = np.frombuffer(b"".join(raws), dtype=np.uint8)
@@ -237,11 +247,12 @@ def _decompress(kind: str, data: bytes, size: int) -> bytes:
 
 
 def _scan_mcap(files: list[Path], topic: str | None, where: str):
-    """(topic, message bytes, log times ns) of the sensor_msgs/Imu channel of MCAP files, in log-time order.
+    """(topic, messages, log times ns) of the sensor_msgs/Imu channel of MCAP files, in file order.
 
     Reads the file once: schema and channel records at the top level or in chunks, message records of
-    the selected channel sliced out of each (decompressed) chunk. One tight loop per message record
-    (struct.unpack_from), no deserialisation.
+    the selected channel sliced out of each (decompressed) chunk: a chunk of equal-length message records
+    of the wanted channel as one 2-D array view, else one tight loop per record (struct.unpack_from); no
+    deserialisation. The caller sorts by log time (MCAP does not require chunks in time order).
     """
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, int, str]] = {}
@@ -253,6 +264,19 @@ def _scan_mcap(files: list[Path], topic: str | None, where: str):
         nonlocal wanted
         unpack = struct.unpack_from
         keep_raw, keep_t = raws.append, times.append
+        if not top and end - pos > 9 and buf[pos] == _OP_MESSAGE and wanted:
+            # a chunk of message records of one length (the usual case): one numpy view, no loop
+            stride = 9 + unpack("<Q", buf, pos + 1)[0]
+            if (end - pos) % stride == 0 and stride > 31:
+                rows = np.frombuffer(buf, dtype=np.uint8)[pos:end].reshape(-1, stride)
+                same = np.all(rows[:, 0] == _OP_MESSAGE) and np.all(
+                    np.ascontiguousarray(rows[:, 1:9]).view("<u8").ravel() == stride - 9
+                )
+                cids = np.ascontiguousarray(rows[:, 9:11]).view("<u2").ravel()
+                if same and np.all(np.isin(cids, list(wanted))):
+                    keep_raw(np.ascontiguousarray(rows[:, 31:]))
+                    times.extend(np.ascontiguousarray(rows[:, 15:23]).view("<u8").ravel().tolist())
+                    return
         while pos + 9 <= end:
             op = buf[pos]
             (length,) = unpack("<Q", buf, pos + 1)
@@ -300,7 +324,4 @@ def _scan_mcap(files: list[Path], topic: str | None, where: str):
     imu_topics = sorted({channels[c][0] for c in wanted})
     if len(imu_topics) != 1:
         raise _Unsupported("topic selection")  # rosbags names the topics in its message
-    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
-    if np.any(order != np.arange(order.size)):
-        raws = [raws[i] for i in order]
-    return imu_topics[0], raws, np.asarray(times, dtype=np.int64)[order]
+    return imu_topics[0], raws, np.asarray(times, dtype=np.int64)
