@@ -388,3 +388,25 @@ def test_mcap_chunks_of_equal_messages_decode_as_blocks(tmp_path, rng):
     np.testing.assert_array_equal(rec["gyro", "y"], [m.angular_velocity.y for m in msgs])
     np.testing.assert_array_equal(rec["accel", "y"], [m.linear_acceleration.y for m in msgs])
     assert rec.rate_hz == 200.0 and rec.n_samples == n
+
+
+@pytest.mark.parametrize("layout", ["plain", "comments_on_top", "no_final_newline", "blank_lines", "no_header", "comment_inside"])
+def test_probe_counts_text_rows_like_the_reader(tmp_path, table, layout):
+    header = None if layout == "no_header" else NAMES
+    text = write_csv(tmp_path / "imu.csv", table, header=header).read_text()
+    if layout == "comments_on_top":
+        text = "# logger v2\n\n# rate 100 Hz\n" + text
+    elif layout == "no_final_newline":
+        text = text.rstrip("\n")
+    elif layout == "blank_lines":
+        text = text + "\n\n"
+    elif layout == "comment_inside":
+        lines = text.splitlines()
+        text = "\n".join(lines[:100] + ["# operator note"] + lines[100:]) + "\n"
+    path = tmp_path / "imu.csv"
+    path.write_text(text)
+    tcol = 0 if header is None else "t"
+    channels = {k: i for i, k in enumerate(CHANNELS, start=1)} if header is None else CHANNELS
+    full = read_dataset(path, "csv", None, channels, UNITS, time_column=tcol)
+    meta = probe(path, "csv", None, time_column=tcol, channels=channels)
+    assert (meta.n_samples, meta.rate_hz) == (full.n_samples, full.rate_hz) == (N, 100.0)

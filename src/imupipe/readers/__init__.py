@@ -26,7 +26,8 @@ onto :func:`read_dataset`; :data:`SHEET_COLUMNS` documents the columns it reads.
 
 
 Modules: :mod:`~imupipe.readers.core` (the reader and its checks), :mod:`~imupipe.readers.checks`
-(file, range, name and config checks shared by all formats), one module per format family
+(file, range, name and config checks shared by all formats), :mod:`~imupipe.readers.probe`
+(metadata without the samples, for start-up checks), one module per format family
 (:mod:`~imupipe.readers.text`, :mod:`~imupipe.readers.arrays`, :mod:`~imupipe.readers.netcdf`,
 :mod:`~imupipe.readers.rdata`, :mod:`~imupipe.readers.rosbag`).
 """

@@ -189,19 +189,7 @@ def _probe_text(path: Path, delimiter, time_column, channels, where):
     tokens = _split(header, delim)
     specs = dict(channels) if channels else None
     has_header = _is_header(tokens, specs, time_column)
-    # count content lines cheaply: newlines minus comment / blank lines is exact only without comments,
-    # so count them in one pass over bytes (no float parsing)
-    n = 0
-    first_row = last_row = None
-    with open(path, "rb") as fh:
-        for raw in fh:
-            text = raw.split(b"#", 1)[0].strip()
-            if text:
-                n += 1
-                if n == 1 + has_header:
-                    first_row = text
-                last_row = text
-    n -= int(has_header)
+    n, first_row, last_row = _count_rows(path, first[0], 1 + int(has_header))
     t_span = None
     if not _blank(time_column) and first_row is not None and n > 1:
         names = tokens if has_header else None
@@ -243,3 +231,49 @@ def probe_row(row: dict, base_dir: str | Path | None = None) -> Probe:
     kwargs = sheet_row_to_kwargs(row, base_dir)
     name = row.get("dataset")
     return probe(**kwargs, dataset=None if _blank(name) else str(name))
+
+
+def _count_rows(path: Path, first_line: int, first_row_index: int):
+    """(data rows, first data row, last data row) of a text file, without parsing numbers.
+
+    Counts newlines in 16 MiB blocks (C speed); falls back to a line-by-line count when a comment
+    ``#`` or a blank line appears after the first content line (they are not rows).
+    """
+    block = 1 << 24
+    newlines, tail, clean = 0, b"", True
+    with open(path, "rb") as fh:
+        head_done = False
+        while chunk := fh.read(block):
+            if not head_done:  # skip the comment / blank lines before the first content line
+                lines = chunk.split(b"\n", first_line)
+                rest = lines[-1] if len(lines) > first_line else b""
+                chunk, head_done = rest, True
+            newlines += chunk.count(b"\n")
+            joined = tail + chunk
+            if b"#" in chunk or b"\n\n" in joined or b"\n\r\n" in joined:
+                clean = False
+                break
+            tail = chunk[-2:]
+    if clean:
+        with open(path, "rb") as fh:
+            size = fh.seek(0, 2)
+            fh.seek(max(0, size - 65536))
+            end = fh.read()
+        rows_after_first = newlines + (0 if end.endswith(b"\n") else 1)  # content lines after the first
+        n = 1 + rows_after_first - (first_row_index - 1)
+        lines = [ln.strip() for ln in end.splitlines() if ln.strip()]
+        last = lines[-1] if lines else None
+        with open(path, "rb") as fh:
+            content = [ln.strip() for ln in fh.read(65536).splitlines() if ln.strip() and not ln.lstrip().startswith(b"#")]
+        first_row = content[first_row_index - 1] if len(content) >= first_row_index else None
+        return max(n, 0), first_row, last
+    n, first_row, last_row = 0, None, None
+    with open(path, "rb") as fh:
+        for raw in fh:
+            text = raw.split(b"#", 1)[0].strip()
+            if text:
+                n += 1
+                if n == first_row_index:
+                    first_row = text
+                last_row = text
+    return n - (first_row_index - 1), first_row, last_row
