@@ -257,7 +257,7 @@ class TestRosbag:
     """sensor_msgs/Imu in ROS 2 (sqlite3 and MCAP) and ROS 1 bags written with rosbags' writers."""
 
     @staticmethod
-    def write(path, data, stamps_ns, kind="ros2", topic="/imu", extra_topic=True):
+    def write(path, data, stamps_ns, kind="ros2", topic="/imu", extra_topic=True, frame_ids=("imu",)):
         pytest.importorskip("rosbags")
         from rosbags.typesys import Stores, get_typestore
 
@@ -276,7 +276,9 @@ class TestRosbag:
         def message(i):
             stamp = Time(sec=int(stamps_ns[i] // 10**9), nanosec=int(stamps_ns[i] % 10**9))
             header = (
-                Header(seq=i, stamp=stamp, frame_id="imu") if ros1 else Header(stamp=stamp, frame_id="imu")
+                Header(seq=i, stamp=stamp, frame_id=frame_ids[i % len(frame_ids)])
+                if ros1
+                else Header(stamp=stamp, frame_id=frame_ids[i % len(frame_ids)])
             )
             return Imu(
                 header=header,
@@ -325,6 +327,41 @@ class TestRosbag:
             np.testing.assert_array_equal(rec[k], data[k])
         assert rec.file_units[("gyro", "x")] == "rad/s"
         assert "topic '/imu'" in rec.source
+
+    @pytest.mark.parametrize("frame_ids", [("imu",), ("imu", "imu_link_long_name")])
+    def test_bulk_decode_equals_the_deserialiser(self, tmp_path, si_signals, frame_ids, monkeypatch):
+        """The numpy decoder over the raw CDR bytes gives rosbags' deserialised values, also when frame_id
+        lengths (and so the padding) differ between messages; the direct MCAP reader the same as rosbags'."""
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        from imupipe.readers import rosbag as rb
+
+        data, stamps = si_signals
+        path = self.write(tmp_path / "imu", data, stamps, "mcap", frame_ids=frame_ids)
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            conns = [c for c in reader.connections if c.topic == "/imu"]
+            msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
+        topic, _, log_ns = rb._scan_mcap(rb._mcap_files(path), None, str(path))  # the direct path applies
+        assert topic == "/imu" and log_ns.size == len(msgs)
+        direct = read_dataset(path, "rosbag")
+        monkeypatch.setattr(rb, "_mcap_files", lambda p: None)  # through rosbags' reader instead
+        via_rosbags = read_dataset(path, "rosbag")
+        for a in "xyz":
+            want = np.array([getattr(m.angular_velocity, a) for m in msgs])
+            np.testing.assert_array_equal(direct["gyro", a], want)
+            np.testing.assert_array_equal(via_rosbags["gyro", a], want)
+            want = np.array([getattr(m.linear_acceleration, a) for m in msgs])
+            np.testing.assert_array_equal(direct["accel", a], want)
+        np.testing.assert_array_equal(direct.segments[0].t_stop, (stamps[-1] - stamps[0]) * 1e-9)
+
+    @pytest.mark.parametrize("kind", ["ros2", "mcap"])
+    def test_probe_reads_the_index(self, tmp_path, si_signals, kind):
+        from imupipe.readers import probe
+
+        path = self.write(tmp_path / "imu", *si_signals, kind)
+        meta = probe(path, "rosbag", topic="/imu")
+        assert (meta.n_samples, meta.rate_hz, meta.rate_from) == (N, RATE, "timestamps")
 
     def test_unknown_topic_lists_the_topics(self, tmp_path, si_signals):
         path = self.write(tmp_path / "imu", *si_signals)
@@ -449,7 +486,7 @@ class TestBadInputs:
     def test_sheet_rate_disagreeing_with_timestamps(self, tmp_path, signals):
         path = write_csv(tmp_path / "imu.csv", csv_columns(signals))
         with pytest.raises(
-            DataError, match=r"rate_hz = 102 Hz in the sheet but the timestamps \('t'\) give 100 Hz"
+            DataError, match=r"rate_hz = 102 Hz but the timestamps \('t'\) give a mean rate of 100 Hz"
         ):
             read_dataset(path, "csv", 102.0, NAMES, UNITS, time_column="t")
         read_dataset(path, "csv", 100.5, NAMES, UNITS, time_column="t")  # within 1 %

@@ -13,32 +13,115 @@ where they apply.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from pathlib import Path
 
 __all__ = ["atomic_path", "write_netcdf_atomic", "write_yaml_atomic", "write_text_atomic", "read_yaml",
-           "write_series", "read_series"]
+           "write_series", "read_series", "remove_stale_temp", "DiskFullError", "TEMP_PREFIX"]
+
+#: Prefix of the temporary files of :func:`atomic_path` (``.tmp-<name>-<random><suffix>``).
+TEMP_PREFIX = ".tmp-"
+
+#: Free space (bytes) below which a failed write is reported as a full disk even when the library that
+#: wrote says something else (netCDF-4 reports ENOSPC as "NetCDF: HDF error").
+DISK_FULL_BYTES = 1 << 20
+
+
+class DiskFullError(OSError):
+    """An output could not be written because its file system is full; the message names the output."""
+
+
+def _free_bytes(directory) -> int | None:
+    try:
+        st = os.statvfs(directory)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def _stale_temps(path: Path) -> list[Path]:
+    return [p for p in path.parent.glob(f"{TEMP_PREFIX}{path.name}-*") if p.is_file()]
+
+
+def remove_stale_temp(root, older_than_s: float = 0.0) -> list[Path]:
+    """Remove the temporary files (``.tmp-*``) that killed jobs left under `root`; return them.
+
+    The workflow calls this once at start-up on its output folders (no job runs then). A job killed
+    with SIGKILL cannot remove its temporary file; :func:`atomic_path` also removes those of its own
+    target before it writes.
+
+    Parameters
+    ----------
+    root : str or Path
+        Folder searched recursively (a missing folder: nothing to do).
+    older_than_s : float, optional
+        Keep files modified in the last `older_than_s` seconds (s). Defaults to 0 (remove all).
+
+    Returns
+    -------
+    list of Path
+        Files removed.
+    """
+    import time
+
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    now = time.time()
+    removed = []
+    for p in root.rglob(f"{TEMP_PREFIX}*"):
+        with contextlib.suppress(FileNotFoundError):
+            if p.is_file() and not p.is_symlink() and now - p.stat().st_mtime >= older_than_s:
+                p.unlink()
+                removed.append(p)
+    return removed
 
 
 @contextlib.contextmanager
 def atomic_path(path):
     """Context manager yielding a temporary path next to `path`; renamed to `path` on success.
 
-    On an exception the temporary file is removed and `path` is left untouched.
+    On an exception the temporary file is removed and `path` is left untouched. Temporary files of the
+    same target left by a killed earlier job are removed first. A write that fails for lack of space
+    (``ENOSPC``, or any error while the file system has less than :data:`DISK_FULL_BYTES` free) raises
+    :class:`DiskFullError` naming `path`.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".tmp-{path.name}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        for stale in _stale_temps(path):
+            with contextlib.suppress(FileNotFoundError):
+                stale.unlink()
+        fd, tmp = tempfile.mkstemp(prefix=f"{TEMP_PREFIX}{path.name}-", suffix=path.suffix, dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        _raise_if_disk_full(exc, path)
+        raise
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, Exception):
+            _raise_if_disk_full(exc, path)
         raise
+
+
+def _raise_if_disk_full(exc: BaseException, path: Path) -> None:
+    """Re-raise `exc` as a DiskFullError naming `path` when it is (or looks like) a full file system."""
+    if isinstance(exc, DiskFullError):
+        return
+    free = _free_bytes(path.parent if path.parent.exists() else Path("."))
+    if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < DISK_FULL_BYTES):
+        raise DiskFullError(
+            errno.ENOSPC,
+            f"no space left on the device writing {path} ({free if free is not None else '?'} bytes free; "
+            f"the writer said: {exc}); free some space and run again",
+        ) from exc
 
 
 def _umask() -> int:
@@ -156,7 +239,7 @@ def run_job(main, log_path, **kwargs) -> None:
     t0 = time.perf_counter()
     try:
         main(**kwargs)
-    except (ValueError, KeyError, FileNotFoundError) as exc:
+    except (ValueError, KeyError, FileNotFoundError, DiskFullError) as exc:
         traceback.print_exc(file=log)
         msg = f"imupipe error: {exc}"
         print(msg, file=log)

@@ -77,24 +77,57 @@ class SpecSheet:
     values: dict = field(default_factory=dict)
 
 
-def _quantity(sensor_block, key, quantity, sensor, where):
+#: Largest plausible SI value of a spec-sheet parameter (rate-based quantities in their SI unit built on
+#: seconds, e.g. rad/sqrt(s) for a gyro white noise); the same limits as the readers' samples (gyro
+#: 1e3, accel 1e4), and 1e10 s (~300 years) for a correlation time. Beyond them the value is a typo or
+#: a wrong unit, and its square (the PSD level) may overflow.
+PLAUSIBLE_SI = {"gyro": 1.0e3, "accel": 1.0e4, "time": 1.0e10}
+
+
+def _is_float(text):
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _number(value, label):
+    """A YAML value as a float: numbers, and strings such as ``1.5e3`` that YAML 1.1 leaves as strings."""
+    if isinstance(value, str):
+        try:
+            return float(value.strip().replace("_", ""))
+        except ValueError:
+            raise SpecError(f"{label}.value = {value!r} is not a number") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{label}.value must be a finite non-negative number, got {value!r}")
+    return float(value)
+
+
+def _quantity(sensor_block, key, quantity, sensor, where, path=None):
     item = sensor_block[key]
-    label = f"{where}: {sensor}.{key}"
-    if isinstance(item, (int, float)) and not isinstance(item, bool):
+    label = f"{where}: {path or sensor}.{key}"
+    if (isinstance(item, (int, float)) and not isinstance(item, bool)) or (isinstance(item, str) and _is_float(item)):
         raise SpecError(
             f"{label} = {item!r} has no unit; write it as {{value: {item!r}, unit: <unit>}} "
             f"(every value needs an explicit unit)"
         )
     if not isinstance(item, dict) or set(item) != {"value", "unit"}:
         raise SpecError(f"{label} must be a mapping with exactly the keys 'value' and 'unit', got {item!r}")
-    value = item["value"]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise SpecError(f"{label}.value must be a finite non-negative number, got {value!r}")
+    value = _number(item["value"], label)
+    if not math.isfinite(value) or value < 0:
+        raise SpecError(f"{label}.value must be a finite non-negative number, got {item['value']!r}")
     try:
-        si = float(to_si(float(value), item["unit"], quantity, sensor, key=label))
+        si = float(to_si(value, item["unit"], quantity, sensor, key=label))
     except UnitError as exc:
         raise SpecError(str(exc)) from None
-    return si, float(value), item["unit"]
+    limit = PLAUSIBLE_SI["time" if quantity == "time" else sensor]
+    if not (math.isfinite(si) and si <= limit and math.isfinite(si * si)):
+        raise SpecError(
+            f"{label}.value = {value:g} {item['unit']} is {si:.3g} in SI, beyond the plausible limit "
+            f"{limit:g} for a {sensor} {quantity} (a typo or a wrong unit?)"
+        )
+    return si, value, item["unit"]
 
 
 def parse_spec(data, where: str = "<spec>") -> SpecSheet:
@@ -132,8 +165,9 @@ def parse_spec(data, where: str = "<spec>") -> SpecSheet:
         for i, term in enumerate(gms, start=1):
             if not isinstance(term, dict) or set(term) != {"sigma", "T"}:
                 raise SpecError(f"{where}: {sensor}.gauss_markov[{i - 1}] needs exactly the keys 'sigma' and 'T'")
-            s_si, s_raw, s_unit = _quantity(term, "sigma", "gm_sigma", sensor, f"{where}: {sensor}.gauss_markov[{i - 1}]")
-            t_si, t_raw, t_unit = _quantity(term, "T", "time", sensor, f"{where}: {sensor}.gauss_markov[{i - 1}]")
+            gm_path = f"{sensor}.gauss_markov[{i - 1}]"
+            s_si, s_raw, s_unit = _quantity(term, "sigma", "gm_sigma", sensor, where, gm_path)
+            t_si, t_raw, t_unit = _quantity(term, "T", "time", sensor, where, gm_path)
             if t_si <= 0:
                 raise SpecError(f"{where}: {sensor}.gauss_markov[{i - 1}].T must be > 0")
             terms.append((s_si, t_si))

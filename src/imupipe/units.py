@@ -9,12 +9,17 @@ Grammar
 ::
 
     unit     := product
-    product  := power (("*" | "/") power)*        # left-associative: a/b/c == (a/b)/c
-    power    := atom ("^" exponent)?
+    product  := power (("*" | "/" | "." | " ") power)*  # left-associative: a/b/c == (a/b)/c
+    power    := atom ("^" exponent | "**" exponent | CF_exponent)?
+    CF_exponent := ["-"] NUMBER                     # UDUNITS / CF: "s-1", "m s-2", "s2"
     atom     := NAME | NUMBER | "sqrt" "(" product ")" | "(" product ")"
     exponent := ["-"] NUMBER | "(" ["-"] NUMBER ["/" NUMBER] ")"
 
-Whitespace is ignored.  Exponents are exact fractions (``h^(3/2)``, ``s^-0.5``).
+Juxtaposition (a space) and ``.`` multiply, as in CF / UDUNITS (``rad s-1``, ``m.s-2``); an integer
+right after a unit name is its exponent (``s-1``, ``s2``).  Exponents are exact fractions
+(``h^(3/2)``, ``s^-0.5``).  Before parsing, :func:`normalise_unit` rewrites the common datasheet
+spellings (table :data:`SPELLINGS`: ``°`` -> ``deg``, ``µ`` -> ``u``, ``√Hz`` / ``rtHz`` ->
+``sqrt(Hz)``, ``dps`` -> ``deg/s``, ``²`` -> ``^2``, ...).
 
 Unit names (case-sensitive)
 ---------------------------
@@ -32,6 +37,18 @@ g        9.80665 (standard gravity) (0, 1, -2)
 mg       9.80665e-3                 (0, 1, -2)
 ug       9.80665e-6                 (0, 1, -2)
 ppm      1e-6                       (0, 0, 0)
+mrad     1e-3                       (1, 0, 0)
+urad     1e-6                       (1, 0, 0)
+mdeg     pi/180e3                   (1, 0, 0)
+arcmin   pi/10800                   (1, 0, 0)
+arcsec   pi/648000                  (1, 0, 0)
+ms       1e-3                       (0, 0, 1)
+us       1e-6                       (0, 0, 1)
+ns       1e-9                       (0, 0, 1)
+mm       1e-3                       (0, 1, 0)
+cm       1e-2                       (0, 1, 0)
+km       1e3                        (0, 1, 0)
+kHz      1e3                        (0, 0, -1)
 ======== ========================== ================================
 
 Quantities
@@ -75,6 +92,10 @@ __all__ = [
     "QUANTITIES",
     "SENSORS",
     "STANDARD_GRAVITY",
+    "SI_UNITS",
+    "SPELLINGS",
+    "normalise_unit",
+    "rate_factor",
     "parse_unit",
     "expected_dimension",
     "format_dimension",
@@ -82,8 +103,11 @@ __all__ = [
     "from_si",
 ]
 
-#: Standard gravity in m/s^2 (CGPM 1901).
+#: Standard gravity in m/s^2 (3rd CGPM, 1901). The one definition in imupipe: import it from here.
 STANDARD_GRAVITY = 9.80665
+
+#: SI unit of each sensor's rate (what imupipe stores and computes in). The one definition in imupipe.
+SI_UNITS = {"gyro": "rad/s", "accel": "m/s^2"}
 
 #: Quantities accepted by :func:`to_si` / :func:`from_si`.
 QUANTITIES = ("rate", "gm_sigma", "white", "random_walk", "time", "quantization", "ramp")
@@ -103,9 +127,21 @@ _UNITS = {
     "hr": (3600.0, (_F(0), _F(0), _F(1))),
     "Hz": (1.0, (_F(0), _F(0), _F(-1))),
     "m": (1.0, (_F(0), _F(1), _F(0))),
+    "mrad": (1e-3, (_F(1), _F(0), _F(0))),
+    "urad": (1e-6, (_F(1), _F(0), _F(0))),
+    "mdeg": (math.pi / 180.0e3, (_F(1), _F(0), _F(0))),
+    "arcmin": (math.pi / 180.0 / 60.0, (_F(1), _F(0), _F(0))),
+    "arcsec": (math.pi / 180.0 / 3600.0, (_F(1), _F(0), _F(0))),
+    "ms": (1e-3, (_F(0), _F(0), _F(1))),
+    "us": (1e-6, (_F(0), _F(0), _F(1))),
+    "ns": (1e-9, (_F(0), _F(0), _F(1))),
+    "mm": (1e-3, (_F(0), _F(1), _F(0))),
+    "cm": (1e-2, (_F(0), _F(1), _F(0))),
+    "km": (1e3, (_F(0), _F(1), _F(0))),
     "g": (STANDARD_GRAVITY, (_F(0), _F(1), _F(-2))),
     "mg": (STANDARD_GRAVITY * 1e-3, (_F(0), _F(1), _F(-2))),
     "ug": (STANDARD_GRAVITY * 1e-6, (_F(0), _F(1), _F(-2))),
+    "kHz": (1e3, (_F(0), _F(0), _F(-1))),
     "ppm": (1e-6, (_F(0), _F(0), _F(0))),
 }
 
@@ -145,8 +181,95 @@ class ParsedUnit(NamedTuple):
 
 
 _TOKEN = re.compile(
-    r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_]+)|(?P<op>[*/^()\-]))"
+    r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_]+)|(?P<op>\*\*|[*/^()\-.]))"
 )
+
+#: Spellings rewritten by :func:`normalise_unit` before parsing (whole unit, case-insensitive), then
+#: the symbol substitutions of :data:`_SYMBOLS` (anywhere in the unit).
+SPELLINGS = {
+    "dps": "deg/s",
+    "dph": "deg/h",
+    "deg/sec": "deg/s",
+    "deg/hr": "deg/h",
+    "rad/sec": "rad/s",
+    "rad/hr": "rad/h",
+    "m/s/s": "m/s^2",
+    "m/s2": "m/s^2",
+    "mm/s2": "mm/s^2",
+    "g0": "g",
+    "gee": "g",
+    "micro-g": "ug",
+    "micro g": "ug",
+    "milli-g": "mg",
+    "milli g": "mg",
+    "sec": "s",
+    "second": "s",
+    "seconds": "s",
+    "hour": "h",
+    "hours": "h",
+    "minute": "min",
+    "minutes": "min",
+    "degree": "deg",
+    "degrees": "deg",
+    "radian": "rad",
+    "radians": "rad",
+}
+# (symbol or word inside a unit, replacement), applied in order
+_SYMBOLS = (
+    ("√(", "sqrt("),
+    ("√", "sqrt "),  # "√Hz" -> "sqrt Hz" -> handled below
+    ("µ", "u"),  # MICRO SIGN
+    ("μ", "u"),  # GREEK SMALL LETTER MU
+    ("°", "deg"),
+    ("º", "deg"),  # masculine ordinal, often typed for a degree sign
+    ("⁻¹", "^-1"),
+    ("⁻²", "^-2"),
+    ("²", "^2"),
+    ("³", "^3"),
+    ("½", "(1/2)"),
+    ("·", "*"),
+    ("⋅", "*"),
+    ("×", "*"),
+)
+_SQRT_WORD = re.compile(r"(?:\bsqrt|\brt|\bsq)\s*(Hz|h|hr|s|sec|min)\b|\brt(Hz|h|hr|s)\b")
+_DPS = re.compile(r"\bdps\b")
+_DPH = re.compile(r"\bdph\b")
+_SEC = re.compile(r"\b(?:secs?|seconds?)\b")
+_WORDS = ((re.compile(r"\bdegrees?\b"), "deg"), (re.compile(r"\bradians?\b"), "rad"), (re.compile(r"\bhours?\b"), "h"))
+_HR = re.compile(r"\bhrs\b")
+
+
+def normalise_unit(unit):
+    """Rewrite a datasheet / CF spelling of a unit into the module grammar.
+
+    ``"°/s"`` -> ``"deg/s"``, ``"µg/√Hz"`` -> ``"ug/sqrt(Hz)"``, ``"mg/rtHz"`` -> ``"mg/sqrt(Hz)"``,
+    ``"dps"`` -> ``"deg/s"``, ``"deg/sec"`` -> ``"deg/s"``, ``"m/s²"`` -> ``"m/s^2"``; CF forms
+    such as ``"rad s-1"`` are left to the parser (juxtaposition multiplies, a trailing integer is an
+    exponent). Whole-unit spellings: :data:`SPELLINGS`.
+
+    Parameters
+    ----------
+    unit : str
+
+    Returns
+    -------
+    str
+    """
+    text = " ".join(str(unit).split())
+    whole = SPELLINGS.get(text.lower())
+    if whole is not None:
+        return whole
+    for symbol, repl in _SYMBOLS:
+        text = text.replace(symbol, repl)
+    text = _SQRT_WORD.sub(lambda m: f"sqrt({m.group(1) or m.group(2)})", text)
+    text = _DPS.sub("(deg/s)", text)
+    text = _DPH.sub("(deg/h)", text)
+    text = _SEC.sub("s", text)
+    for pattern, repl in _WORDS:
+        text = pattern.sub(repl, text)
+    text = _HR.sub("h", text)
+    text = text.replace("**", "^")
+    return " ".join(text.split())
 
 
 def _tokenize(text):
@@ -195,8 +318,12 @@ class _Parser:
 
     def product(self):
         factor, dim = self.power()
-        while self.peek() in (("op", "*"), ("op", "/")):
-            op = self.take()[1]
+        while self.peek() in (("op", "*"), ("op", "/"), ("op", ".")) or self.peek()[0] == "name" or self.peek() == (
+            "op",
+            "(",
+        ):
+            op = self.take()[1] if self.peek()[0] == "op" and self.peek()[1] in "*/." else "*"
+            op = "*" if op == "." else op
             f2, d2 = self.power()
             if op == "*":
                 factor, dim = factor * f2, tuple(a + b for a, b in zip(dim, d2))
@@ -205,10 +332,22 @@ class _Parser:
         return factor, dim
 
     def power(self):
+        named = self.peek()[0] == "name"
         factor, dim = self.atom()
-        if self.peek() == ("op", "^"):
+        if self.peek() in (("op", "^"), ("op", "**")):
             self.take()
             e = self.exponent()
+            factor, dim = factor ** float(e), tuple(a * e for a in dim)
+        elif named and (
+            (self.peek()[0] == "num" and re.fullmatch(r"\d+", self.peek()[1]))
+            or (
+                self.peek() == ("op", "-")
+                and self.i + 1 < len(self.tokens)
+                and self.tokens[self.i + 1][0] == "num"
+                and re.fullmatch(r"\d+", self.tokens[self.i + 1][1])
+            )
+        ):  # CF / UDUNITS exponent: "s-1", "m s-2", "s2"
+            e = self._number()
             factor, dim = factor ** float(e), tuple(a * e for a in dim)
         return factor, dim
 
@@ -286,7 +425,7 @@ def parse_unit(unit):
     if not unit.strip():
         raise UnitError("empty unit")
     try:
-        factor, dim = _Parser(unit).parse()
+        factor, dim = _Parser(normalise_unit(unit)).parse()
     except UnitError as exc:
         raise UnitError(f"cannot parse unit {unit!r}: {exc}") from None
     return ParsedUnit(float(factor), tuple(dim))
@@ -410,3 +549,30 @@ def from_si(value_si, unit, quantity, sensor, key=None):
         Value in ``unit``.
     """
     return value_si / _check(unit, quantity, sensor, key)
+
+
+def rate_factor(unit, sensor, key=None):
+    """SI factor of a sensor's rate unit (rad/s per gyro unit, m/s^2 per accel unit).
+
+    Accepts every spelling of :func:`parse_unit` / :func:`normalise_unit` (``deg/s``, ``dps``, ``°/s``,
+    ``mrad/s``, ``mdeg/s``, ``rad s-1``, ``g``, ``mg``, ``µg``, ``mm/s^2``, ``m s-2``, ...).
+
+    Parameters
+    ----------
+    unit : str
+        Unit of the stored samples.
+    sensor : {'gyro', 'accel'}
+    key : str, optional
+        Where the unit comes from, quoted in errors.
+
+    Returns
+    -------
+    float
+        ``x_SI = factor * x``.
+
+    Raises
+    ------
+    UnitError
+        Unparseable unit, or not a rate of ``sensor`` (angle/time for gyro, length/time^2 for accel).
+    """
+    return float(_check(unit, "rate", sensor, key))

@@ -1,0 +1,725 @@
+"""The reader: one record from any format, converted to SI and validated."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from imupipe.readers._common import *  # noqa: F403
+from imupipe.readers._common import _ROS_FIELDS, _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _SI_UNITS, _cell, _example_unit, _normalise_channels, _normalise_units, _unit_factor, _EXTENSIONS
+
+
+from imupipe.readers.arrays import _load_npy, _load_npz
+from imupipe.readers.netcdf import _load_netcdf
+from imupipe.readers.rdata import _load_rdata
+from imupipe.readers.rosbag import _load_rosbag
+from imupipe.readers.text import _load_text
+from imupipe.readers.checks import check_file, check_unchanged, check_values
+
+#: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
+FROM_FILE = "from_file"
+#: Longest gap ``gap_policy="fill"`` fills when neither fill_max_samples nor fill_max_s is given.
+DEFAULT_FILL_MAX_SAMPLES = 10
+
+
+def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = None) -> dict[str, Any]:
+    """Keyword arguments of :func:`read_dataset` from one dataset-sheet row.
+
+    Parameters
+    ----------
+    row : mapping
+        One row of the dataset sheet, column name -> cell (str, number, None or NaN); the columns
+        are those of :data:`SHEET_COLUMNS`, all optional but ``path``. Unknown columns are ignored.
+    base_dir : str or Path, optional
+        Directory that relative ``path`` cells are relative to. Defaults to None (the working
+        directory).
+
+    Returns
+    -------
+    dict
+        Arguments for :func:`read_dataset` (without ``min_duration_s``, which the workflow gives).
+    """
+    r = {k: _cell(v) for k, v in row.items()}
+    name = r.get("dataset") or "<row>"
+    if r.get("path") is None:
+        raise DataError(f"dataset {name!r}: column 'path' is empty")
+    path = Path(str(r["path"]))
+    if base_dir is not None and not path.is_absolute():
+        path = Path(base_dir) / path
+    rate = r.get("rate_hz")
+    if rate is not None:
+        try:
+            rate = float(rate)
+        except ValueError:
+            raise DataError(f"dataset {name!r}: rate_hz = {rate!r} is not a number (Hz)") from None
+    channels = {(s, a): r[f"{s}_{a}"] for s in SENSORS for a in AXES if r.get(f"{s}_{a}") is not None}
+    units = {s: r[f"{s}_unit"] for s in SENSORS if r.get(f"{s}_unit") is not None}
+    kwargs: dict[str, Any] = {
+        "path": path,
+        "format": r.get("format") or "auto",
+        "rate_hz": rate,
+        "channels": channels or None,
+        "units": units or None,
+    }
+    for key in ("time_column", "time_unit", "delimiter", "variable", "topic", "axis_map", "gap_policy"):
+        if r.get(key) is not None:
+            kwargs[key] = r[key]
+    for key, kind in (("fill_max_samples", int), ("fill_max_s", float)):
+        if r.get(key) is not None:
+            try:
+                value = kind(r[key])
+                if kind is int and float(r[key]) != value:
+                    raise ValueError
+            except (TypeError, ValueError):
+                raise DataError(
+                    f"dataset {name!r}: {key} = {r[key]!r} is not {'an integer number of samples' if kind is int else 'a number of s'}"
+                ) from None
+            kwargs[key] = value
+    if r.get("long_gap_policy") is not None:
+        kwargs["long_gap_policy"] = r["long_gap_policy"]
+    return kwargs
+
+
+def read_dataset_row(
+    row: Mapping[str, Any],
+    *,
+    base_dir: str | Path | None = None,
+    min_duration_s: float | None = None,
+    min_duration_key: str = "min_duration_s",
+) -> Recording:
+    """Read the record described by one dataset-sheet row (see :data:`SHEET_COLUMNS`).
+
+    Parameters
+    ----------
+    row : mapping
+        Column name -> cell; see :func:`sheet_row_to_kwargs`.
+    base_dir : str or Path, optional
+        Directory of relative paths. Defaults to None (the working directory).
+    min_duration_s : float, optional
+        Shortest usable record (s), e.g. what the largest Allan tau or PSD window needs.
+        Defaults to None (no check).
+    min_duration_key : str, optional
+        Setting quoted when the record is too short (e.g. ``"psd.window_s"``). Defaults to ``"min_duration_s"``.
+
+    Returns
+    -------
+    Recording
+        The channels in SI units, as :func:`read_dataset` returns them.
+    """
+    return read_dataset(
+        **sheet_row_to_kwargs(row, base_dir), min_duration_s=min_duration_s, min_duration_key=min_duration_key
+    )
+
+
+def read_dataset(
+    path: str | Path,
+    format: str = "auto",
+    rate_hz: float | None = None,
+    channels: Mapping[Any, Any] | None = None,
+    units: Mapping[Any, Any] | None = None,
+    *,
+    time_column: str | int | None = None,
+    time_unit: str | None = None,
+    delimiter: str | None = None,
+    variable: str | None = None,
+    topic: str | None = None,
+    axis_map: str | Mapping[str, str] | None = None,
+    gap_policy: str = "fail",
+    min_duration_s: float | None = None,
+    rate_rtol: float = 0.01,
+    gap_factor: float = 1.5,
+    fill_max_samples: int | None = None,
+    fill_max_s: float | None = None,
+    long_gap_policy: str = "fail",
+    min_duration_key: str = "min_duration_s",
+) -> Recording:
+    r"""Read, convert to SI and validate one static IMU record.
+
+    The steps are: read the channels (and timestamps) in file units; check every sample is finite;
+    check the timestamps (strictly increasing, rate within ``rate_rtol`` of ``rate_hz``, no
+    interval longer than ``gap_factor / rate_hz``); handle gaps per ``gap_policy``; check the
+    duration against ``min_duration_s`` and that no channel is constant; convert to SI
+    (:math:`x_\mathrm{SI} = c_u\,x`, e.g. :math:`c = \pi/180` for deg/s and :math:`c = g_0 =
+    9.80665` m/s^2 for g); apply the axis map.
+
+    Parameters
+    ----------
+    path : str or Path
+        File to read (a rosbag2 directory for ROS 2 bags).
+    format : str, optional
+        One of :data:`FORMATS` (``csv``, ``netcdf``, ``npy``, ``npz``, ``rda``/``rds``, ``rosbag``/``mcap``,
+        ...). Defaults to ``"auto"``: by the file extension (a directory is a rosbag2 bag).
+    rate_hz : float, optional
+        Nominal sample rate (Hz) from the dataset sheet. Checked against the timestamps and against
+        a rate stored in the file (R attribute ``freq``/``tsp``); a relative difference above
+        ``rate_rtol`` is an error. Defaults to None: the file's rate, else the timestamps' mean rate.
+    channels : mapping, optional
+        ``{(sensor, axis) or "sensor_axis": column}`` with sensor ``gyro``/``accel`` and axis
+        ``x``/``y``/``z``; ``column`` is a column / variable / array name, a 0-based index, or for
+        bags a message field such as ``"angular_velocity.x"``. A dataset may hold one sensor only.
+        Defaults to None: columns named ``gyro_x`` ... ``accel_z`` (bags: all six Imu fields).
+    units : mapping, optional
+        Stored unit per sensor, ``{"gyro": "deg/s", "accel": "g"}`` (keys ``(sensor, axis)``
+        also accepted). Any rate unit :func:`imupipe.units.rate_factor` accepts: rad/s, mrad/s,
+        deg/s, dps, °/s, mdeg/s, deg/h, rad s-1 (CF); m/s^2, m s-2, mm/s^2, g, mg, ug, µg
+        (``g`` = 9.80665 m/s^2); table in docs/inputs.md. ``"from_file"``: the file's own unit
+        attribute (netCDF ``units``), which must then exist. A unit the file states must parse and
+        agree with the sheet's. Defaults to None: the file's unit, SI for ROS bags, an error otherwise.
+    time_column : str or int, optional
+        Column / variable / array of timestamps. For bags ``"header"`` (``header.stamp``, the
+        default) or ``"bag"`` (recording time). Defaults to None: no timestamps, uniform sampling
+        at ``rate_hz`` assumed.
+    time_unit : str, optional
+        Unit of ``time_column``: ``s``, ``ms``, ``us`` or ``ns``. Defaults to None: seconds (netCDF:
+        from the variable's ``units`` attribute).
+    delimiter : str, optional
+        Text files: ``","``, ``"tab"``, ``"semicolon"``, ``"space"`` (runs of whitespace), ... .
+        Defaults to None: tab, comma, semicolon or whitespace, whichever the header line shows.
+        Lines starting with ``#`` are comments; a first line of numbers means no header.
+    variable : str, optional
+        R ``.rda``: name of the object (needed when the file holds several). ``.npz`` / netCDF: a
+        2-D array / variable ``(samples, columns)`` that the channel indices refer to. Defaults to None.
+    topic : str, optional
+        Bags: topic of the ``sensor_msgs/Imu`` messages. Defaults to None: the only Imu topic.
+    axis_map : str or mapping, optional
+        Body axis <- signed file axis, e.g. ``"x:-y,y:x,z:z"`` (see :func:`parse_axis_map`), applied
+        to both sensors after the SI conversion. Defaults to None (identity).
+    gap_policy : {"fail", "split", "fill"}, optional
+        What a timestamp gap does: ``"fail"`` raises :class:`DataError` naming the first gap;
+        ``"split"`` keeps the longest contiguous segment in ``channels``, lists every segment in
+        ``Recording.segments`` (data via ``Recording.segment(i)``) and warns (:class:`GapWarning`)
+        naming the gaps. ``"fill"`` fills every gap of at most ``fill_max_samples`` missing samples
+        (or ``fill_max_s`` seconds) by linear interpolation between its two neighbours (timestamps
+        and every channel), lists them in ``Recording.filled`` and handles longer gaps by
+        ``long_gap_policy``. Duplicated or decreasing timestamps are always an error. Defaults to ``"fail"``.
+    min_duration_s : float, optional
+        Shortest usable record (s), e.g. ``2 * tau_max`` for the largest Allan tau or the PSD
+        window length; the (selected) record must last at least this long (``n / rate_hz``).
+        Defaults to None (no check).
+    rate_rtol : float, optional
+        Relative tolerance between the sheet's rate and the file's or timestamps' rate.
+        Defaults to 0.01 (1 %).
+    gap_factor : float, optional
+        A timestamp interval longer than ``gap_factor / rate_hz`` is a gap; shorter positive ones are
+        sample steps (jitter and clock quantisation, e.g. integer-ms stamps at 300 Hz, are accepted).
+        Defaults to 1.5.
+    fill_max_samples : int, optional
+        ``gap_policy="fill"``: longest gap filled, in missing samples. Defaults to None: 10 samples
+        unless ``fill_max_s`` is given.
+    fill_max_s : float, optional
+        ``gap_policy="fill"``: longest gap filled, in s of missing data (``fill_max_s * rate`` samples,
+        rounded down). Defaults to None.
+    long_gap_policy : {"fail", "split"}, optional
+        ``gap_policy="fill"``: what a longer gap does. Defaults to ``"fail"``.
+    min_duration_key : str, optional
+        Name of the setting ``min_duration_s`` comes from, quoted in the error (the workflow passes
+        ``"psd.window_s"``). Defaults to ``"min_duration_s"``.
+
+    Returns
+    -------
+    Recording
+        Mapping ``{(sensor, axis): float64 ndarray}`` in rad/s (gyro) and m/s^2 (accel), with
+        ``rate_hz`` (Hz), ``source``, ``units``, ``file_units``, ``columns`` and ``segments``.
+
+    Raises
+    ------
+    DataError
+        Missing, empty, truncated or malformed file; unknown column, object, topic, format, unit
+        or axis map; non-finite samples; bad timestamps or rate; too short; constant channel.
+
+    Examples
+    --------
+    >>> rec = read_dataset("imu.csv", "csv", rate_hz=100.0,  # doctest: +SKIP
+    ...                    channels={"gyro_x": "wx", "gyro_y": "wy", "gyro_z": "wz"},
+    ...                    units={"gyro": "deg/s"}, time_column="t", axis_map="x:-y,y:x,z:z")
+    >>> rec["gyro", "x"]  # rad/s  # doctest: +SKIP
+    """
+    path = Path(path)
+    where = str(path)
+    fmt = _format_of(path, format)
+    if gap_policy not in GAP_POLICIES:
+        raise DataError(f"{where}: gap_policy {gap_policy!r} not one of {GAP_POLICIES}")
+    if long_gap_policy not in ("fail", "split"):
+        raise DataError(f"{where}: long_gap_policy {long_gap_policy!r} not one of ('fail', 'split')")
+    for name, value in (("fill_max_samples", fill_max_samples), ("fill_max_s", fill_max_s)):
+        if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise DataError(f"{where}: {name} = {value!r}; expected a non-negative number")
+    if rate_hz is not None and not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise DataError(f"{where}: rate_hz = {rate_hz!r}; expected a positive number of Hz")
+    if min_duration_s is not None and not (min_duration_s >= 0):
+        raise DataError(f"{where}: min_duration_s = {min_duration_s!r}; expected a non-negative number of s")
+    before = check_file(path, fmt)
+    specs = _normalise_channels(channels)
+    if specs is not None and not specs:
+        raise DataError(f"{where}: no channel given (all of gyro_x ... accel_z are empty)")
+    if specs is not None:
+        seen: dict[str, Key] = {}
+        for key, spec in specs.items():
+            other = seen.setdefault(str(spec), key)
+            if other != key:
+                raise DataError(
+                    f"{where}: {_chname(other)} and {_chname(key)} both name column {spec!r}; expected one column "
+                    "per channel (a duplicated or mistyped dataset-sheet column?)"
+                )
+    sheet_units = _normalise_units(units)
+    amap = parse_axis_map(axis_map)
+    if specs is not None:  # units known from the sheet are checked before reading a large file
+        for key in specs:
+            if sheet_units.get(key) is not None and sheet_units[key] != FROM_FILE:
+                _unit_factor(sheet_units[key], key[0], f"{where}: {key[0]}_unit")
+
+    if fmt == "csv":
+        raw = _load_text(path, specs, delimiter, time_column, time_unit, where)
+    elif fmt == "npy":
+        raw = _load_npy(path, specs, time_column, time_unit, where)
+    elif fmt == "npz":
+        raw = _load_npz(path, specs, variable, time_column, time_unit, where)
+    elif fmt == "netcdf":
+        raw = _load_netcdf(path, specs, variable, time_column, time_unit, where)
+    elif fmt == "rdata":
+        raw = _load_rdata(path, specs, variable, time_column, time_unit, where)
+    else:
+        raw = _load_rosbag(path, specs, topic, time_column, where)
+    check_unchanged(path, before)
+    row_map = None  # filled record row -> file row (-1: inserted), after gap filling
+
+    def row_text(row: int) -> str:
+        if row_map is not None:
+            if row_map[row] < 0:
+                return f"row {row} of the gap-filled record (an inserted sample)"
+            row = int(row_map[row])
+        text = f"row {row} (0-based)"
+        if raw.line_of_row is not None:
+            text += f", line {raw.line_of_row(row)}"
+        return text
+
+    # --- samples ---------------------------------------------------------------------------
+    lengths = {len(v) for v in raw.data.values()} | ({len(raw.time)} if raw.time is not None else set())
+    if len(lengths) != 1:
+        detail = ", ".join(f"{_chname(k)}: {len(v)}" for k, v in raw.data.items())
+        raise DataError(f"{where}: channels differ in length ({detail})")
+    n = lengths.pop()
+    if n == 0:
+        raise DataError(f"{where}: no samples")
+    for key, x in raw.data.items():
+        finite = np.isfinite(x)
+        if not finite.all():
+            row = int(np.argmin(finite))
+            raise DataError(
+                f"{where}: {_chname(key)} (column {raw.names[key]}) has a non-finite sample ({float(x[row])}) at "
+                f"{row_text(row)}; {int(np.count_nonzero(~finite))} in all"
+            )
+
+    # --- rate and timestamps -----------------------------------------------------------------
+    rate = rate_hz
+    if raw.file_rate is not None and rate_hz is not None:
+        if abs(raw.file_rate - rate_hz) > rate_rtol * rate_hz:
+            raise DataError(
+                f"{where}: rate_hz = {rate_hz:g} Hz in the sheet but the file says {raw.file_rate:g} Hz "
+                f"({raw.file_rate_from})"
+            )
+    elif rate is None:
+        rate = raw.file_rate
+    segments = [Segment(0, n)]
+    filled: tuple[FilledGap, ...] = ()
+    policy = gap_policy
+    if raw.time is not None and gap_policy == "fill":
+        if not np.isfinite(raw.time).all() or len(raw.time) < 2:
+            pass  # _check_time names the bad value
+        else:
+            guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
+            max_missing = (
+                fill_max_samples if fill_max_samples is not None
+                else int(math.floor(fill_max_s * guess)) if fill_max_s is not None
+                else DEFAULT_FILL_MAX_SAMPLES
+            )
+            filled, row_map = _fill_gaps(raw, rate, gap_factor, max_missing, where, row_text)
+            n = len(raw.time)
+            if not filled:
+                row_map = None
+        policy = long_gap_policy
+    elif raw.time is None and gap_policy == "fill":
+        pass  # no timestamps: no gaps to see
+    if raw.time is not None:
+        segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text)
+    if rate is None:
+        raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
+    selected = max(range(len(segments)), key=lambda i: segments[i].n)
+    seg = segments[selected]
+
+    # --- duration and constant channels --------------------------------------------------------
+    duration = seg.n / rate
+    if min_duration_s is not None and duration < min_duration_s:
+        part = "longest contiguous segment" if len(segments) > 1 else "record"
+        raise DataError(
+            f"{where}: {part} lasts {duration:.6g} s ({seg.n} samples at {rate:g} Hz), shorter than the "
+            f"{min_duration_s:g} s needed ({min_duration_key})"
+        )
+    for key, x in raw.data.items():
+        part = x[seg.start : seg.stop]
+        if part.size and part.min() == part.max():
+            raise DataError(
+                f"{where}: {_chname(key)} (column {raw.names[key]}) is constant ({part[0]:g} in all {part.size} "
+                "samples): a dead or saturated channel, or the wrong column"
+            )
+
+    # --- units, SI, axis map -----------------------------------------------------------------
+    si: dict[Key, np.ndarray] = {}
+    file_units: dict[Key, str] = {}
+    for key, x in raw.data.items():
+        sensor = key[0]
+        unit = sheet_units.get(key)
+        origin = f"{where}: {sensor}_unit"
+        stored_unit = raw.file_units.get(key)
+        if stored_unit is not None and not _blank(stored_unit):  # a unit the file states must be readable
+            try:
+                stored_factor = _unit_factor(stored_unit, sensor, f"{where}: variable {raw.names[key]} units attribute")
+            except DataError as exc:
+                raise DataError(
+                    f"{exc}; the file's own unit must parse (and agree with {sensor}_unit, or set "
+                    f"{sensor}_unit: {FROM_FILE})"
+                ) from None
+        if unit == FROM_FILE:
+            if stored_unit is None or _blank(stored_unit):
+                raise DataError(
+                    f"{where}: {sensor}_unit = {FROM_FILE!r} but {_chname(key)} (variable {raw.names[key]}) has no "
+                    "units attribute; give the unit in the sheet"
+                )
+            unit = None
+        if unit is None:
+            unit = raw.file_units.get(key) or raw.default_units.get(sensor)
+            origin = f"{where}: {_chname(key)} unit (from the file)"
+            if unit is None:
+                raise DataError(
+                    f"{where}: {sensor}_unit missing for {_chname(key)} (the file does not say); "
+                    f"expected e.g. {_SI_UNITS[sensor]!r} or {_example_unit(sensor)!r}"
+                )
+        elif raw.file_units.get(key):
+            if not math.isclose(stored_factor, _unit_factor(unit, sensor, origin), rel_tol=1e-9):
+                raise DataError(
+                    f"{where}: {sensor}_unit = {unit!r} in the sheet but variable {raw.names[key]} "
+                    f"has units {raw.file_units[key]!r}"
+                )
+        factor = _unit_factor(unit, sensor, origin)
+        # x * factor is a new array; in SI already, a fresh array is kept as it is and only a read-only view
+        # (a .npy opened as a memory map) is copied (a 36 MB copy costs ~50 ms, mostly page faults)
+        si[key] = x * factor if factor != 1.0 else (x if x.flags.writeable else np.array(x, dtype=np.float64))
+        file_units[key] = unit
+        check_values(si[key], sensor, f"{_chname(key)} (column {raw.names[key]})", where, row_text)
+
+    mapped: dict[Key, np.ndarray] = {}
+    columns: dict[Key, str] = {}
+    mapped_units: dict[Key, str] = {}
+    identity = all(sign == 1 and src == a for a, (sign, src) in amap.items())
+    for sensor in SENSORS:
+        present = [a for a in AXES if (sensor, a) in si]
+        if not present:
+            continue
+        if not identity and len(present) != 3:
+            raise DataError(
+                f"{where}: axis_map {axis_map!r} needs all three {sensor} axes; have {', '.join(present)}"
+            )
+        for a in AXES:
+            sign, src = amap[a]
+            if (sensor, src) not in si:
+                continue
+            x = si[(sensor, src)]
+            mapped[(sensor, a)] = -x if sign < 0 else x
+            columns[(sensor, a)] = ("-" if sign < 0 else "") + raw.names[(sensor, src)]
+            mapped_units[(sensor, a)] = file_units[(sensor, src)]
+    keys = [(s, a) for s in SENSORS for a in AXES if (s, a) in mapped]
+    full = {k: mapped[k] for k in keys}
+    if len(segments) > 1:
+        chans = {k: v[seg.start : seg.stop] for k, v in full.items()}
+    else:
+        chans, full = full, {}
+    detail = raw.detail or (f"variable {variable!r}" if fmt in ("npz", "netcdf") and variable else "")
+    source = f"{where} ({fmt}{', ' + detail if detail else ''})"
+    return Recording(
+        channels=chans,
+        rate_hz=float(rate),
+        source=source,
+        units={k: _SI_UNITS[k[0]] for k in keys},
+        file_units={k: mapped_units[k] for k in keys},
+        columns={k: columns[k] for k in keys},
+        segments=tuple(segments),
+        selected=selected,
+        filled=filled,
+        _full=full,
+    )
+
+
+def _format_of(path: Path, format: str | None) -> str:
+    key = "auto" if _blank(format) else str(format).strip().lower()
+    if key not in FORMATS:
+        raise DataError(f"{path}: unknown format {format!r}; expected one of {', '.join(sorted(FORMATS))}")
+    fmt = FORMATS[key]
+    if fmt == "auto":
+        if path.is_dir():
+            return "rosbag"
+        fmt = _EXTENSIONS.get(path.suffix.lower())
+        if fmt is None:
+            raise DataError(
+                f"{path}: cannot tell the format from the extension {path.suffix!r}; give `format`"
+            )
+    return fmt
+
+
+def _find_gaps(dt: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
+    """Indices i of intervals t[i] -> t[i+1] longer than ``gap_factor * nominal`` (s)."""
+    return np.flatnonzero(dt > gap_factor * nominal)
+
+
+def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
+    """(rate in Hz used to find gaps, mean rate in Hz over the intervals that are not gaps).
+
+    The mean interval over the record (gap-free intervals only) is the rate's estimate: jitter and a
+    quantised clock (integer-millisecond stamps at 128 or 300 Hz) average out, while a median interval
+    would report the clock's quantum (1/0.003 s = 333.3 Hz for 300 Hz stamped in ms). Gaps are found
+    against `rate` when known, else against the median interval, then the mean is taken without them.
+    """
+    dt = np.diff(t)
+    guess = rate if rate is not None else 1.0 / float(np.median(dt))
+    ok = dt <= gap_factor / guess
+    mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else guess
+    if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
+        ok = dt <= gap_factor / mean_rate
+        mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else mean_rate
+    return (rate if rate is not None else mean_rate), mean_rate
+
+
+def snap_rate(rate_hz: float, rtol: float = 1e-3) -> float:
+    """The round rate a measured mean rate stands for: the coarsest of ``round(rate_hz, d)``, d = 0..3,
+    within `rtol` (relative), else `rate_hz` itself.
+
+    Timestamps give the rate to the clock's accuracy (crystal error ~1e-5 .. 1e-4, jitter averaging out
+    as 1/duration); the processing needs the nominal rate (decimation by an integer ratio), so a mean of
+    2.00035 Hz stands for 2 Hz and 124.998 Hz for 125 Hz. Tolerance 1e-3 (1000 ppm, 10x a poor crystal).
+    """
+    for digits in range(4):
+        candidate = round(rate_hz, digits)
+        if candidate > 0 and abs(candidate - rate_hz) <= rtol * rate_hz:
+            return float(candidate)
+    return float(rate_hz)
+
+
+def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, row_text):
+    """Check timestamps; return (segments, rate in Hz).
+
+    Tolerance: an interval in (0, gap_factor / rate] is a sample step (jitter and clock quantisation
+    accepted); a longer one is a gap; zero or negative is an error. The rate is the mean over the gap-free
+    intervals and must agree with the sheet's (or the file's) within `rtol`.
+    """
+    t = raw.time
+    tname = raw.time_name
+    finite = np.isfinite(t)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        raise DataError(
+            f"{where}: time column {tname} has a non-finite value ({float(t[row])}) at {row_text(row)}"
+        )
+    n = len(t)
+    if n < 2:
+        return [Segment(0, n, float(t[0]), float(t[0]))], rate
+    dt = np.diff(t)
+    _check_increasing(t, dt, tname, where, row_text)
+    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
+    if rate_hz is not None and abs(mean_rate - rate_hz) > rtol * rate_hz:
+        raise DataError(
+            f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
+            f"(mean interval {1.0 / mean_rate:.6g} s over the gap-free intervals); expected agreement within "
+            f"{rtol:g} relative (rate_rtol)"
+        )
+    if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
+        raise DataError(
+            f"{where}: the file says {rate:g} Hz ({raw.file_rate_from}) but the timestamps ({tname}) "
+            f"give {mean_rate:.6g} Hz (mean interval)"
+        )
+    nominal = 1.0 / nominal_rate
+    gaps = _find_gaps(dt, nominal, gap_factor)
+    if gaps.size:
+
+        def describe(i: int) -> str:
+            return (
+                f"{dt[i]:.6g} s between {row_text(int(i))} (t = {t[i]:.9g} s) and {row_text(int(i) + 1)} "
+                f"(t = {t[i + 1]:.9g} s)"
+            )
+
+        if gap_policy == "fail":
+            raise DataError(
+                f"{where}: timestamp gap of {describe(int(gaps[0]))} in {tname}, expected {nominal:.6g} s "
+                f"(at most {gap_factor:g} x); {gaps.size} gap(s) in all; gap_policy='fill' fills short gaps, "
+                "'split' keeps the longest contiguous segment"
+            )
+    bounds = [0, *(int(i) + 1 for i in gaps), n]
+    segments = [Segment(a, b, float(t[a]), float(t[b - 1])) for a, b in itertools.pairwise(bounds)]
+    longest = max(segments, key=lambda s: s.n)
+    if gaps.size:
+        listed = "; ".join(describe(int(i)) for i in gaps[:5]) + ("; ..." if gaps.size > 5 else "")
+        warnings.warn(
+            f"{where}: {gaps.size} timestamp gap(s) (interval > {gap_factor:g} x {nominal:.6g} s): {listed}. "
+            f"Kept the longest of {len(segments)} segments: rows {longest.start}..{longest.stop - 1} "
+            f"({longest.n} samples)",
+            GapWarning,
+            stacklevel=3,
+        )
+    if rate is None:
+        rate = snap_rate(mean_rate)
+    return segments, rate
+
+
+def _check_increasing(t, dt, tname, where, row_text) -> None:
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = int(bad[0])
+        if dt[i] == 0:
+            raise DataError(
+                f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
+                f"t = {float(t[i]):.9g} s ({int(np.count_nonzero(dt == 0))} duplicates in all)"
+            )
+        raise DataError(
+            f"{where}: time in {tname} is not increasing: t = {float(t[i + 1]):.9g} s at {row_text(i + 1)} comes after "
+            f"t = {float(t[i]):.9g} s at {row_text(i)}"
+        )
+
+
+@dataclass(frozen=True)
+class FilledGap:
+    """A timestamp gap filled by ``gap_policy="fill"``.
+
+    Attributes
+    ----------
+    row : int
+        0-based row (in the file) of the last sample before the gap.
+    n_missing : int
+        Samples inserted, ``round(dt * rate) - 1``.
+    t_start, dt_s : float
+        File time (s) of that sample and the gap's interval (s).
+    """
+
+    row: int
+    n_missing: int
+    t_start: float
+    dt_s: float
+
+
+def _fill_gaps(raw: _Raw, rate, gap_factor, max_missing, where, row_text):
+    """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map).
+
+    Method: the k missing samples of a gap between rows i and i+1 are placed at t_i + j dt/(k+1),
+    j = 1..k, with values on the straight line between samples i and i+1 (every channel). Longer gaps
+    are left for the long-gap policy. The row map gives, for each row of the filled record, its 0-based
+    row in the file (-1 for an inserted sample).
+    """
+    t = raw.time
+    dt = np.diff(t)
+    _check_increasing(t, dt, raw.time_name, where, row_text)
+    nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
+    gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
+    missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
+    fill = missing <= max_missing
+    gaps, missing = gaps[fill], np.maximum(missing[fill], 1)
+    rows = np.arange(len(t))
+    if not gaps.size:
+        return (), rows
+    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(dt[i])) for i, k in zip(gaps, missing))
+    # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
+    pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]
+    for g, (a, b) in enumerate(itertools.pairwise(cuts)):
+        pieces.append(np.arange(a, b, dtype=np.float64))
+        if g < len(gaps):
+            k = int(missing[g])
+            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
+    pos = np.concatenate(pieces)
+    base = np.arange(len(t), dtype=np.float64)
+    raw.time = np.interp(pos, base, t)
+    raw.data = {key: np.interp(pos, base, x) for key, x in raw.data.items()}
+    row_map = np.where(pos == np.floor(pos), pos, -1).astype(np.int64)
+    return filled, row_map
+
+
+def read_channel(key: Key | str, path: str | Path, format: str = "auto", **kwargs: Any) -> Recording:
+    """Read one channel of a record (for ingest with a memory peak of about one channel).
+
+    Reads only the file column that body channel `key` comes from (through the axis map) and returns
+    a :class:`Recording` holding that channel alone, with the same checks as :func:`read_dataset`.
+    Memory per format: netCDF reads one variable; ``.npy`` is memory-mapped and copies one column; ``.npz``
+    decompresses one named array (the whole 2-D array when ``variable`` is given); text files, R files and
+    bags are parsed whole (their layout has no per-column access), so for them reading all channels at
+    once with :func:`read_dataset` is cheaper.
+
+    Parameters
+    ----------
+    key : (sensor, axis) or "sensor_axis"
+        Body channel, e.g. ``("gyro", "x")``.
+    path, format, **kwargs
+        As :func:`read_dataset` (``channels``, ``units``, ``axis_map``, ``time_column``, ...).
+
+    Returns
+    -------
+    Recording
+        One channel, in SI, after the axis map's sign.
+    """
+    sensor, _, axis = key.partition("_") if isinstance(key, str) else (key[0], "_", key[1])
+    if sensor not in SENSORS or axis not in AXES:
+        raise DataError(f"channel {key!r}: expected (sensor, axis) with sensor in {SENSORS}, axis in {AXES}")
+    path = Path(path)
+    fmt = _format_of(path, format)
+    amap = parse_axis_map(kwargs.pop("axis_map", None))
+    sign, src = amap[axis]
+    specs = _normalise_channels(kwargs.pop("channels", None))
+    if specs is None:
+        spec = _ROS_FIELDS[(sensor, src)] if fmt == "rosbag" else f"{sensor}_{src}"
+    elif (sensor, src) in specs:
+        spec = specs[(sensor, src)]
+    else:
+        raise DataError(f"{path}: {sensor}_{src} (body {sensor}_{axis} via the axis map) not given in the channels")
+    rec = read_dataset(path, fmt, channels={(sensor, src): spec}, **kwargs)
+    x = rec.channels[(sensor, src)]
+    k = (sensor, axis)
+    return dataclasses.replace(
+        rec,
+        channels={k: -x if sign < 0 else x},
+        units={k: rec.units[(sensor, src)]},
+        file_units={k: rec.file_units[(sensor, src)]},
+        columns={k: ("-" if sign < 0 else "") + rec.columns[(sensor, src)]},
+        _full={k: -v if sign < 0 else v for v in rec._full.values()} if rec._full else {},
+    )
+
+
+def missing_channel_columns(row: Mapping[str, Any], sensors: tuple[str, ...] | list[str] = SENSORS) -> list[str]:
+    """Sheet columns ``{sensor}_{axis}`` a row must fill for `sensors`, given the format's defaults.
+
+    A ROS bag / MCAP row may leave all six empty (``sensor_msgs/Imu`` has them: ``angular_velocity.x`` ...);
+    a row of another format may leave all of a sensor's empty when the file has columns named
+    ``gyro_x`` ... (checked when the file is read). A sensor given partly is missing the empty ones.
+
+    Parameters
+    ----------
+    row : mapping
+        One dataset-sheet row.
+    sensors : sequence of str
+        Sensors the config processes. Defaults to both.
+
+    Returns
+    -------
+    list of str
+        Column names to fill (empty: nothing missing).
+    """
+    r = {k: _cell(v) for k, v in row.items()}
+    missing = []
+    for sensor in sensors:
+        cols = [f"{sensor}_{a}" for a in AXES]
+        given = [c for c in cols if r.get(c) is not None]
+        if given and len(given) != len(cols):
+            missing += [c for c in cols if c not in given]
+    return missing
