@@ -44,7 +44,7 @@ ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 def snakemake(workdir, *args, config=TINY, check=True, snakefile=None, **kw):
     """Run Snakemake in `workdir` (--directory) with the repository's Snakefile, or with `snakefile` (a copy of
     the checkout, run from its own folder)."""
-    base = SNAKEMAKE if snakefile is None else [*SNAKEMAKE[:2], "--snakefile", str(snakefile), *SNAKEMAKE[4:]]
+    base = SNAKEMAKE if snakefile is None else [*SNAKEMAKE[:3], "--snakefile", str(snakefile), *SNAKEMAKE[5:]]
     cmd = [*base, "--directory", str(workdir), "--configfile", str(config), *args]
     proc = subprocess.run(cmd, capture_output=True, text=True, env=ENV, **kw)
     if check and proc.returncode != 0:
@@ -83,6 +83,7 @@ def tiny_run(tmp_path_factory):
     """A complete run of the tiny configuration in a copy of the checkout (its own spec sheets), run from the
     copy's folder: (folder, config file)."""
     work = tmp_path_factory.mktemp("tiny") / "checkout"
+    work.mkdir()
     for name in CHECKOUT:
         (shutil.copytree if (ROOT / name).is_dir() else shutil.copy2)(ROOT / name, work / name)
     config = work / "tiny.yaml"
