@@ -4,7 +4,7 @@ PYTHON ?= python3
 CORES  ?= 2
 CONFIG ?= config/config.yaml
 # With --max-checksum-file-size 0 Snakemake does not hash every input under 1 MB once per output of each
-# finished job (collect: 45 inputs x 18 outputs, ~0.25 s between it and identify); an input newer than its
+# finished job (measured before the per-axis split: ~0.25 s after a merge job of 45 inputs); an input newer than its
 # outputs then re-runs the job even when its content did not change (the plain mtime rule).
 SNAKEMAKE_FLAGS = --max-checksum-file-size 0
 SNAKEMAKE = OPENBLAS_NUM_THREADS=1 $(VENV)/bin/snakemake --cores $(CORES) --configfile $(CONFIG) $(SNAKEMAKE_FLAGS)

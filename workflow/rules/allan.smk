@@ -14,8 +14,8 @@ rule allan:
         "per_axis"
     threads: 1
     resources:
-        mem_mb=MEM_MB["allan"],
-        runtime=RUNTIME_MIN["allan"],
+        mem_mb=axis_mem_mb,
+        runtime=full_rate_runtime,
     log:
         f"{LOGS}/allan/{{dataset}}/{{sensor}}/{{axis}}.log",
     benchmark:

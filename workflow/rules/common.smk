@@ -247,25 +247,45 @@ def final_outputs():
 
 
 # ---------------------------------------------------------------------------------------------------------
-# resources per job: peak memory (MB) and wall time (min), from the benchmark files' max_rss / s of the default
-# run (10 h at 125 Hz: one axis = 36 MB of float64 samples) with headroom; the per-axis and per-dataset jobs
-# scale with one axis's samples (docs/architecture.md, "Resources").
+# resources per job: peak memory (MB) and wall time (min). Measured (benchmark files' max_rss, default run:
+# 5 x 10 h at 125 Hz, one axis = 36 MB of float64 samples, 2 loaded cores; python benchmarks/dag.py):
+# ingest 275 MB (a 216 MB recording), allan 115, decimate 95, psd 82, stationarity 187, stationarity_summary 26,
+# stack 73, identify 114, bound_axis 119, bound 128, kf 69, kalibr 44, figures 141, inflation_effect 91,
+# tables 44; longest job 14 s. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
+# their input's size (ingest: the recording; allan, decimate: one axis); the others about twice the measured
+# peak. Wall time: 10 min, plus 1 min per 20 MB of full-rate input, far above the measured times.
 MEM_MB = {
-    "simulate": 600,
-    "ingest": 600,
-    "allan": 400,
-    "decimate": 300,
-    "psd": 300,
+    "psd": 200,
     "stationarity": 400,
-    "stationarity_summary": 200,
-    "stack": 300,
-    "identify": 400,
-    "bound_axis": 400,
-    "bound": 500,
-    "kf": 300,
-    "kalibr": 300,
-    "figures": 500,
-    "inflation_effect": 400,
-    "tables": 300,
+    "stationarity_summary": 100,
+    "stack": 200,
+    "identify": 300,
+    "bound_axis": 300,
+    "bound": 300,
+    "kf": 200,
+    "kalibr": 100,
+    "figures": 300,
+    "inflation_effect": 200,
+    "tables": 100,
 }
-RUNTIME_MIN = {name: 10 for name in MEM_MB}
+RUNTIME_MIN = {name: 10 for name in [*MEM_MB, "simulate"]}
+
+
+def simulate_mem_mb(wildcards):
+    """One simulated axis at a time plus the simulation's work arrays: 200 MB + 4 x one axis's samples."""
+    return int(200 + 4 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200
+
+
+def ingest_mem_mb(wildcards, input):
+    """The whole recording in memory (the readers read every channel at once): 100 MB + 1.5 x its file size."""
+    return int(100 + 1.5 * input.size_mb)
+
+
+def axis_mem_mb(wildcards, input):
+    """One full-rate axis (and its integral, in the same buffer): 80 MB + 2 x the axis file's size."""
+    return int(80 + 2 * input.size_mb)
+
+
+def full_rate_runtime(wildcards, input):
+    """10 min plus 1 min per 20 MB of full-rate input."""
+    return int(10 + input.size_mb / 20)

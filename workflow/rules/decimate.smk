@@ -12,8 +12,8 @@ rule decimate:
         "per_axis"
     threads: 1
     resources:
-        mem_mb=MEM_MB["decimate"],
-        runtime=RUNTIME_MIN["decimate"],
+        mem_mb=axis_mem_mb,
+        runtime=full_rate_runtime,
     log:
         f"{LOGS}/decimate/{{dataset}}/{{sensor}}/{{axis}}.log",
     benchmark:

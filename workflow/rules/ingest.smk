@@ -13,7 +13,7 @@ rule simulate:
         gravity_axis=simulation_param("gravity_axis"),
     threads: 1
     resources:
-        mem_mb=MEM_MB["simulate"],
+        mem_mb=simulate_mem_mb,
         runtime=RUNTIME_MIN["simulate"],
     log:
         f"{LOGS}/simulate/{{dataset}}.log",
@@ -40,8 +40,8 @@ rule ingest:
         sensors=SENSORS,
     threads: 1
     resources:
-        mem_mb=MEM_MB["ingest"],
-        runtime=RUNTIME_MIN["ingest"],
+        mem_mb=ingest_mem_mb,
+        runtime=full_rate_runtime,
     log:
         f"{LOGS}/ingest/{{dataset}}.log",
     benchmark:
