@@ -633,7 +633,7 @@ def critical_path(jobs: list) -> dict:
 
     if not jobs:
         return {"s": 0.0, "chain": []}
-    last = max(range(len(jobs)), key=end)
+    last = max(range(len(jobs)), key=lambda i: (end(i), i))  # ties: the later job (the target)
     chain, i = [], last
     while i is not None:
         chain.append(jobs[i]["rule"])
