@@ -246,6 +246,8 @@ class TestCaching:
         for rule in ("allan", "decimate", "psd", "stationarity"):
             assert jobs.get(rule) == 6, (rule, jobs)  # the new dataset's 6 axes only
         assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
+        # the dataset list reaches every rule after the recordings; the Figure 7 job depends on nothing
+        assert set(jobs) == {"simulate", "ingest", "allan", "decimate", "psd"} | self.AFTER_VERDICTS | {"stationarity"}
 
 
 class TestBadInput:
