@@ -251,12 +251,13 @@ def final_outputs():
 # 5 x 10 h at 125 Hz, one axis = 36 MB of float64 samples, 2 loaded cores; python benchmarks/dag.py):
 # ingest 275 MB (a 216 MB recording), allan 115, decimate 95, psd 82, stationarity 187, stationarity_summary 26,
 # stack 73, identify 114, bound_axis 119, bound 128, kf 69, kalibr 44, figures 141, inflation_effect 91,
-# tables 44; longest job 14 s. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
+# tables 44; longest job 14 s. At 40 h (one dataset, one axis = 144 MB): simulate 1843 MB, ingest 913, allan 207,
+# stationarity 353 (its calibrated null grows with the record), psd 77. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
 # their input's size (ingest: the recording; allan, decimate: one axis); the others about twice the measured
 # peak. Wall time: 10 min, plus 1 min per 20 MB of full-rate input, far above the measured times.
 MEM_MB = {
     "psd": 200,
-    "stationarity": 400,
+    "stationarity": 800,
     "stationarity_summary": 100,
     "stack": 200,
     "identify": 300,
@@ -272,8 +273,8 @@ RUNTIME_MIN = {name: 10 for name in [*MEM_MB, "simulate"]}
 
 
 def simulate_mem_mb(wildcards):
-    """One simulated axis at a time plus the simulation's work arrays: 200 MB + 4 x one axis's samples."""
-    return int(200 + 4 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200
+    """The simulation's work arrays (measured 12.8 x one axis's samples at 40 h): 200 MB + 14 x one axis."""
+    return int(200 + 14 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200
 
 
 def ingest_mem_mb(wildcards, input):
