@@ -1,6 +1,16 @@
 """Whole-workflow benchmark: cold run and spec-sheet-only rerun of the Snakemake DAG in a scratch copy.
 
-Used by ``benchmarks/run.py`` (section 4). Steps:
+``python benchmarks/dag.py [--repeats 5] [--baseline 8de70ed] [--duration-h 40] [--configfile ...]``
+(:func:`compare`): this checkout and the commit ``--baseline`` (checked out in a temporary git worktree, its
+library run from its own ``src/`` with this checkout's compiled kernel) are run alternately, run by run, in
+scratch copies on the same machine: cold run (every output removed but the simulated recordings), spec-sheet
+rerun (a comment appended to the spec sheet), and the critical path (the longest chain of job wall times
+from the benchmark files through the job DAG, i.e. the wall time with unlimited cores); medians of
+``--repeats``. Peak RSS per rule from the benchmark files against one axis's samples; ``--duration-h``
+overrides the simulated record length (e.g. 40 h for the memory scaling). The config path is relative to
+each tree, so each tree runs its own version of the config.
+
+``--detail`` (:func:`run`, also used by ``benchmarks/run.py``): the single-tree report below. Steps:
 
 1. copy ``Snakefile``, ``workflow/``, ``config/`` and ``data/`` (without ``data/simulated``) to
    ``<out>/dag_scratch`` (timestamps kept), hard-link the checkout's ``data/simulated/*`` into it when present,
@@ -245,7 +255,7 @@ def make_scratch(repo: Path, scratch: Path) -> Path:
         shutil.rmtree(scratch)
     scratch.mkdir(parents=True)
     shutil.copy2(repo / "Snakefile", scratch / "Snakefile")
-    for d in ("workflow", "config"):
+    for d in ("workflow", "config", "tests/configs"):
         if (repo / d).is_dir():
             shutil.copytree(repo / d, scratch / d, ignore=shutil.ignore_patterns("__pycache__"))
     if (repo / "data").is_dir():
@@ -262,10 +272,32 @@ def make_scratch(repo: Path, scratch: Path) -> Path:
     return scratch
 
 
+def results_root(scratch: Path) -> Path:
+    """The folder holding series/, allan/, ...: results/ (layout before per-run folders) or results/{name}/."""
+    res = scratch / "results"
+    if (res / "series").is_dir() or not res.is_dir():
+        return res
+    named = sorted(p for p in res.iterdir() if (p / "series").is_dir())
+    return named[0] if named else res
+
+
 def clean_outputs(scratch: Path) -> None:
+    """Remove every output but the simulated recordings (data/simulated/ or results/{name}/simulated/)."""
+    keep = scratch / ".keep_simulated"
+    kept = []
+    for sim in sorted((scratch / "results").glob("*/simulated")) if (scratch / "results").is_dir() else []:
+        dest = keep / sim.parent.name
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        sim.rename(dest)
+        kept.append((dest, sim))
     for d in ("results", "logs", "benchmarks"):
         if (scratch / d).exists():
             shutil.rmtree(scratch / d)
+    for dest, sim in kept:
+        sim.parent.mkdir(parents=True, exist_ok=True)
+        dest.rename(sim)
+    if keep.exists():
+        shutil.rmtree(keep)
 
 
 def spec_file(scratch: Path):
@@ -377,7 +409,7 @@ def _netcdf_dims(path: Path) -> dict:
         return {k: len(v) for k, v in nc.dimensions.items()}
 
 
-FULL_RATE_RULES = {"reduce"}
+FULL_RATE_RULES = {"reduce", "ingest"}  # jobs holding full-rate samples without an axis wildcard
 
 
 def floor_estimate(scratch: Path, n_axes: int, repeats: int) -> dict:
@@ -386,8 +418,9 @@ def floor_estimate(scratch: Path, n_axes: int, repeats: int) -> dict:
 
     from imupipe.spectra import decimate, psd
 
-    series = sorted((scratch / "results" / "series").glob("**/*.nc"))
-    allan = sorted(p for p in (scratch / "results" / "allan").glob("*/*/*.nc"))
+    root = results_root(scratch)
+    series = sorted((root / "series").glob("**/*.nc"))
+    allan = sorted(p for p in (root / "allan").glob("*/*/*.nc"))
     if not series or not allan:
         return {"formula": "not measured: no results/series or results/allan/<dataset>/<sensor>/<axis>.nc"}
     import xarray as xr
@@ -453,7 +486,7 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
             all_jobs.append(jobs)
             samplers.append(sampler)
             if floor is None:
-                n_axes = len(list((scratch / "results" / "allan").glob("*/*/*.nc")))
+                n_axes = len(list((results_root(scratch) / "allan").glob("*/*/*.nc")))
                 floor = floor_estimate(scratch, n_axes, 5) if n_axes else {"formula": "no per-axis AV files found"}
             if spec is not None:
                 with open(spec, "a") as fh:
@@ -570,8 +603,175 @@ def run(repo: Path, out: Path, cores: int = 2, repeats: int = 3, keep_scratch: b
     return res
 
 
+# ---------------------------------------------------------------------------------------------
+# critical path and the comparison with an earlier commit
+# ---------------------------------------------------------------------------------------------
+def _files(field: str) -> list:
+    return [f.strip() for f in field.split(",") if f.strip()] if field else []
+
+
+def critical_path(jobs: list) -> dict:
+    """Longest chain of job wall times (benchmark files' s) through the job DAG of a run: the wall time of the
+    run with unlimited cores (scheduling and job start outside the jobs not counted). Edges: a job's input
+    files that another job of the run wrote. Jobs without a benchmark file count 0 s."""
+    producer = {}
+    for i, j in enumerate(jobs):
+        for f in _files(j.get("output", "")):
+            producer[f] = i
+    finish, before = {}, {}
+
+    def end(i):  # earliest finish of job i with unlimited cores
+        if i not in finish:
+            deps = {producer[f] for f in _files(jobs[i].get("input", "")) if f in producer} - {i}
+            start, prev = 0.0, None
+            for d in deps:
+                if end(d) > start:
+                    start, prev = end(d), d
+            finish[i] = start + float(jobs[i].get("bench", {}).get("s", 0.0) or 0.0)
+            before[i] = prev
+        return finish[i]
+
+    if not jobs:
+        return {"s": 0.0, "chain": []}
+    last = max(range(len(jobs)), key=lambda i: (end(i), i))  # ties: the later job (the target)
+    chain, i = [], last
+    while i is not None:
+        chain.append(jobs[i]["rule"])
+        i = before[i]
+    return {"s": finish[last], "chain": chain[::-1]}
+
+
+def _benchmark_config(scratch: Path, configfile: str, duration_h) -> str:
+    """`configfile`, or a copy with simulation.duration_h replaced (written into the scratch copy)."""
+    if duration_h is None:
+        return configfile
+    import yaml
+
+    cfg = yaml.safe_load((scratch / configfile).read_text())
+    if not cfg.get("simulation"):
+        raise RuntimeError(f"{configfile}: --duration-h needs a simulated configuration")
+    cfg["simulation"]["duration_h"] = float(duration_h)
+    path = scratch / "config" / f"bench_{duration_h:g}h.yaml"
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return str(path.relative_to(scratch))
+
+
+def _tree_env(tree_src) -> dict:
+    env = _env()
+    if tree_src is not None:  # the baseline's library first on the path
+        env["PYTHONPATH"] = os.pathsep.join([str(tree_src)] + [p for p in [env.get("PYTHONPATH")] if p])
+    return env
+
+
+def _run_in(workdir: Path, args: list, log: Path, env: dict):
+    with open(log, "w") as fh:
+        t0 = time.perf_counter()
+        rc = subprocess.run(SNAKEMAKE + args, cwd=workdir, stdout=fh, stderr=subprocess.STDOUT, env=env).returncode
+        wall = time.perf_counter() - t0
+    text = log.read_text()
+    if rc != 0:
+        raise RuntimeError(f"snakemake {' '.join(args)} failed (exit {rc}) in {workdir}; log {log}:\n"
+                           + "\n".join(text.splitlines()[-30:]))
+    return wall, text
+
+
+def _baseline_tree(repo: Path, commit: str, where: Path) -> Path:
+    """`commit` checked out in a temporary worktree at `where`, with this checkout's compiled kernel copied in
+    (the baseline's library runs from its own src/ through PYTHONPATH)."""
+    subprocess.run(["git", "-C", str(repo), "worktree", "add", "--detach", str(where), commit], check=True,
+                   capture_output=True)
+    for so in (repo / "src" / "imupipe").glob("_kernels*.so"):
+        shutil.copy2(so, where / "src" / "imupipe" / so.name)
+    return where
+
+
+def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: str | None = "8de70ed",
+            configfile: str = "config/config.yaml", duration_h=None, spec_name: str = "stim300.yaml") -> dict:
+    """Cold run, spec-sheet rerun and critical path of this checkout and (unless `baseline` is None) of the
+    commit `baseline` in a temporary worktree, alternating run by run on the same machine; medians of
+    `repeats`. Per rule: peak RSS (benchmark files' max_rss, max over jobs and runs) against one axis's
+    samples (8 bytes x samples of an ingested axis)."""
+    import tempfile
+
+    repo, out = Path(repo).resolve(), Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix="dag_compare_"))
+    trees = {"this checkout": (repo, None)}
+    try:
+        if baseline:
+            wt = _baseline_tree(repo, baseline, tmp / "baseline")
+            trees[f"commit {baseline}"] = (wt, wt / "src")
+        state = {}
+        for label, (tree, src) in trees.items():
+            scratch = make_scratch(tree, tmp / f"scratch_{len(state)}")
+            cfg = _benchmark_config(scratch, configfile, duration_h)
+            env = _tree_env(src)
+            base = ["--cores", str(cores), "--configfile", cfg, *RUN_FLAGS]
+            logs = out / "dag_logs" / f"tree_{len(state)}"
+            logs.mkdir(parents=True, exist_ok=True)
+            _run_in(scratch, base + ["--until", "simulate"], logs / "prepare.log", env)
+            state[label] = {"scratch": scratch, "env": env, "base": base, "logs": logs, "cold": Timing(),
+                            "rerun": Timing(), "critical": [], "rss": {}, "jobs": {}, "rerun_jobs": {}}
+        for i in range(repeats):
+            for label, st in state.items():  # alternate the trees run by run
+                scratch = st["scratch"]
+                clean_outputs(scratch)
+                wall, text = _run_in(scratch, st["base"], st["logs"] / f"cold_{i}.log", st["env"])
+                st["cold"].values.append(wall)
+                st["jobs"] = parse_job_stats(text)
+                jobs = collect_jobs(scratch, text)
+                st["critical"].append(critical_path(jobs))
+                for j in jobs:
+                    rss = j.get("bench", {}).get("max_rss")
+                    if isinstance(rss, float):
+                        st["rss"][j["rule"]] = max(st["rss"].get(j["rule"], 0.0), rss * 2**20 / MB)
+                if "axis_mb" not in st:
+                    series = sorted((results_root(scratch) / "series").glob("*/*/*.nc"))
+                    st["axis_mb"] = 8 * _netcdf_dims(series[0]).get("sample", 0) / MB if series else None
+                spec = scratch / "config" / "specs" / spec_name
+                with open(spec, "a") as fh:
+                    fh.write(f"\n# benchmark: spec-sheet rerun {i} (values unchanged)\n")
+                wall, text = _run_in(scratch, st["base"], st["logs"] / f"spec_rerun_{i}.log", st["env"])
+                st["rerun"].values.append(wall)
+                st["rerun_jobs"] = parse_job_stats(text)
+    finally:
+        if baseline and (tmp / "baseline").exists():
+            subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(tmp / "baseline")],
+                           check=False, capture_output=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    res = {"cores": cores, "repeats": repeats, "configfile": configfile, "duration_h": duration_h, "trees": {}}
+    rows, mem_rows = [], []
+    for label, st in state.items():
+        crit = Timing([c["s"] for c in st["critical"]])
+        chain = max(st["critical"], key=lambda c: c["s"])["chain"] if st["critical"] else []
+        res["trees"][label] = {"cold": st["cold"].to_dict(), "spec_rerun": st["rerun"].to_dict(),
+                               "critical_path": crit.to_dict(), "critical_chain": chain, "jobs_cold": st["jobs"],
+                               "jobs_rerun": st["rerun_jobs"], "peak_rss_mb": st["rss"], "axis_mb": st["axis_mb"]}
+        rows.append([label, st["cold"].cell(), st["rerun"].cell(), crit.cell(),
+                     fmt(crit.median / st["cold"].median, 3), st["jobs"].get("total", "?"),
+                     " -> ".join(dict.fromkeys(chain))])
+        for rule, mb in sorted(st["rss"].items()):
+            ax = st["axis_mb"]
+            mem_rows.append([label, rule, f"{fmt(mb, 3)} MB", fmt(ax, 3) if ax else "n/a",
+                             fmt(mb / ax, 3) if ax else "n/a"])
+    dur = f", simulation.duration_h = {duration_h:g}" if duration_h is not None else ""
+    lines = [f"`snakemake --cores {cores} --configfile {configfile}{dur} {' '.join(RUN_FLAGS)}` in scratch copies, "
+             f"simulated recordings prepared beforehand (not timed); {repeats} runs per tree, alternating; medians "
+             "[min-max]. Critical path: longest chain of job wall times (benchmark files) = wall time with unlimited "
+             "cores.", "",
+             md_table(["tree", "cold run", "spec-sheet rerun", "critical path", "critical / cold", "jobs", "chain"],
+                      rows), "",
+             "Peak RSS per rule (benchmark files' max_rss, max over jobs and runs; sampled at 0 s then every 0.5 s, so "
+             "sub-second jobs may show less than their peak) against one axis's samples:", "",
+             md_table(["tree", "rule", "peak RSS", "one axis (MB)", "peak / axis"], mem_rows)]
+    res["markdown"] = "\n".join(lines)
+    return res
+
+
 def main(argv=None) -> int:
-    """Command line: ``python benchmarks/dag.py [--repo .] [--out benchmarks/results] [--cores 2] [--repeats 3]``."""
+    """Command line: ``python benchmarks/dag.py [--repo .] [--out benchmarks/results] [--cores 2] [--repeats 5]
+    [--baseline 8de70ed | --baseline none] [--duration-h H] [--detail]``."""
     import argparse
     import json
 
@@ -581,15 +781,27 @@ def main(argv=None) -> int:
     ap.add_argument("--repo", type=Path, default=here.parent, help="checkout holding Snakefile (default: this one)")
     ap.add_argument("--out", type=Path, default=here / "results", help="output folder (default benchmarks/results)")
     ap.add_argument("--cores", type=int, default=2, help="snakemake --cores (default 2)")
-    ap.add_argument("--repeats", type=int, default=3, help="cold runs and spec reruns (default 3)")
+    ap.add_argument("--repeats", type=int, default=5, help="cold runs and spec reruns per tree (default 5)")
+    ap.add_argument("--baseline", default="8de70ed",
+                    help="git commit run alternately in a temporary worktree (default 8de70ed; 'none': this tree only)")
+    ap.add_argument("--duration-h", type=float, default=None,
+                    help="override simulation.duration_h (h) of the config, e.g. 40 for the memory scaling")
+    ap.add_argument("--detail", action="store_true",
+                    help="the former single-tree report instead (per-rule walls, memory sampler, import costs)")
     ap.add_argument("--configfile", default="config/config.yaml", help="relative to the repo")
     ap.add_argument("--spec", default=None, help="spec sheet under config/specs/ to touch (default: found)")
     ap.add_argument("--keep-scratch", action="store_true", help="keep <out>/dag_scratch")
     args = ap.parse_args(argv)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     args.out.mkdir(parents=True, exist_ok=True)
-    res = run(args.repo, args.out, cores=args.cores, repeats=args.repeats, keep_scratch=args.keep_scratch,
-              configfile=args.configfile, spec_name=args.spec)
+    if args.detail:
+        res = run(args.repo, args.out, cores=args.cores, repeats=args.repeats, keep_scratch=args.keep_scratch,
+                  configfile=args.configfile, spec_name=args.spec)
+    else:
+        baseline = None if str(args.baseline).lower() == "none" else args.baseline
+        res = compare(args.repo, args.out, cores=args.cores, repeats=args.repeats, baseline=baseline,
+                      configfile=args.configfile, duration_h=args.duration_h,
+                      spec_name=args.spec or "stim300.yaml")
     print(res["markdown"])
     (args.out / "dag.md").write_text(res["markdown"] + "\n")
     (args.out / "dag.json").write_text(json.dumps(res, indent=1, default=str))

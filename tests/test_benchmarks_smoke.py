@@ -245,3 +245,28 @@ def test_the_dag_benchmark_runs_snakemake_as_make_run_does(dag_module):
     makefile = (BENCH.parent / "Makefile").read_text()
     line = next(ln for ln in makefile.splitlines() if ln.startswith("SNAKEMAKE_FLAGS"))
     assert line.split("=", 1)[1].split() == dag_module.RUN_FLAGS
+
+
+def test_critical_path_is_the_longest_chain_of_job_walls(dag_module):
+    # a -> b -> d and a -> c -> d: with unlimited cores the run lasts a + max(b, c) + d = 1 + 5 + 1 s, along a, c, d
+    jobs = [
+        {"rule": "a", "input": "", "output": "x", "bench": {"s": 1.0}},
+        {"rule": "b", "input": "x", "output": "y", "bench": {"s": 2.0}},
+        {"rule": "c", "input": "x", "output": "z", "bench": {"s": 5.0}},
+        {"rule": "d", "input": "y, z", "output": "w", "bench": {"s": 1.0}},
+        {"rule": "all", "input": "w"},  # no benchmark file: 0 s
+    ]
+    cp = dag_module.critical_path(jobs)
+    assert cp["s"] == 7.0
+    assert cp["chain"] == ["a", "c", "d", "all"]
+
+
+def test_clean_outputs_keeps_the_simulated_recordings(dag_module, tmp_path):
+    sim = tmp_path / "results" / "paper" / "simulated"
+    sim.mkdir(parents=True)
+    (sim / "sim01.nc").write_text("data")
+    (tmp_path / "results" / "paper" / "psd").mkdir()
+    (tmp_path / "logs").mkdir()
+    dag_module.clean_outputs(tmp_path)
+    assert (sim / "sim01.nc").read_text() == "data"
+    assert not (tmp_path / "results" / "paper" / "psd").exists() and not (tmp_path / "logs").exists()

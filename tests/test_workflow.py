@@ -1,11 +1,12 @@
 """End-to-end runs of the Snakemake workflow on small configurations (tests/configs/).
 
-One run of tests/configs/tiny.yaml (2 simulated datasets x 1.5 h at 20 Hz, ~15 s on 2 cores) is shared
-by the contract, caching and resume tests. Checks: the output contract (dims, attrs, bound file keys),
-that the global bound bounds every per-axis sample PSD of the spectra file (recomputed here from the
-files, not read from the bound's own report), that editing a spec sheet re-runs only bounding, figures
-and tables, that bad input fails its own dataset with a message naming the culprit while the other
-datasets' results are kept, and that a run killed mid-way resumes to identical outputs.
+One run of tests/configs/tiny.yaml (2 simulated datasets x 1.5 h at 20 Hz, ~15 s on 2 cores) in a copy of
+the checkout is shared by the contract, caching and resume tests. Checks: the output contract (dims, attrs,
+bound file keys), that the global bound bounds every per-axis sample PSD of the spectra file (recomputed here
+from the files, not read from the bound's own report), that a change of each config section (and of the spec
+sheet and the dataset list) re-runs exactly the rules of its stage and those downstream of it, that the
+checkout copied elsewhere re-runs nothing, that bad input fails its own dataset with a message naming the
+culprit while the other datasets' results are kept, and that a run killed mid-way resumes to identical outputs.
 """
 
 from __future__ import annotations
@@ -31,21 +32,31 @@ from imupipe.models import NoiseModel  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "tests" / "configs" / "tiny.yaml"
 SNAKEMAKE = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"), "--cores", "2"]
-SPEC_RULES = {"bound", "kalibr", "figures", "table", "all"}
+# the rules downstream of the spec sheet: a change of the sheet re-runs these and nothing else
+SPEC_RULES = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "all"}
+# results/{name}/ and logs/{name}/ of tests/configs/tiny.yaml
+RES, LOG = "results/tiny", "logs/tiny"
+# what the checkout copy needs to run (imupipe itself is installed)
+CHECKOUT = ("Snakefile", "workflow", "config")
 ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 
 
-def snakemake(workdir, *args, config=TINY, check=True, **kw):
-    cmd = [*SNAKEMAKE, "--directory", str(workdir), "--configfile", str(config), *args]
+def snakemake(workdir, *args, config=TINY, check=True, snakefile=None, **kw):
+    """Run Snakemake in `workdir` (--directory) with the repository's Snakefile, or with `snakefile` (a copy of
+    the checkout, run from its own folder)."""
+    base = SNAKEMAKE if snakefile is None else [*SNAKEMAKE[:3], "--snakefile", str(snakefile), *SNAKEMAKE[5:]]
+    cmd = [*base, "--directory", str(workdir), "--configfile", str(config), *args]
     proc = subprocess.run(cmd, capture_output=True, text=True, env=ENV, **kw)
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
     return proc
 
 
-def dry_run_jobs(workdir, *args, config=TINY):
+def dry_run_jobs(workdir, *args, config=TINY, snakefile=None):
     """Rule -> job count from a dry run's "Job stats" table."""
-    out = snakemake(workdir, "-n", *args, config=config).stdout
+    if snakefile is None and (Path(workdir) / "Snakefile").is_file():
+        snakefile = Path(workdir) / "Snakefile"
+    out = snakemake(workdir, "-n", *args, config=config, snakefile=snakefile).stdout
     counts = {}
     if "Job stats:" in out:
         table = out.split("Job stats:", 1)[1]
@@ -69,15 +80,15 @@ def tiny_config(tmp_path, **changes):
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    """A complete run of the tiny configuration with its own copy of the spec sheets."""
-    work = tmp_path_factory.mktemp("tiny")
-    specs = work / "specs"
-    shutil.copytree(ROOT / "config" / "specs", specs)
-    cfg = yaml.safe_load(TINY.read_text())
-    cfg["spec_dir"] = str(specs)
-    config = work / "config.yaml"
-    config.write_text(yaml.safe_dump(cfg))
-    snakemake(work, config=config)
+    """A complete run of the tiny configuration in a copy of the checkout (its own spec sheets), run from the
+    copy's folder: (folder, config file)."""
+    work = tmp_path_factory.mktemp("tiny") / "checkout"
+    work.mkdir()
+    for name in CHECKOUT:
+        (shutil.copytree if (ROOT / name).is_dir() else shutil.copy2)(ROOT / name, work / name)
+    config = work / "tiny.yaml"
+    shutil.copy2(TINY, config)
+    snakemake(work, config=config, snakefile=work / "Snakefile")
     return work, config
 
 
@@ -85,7 +96,7 @@ class TestContract:
     def test_spectra_file(self, tiny_run):
         work, _ = tiny_run
         for sensor, unit in (("gyro", "(rad/s)^2/Hz"), ("accel", "(m/s^2)^2/Hz")):
-            with xr.open_dataset(work / f"results/spectra/{sensor}.nc") as ds:
+            with xr.open_dataset(work / f"{RES}/spectra/{sensor}.nc") as ds:
                 assert ds.psd.dims == ("dataset", "axis", "frequency")
                 assert list(ds.dataset.values) == ["sim01", "sim02"]
                 assert list(ds.axis.values) == ["x", "y", "z"]
@@ -100,7 +111,7 @@ class TestContract:
 
     def test_allan_file(self, tiny_run):
         work, _ = tiny_run
-        with xr.open_dataset(work / "results/allan/gyro.nc") as ds:
+        with xr.open_dataset(work / f"{RES}/allan/gyro.nc") as ds:
             assert ds.avar.dims == ("dataset", "axis", "tau")
             assert ds.tau.attrs["units"] == "s"
             for v in ("avar_lower", "avar_upper"):
@@ -112,14 +123,14 @@ class TestContract:
     @pytest.mark.parametrize("sensor", ["gyro", "accel"])
     def test_bound_file_and_margin_recomputed(self, tiny_run, sensor):
         work, _ = tiny_run
-        b = yaml.safe_load((work / f"results/bound/stim300/{sensor}.yaml").read_text())
+        b = yaml.safe_load((work / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
         for key in ("bound", "bound_spec_units", "inflation", "bounded", "margin", "margin_curve", "spec", "mode"):
             assert key in b, key
         assert b["bounded"] is True
         assert b["margin"] >= 1.0
         model = NoiseModel(white=b["bound"]["white"], random_walk=b["bound"]["random_walk"],
                            gauss_markov=tuple((g["sigma"], g["T"]) for g in b["bound"]["gauss_markov"]))
-        with xr.open_dataset(work / f"results/spectra/{sensor}.nc") as ds:
+        with xr.open_dataset(work / f"{RES}/spectra/{sensor}.nc") as ds:
             f = ds.frequency.values[1:]
             s_model = model.psd_sampled(f, b["dt_s"])
             ratio = s_model[None, None, :] / ds.psd.values[:, :, 1:]
@@ -129,12 +140,12 @@ class TestContract:
 
     def test_table_kf_and_figures(self, tiny_run):
         work, _ = tiny_run
-        table = (work / "results/tables/stim300/inflation.md").read_text()
+        table = (work / f"{RES}/tables/stim300/inflation.md").read_text()
         assert "white noise N" in table and "deg/sqrt(h)" in table and "m/s/sqrt(h)" in table
-        kf = yaml.safe_load((work / "results/kf/stim300/gyro.yaml").read_text())
+        kf = yaml.safe_load((work / f"{RES}/kf/stim300/gyro.yaml").read_text())
         assert {"F", "Phi", "Qd", "P0"} <= set(kf)
         for name in ("psd_bound_gyro", "allan_components_accel", "inflation_steps_gyro"):
-            png = work / f"results/figures/stim300/{name}.png"
+            png = work / f"{RES}/figures/stim300/{name}.png"
             assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert not list((work / "results").rglob(".tmp-*")), "temporary files left behind"
 
@@ -146,7 +157,7 @@ class TestCaching:
 
     def test_spec_edit_reruns_only_bounding(self, tiny_run):
         work, config = tiny_run
-        spec = work / "specs" / "stim300.yaml"
+        spec = work / "config" / "specs" / "stim300.yaml"
         text = spec.read_text()
         spec.write_text(text.replace("value: 0.15, unit: deg/sqrt(h)", "value: 0.16, unit: deg/sqrt(h)"))
         try:
@@ -158,20 +169,85 @@ class TestCaching:
             os.utime(spec, (past, past))
         assert jobs, "editing the spec sheet must re-run the bound"
         assert set(jobs) <= SPEC_RULES, f"jobs other than bounding/figures/tables: {jobs}"
-        assert {"bound", "table"} <= set(jobs)
+        assert {"bound", "tables"} <= set(jobs)
+
+    # config section -> (a change of one key, the rules a dry run must then schedule). Each section reaches
+    # the rules that read it (their params) and, through the files they write, every rule downstream of them;
+    # no other rule. The merge stages keep the psd and Allan branches apart: a PSD setting re-runs neither the
+    # Allan variance nor the identification, an Allan setting neither the decimation nor the PSD.
+    AFTER_BOUND = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "all"}
+    AFTER_IDENTIFY = {"identify"} | AFTER_BOUND
+    AFTER_VERDICTS = {"stationarity_summary", "stack"} | AFTER_IDENTIFY
+    SECTIONS = {
+        "decimate": ({"rate_hz": 0.5}, {"decimate", "psd", "stationarity"} | AFTER_VERDICTS),
+        "psd": ({"window_s": 1200.0}, {"psd", "stack"} | AFTER_BOUND),
+        "allan": ({"confidence": 0.9}, {"allan", "stationarity"} | AFTER_VERDICTS),
+        "stationarity": ({"n_sim": 19}, {"stationarity"} | AFTER_VERDICTS),
+        "stationarity_on_fail": ({"on_fail": "exclude"}, AFTER_VERDICTS),
+        "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
+        "bound": ({"mode": "smoothed"}, AFTER_BOUND),
+        "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
+    }
+
+    @pytest.mark.parametrize("section", sorted(SECTIONS))
+    def test_each_section_reruns_its_own_stage(self, tiny_run, section):
+        work, config = tiny_run
+        change, expected = self.SECTIONS[section]
+        key = section.split("_")[0]
+        cfg = yaml.safe_load(config.read_text())
+        cfg[key] = {**cfg[key], **change}
+        changed = work / f"changed_{section}.yaml"
+        changed.write_text(yaml.safe_dump(cfg))
+        jobs = dry_run_jobs(work, config=changed)
+        assert set(jobs) == expected, f"{section} {change}: {jobs}"
+
+    def test_spec_edit_reruns_exactly_the_spec_stages(self, tiny_run):
+        work, config = tiny_run
+        spec = work / "config" / "specs" / "stim300.yaml"
+        text, stat = spec.read_text(), spec.stat()
+        spec.write_text(text.replace("value: 0.15, unit: deg/sqrt(h)", "value: 0.16, unit: deg/sqrt(h)"))
+        try:
+            jobs = dry_run_jobs(work, config=config)
+        finally:
+            spec.write_text(text)
+            os.utime(spec, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+        # 2 sensors x (2 datasets x 3 axes) per-axis bounds, 2 global bounds, 2 KF files, 1 Kalibr file,
+        # 2 figure jobs, 1 table job
+        assert jobs == {"bound_axis": 12, "bound": 2, "kf": 2, "kalibr": 1, "figures": 2, "tables": 1, "all": 1}
+
+    def test_copied_checkout_reruns_nothing(self, tiny_run, tmp_path):
+        # every path Snakemake records is relative: the checkout with its results copied elsewhere (modification
+        # times kept) is up to date
+        work, config = tiny_run
+        moved = tmp_path / "elsewhere" / "checkout"
+        shutil.copytree(work, moved, symlinks=True)
+        assert dry_run_jobs(moved, config=moved / config.name) == {}
+
+    def test_partial_configfile_on_top_of_the_default(self, tmp_path):
+        # a --configfile naming one key keeps every other key of config/config.yaml
+        partial = tmp_path / "partial.yaml"
+        partial.write_text("name: partial\nsimulation: {n_datasets: 1, duration_h: 1.0, rate_hz: 10.0,"
+                           " truth: config/truth/stim300_like.yaml, seed: 1}\n")
+        jobs = dry_run_jobs(tmp_path, config=partial)
+        assert jobs["simulate"] == 1 and jobs["allan"] == 6 and jobs["bound"] == 2, jobs
+        assert not (tmp_path / "results").exists()
 
     def test_a_new_dataset_list_reruns_the_merge(self, tiny_run):
         # Snakemake only checks the outputs a downstream job asks for: the merged per-sensor files exist, so a
-        # third dataset (or a different sheet in the same directory) must still re-run collect -- and reduce
-        # the new dataset -- or the bound would use the old datasets' spectra
+        # third dataset (or a different sheet in the same directory) must still re-run the merges -- and the
+        # per-axis stages of the new dataset -- or the bound would use the old datasets' spectra
         work, config = tiny_run
         cfg = yaml.safe_load(config.read_text())
         cfg["simulation"]["n_datasets"] = 3
         more = work / "config_3.yaml"
         more.write_text(yaml.safe_dump(cfg))
         jobs = dry_run_jobs(work, config=more)
-        assert jobs.get("collect") == 2 and jobs.get("reduce") == 1, jobs
+        assert jobs.get("stationarity_summary") == 2 and jobs.get("stack") == 4, jobs
+        for rule in ("allan", "decimate", "psd", "stationarity"):
+            assert jobs.get(rule) == 6, (rule, jobs)  # the new dataset's 6 axes only
         assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
+        # the dataset list reaches every rule after the recordings; the Figure 7 job depends on nothing
+        assert set(jobs) == {"simulate", "ingest", "allan", "decimate", "psd"} | self.AFTER_VERDICTS | {"stationarity"}
 
 
 class TestBadInput:
@@ -203,9 +279,9 @@ class TestBadInput:
         assert "bad.csv" in log and re.search(r"NaN|non-finite|not finite", log)
         for sensor in ("gyro", "accel"):
             for axis in "xyz":
-                assert (tmp_path / f"results/allan/good/{sensor}/{axis}.nc").is_file()
-                assert (tmp_path / f"results/psd/good/{sensor}/{axis}.nc").is_file()
-        assert not (tmp_path / "results/series/nanrow").exists()
+                assert (tmp_path / f"{RES}/allan/good/{sensor}/{axis}.nc").is_file()
+                assert (tmp_path / f"{RES}/psd/good/{sensor}/{axis}.nc").is_file()
+        assert not (tmp_path / RES / "series/nanrow").exists()
 
     def test_unknown_config_key_rejected(self, tmp_path):
         config = tiny_config(tmp_path, colour="blue")
@@ -221,19 +297,19 @@ class TestResume:
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV,
                                 start_new_session=True)
         deadline = time.time() + 120
-        while time.time() < deadline and len(list((tmp_path / "results/allan").rglob("*.nc"))) < 4:
+        while time.time() < deadline and len(list((tmp_path / RES / "allan").rglob("*.nc"))) < 4:
             time.sleep(0.2)
         os.killpg(proc.pid, signal.SIGKILL)  # as a power cut would: no clean-up by Snakemake
         proc.wait()
-        assert not (tmp_path / "results/bound/stim300/gyro.yaml").exists(), "the run finished before it was killed"
+        assert not (tmp_path / RES / "bound/stim300/gyro.yaml").exists(), "the run finished before it was killed"
         snakemake(tmp_path, "--unlock", config=config)  # the killed run left its lock
         snakemake(tmp_path, "--rerun-incomplete", config=config)
         for sensor in ("gyro", "accel"):
             for name in (f"spectra/{sensor}.nc", f"allan/{sensor}.nc"):
-                with xr.open_dataset(work / "results" / name) as a, xr.open_dataset(tmp_path / "results" / name) as b:
+                with xr.open_dataset(work / RES / name) as a, xr.open_dataset(tmp_path / RES / name) as b:
                     xr.testing.assert_identical(a.load(), b.load())
-            a = yaml.safe_load((work / f"results/bound/stim300/{sensor}.yaml").read_text())
-            b = yaml.safe_load((tmp_path / f"results/bound/stim300/{sensor}.yaml").read_text())
+            a = yaml.safe_load((work / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
+            b = yaml.safe_load((tmp_path / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
             for d in (a, b):
                 d.pop("solve_time_s")
             assert a == b
@@ -243,7 +319,7 @@ class TestReport:
     def test_html_report_has_every_figure(self, tiny_run):
         work, config = tiny_run
         report = work / "report.html"
-        snakemake(work, "--report", str(report), config=config)
+        snakemake(work, "--report", str(report), config=config, snakefile=work / "Snakefile")
         html = report.read_text(errors="replace")
         for name in ("psd_bound_gyro.png", "allan_components_accel.png", "inflation_steps_gyro.png",
                      "inflation_effect.png", "inflation.md"):
@@ -259,10 +335,10 @@ class TestRealData:
         config = ROOT / "config" / "adis16405.yaml"
         snakemake(tmp_path, config=config)
         for sensor in ("gyro", "accel"):
-            b = yaml.safe_load((tmp_path / f"results/bound/adis16405/{sensor}.yaml").read_text())
+            b = yaml.safe_load((tmp_path / f"results/adis16405/bound/adis16405/{sensor}.yaml").read_text())
             assert b["bounded"] is True and b["margin"] >= 1 - 1e-9
             assert b["n_curves"] == 6
-            ident = yaml.safe_load((tmp_path / f"results/identify/{sensor}.yaml").read_text())
+            ident = yaml.safe_load((tmp_path / f"results/adis16405/identify/{sensor}.yaml").read_text())
             kept = ident["selection"]["kept"]
             assert "white" in kept
             assert set(kept) | set(ident["selection"]["dropped"]) >= {"white", "random_walk"}
@@ -315,7 +391,8 @@ def _bad_input_files(folder, rng):
         "dup": ("dup.csv", {}, ["dup.csv", "duplicate timestamp", "row 699"]),
         "nonmono": ("nonmono.csv", {}, ["nonmono.csv", "not increasing", "row 601"]),
         "rate": ("fast.csv", {}, ["fast.csv", "rate_hz = 2 Hz", "4 Hz"]),
-        "short": ("short.csv", {}, ["short.csv", "shorter than"]),
+        # psd.window_s reaches the psd stage alone: a record shorter than the window fails there
+        "short": ("short.csv", {}, ["short.csv", "longer than the record"]),
         "const": ("const.csv", {}, ["const.csv", "gyro_y", "constant"]),
         "unit": ("good.csv", {"gyro_unit": "furlong/s"}, ["gyro_unit", "furlong"]),
         "column": ("good.csv", {"gyro_y": "gyro_q"}, ["gyro_q", "not found"]),
@@ -349,14 +426,18 @@ class TestEveryBadInputClass:
                 continue
             hits = [e for e in errors if all(w in e for w in words)]
             assert hits, f"{name}: no error line with {words}; got:\n" + "\n".join(errors)
-            assert not (tmp_path / "results/series" / name).exists()
-            log = (tmp_path / "logs/ingest" / f"{name}.log").read_text()
+            if name == "short":
+                assert not list((tmp_path / RES / "psd" / name).rglob("*.nc"))
+                log = "".join(p.read_text() for p in (tmp_path / LOG / "psd" / name).rglob("*.log"))
+            else:
+                assert not (tmp_path / RES / "series" / name).exists()
+                log = (tmp_path / LOG / "ingest" / f"{name}.log").read_text()
             assert all(w in log for w in words)
         for sensor in ("gyro", "accel"):
             for axis in "xyz":
                 # the per-dataset stage of the good recording completes; the per-sensor stages need every dataset
                 for stage in ("allan", "psd", "decimated"):
-                    assert (tmp_path / f"results/{stage}/good/{sensor}/{axis}.nc").is_file()
+                    assert (tmp_path / f"{RES}/{stage}/good/{sensor}/{axis}.nc").is_file()
 
     def test_spec_sheet_with_ambiguous_k_unit_stops_before_any_job(self, tmp_path):
         specs = tmp_path / "specs"

@@ -18,7 +18,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_netcdf_atomic", "write_yaml_atomic", "write_text_atomic", "read_yaml",
+__all__ = ["atomic_path", "write_yaml_atomic", "write_text_atomic", "read_yaml",
            "write_series", "read_series", "remove_stale_temp", "DiskFullError", "TEMP_PREFIX"]
 
 #: Prefix of the temporary files of :func:`atomic_path` (``.tmp-<name>-<random><suffix>``).
@@ -128,12 +128,6 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-def write_netcdf_atomic(ds, path) -> None:
-    """Write an xarray Dataset to netCDF-4 at `path` atomically (no compression: 5x faster reads)."""
-    with atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine="netcdf4")
 
 
 def write_text_atomic(text: str, path) -> None:

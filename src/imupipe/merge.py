@@ -8,16 +8,11 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-__all__ = ["Stacked", "stack_axis_files"]
+__all__ = ["Stacked"]
 
 _PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
 _INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
 _LABEL_ATTRS = {"dataset": {"long_name": "dataset"}, "axis": {"long_name": "sensor axis"}}
-
-
-def stack_axis_files(paths, join: str = "exact"):
-    """The per-axis files stacked (:meth:`Stacked.from_axis_files`) as an :class:`xarray.Dataset`."""
-    return Stacked.from_axis_files(paths, join=join).to_xarray()
 
 
 class _AxisFile(NamedTuple):

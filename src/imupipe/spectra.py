@@ -52,6 +52,7 @@ __all__ = [
     "decimate",
     "get_taper",
     "psd",
+    "psd_labelled",
     "smooth_log_bands",
     "welch_edf",
 ]
@@ -460,13 +461,19 @@ def psd(
     .. [2] J. S. Bendat and A. G. Piersol, "Random Data", 4th ed., Wiley, 2010, eqs. 8.159, 11.101.
     .. [3] D. B. Percival and A. T. Walden, "Spectral Analysis for Physical Applications", 1993, eq. 292b.
     """
-    return _psd(x, rate, window_s, step_s, taper, detrend, confidence, onesided, units, long_name).to_xarray()
+    return psd_labelled(x, rate, window_s, step_s, taper, detrend, confidence, onesided, units, long_name).to_xarray()
 
 
-def _psd(x, rate, window_s=25200.0, step_s=36000.0, taper="hann", detrend="constant", confidence=0.95,
-         onesided=False, units=None, long_name=None):
-    """:func:`psd` as :class:`imupipe.labelled.Labelled` arrays (no xarray import; the workflow writes
-    them with netCDF4 alone)."""
+def psd_labelled(x, rate, window_s=25200.0, step_s=36000.0, taper="hann", detrend="constant", confidence=0.95,
+                 onesided=False, units=None, long_name=None):
+    """:func:`psd` as :class:`imupipe.labelled.Labelled` arrays, without importing xarray.
+
+    Same estimator, parameters, units (two-sided PSD in ``units^2/Hz`` on ``frequency`` in Hz unless
+    `onesided`) and references as :func:`psd`; the result is written to netCDF with netCDF4 alone
+    (:meth:`imupipe.labelled.Labelled.to_netcdf`), or turned into the :class:`xarray.Dataset` that
+    :func:`psd` returns with ``.to_xarray()``. This is the cheap entry point for a short-lived process
+    (one workflow job): importing xarray costs ~0.3 s.
+    """
     from imupipe.labelled import Labelled
 
     if units is None:
@@ -574,6 +581,11 @@ def _psd(x, rate, window_s=25200.0, step_s=36000.0, taper="hann", detrend="const
 # ---------------------------------------------------------------------------------------------
 # statistics of sample PSDs, for the bound
 # ---------------------------------------------------------------------------------------------
+
+
+_psd = psd_labelled  # the former private name, kept for now
+
+
 class LogBands(NamedTuple):
     """Band-averaged PSD (see :func:`smooth_log_bands`)."""
 

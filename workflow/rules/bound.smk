@@ -1,31 +1,59 @@
-# The bound of one sensor type against one spec sheet, in one job: the tightest model per axis (every
-# dataset and axis), the global bound over every included curve (the contract file), the Allan-domain
-# check per component, the paper's hand inflation for comparison, and the Kalman-filter matrices of the
-# global bound. The only stage that reads the spec sheet with kalibr, figures and table: a new spec sheet
-# re-runs these jobs alone.
+# The bound of one sensor type against one spec sheet: the tightest model of each axis alone (bound_axis),
+# then the global bound over every included curve and the spec sheet (the contract file), with the
+# Allan-domain check per component and the paper's hand inflation for comparison (bound). With kf,
+# figures and tables the only stages that read the spec sheet: a new spec sheet re-runs these jobs alone.
+
+
+rule bound_axis:
+    input:
+        psd=f"{RESULTS}/psd/{{dataset}}/{{sensor}}/{{axis}}.nc",
+        identified=f"{RESULTS}/identify/{{sensor}}.yaml",
+        spec=spec_file,
+    output:
+        bound=f"{RESULTS}/bound/{{spec}}/axes/{{dataset}}/{{sensor}}/{{axis}}.yaml",
+    params:
+        mode=config["bound"]["mode"],
+        n_gm=config["bound"]["n_gm"],
+        confidence=config["bound"]["confidence"],
+        bands_per_decade=config["bound"]["bands_per_decade"],
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["bound_axis"],
+        runtime=RUNTIME_MIN["bound_axis"],
+    log:
+        f"{LOGS}/bound/{{spec}}/axes/{{dataset}}/{{sensor}}/{{axis}}.log",
+    benchmark:
+        f"{BENCHMARKS}/bound_axis/{{spec}}/{{dataset}}/{{sensor}}/{{axis}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/bound_axis.py"
 
 
 rule bound:
     input:
-        spectra="results/spectra/{sensor}.nc",
-        allan="results/allan/{sensor}.nc",
-        identified="results/identify/{sensor}.yaml",
+        spectra=f"{RESULTS}/spectra/{{sensor}}.nc",
+        allan=f"{RESULTS}/allan/{{sensor}}.nc",
+        identified=f"{RESULTS}/identify/{{sensor}}.yaml",
         spec=spec_file,
+        axis_bounds=axis_bounds_of,
     output:
-        axis_bounds=axis_files_out("results/bound/{{spec}}/axes/{dataset}/{{sensor}}/{axis}.yaml"),
-        bound="results/bound/{spec}/{sensor}.yaml",
-        kf="results/kf/{spec}/{sensor}.yaml",
+        bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
     params:
         mode=config["bound"]["mode"],
         n_gm=config["bound"]["n_gm"],
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
-        kf_dt_s=1.0 / float(config["application"]["rate_hz"]),
-        horizon_s=config["application"]["horizon_s"],
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["bound"],
+        runtime=RUNTIME_MIN["bound"],
     log:
-        "logs/bound/{spec}/{sensor}.log",
+        f"{LOGS}/bound/{{spec}}/{{sensor}}.log",
     benchmark:
-        "results/benchmarks/bound/{spec}/{sensor}.tsv"
+        f"{BENCHMARKS}/bound/{{spec}}/{{sensor}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
     script:
         "../scripts/bound.py"

@@ -1,28 +1,77 @@
 # Configuration, dataset sheet and the helpers that name files. No numerics here.
+#
+# Folders: every output of a run lies under results/{name}/ and its log under logs/{name}/ (`name`: top-level
+# config key), so runs of different configurations side by side do not overwrite each other. Paths are
+# relative to the working directory (the repository root, or --directory); files of the repository that the
+# config names (spec sheets, truth model, dataset sheet, recordings) are given relative to the working
+# directory too, so a checkout moved or copied elsewhere with its results re-runs nothing.
 import csv
-import threading
+import os
 from pathlib import Path
 
+import yaml
 from snakemake.utils import validate
 
 
 ROOT = Path(workflow.basedir)  # repository root: config paths are relative to it
 AXES = ["x", "y", "z"]
+DEFAULT_CONFIG = ROOT / "config" / "config.yaml"
 
+
+def merged_with_defaults(defaults, given):
+    """`given` on top of `defaults`, key by key inside each section (a partial --configfile keeps the
+    default of every key it does not name). A sheet of recordings (`datasets`) given without
+    `simulation` switches the default simulation off."""
+    out = dict(defaults)
+    for key, value in given.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merged_with_defaults(out[key], value)
+        else:
+            out[key] = value
+    if given.get("datasets") and "simulation" not in given:
+        out["simulation"] = None
+    return out
+
+
+def _apply_defaults():
+    """Snakemake reads --configfile instead of the Snakefile's configfile: put the given keys on top of
+    config/config.yaml, then validate."""
+    with open(DEFAULT_CONFIG) as fh:
+        merged = merged_with_defaults(yaml.safe_load(fh), dict(config))
+    config.clear()
+    config.update(merged)
+
+
+_apply_defaults()
 validate(config, schema="../schemas/config.schema.yaml", set_default=False)
 
+NAME = config["name"]
+RESULTS = f"results/{NAME}"
+LOGS = f"logs/{NAME}"
+BENCHMARKS = f"{RESULTS}/benchmarks"
 SENSORS = list(config["sensors"])
 SPECS = list(config["specs"])
 
 
 def repo_path(path):
-    """A path from the config, relative to the repository root unless absolute."""
+    """A path the config names (relative to the repository root unless absolute), as Snakemake should see it:
+    relative to the working directory when it lies below a common folder, else absolute."""
     p = Path(path)
-    return p if p.is_absolute() else ROOT / p
+    p = p if p.is_absolute() else ROOT / p
+    return os.path.relpath(p) if _shares_root(p) else str(p)
+
+
+def _shares_root(p):
+    cwd = Path.cwd().resolve()
+    try:
+        return os.path.commonpath([str(p.resolve()), str(cwd)]) != os.sep
+    except ValueError:
+        return False
 
 
 def _read_sheet(path):
     """Rows of the dataset sheet (TSV) as dicts of non-empty cells, validated one by one."""
+    path = Path(path)
     if not path.is_file():
         raise ValueError(f"config key 'datasets': dataset sheet {str(path)!r} not found")
     with open(path, newline="") as fh:
@@ -62,7 +111,7 @@ if SIMULATION:
     DATASETS = {
         f"sim{i + 1:02d}": {
             "dataset": f"sim{i + 1:02d}",
-            "path": f"data/simulated/sim{i + 1:02d}.nc",
+            "path": f"{RESULTS}/simulated/sim{i + 1:02d}.nc",
             "format": "netcdf",
             "rate_hz": float(SIMULATION["rate_hz"]),
             "gyro_unit": "rad/s",
@@ -73,7 +122,11 @@ if SIMULATION:
     }
     SIM_SEEDS = {name: SIMULATION["seed"] + i for i, name in enumerate(DATASETS)}
 else:
-    DATASETS = _read_sheet(repo_path(config["datasets"]))
+    # recording paths of the sheet are relative to the repository root: rewritten relative to the working
+    # directory here, so the ingest job reads them as they are
+    DATASETS = {
+        name: {**row, "path": repo_path(row["path"])} for name, row in _read_sheet(repo_path(config["datasets"])).items()
+    }
 
 
 wildcard_constraints:
@@ -81,6 +134,7 @@ wildcard_constraints:
     sensor="gyro|accel",
     axis="x|y|z",
     spec="|".join(SPECS),
+    kind="spectra|allan",
 
 
 def _check_specs():
@@ -89,7 +143,8 @@ def _check_specs():
     from imupipe.specsheet import load_spec
 
     for name in SPECS:
-        sheet = load_spec(repo_path(config.get("spec_dir", "config/specs")) / f"{name}.yaml")
+        sheet = load_spec(Path(config["spec_dir"]) / f"{name}.yaml" if Path(config["spec_dir"]).is_absolute()
+                          else ROOT / config["spec_dir"] / f"{name}.yaml")
         missing = [s for s in SENSORS if s not in sheet.models]
         if missing:
             raise ValueError(f"spec sheet {sheet.path}: no section for {', '.join(missing)} (config sensors: {SENSORS})")
@@ -98,73 +153,140 @@ def _check_specs():
 _check_specs()
 
 
+# ---------------------------------------------------------------------------------------------------------
+# input functions and parameters (named, no lambdas in the rules)
+
+
 def raw_input(wildcards):
-    """The recording of a dataset, declared as input only if it exists (a missing file fails its
-    own ingest job with a clear message instead of blocking the whole DAG)."""
-    row = DATASETS[wildcards.dataset]
-    if SIMULATION:
-        return {"raw": row["path"]}
-    p = repo_path(row["path"])
-    return {"raw": str(p)} if p.exists() else {}
+    """The recording of a dataset, declared as input only if it exists (a missing file fails its own ingest
+    job with a clear message instead of blocking the whole DAG)."""
+    path = DATASETS[wildcards.dataset]["path"]
+    return {"raw": path} if SIMULATION or Path(path).exists() else {}
 
 
 def sheet_row(wildcards):
+    """The dataset sheet's row of the job's dataset (recording path relative to the working directory)."""
     return DATASETS[wildcards.dataset]
 
 
-def spec_file(wildcards):
-    return str(repo_path(config.get("spec_dir", "config/specs")) / f"{wildcards.spec}.yaml")
+def truth_file():
+    """The simulation's true noise model (spec-sheet format), or nothing for real data."""
+    return repo_path(SIMULATION["truth"]) if SIMULATION else []
 
 
-def axis_files(pattern):
-    """Input function: pattern for every dataset and axis of the job's sensor."""
-
-    def _files(wildcards):
-        return expand(pattern, dataset=list(DATASETS), sensor=wildcards.sensor, axis=AXES)
-
-    return _files
-
-
-def axis_files_out(pattern):
-    """Output list: pattern for every dataset and axis (other wildcards kept as {{...}} in `pattern`)."""
-    return expand(pattern, dataset=list(DATASETS), axis=AXES)
-
-
-def channel_files(pattern):
-    """Output list: pattern for every sensor and axis (other wildcards kept as {{...}} in `pattern`)."""
-    return expand(pattern, sensor=SENSORS, axis=AXES)
+def simulation_param(key, scale=1.0):
+    """A key of the simulation section (times `scale`), None for real data."""
+    if not SIMULATION:
+        return None
+    value = SIMULATION.get(key, "z" if key == "gravity_axis" else None)
+    return float(value) * scale if isinstance(value, (int, float)) and not isinstance(value, bool) else value
 
 
 def simulation_seed(wildcards):
     return SIM_SEEDS[wildcards.dataset]
 
 
+def spec_file(wildcards):
+    return repo_path(Path(config["spec_dir"]) / f"{wildcards.spec}.yaml")
+
+
+def per_axis(folder, ext):
+    """Input function: results/{name}/{folder}/{dataset}/{sensor}/{axis}.{ext} of every dataset and axis of the
+    job's sensor, dataset-major (the order of the stacked files' curves)."""
+
+    def files(wildcards):
+        return expand(f"{RESULTS}/{folder}/{{dataset}}/{wildcards.sensor}/{{axis}}.{ext}", dataset=list(DATASETS),
+                      axis=AXES)
+
+    return files
+
+
+def stack_inputs(wildcards):
+    """The per-axis files a stacked file gathers (psd/ for spectra, allan/ for allan) and the verdict summary."""
+    folder = "psd" if wildcards.kind == "spectra" else "allan"
+    return {"curves": per_axis(folder, "nc")(wildcards), "summary": f"{RESULTS}/stationarity/{wildcards.sensor}.yaml"}
+
+
+def stack_join(wildcards):
+    """PSDs of one configuration share their frequencies (exact); AV grids of records of different lengths
+    do not (outer join, missing entries NaN)."""
+    return "exact" if wildcards.kind == "spectra" else "outer"
+
+
+def axis_bounds_of(wildcards):
+    """The per-axis bounds of the job's spec sheet and sensor, every dataset and axis."""
+    return expand(f"{RESULTS}/bound/{wildcards.spec}/axes/{{dataset}}/{wildcards.sensor}/{{axis}}.yaml",
+                  dataset=list(DATASETS), axis=AXES)
+
+
+def bounds_of_sensors(wildcards):
+    return {s: f"{RESULTS}/bound/{wildcards.spec}/{s}.yaml" for s in SENSORS}
+
+
 def final_outputs():
     # Per-axis outputs are asked for too: Snakemake re-runs a job for a missing output only when some job asks
     # for that output, so a dataset added to the sheet must show up here to re-run the per-sensor merges.
-    per_axis = dict(dataset=list(DATASETS), sensor=SENSORS, axis=AXES)
-    out = expand("results/stationarity/{dataset}/{sensor}/{axis}.yaml", **per_axis)
-    out += expand("results/bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml", spec=SPECS, **per_axis)
-    out += expand("results/spectra/{sensor}.nc", sensor=SENSORS)
-    out += expand("results/allan/{sensor}.nc", sensor=SENSORS)
-    out += expand("results/identify/{sensor}.yaml", sensor=SENSORS)
-    out += expand("results/bound/{spec}/{sensor}.yaml", spec=SPECS, sensor=SENSORS)
-    out += expand("results/kf/{spec}/{sensor}.yaml", spec=SPECS, sensor=SENSORS)
+    each_axis = dict(dataset=list(DATASETS), sensor=SENSORS, axis=AXES)
+    out = expand(f"{RESULTS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.yaml", **each_axis)
+    out += expand(f"{RESULTS}/bound/{{spec}}/axes/{{dataset}}/{{sensor}}/{{axis}}.yaml", spec=SPECS, **each_axis)
+    out += expand(f"{RESULTS}/{{kind}}/{{sensor}}.nc", kind=["spectra", "allan"], sensor=SENSORS)
+    out += expand(f"{RESULTS}/identify/{{sensor}}.yaml", sensor=SENSORS)
+    out += expand(f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml", spec=SPECS, sensor=SENSORS)
+    out += expand(f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml", spec=SPECS, sensor=SENSORS)
     if set(SENSORS) == {"gyro", "accel"}:
-        out += expand("results/kf/{spec}/kalibr_imu.yaml", spec=SPECS)
+        out += expand(f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml", spec=SPECS)
     out += expand(
-        "results/figures/{spec}/{fig}_{sensor}.png",
+        f"{RESULTS}/figures/{{spec}}/{{fig}}_{{sensor}}.png",
         spec=SPECS,
         fig=["psd_bound", "allan_components", "inflation_steps"],
         sensor=SENSORS,
     )
-    out += ["results/figures/inflation_effect.png"]
-    out += expand("results/tables/{spec}/inflation.md", spec=SPECS)
+    out += [f"{RESULTS}/figures/inflation_effect.png"]
+    out += expand(f"{RESULTS}/tables/{{spec}}/inflation.md", spec=SPECS)
     return out
 
 
-def cancel_pending_timers():
-    """Cancel the threading.Timer threads still waiting in this process (see onsuccess in the Snakefile)."""
-    for thread in threading.enumerate():
-        if isinstance(thread, threading.Timer):
-            thread.cancel()
+# ---------------------------------------------------------------------------------------------------------
+# resources per job: peak memory (MB) and wall time (min). Measured (benchmark files' max_rss, default run:
+# 5 x 10 h at 125 Hz, one axis = 36 MB of float64 samples, 2 loaded cores; python benchmarks/dag.py):
+# ingest 275 MB (a 216 MB recording), allan 115, decimate 95, psd 82, stationarity 187, stationarity_summary 26,
+# stack 73, identify 114, bound_axis 119, bound 128, kf 69, kalibr 44, figures 141, inflation_effect 91,
+# tables 44; longest job 14 s. At 40 h (one dataset, one axis = 144 MB): simulate 1843 MB, ingest 913, allan 207,
+# stationarity 353 (its calibrated null grows with the record), psd 77. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
+# their input's size (ingest: the recording; allan, decimate: one axis); the others about twice the measured
+# peak. Wall time: 10 min, plus 1 min per 20 MB of full-rate input, far above the measured times.
+MEM_MB = {
+    "psd": 200,
+    "stationarity": 800,
+    "stationarity_summary": 100,
+    "stack": 200,
+    "identify": 300,
+    "bound_axis": 300,
+    "bound": 300,
+    "kf": 200,
+    "kalibr": 100,
+    "figures": 300,
+    "inflation_effect": 200,
+    "tables": 100,
+}
+RUNTIME_MIN = {name: 10 for name in [*MEM_MB, "simulate"]}
+
+
+def simulate_mem_mb(wildcards):
+    """The simulation's work arrays (measured 12.8 x one axis's samples at 40 h): 200 MB + 14 x one axis."""
+    return int(200 + 14 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200
+
+
+def ingest_mem_mb(wildcards, input):
+    """The whole recording in memory (the readers read every channel at once): 100 MB + 1.5 x its file size."""
+    return int(100 + 1.5 * input.size_mb)
+
+
+def axis_mem_mb(wildcards, input):
+    """One full-rate axis (and its integral, in the same buffer): 80 MB + 2 x the axis file's size."""
+    return int(80 + 2 * input.size_mb)
+
+
+def full_rate_runtime(wildcards, input):
+    """10 min plus 1 min per 20 MB of full-rate input."""
+    return int(10 + input.size_mb / 20)

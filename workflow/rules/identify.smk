@@ -3,9 +3,10 @@
 
 rule identify:
     input:
-        allan="results/allan/{sensor}.nc",
+        allan=f"{RESULTS}/allan/{{sensor}}.nc",
+        truth=truth_file(),
     output:
-        identified="results/identify/{sensor}.yaml",
+        identified=f"{RESULTS}/identify/{{sensor}}.yaml",
     params:
         components=config["identify"]["components"],
         n_gm=config["identify"]["n_gm"],
@@ -15,10 +16,15 @@ rule identify:
         relevance=config["identify"]["relevance"],
         rate_hz=config["application"]["rate_hz"],
         horizon_s=config["application"]["horizon_s"],
-        truth=str(repo_path(config["simulation"]["truth"])) if config.get("simulation") else None,
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["identify"],
+        runtime=RUNTIME_MIN["identify"],
     log:
-        "logs/identify/{sensor}.log",
+        f"{LOGS}/identify/{{sensor}}.log",
     benchmark:
-        "results/benchmarks/identify/{sensor}.tsv"
+        f"{BENCHMARKS}/identify/{{sensor}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
     script:
         "../scripts/identify.py"

@@ -3,40 +3,50 @@
 
 rule simulate:
     input:
-        truth=str(repo_path(config["simulation"]["truth"])) if config.get("simulation") else [],
+        truth=truth_file(),
     output:
-        recording="data/simulated/{dataset}.nc",
+        recording=f"{RESULTS}/simulated/{{dataset}}.nc",
     params:
         seed=simulation_seed,
-        duration_s=float(config["simulation"]["duration_h"]) * 3600.0 if config.get("simulation") else None,
-        rate_hz=config["simulation"]["rate_hz"] if config.get("simulation") else None,
-        gravity_axis=config["simulation"].get("gravity_axis", "z") if config.get("simulation") else None,
+        duration_s=simulation_param("duration_h", 3600.0),
+        rate_hz=simulation_param("rate_hz"),
+        gravity_axis=simulation_param("gravity_axis"),
+    threads: 1
+    resources:
+        mem_mb=simulate_mem_mb,
+        runtime=RUNTIME_MIN["simulate"],
     log:
-        "logs/simulate/{dataset}.log",
+        f"{LOGS}/simulate/{{dataset}}.log",
     benchmark:
-        "results/benchmarks/simulate/{dataset}.tsv"
+        f"{BENCHMARKS}/simulate/{{dataset}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
     script:
         "../scripts/simulate.py"
 
 
+# Reads the recording with the readers' whole-record call, then writes the channels one after the other.
 rule ingest:
     input:
         unpack(raw_input),
     output:
         **{
-            f"{s}_{a}": f"results/series/{{dataset}}/{s}/{a}.nc"
+            f"{s}_{a}": f"{RESULTS}/series/{{dataset}}/{s}/{a}.nc"
             for s in SENSORS
             for a in AXES
         },
     params:
         row=sheet_row,
-        base_dir=str(ROOT) if not config.get("simulation") else ".",
         sensors=SENSORS,
-        min_duration_s=float(config["psd"]["window_s"]),
+    threads: 1
+    resources:
+        mem_mb=ingest_mem_mb,
+        runtime=full_rate_runtime,
     log:
-        "logs/ingest/{dataset}.log",
+        f"{LOGS}/ingest/{{dataset}}.log",
     benchmark:
-        "results/benchmarks/ingest/{dataset}.tsv"
+        f"{BENCHMARKS}/ingest/{{dataset}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
     script:
         "../scripts/ingest.py"
-

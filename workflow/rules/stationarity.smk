@@ -1,30 +1,54 @@
-# Per sensor type, one job: Levene + two-sample KS on every decimated axis (paper), calibrated on a null
-# simulated from the axis's own Allan-variance fit; stationarity.on_fail applied; then every axis's PSD and
-# Allan variance gathered into one file per sensor type with an `included` flag.
+# Levene + two-sample KS on one decimated axis (paper), or the same statistics calibrated on a null simulated
+# from the axis's own Allan-variance fit; then, per sensor type, the summary with stationarity.on_fail
+# applied (which curves the stacked files mark `included`).
 
 
-rule collect:
+rule stationarity:
     input:
-        decimated=axis_files("results/decimated/{dataset}/{sensor}/{axis}.nc"),
-        allan=axis_files("results/allan/{dataset}/{sensor}/{axis}.nc"),
-        psd=axis_files("results/psd/{dataset}/{sensor}/{axis}.nc"),
+        decimated=f"{RESULTS}/decimated/{{dataset}}/{{sensor}}/{{axis}}.nc",
+        allan=f"{RESULTS}/allan/{{dataset}}/{{sensor}}/{{axis}}.nc",
     output:
-        verdicts=axis_files_out("results/stationarity/{dataset}/{{sensor}}/{axis}.yaml"),
-        summary="results/stationarity/{sensor}.yaml",
-        spectra="results/spectra/{sensor}.nc",
-        allan="results/allan/{sensor}.nc",
+        verdict=f"{RESULTS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.yaml",
     params:
-        # the dataset list as a parameter: a changed sheet re-runs the merges even where Snakemake's record of
-        # the input set is incomplete (final_outputs also asks for every per-axis verdict, see common.smk)
-        datasets=sorted(DATASETS),
         n_segments=config["stationarity"]["n_segments"],
         alpha=config["stationarity"]["alpha"],
         test=config["stationarity"]["test"],
         n_sim=config["stationarity"]["n_sim"],
-        on_fail=config["stationarity"]["on_fail"],
+    group:
+        "per_axis"
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["stationarity"],
+        runtime=RUNTIME_MIN["stationarity"],
     log:
-        "logs/collect/{sensor}.log",
+        f"{LOGS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.log",
     benchmark:
-        "results/benchmarks/collect/{sensor}.tsv"
+        f"{BENCHMARKS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
     script:
-        "../scripts/collect.py"
+        "../scripts/stationarity.py"
+
+
+rule stationarity_summary:
+    input:
+        verdicts=per_axis("stationarity", "yaml"),
+    output:
+        summary=f"{RESULTS}/stationarity/{{sensor}}.yaml",
+    params:
+        # the dataset list as a parameter: a changed sheet re-runs the merges even where Snakemake's record of
+        # the input set is incomplete (final_outputs also asks for every per-axis verdict, see common.smk)
+        datasets=sorted(DATASETS),
+        on_fail=config["stationarity"]["on_fail"],
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["stationarity_summary"],
+        runtime=RUNTIME_MIN["stationarity_summary"],
+    log:
+        f"{LOGS}/stationarity/{{sensor}}.log",
+    benchmark:
+        f"{BENCHMARKS}/stationarity_summary/{{sensor}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/stationarity_summary.py"

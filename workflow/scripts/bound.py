@@ -1,18 +1,13 @@
-"""The bound of one sensor type against one spec sheet (rule bound): the tightest model of each axis alone,
-the global bound over every included curve of every dataset and axis and the spec sheet (the contract file
-results/bound/{spec}/{sensor}.yaml), the Allan-domain check per component, the paper's hand inflation for
-comparison, and the Kalman-filter matrices of the global bound (continuous F, G, Qc of paper eq. 17, or
-eq. 19 without the random-walk state; exact discrete Phi, Qd by Van Loan; P0)."""
+"""The global bound of one sensor type against one spec sheet (rule bound): every included curve of every
+dataset and axis and the spec sheet (the contract file results/{name}/bound/{spec}/{sensor}.yaml), the
+Allan-domain check per component, a summary of the per-axis bounds (rule bound_axis), and the paper's hand
+inflation for comparison."""
 
 import logging
 
 import numpy as np
 
 from imupipe.io import read_yaml, run_job, write_yaml_atomic
-
-# The per-axis bounds use the components the pooled identification kept (as the global bound does) and a
-# coarser T grid (refined by a bounded search all the same).
-AXIS_T_PER_DECADE = 4
 
 HEADER = """global bound of one sensor type (README "Output contract").
 SI: white N in u/sqrt(Hz), gauss_markov sigma in u and T in s, random_walk K in u/sqrt(s); u = rad/s (gyro), m/s^2 (accel).
@@ -22,48 +17,8 @@ margin: min over curves and frequencies of S_model/S_sample (>= 1 when bounded),
 
 
 
-def axis_bounds(sp, spec, sensor, kept, dt, mode, n_gm, confidence, bands_per_decade, paths_out) -> list:
-    """Bound of every (dataset, axis) curve alone, written to its path in paths_out
-    (.../{dataset}/{sensor}/{axis}.yaml)."""
-    from pathlib import Path
-
-    from imupipe.bound import bound_psd
-    from imupipe.specsheet import display_units
-
-    out = []
-    path_of = {(Path(q).parent.parent.name, Path(q).stem): q for q in paths_out}
-    f = sp["frequency"]
-    for d, a in sp.curves():
-        label = f"{d}/{a}"
-        result = bound_psd(f, {label: sp.at("psd", d, a)}, spec.models[sensor], dt=dt, mode=mode,
-                           n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade,
-                           edf=sp.at("edf", d, a), taper=sp.attrs.get("taper", "hann"), keep=kept,
-                           T_grid=AXIS_T_PER_DECADE)
-        ax = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt,
-              **result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)}
-        write_yaml_atomic(ax, path_of[(d, a)], header=f"per-axis bound of {label} against {spec.name}")
-        out.append(ax)
-    return out
-
-
-def write_kf(model, spec_name: str, dt_s: float, horizon_s: float, path_out: str, sensor: str) -> None:
-    """Kalman-filter matrices of the bound model (SI), one axis."""
-    from imupipe.kf import export_kf
-    from imupipe.models import NoiseModel
-
-    model = NoiseModel(white=model.white, random_walk=model.random_walk, gauss_markov=tuple(model.gauss_markov))
-    # The random walk has no steady state: start it with what it accumulates over the application horizon,
-    # K^2 * horizon (u^2); replace by the turn-on bias repeatability squared when the spec sheet gives it.
-    p0_rw = model.random_walk**2 * horizon_s if model.random_walk > 0 else None
-    out = {"sensor": sensor, "spec_name": spec_name, "dt_s": dt_s,
-           "p0_random_walk_rule": "K^2 * application.horizon_s" if p0_rw else None,
-           **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw)}
-    write_yaml_atomic(out, path_out, header=f"{sensor}: Kalman-filter model of the bound (SI), one axis")
-
-
-def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, mode: str, n_gm: int,
-         confidence: float, bands_per_decade: int, compare_paper: bool, kf_dt_s: float, horizon_s: float,
-         axis_out: list, path_out: str, kf_out: str, sensor: str) -> None:
+def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, axis_bounds: list, mode: str,
+         n_gm: int, confidence: float, bands_per_decade: int, compare_paper: bool, path_out: str, sensor: str) -> None:
     from imupipe.bound import bound_psd, check_allan_components, looseness, paper_inflation
     from imupipe.merge import Stacked
     from imupipe.models import NoiseModel
@@ -82,7 +37,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
         edf.append(np.broadcast_to(sp.at("edf", d, a), f.shape))
     identified = read_yaml(path_identified)
     kept = identified["selection"]["kept"]
-    per_axis = axis_bounds(sp, spec, sensor, kept, dt, mode, n_gm, confidence, bands_per_decade, axis_out)
+    per_axis = [read_yaml(path) for path in axis_bounds]
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(edf), keep=kept,
                        taper=sp.attrs.get("taper", "hann"))
@@ -107,7 +62,6 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
             "phases": _phase_ends(hand.details.get("history", [])),
         }
     write_yaml_atomic(out, path_out, header=HEADER)
-    write_kf(result.model, spec.name, kf_dt_s, horizon_s, kf_out, sensor)
 
 
 def _phase_ends(history):
@@ -135,5 +89,5 @@ if __name__ == "__main__":
     p, i, o = snakemake.params, snakemake.input, snakemake.output
     run_job(main, snakemake.log[0], path_spectra=i.spectra, path_allan=i.allan, path_identified=i.identified,
             path_spec=i.spec, mode=p.mode, n_gm=p.n_gm, confidence=p.confidence, bands_per_decade=p.bands_per_decade,
-            compare_paper=p.compare_paper, kf_dt_s=p.kf_dt_s, horizon_s=p.horizon_s, axis_out=list(o.axis_bounds),
-            path_out=o.bound, kf_out=o.kf, sensor=snakemake.wildcards.sensor)
+            compare_paper=p.compare_paper, axis_bounds=list(i.axis_bounds), path_out=o.bound,
+            sensor=snakemake.wildcards.sensor)

@@ -62,5 +62,5 @@ if __name__ == "__main__":
     p = snakemake.params
     run_job(main, snakemake.log[0], path_allan=snakemake.input.allan, components=list(p.components), n_gm=p.n_gm,
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
-            rate_hz=p.rate_hz, horizon_s=p.horizon_s, truth=p.truth, path_out=snakemake.output.identified,
+            rate_hz=p.rate_hz, horizon_s=p.horizon_s, truth=snakemake.input.truth or None, path_out=snakemake.output.identified,
             sensor=snakemake.wildcards.sensor)

@@ -1,4 +1,4 @@
-"""Spec vs bound parameters in the spec sheet's units (paper Table 2), markdown and CSV (rule table)."""
+"""Spec vs bound parameters in the spec sheet's units (paper Table 2), markdown and CSV (rule tables)."""
 
 import csv
 import io
@@ -39,5 +39,6 @@ def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str
 
 
 if __name__ == "__main__":
-    run_job(main, snakemake.log[0], paths=list(snakemake.input.bounds), sensors=list(snakemake.params.sensors),
+    run_job(main, snakemake.log[0], paths=[snakemake.input[s] for s in snakemake.params.sensors],
+            sensors=list(snakemake.params.sensors),
             path_spec=snakemake.input.spec, path_md=snakemake.output.markdown, path_csv=snakemake.output.csv)

@@ -1,0 +1,45 @@
+# Kalman-filter matrices of a global bound (one axis, SI) and the Kalibr-style imu.yaml of both sensor types.
+
+
+rule kf:
+    input:
+        bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
+    output:
+        kf=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
+    params:
+        dt_s=1.0 / float(config["application"]["rate_hz"]),
+        horizon_s=config["application"]["horizon_s"],
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["kf"],
+        runtime=RUNTIME_MIN["kf"],
+    log:
+        f"{LOGS}/kf/{{spec}}/{{sensor}}.log",
+    benchmark:
+        f"{BENCHMARKS}/kf/{{spec}}/{{sensor}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/kf.py"
+
+
+rule kalibr:
+    input:
+        gyro=f"{RESULTS}/bound/{{spec}}/gyro.yaml",
+        accel=f"{RESULTS}/bound/{{spec}}/accel.yaml",
+    output:
+        kalibr=f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml",
+    params:
+        rate_hz=config["application"]["rate_hz"],
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["kalibr"],
+        runtime=RUNTIME_MIN["kalibr"],
+    log:
+        f"{LOGS}/kalibr/{{spec}}.log",
+    benchmark:
+        f"{BENCHMARKS}/kalibr/{{spec}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/kalibr.py"

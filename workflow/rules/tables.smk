@@ -1,0 +1,29 @@
+# Spec sheet vs bound parameters in the spec sheet's units (paper Table 2), markdown and CSV.
+
+
+rule tables:
+    input:
+        unpack(bounds_of_sensors),
+        spec=spec_file,
+    output:
+        markdown=report(
+            f"{RESULTS}/tables/{{spec}}/inflation.md",
+            caption="../report/table.rst",
+            category="Bound",
+            labels={"table": "spec vs bound (Table 2)", "spec": "{spec}"},
+        ),
+        csv=f"{RESULTS}/tables/{{spec}}/inflation.csv",
+    params:
+        sensors=SENSORS,
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["tables"],
+        runtime=RUNTIME_MIN["tables"],
+    log:
+        f"{LOGS}/tables/{{spec}}.log",
+    benchmark:
+        f"{BENCHMARKS}/tables/{{spec}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/tables.py"

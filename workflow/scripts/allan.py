@@ -1,0 +1,21 @@
+"""Overlapping Allan variance of one full-rate axis (rule allan). The series is read into a buffer one sample
+longer than the record and integrated in place: one axis's samples in memory, no copy; files written with
+netCDF4 alone (no xarray import in this job)."""
+
+from imupipe.allan import allan_variance_labelled
+from imupipe.io import read_series, run_job
+
+
+def main(path_series: str, taus, confidence: float, path_allan: str) -> None:
+    x, rate, attrs = read_series(path_series, pad_front=1)  # x = buffer[1:], overwritten by its integral
+    labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
+    av = allan_variance_labelled(x, rate, taus=taus, confidence=confidence, units=attrs["units"],
+                                 theta_buffer=x.base)
+    av.attrs.update(labels)
+    av.to_netcdf(path_allan)
+
+
+if __name__ == "__main__":
+    p = snakemake.params
+    run_job(main, snakemake.log[0], path_series=snakemake.input.series, taus=p.taus, confidence=p.confidence,
+            path_allan=snakemake.output.allan)
