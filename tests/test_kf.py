@@ -212,3 +212,11 @@ class TestNarrowband:
         assert e["noise_units"][1] == "(rad/s)^2/s^3"
         assert e["parameters"]["narrowband"][0] == {"sigma": 3e-3, "f0_hz": 0.56, "zeta": 0.02}
         assert np.allclose(np.diag(e["P0"])[3:5], [1e-6, (2 * math.pi * 7.0) ** 2 * 1e-6])
+
+
+def test_zero_narrowband_terms_have_no_state():
+    m = NoiseModel(white=1e-3, narrowband=((0.0, 0.46, 0.01), (2e-3, 0.56, 0.01)))
+    cm = continuous_model(m, scale_factor=False)
+    assert cm.states == ["x", "v", "nb"] + ["nb_dot"] and cm.noises == ["nu_s", "nu_nb"]
+    P0 = initial_covariance(m, cm.states)
+    assert P0[2, 2] == 4e-6

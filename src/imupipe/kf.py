@@ -82,6 +82,12 @@ def _resolve_reduced(model, reduced):
     return bool(reduced)
 
 
+def _lines(model) -> tuple:
+    """The model's narrowband terms (sigma, f0_hz, zeta) with sigma > 0 (a zero term, e.g. a line column the
+    bound did not need, has no state)."""
+    return tuple(t for t in getattr(model, "narrowband", ()) if t[0] > 0)
+
+
 def _narrowband_names(n: int) -> list:
     """State names of the narrowband terms: ``nb`` (one term) or ``nb_1``, ``nb_2``, ... (its rate is
     ``<name>_dot``)."""
@@ -104,6 +110,7 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
     :math:`F = [[0, 1], [-\omega_0^2, -2\zeta\omega_0]]`; ``nb`` enters the velocity (angle) row with -1 like a
     bias, and the noise ``nu_nb`` drives ``nb_dot`` with intensity :math:`4\zeta\omega_0^3\sigma^2`
     (u^2/s^3), so that the steady-state variance of ``nb`` is :math:`\sigma^2` (models.narrowband_psd).
+    Terms with sigma = 0 get no state.
 
     Noises: ``nu_s`` (white rate noise, intensity :math:`N^2`, enters with -1), ``nu_b``
     (:math:`2\sigma^2/T` per GM term, so the GM's steady-state variance is :math:`\sigma^2`),
@@ -137,7 +144,7 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
                           UserWarning, stacklevel=2)
     reduced = _resolve_reduced(model, reduced)
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
-    nb = tuple(getattr(model, "narrowband", ()))
+    nb = _lines(model)
     states = ["x", "v"] if sensor == "accel" else ["theta"]
     kin = len(states)
     i_rate = kin - 1  # the row receiving the rate error (v for accel, theta for gyro)
@@ -285,7 +292,7 @@ def initial_covariance(model, states, p0_random_walk: float | None = None, var_x
         (n, n) diagonal covariance.
     """
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
-    nb = tuple(getattr(model, "narrowband", ()))
+    nb = _lines(model)
     nb_of = {nm: term for nm, term in zip(_narrowband_names(len(nb)), nb)}
     d = []
     b_i = 0
@@ -357,7 +364,7 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
     noise_units = [f"({u})^2/Hz" if nm == "nu_s" else f"({u})^2/s^3" if nm.startswith("nu_nb") else f"({u})^2/s"
                    for nm in cm.noises]
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
-    nb = tuple(getattr(model, "narrowband", ()))
+    nb = _lines(model)
     is_reduced = "p" not in cm.states
     notes = [
         "two-sided intensities: E[w(t) w(s)] = Qc delta(t - s)",

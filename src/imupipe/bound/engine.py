@@ -82,10 +82,12 @@ def _bin_r(taper, max_lag):
     return r
 
 
-def _band_groups(f, bands_per_decade, nu, taper, min_edf):
+def _band_groups(f, bands_per_decade, nu, taper, min_edf, split=None):
     r"""Contiguous groups of bins: log bands aligned on decades (as in
     :func:`imupipe.spectra.smooth_log_bands`), merged from the low-frequency end until each has at
-    least `min_edf` degrees of freedom. Returns (starts, counts, group edf (C, G))."""
+    least `min_edf` degrees of freedom, then split wherever the boolean bin mask `split` (the bins of
+    the ``exclude`` intervals) changes, so that an excluded interval is a set of whole groups and no
+    bin outside it is excluded with it. Returns (starts, counts, group edf (C, G))."""
     b = np.floor(bands_per_decade * np.log10(f) + 1e-9).astype(np.int64)
     _, counts = np.unique(b, return_counts=True)
     starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
@@ -116,6 +118,10 @@ def _band_groups(f, bands_per_decade, nu, taper, min_edf):
                 merged.append((cur_s, cur_n))
         starts = np.array([m[0] for m in merged], dtype=np.int64)
         counts = np.array([m[1] for m in merged], dtype=np.int64)
+    if split is not None and np.any(split):
+        cuts = set((starts[1:]).tolist()) | set((np.flatnonzero(np.diff(split.astype(np.int8))) + 1).tolist())
+        starts = np.array(sorted({0} | cuts), dtype=np.int64)
+        counts = np.diff(np.append(starts, f.size)).astype(np.int64)
     fac = np.array([factor(int(m)) for m in counts])
     edf = np.add.reduceat(nu2, starts, axis=1) / fac
     return starts, counts, edf
@@ -266,8 +272,21 @@ class _Problem:
                           dtype=np.float64)
 
 
+def _exclude_mask(f, exclude):
+    """Bins of f (Hz) inside any closed interval of `exclude` ((f_lo_hz, f_hi_hz, reason), ...)."""
+    mask = np.zeros(f.size, dtype=bool)
+    for item in exclude or ():
+        try:
+            f_lo, f_hi, _ = item
+            f_lo, f_hi = float(f_lo), float(f_hi)
+        except (TypeError, ValueError):
+            raise ValueError(f"exclude entries must be (f_lo_hz, f_hi_hz, reason), got {item!r}") from None
+        mask |= (f >= f_lo) & (f <= f_hi)
+    return mask
+
+
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-             n_tests=None):
+             n_tests=None, exclude=()):
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     f_all = np.asarray(frequency, dtype=np.float64)
@@ -292,7 +311,8 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
     else:
         if bands_per_decade is None or int(bands_per_decade) < 1:
             raise ValueError("bands_per_decade must be a positive integer in smoothed mode")
-        starts, counts, rows_edf = _band_groups(f, int(bands_per_decade), nu, taper, min_edf)
+        starts, counts, rows_edf = _band_groups(f, int(bands_per_decade), nu, taper, min_edf,
+                                                split=_exclude_mask(f, exclude))
         f_rows = _group_mean(f, starts, counts)
         targets = _group_mean(raw, starts, counts)
         rows_edf = np.broadcast_to(rows_edf, targets.shape)
@@ -863,7 +883,7 @@ def bound_psd(
             raise ValueError(f"min_edf must be a number, None or 'auto', got {min_edf!r}")
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-                    n_tests)
+                    n_tests, exclude=exclude)
     allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     nb = []
