@@ -446,6 +446,22 @@ class TestCheckAllan:
         assert rep["components"]["random_walk"]["status"] == "no counterpart"
         assert "GM + white" in rep["components"]["flicker"]["reason"]
 
+    def test_flicker_plateau_carried_by_the_bounds_random_walk_at_long_tau(self):
+        """A GM (sigma 2e-5, T 100 s) covers a flicker plateau FLICKER_AV B^2 = 4.4e-11 (B = 1e-5) up to
+        tau ~ 1800 s (its AV falls as 2 sigma^2 T / tau beyond); a random walk with K^2 tau / 3 >= 4.4e-11 from
+        there (K = 3e-7: 5.4e-11 at 1800 s) carries the rest. A K 300x smaller does not: a real shortfall."""
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=1e-4, flicker=1e-5)
+        for K, status in ((3e-7, "ok"), (1e-9, "shortfall"), (0.0, "shortfall")):
+            bound = NoiseModel(white=1.2e-4, gauss_markov=((2e-5, 100.0),), random_walk=K)
+            rep = check_allan(bound, ident, self.TAU, kept=["white", "flicker"])
+            assert rep["components"]["flicker"]["status"] == status, K
+            if status == "ok":
+                assert "random walk" in rep["components"]["flicker"]["reason"]
+            else:
+                assert rep["components"]["flicker"]["tau_s"] > 1800
+
     def test_dropped_component_is_not_compared_but_a_real_shortfall_is_named(self):
         from imupipe.bound import check_allan
 
