@@ -142,7 +142,7 @@ def test_model_policy_bound_without_its_line_is_within_10_percent_of_the_lineles
     is the bound of the record without them, to the issue's 10 %. Smoothed mode: in raw mode N is set by the
     single highest periodogram ordinate, and the line columns' tails cover a few ordinates next to the lines,
     so N moves by the spread of the top order statistics (measured 12 % on one of five seeds); band averages
-    remove that. Measured on seeds 0-4: worst 5.5 % (N), 8 % (T), 2 % (sigma), 0.1 % (K)."""
+    remove that. Measured on seeds 0-4: worst 5.5 % (N), 8 % (T), 2 % (sigma), 0.2 % (K)."""
     f, clean, dirty, found = record
     lines = [ln for res in found for ln in res.lines]
     none = _bound(f, clean, line_policy([], 1.0, BAND, "model", frequency=f)).model
