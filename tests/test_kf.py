@@ -173,3 +173,50 @@ def test_discretize_stiff_gm_matches_the_closed_form():
     Phi, Qd = discretize(np.array([[-1 / T]]), None, np.array([[2 * sigma**2 / T]]), 1.0)
     assert Phi[0, 0] == pytest.approx(math.exp(-100.0), rel=1e-6, abs=1e-300)
     assert Qd[0, 0] == pytest.approx(sigma**2, rel=1e-9)
+
+
+class TestNarrowband:
+    """Two states per narrowband term (damped oscillator), exact Phi/Qd, steady-state P0."""
+
+    LINE = (3e-3, 0.56, 0.02)  # sigma u, f0 Hz, zeta
+
+    @pytest.mark.parametrize("dt", [0.01, 1.0])
+    def test_blocks_match_the_simulators_exact_discretisation(self, dt):
+        from imupipe.simulate import narrowband_discrete
+
+        m = NoiseModel(white=1e-3, gauss_markov=((1e-4, 50.0),), narrowband=(self.LINE,))
+        cm = continuous_model(m, sensor="accel", scale_factor=False)
+        assert cm.states == ["x", "v", "b", "nb", "nb_dot"] and cm.noises == ["nu_s", "nu_b", "nu_nb"]
+        i, j = cm.states.index("nb"), cm.states.index("nb_dot")
+        w0 = 2 * math.pi * self.LINE[1]
+        np.testing.assert_array_equal(cm.F[np.ix_([i, j], [i, j])], [[0, 1], [-w0**2, -2 * self.LINE[2] * w0]])
+        assert cm.F[cm.states.index("v"), i] == -1.0  # the line is a rate error integrated into v
+        assert cm.Qc[2, 2] == pytest.approx(4 * self.LINE[2] * w0**3 * self.LINE[0] ** 2, rel=1e-15)
+        Phi, Qd = discretize(cm.F, cm.G, cm.Qc, dt)
+        phi2, Qd2, P02 = narrowband_discrete(*self.LINE, dt)
+        # the oscillator block is autonomous: its Phi and Qd blocks are the 2-state model's. Both are Van Loan
+        # exponentials (one scaled and squared): agreement to rounding, 1e-9 relative of the block's largest entry
+        np.testing.assert_allclose(Phi[np.ix_([i, j], [i, j])], phi2, rtol=0, atol=1e-9 * np.abs(phi2).max())
+        np.testing.assert_allclose(Qd[np.ix_([i, j], [i, j])], Qd2, rtol=0, atol=1e-9 * np.abs(Qd2).max())
+        P0 = initial_covariance(m, cm.states)
+        np.testing.assert_array_equal(P0[np.ix_([i, j], [i, j])], P02)
+        # steady state: one step of the exact recursion leaves P0 unchanged (F P + P F^T + G Qc G^T = 0)
+        blk = np.ix_([i, j], [i, j])
+        np.testing.assert_allclose(phi2 @ P0[blk] @ phi2.T + Qd2, P0[blk], rtol=0, atol=1e-9 * P0[blk].max())
+
+    def test_export_units_and_parameters(self):
+        m = NoiseModel(white=1e-3, narrowband=(self.LINE, (1e-3, 7.0, 0.05)))
+        e = export_kf(m, 0.01, sensor="gyro")
+        assert e["states"] == ["theta", "nb_1", "nb_1_dot", "nb_2", "nb_2_dot", "s_f"]
+        assert e["state_units"][1:3] == ["rad/s", "rad/s/s"]  # nb in the rate unit, nb_dot per second
+        assert e["noise_units"][1] == "(rad/s)^2/s^3"
+        assert e["parameters"]["narrowband"][0] == {"sigma": 3e-3, "f0_hz": 0.56, "zeta": 0.02}
+        assert np.allclose(np.diag(e["P0"])[3:5], [1e-6, (2 * math.pi * 7.0) ** 2 * 1e-6])
+
+
+def test_zero_narrowband_terms_have_no_state():
+    m = NoiseModel(white=1e-3, narrowband=((0.0, 0.46, 0.01), (2e-3, 0.56, 0.01)))
+    cm = continuous_model(m, scale_factor=False)
+    assert cm.states == ["x", "v", "nb"] + ["nb_dot"] and cm.noises == ["nu_s", "nu_nb"]
+    P0 = initial_covariance(m, cm.states)
+    assert P0[2, 2] == 4e-6

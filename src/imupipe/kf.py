@@ -82,6 +82,18 @@ def _resolve_reduced(model, reduced):
     return bool(reduced)
 
 
+def _lines(model) -> tuple:
+    """The model's narrowband terms (sigma, f0_hz, zeta) with sigma > 0 (a zero term, e.g. a line column the
+    bound did not need, has no state)."""
+    return tuple(t for t in getattr(model, "narrowband", ()) if t[0] > 0)
+
+
+def _narrowband_names(n: int) -> list:
+    """State names of the narrowband terms: ``nb`` (one term) or ``nb_1``, ``nb_2``, ... (its rate is
+    ``<name>_dot``)."""
+    return ["nb"] if n == 1 else [f"nb_{i + 1}" for i in range(n)]
+
+
 def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, sensor: str = "accel",
                      scale_factor: bool = True) -> ContinuousModel:
     r"""One-axis continuous model of Gallon et al. 2021, eq. 17 (eq. 19 when `reduced`).
@@ -92,9 +104,17 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
     :math:`q_t = q_m - b - p - \nu_s - q_m^* s_f` gives the velocity (angle) row
     :math:`-1, -1, -q_m^*`.
 
+    Narrowband terms (``model.narrowband``, damped oscillators :math:`\ddot n + 2\zeta\omega_0\dot n +
+    \omega_0^2 n = \nu_n`, :math:`\omega_0 = 2\pi f_0`): two states each, ``nb`` (u) and ``nb_dot`` (u/s)
+    (``nb_1``, ``nb_1_dot``, ... for several), placed after the GM states, with the block
+    :math:`F = [[0, 1], [-\omega_0^2, -2\zeta\omega_0]]`; ``nb`` enters the velocity (angle) row with -1 like a
+    bias, and the noise ``nu_nb`` drives ``nb_dot`` with intensity :math:`4\zeta\omega_0^3\sigma^2`
+    (u^2/s^3), so that the steady-state variance of ``nb`` is :math:`\sigma^2` (models.narrowband_psd).
+    Terms with sigma = 0 get no state.
+
     Noises: ``nu_s`` (white rate noise, intensity :math:`N^2`, enters with -1), ``nu_b``
     (:math:`2\sigma^2/T` per GM term, so the GM's steady-state variance is :math:`\sigma^2`),
-    ``nu_p`` (:math:`K^2`).
+    ``nu_nb`` (per narrowband term, above), ``nu_p`` (:math:`K^2`).
 
     Parameters
     ----------
@@ -124,11 +144,15 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
                           UserWarning, stacklevel=2)
     reduced = _resolve_reduced(model, reduced)
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    nb = _lines(model)
     states = ["x", "v"] if sensor == "accel" else ["theta"]
     kin = len(states)
     i_rate = kin - 1  # the row receiving the rate error (v for accel, theta for gyro)
     b_names = ["b"] if len(gm) == 1 else [f"b_{i + 1}" for i in range(len(gm))]
     states += b_names
+    nb_names = _narrowband_names(len(nb))
+    for nm in nb_names:
+        states += [nm, nm + "_dot"]
     if not reduced:
         states.append("p")
     if scale_factor:
@@ -141,12 +165,21 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
     for bn, (_, T) in zip(b_names, gm):
         F[i_rate, idx[bn]] = -1.0
         F[idx[bn], idx[bn]] = -1.0 / T
+    for nm, (_, f0, zeta) in zip(nb_names, nb):
+        w0 = 2.0 * math.pi * f0
+        i, j = idx[nm], idx[nm + "_dot"]
+        F[i_rate, i] = -1.0  # the line is part of the rate error
+        F[i, j] = 1.0
+        F[j, i] = -w0 * w0
+        F[j, j] = -2.0 * zeta * w0
     if not reduced:
         F[i_rate, idx["p"]] = -1.0
     if scale_factor:
         F[i_rate, idx["s_f"]] = -float(q_m)
     noises = ["nu_s"] + (["nu_b"] if len(gm) == 1 else [f"nu_b_{i + 1}" for i in range(len(gm))])
     q = [model.white**2] + [2.0 * s**2 / T for s, T in gm]
+    noises += ["nu_" + nm for nm in nb_names]
+    q += [4.0 * zeta * (2.0 * math.pi * f0) ** 3 * s**2 for s, f0, zeta in nb]
     if not reduced:
         noises.append("nu_p")
         q.append(model.random_walk**2)
@@ -155,6 +188,8 @@ def continuous_model(model, reduced: bool | None = None, q_m: float = 0.0, senso
     G[i_rate, 0] = -1.0
     for j, bn in enumerate(b_names):
         G[idx[bn], 1 + j] = 1.0
+    for j, nm in enumerate(nb_names):
+        G[idx[nm + "_dot"], 1 + len(b_names) + j] = 1.0
     if not reduced:
         G[idx["p"], m - 1] = 1.0
     return ContinuousModel(F, G, np.diag(np.asarray(q, dtype=np.float64)), states, noises)
@@ -228,7 +263,11 @@ def discretize(F, G, Qc, dt: float):
 
 def initial_covariance(model, states, p0_random_walk: float | None = None, var_x: float = 0.0,
                        var_v: float = 0.0, var_theta: float = 0.0, var_scale_factor: float = 0.0):
-    r"""Diagonal initial covariance, GM states at their steady state.
+    r"""Diagonal initial covariance, GM and narrowband states at their steady state.
+
+    The steady state of a damped oscillator (solution of :math:`F P + P F^T + G Q_c G^T = 0` for the
+    block of :func:`continuous_model`) is :math:`\operatorname{diag}(\sigma^2, \omega_0^2\sigma^2)`: the
+    position and rate of a stationary oscillator are uncorrelated.
 
     A GM bias started at its steady-state variance :math:`\sigma^2` is stationary, which the PSD
     bound's guarantee needs (method.md section 6). The random walk has no steady state: its
@@ -253,6 +292,8 @@ def initial_covariance(model, states, p0_random_walk: float | None = None, var_x
         (n, n) diagonal covariance.
     """
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    nb = _lines(model)
+    nb_of = {nm: term for nm, term in zip(_narrowband_names(len(nb)), nb)}
     d = []
     b_i = 0
     for s in states:
@@ -274,6 +315,11 @@ def initial_covariance(model, states, p0_random_walk: float | None = None, var_x
             d.append(float(p0_random_walk))
         elif s == "s_f":
             d.append(var_scale_factor)
+        elif s in nb_of:  # steady state of the oscillator: var x = sigma^2, var x' = w0^2 sigma^2, uncorrelated
+            d.append(nb_of[s][0] ** 2)
+        elif s.endswith("_dot") and s[:-4] in nb_of:
+            sg, f0, _ = nb_of[s[:-4]]
+            d.append((2.0 * math.pi * f0) ** 2 * sg**2)
         else:
             raise ValueError(f"unknown state {s!r}")
     return np.diag(np.asarray(d, dtype=np.float64))
@@ -314,9 +360,11 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
                             var_theta=var_theta, var_scale_factor=var_scale_factor)
     u = _RATE_UNIT[sensor]
     unit_of = {"x": "m", "v": "m/s", "theta": "rad", "p": u, "s_f": "1"}
-    state_units = [unit_of.get(s, u) for s in cm.states]
-    noise_units = [f"({u})^2/Hz" if nm == "nu_s" else f"({u})^2/s" for nm in cm.noises]
+    state_units = [f"{u}/s" if s.startswith("nb") and s.endswith("_dot") else unit_of.get(s, u) for s in cm.states]
+    noise_units = [f"({u})^2/Hz" if nm == "nu_s" else f"({u})^2/s^3" if nm.startswith("nu_nb") else f"({u})^2/s"
+                   for nm in cm.noises]
     gm = sorted(model.gauss_markov, key=lambda st: st[1])
+    nb = _lines(model)
     is_reduced = "p" not in cm.states
     notes = [
         "two-sided intensities: E[w(t) w(s)] = Qc delta(t - s)",
@@ -325,6 +373,18 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
     ]
     if not is_reduced:
         notes.append("p (random walk) is not stationary: its initial variance is a stated input")
+    if nb:
+        notes.append("narrowband states (nb, nb_dot) are damped oscillators started at their steady state "
+                     "diag(sigma^2, (2 pi f0)^2 sigma^2); their discrete Phi, Qd blocks are in Phi and Qd")
+    params = {
+        "white": float(model.white),
+        "gauss_markov": [{"sigma": float(s), "T": float(T)} for s, T in gm],
+        "random_walk": float(model.random_walk),
+        "units": {"white": f"{u}/sqrt(Hz)", "sigma": u, "T": "s", "random_walk": f"{u}/sqrt(s)"},
+    }
+    if nb:
+        params["narrowband"] = [{"sigma": float(s), "f0_hz": float(f0), "zeta": float(z)} for s, f0, z in nb]
+        params["units"].update(f0_hz="Hz", zeta="1")
     return {
         "sensor": sensor,
         "equation": "Gallon et al. 2021 eq. 19 (reduced, no random-walk state)" if is_reduced
@@ -341,12 +401,7 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
         "Phi": _mat(Phi),
         "Qd": _mat(Qd),
         "P0": _mat(P0),
-        "parameters": {
-            "white": float(model.white),
-            "gauss_markov": [{"sigma": float(s), "T": float(T)} for s, T in gm],
-            "random_walk": float(model.random_walk),
-            "units": {"white": f"{u}/sqrt(Hz)", "sigma": u, "T": "s", "random_walk": f"{u}/sqrt(s)"},
-        },
+        "parameters": params,
         "discrete_noise": {
             "white_std_per_sample": float(model.white / math.sqrt(dt)),
             "random_walk_driving_std": float(model.random_walk * math.sqrt(dt)),

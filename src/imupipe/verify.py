@@ -134,9 +134,10 @@ def state_space(model, scenario: Scenario):
     r"""Discrete one-axis model of `model` in the reference filter: (Phi, Qd, P0, H, states).
 
     Built with :func:`imupipe.kf.continuous_model` (no scale factor) and :func:`imupipe.kf.discretize`
-    (Van Loan, exact); flicker becomes a GM bank (module docstring), quantization and ramp are left
-    out (not states). P0: kinematic variances of the scenario, GM at steady state, random walk
-    :math:`K^2 t_0`.
+    (Van Loan, exact); flicker becomes a GM bank (module docstring), narrowband terms are two states
+    each (damped oscillator, :func:`imupipe.kf.continuous_model`), quantization and ramp are left
+    out (not states). P0: kinematic variances of the scenario, GM and narrowband terms at steady
+    state, random walk :math:`K^2 t_0`.
     """
     from imupipe.kf import continuous_model, discretize, initial_covariance
     from imupipe.models import NoiseModel
@@ -147,7 +148,8 @@ def state_space(model, scenario: Scenario):
     if fl > 0:
         f_lo = sc.f_floor_hz if sc.f_floor_hz is not None else 0.01 / sc.horizon_s
         gm += list(_flicker_bank(fl, f_lo, 0.5 * sc.rate_hz))
-    m = NoiseModel(white=model.white, gauss_markov=tuple(gm), random_walk=model.random_walk)
+    nb = tuple(t for t in getattr(model, "narrowband", ()) if t[0] > 0)
+    m = NoiseModel(white=model.white, gauss_markov=tuple(gm), random_walk=model.random_walk, narrowband=nb)
     cm = continuous_model(m, reduced=m.random_walk == 0, sensor=sc.sensor, scale_factor=False)
     Phi, Qd = discretize(cm.F, cm.G, cm.Qc, sc.dt)
     t0 = sc.p0_time_s if sc.p0_time_s is not None else sc.fix_s + sc.horizon_s
@@ -442,7 +444,7 @@ def verify_model(filter_model, sensor: str = "accel", truth=None, upper=None, sp
 
 
 def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario | None = None):
-    """Try dropping states (the random walk: eq. 19; each GM term) from `model`; accept a reduction
+    """Try dropping states (the random walk: eq. 19; each GM term; each narrowband term) from `model`; accept a reduction
     only when the covariance analysis passes against every model in `truths` (b: upper envelope,
     spec) without it.
 
@@ -464,12 +466,18 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
 
     candidates = []
     if current.random_walk > 0:
-        candidates.append(("random_walk", lambda m: NoiseModel(white=m.white, gauss_markov=m.gauss_markov, dt=m.dt)))
+        candidates.append(("random_walk", lambda m: NoiseModel(white=m.white, gauss_markov=m.gauss_markov, dt=m.dt,
+                                                               narrowband=getattr(m, "narrowband", ()))))
     for i, (s, T) in enumerate(sorted(current.gauss_markov, key=lambda st: st[1])):
         def drop_gm(m, T=T):
             return NoiseModel(white=m.white, gauss_markov=tuple(g for g in m.gauss_markov if g[1] != T),
-                              random_walk=m.random_walk, dt=m.dt)
+                              random_walk=m.random_walk, dt=m.dt, narrowband=getattr(m, "narrowband", ()))
         candidates.append((f"gauss_markov T={T:.4g} s", drop_gm))
+    for term in getattr(current, "narrowband", ()):
+        def drop_nb(m, term=term):
+            return NoiseModel(white=m.white, gauss_markov=m.gauss_markov, random_walk=m.random_walk, dt=m.dt,
+                              narrowband=tuple(t for t in m.narrowband if t != term))
+        candidates.append((f"narrowband f0={term[1]:.4g} Hz", drop_nb))
     for name, drop in candidates:
         trial = drop(current)
         w = worst(trial)

@@ -55,9 +55,12 @@ ratio over these conditions (frequency 0 stands for the :math:`K` asymptote, inf
 and ``bounded`` needs it >= 1.
 
 ``exclude=((f_lo_hz, f_hi_hz, reason), ...)`` leaves the sample-curve rows inside those closed intervals
-out (never the spec or all-frequency rows; in band modes every band that touches an interval); the
-excluded bins are listed in ``details["excluded"]``. ``narrowband=((f0_hz, zeta), ...)`` adds fixed-shape
-damped-oscillator columns whose variance is an LP variable.
+out (never the spec or all-frequency rows); in band modes the bands are split at the intervals' edges first, so
+that exactly the bins inside an interval are excluded, in raw and band modes alike. The excluded bins are listed
+in ``details["excluded"]``. ``narrowband=((f0_hz, zeta), ...)`` adds fixed-shape damped-oscillator columns whose
+variance is an LP variable; the column is :meth:`imupipe.models.NoiseModel.psd_sampled` of a unit-variance
+narrowband term (one formula for the LP and the reported model), and the result's model carries the terms
+(``model.narrowband``, with their fitted sigma).
 
 Modes (how the sample PSDs enter the constraints):
 

@@ -218,7 +218,9 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
        result; default: every component of `identified_model`): white against white, random walk
        against random walk, the identified GM terms against the bound's GM terms, and the identified
        flicker against the bound's GM terms **plus** its white noise (the bound represents flicker
-       that way) over the taus where flicker is the largest identified term. A bound component with
+       that way; GM + white + random walk when GM + white alone falls short and the bound has a random
+       walk, which then carries the long-tau end of the plateau) over the taus where flicker is the
+       largest identified term. A bound component with
        no kept identified counterpart is reported as ``no counterpart`` (not a failure), and so is an
        identified component that the bound represents by another one.
     2. Total AV against every sample AV: the bound's total AV :math:`\sigma^2_b(\tau)` must reach the
@@ -287,6 +289,15 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
                                 "reason": "identified flicker is never the largest AV term: covered by the others"}
         else:
             comps["flicker"] = compare(gm_av(b) + b.white**2 / t, fl, "GM + white vs flicker", sel)
+            if comps["flicker"]["status"] == "shortfall" and b.random_walk > 0:
+                # the LP may represent the long-tau end of a flicker plateau by its random walk (both rise
+                # above the GM's decay there): the representation is then GM + white + random walk
+                alt = compare(gm_av(b) + b.white**2 / t + b.random_walk**2 * t / 3, fl,
+                              "GM + white + random walk vs flicker", sel)
+                if alt["status"] == "ok":
+                    alt["reason"] += (" (GM + white alone falls short at long tau, where the bound's random "
+                                      "walk represents the flicker)")
+                    comps["flicker"] = alt
     for c, has in (("white", b.white > 0), ("random_walk", b.random_walk > 0),
                    ("gauss_markov", len(b.gauss_markov) > 0)):
         if has and c not in comps and not (c == "gauss_markov" and "flicker" in comps):

@@ -82,10 +82,12 @@ def _bin_r(taper, max_lag):
     return r
 
 
-def _band_groups(f, bands_per_decade, nu, taper, min_edf):
+def _band_groups(f, bands_per_decade, nu, taper, min_edf, split=None):
     r"""Contiguous groups of bins: log bands aligned on decades (as in
     :func:`imupipe.spectra.smooth_log_bands`), merged from the low-frequency end until each has at
-    least `min_edf` degrees of freedom. Returns (starts, counts, group edf (C, G))."""
+    least `min_edf` degrees of freedom, then split wherever the boolean bin mask `split` (the bins of
+    the ``exclude`` intervals) changes, so that an excluded interval is a set of whole groups and no
+    bin outside it is excluded with it. Returns (starts, counts, group edf (C, G))."""
     b = np.floor(bands_per_decade * np.log10(f) + 1e-9).astype(np.int64)
     _, counts = np.unique(b, return_counts=True)
     starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
@@ -116,6 +118,10 @@ def _band_groups(f, bands_per_decade, nu, taper, min_edf):
                 merged.append((cur_s, cur_n))
         starts = np.array([m[0] for m in merged], dtype=np.int64)
         counts = np.array([m[1] for m in merged], dtype=np.int64)
+    if split is not None and np.any(split):
+        cuts = set((starts[1:]).tolist()) | set((np.flatnonzero(np.diff(split.astype(np.int8))) + 1).tolist())
+        starts = np.array(sorted({0} | cuts), dtype=np.int64)
+        counts = np.diff(np.append(starts, f.size)).astype(np.int64)
     fac = np.array([factor(int(m)) for m in counts])
     edf = np.add.reduceat(nu2, starts, axis=1) / fac
     return starts, counts, edf
@@ -151,7 +157,6 @@ class _Problem:
     k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
     n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
     narrowband: tuple = ()  # fixed-shape line columns ((f0_hz, zeta), ...), variance an LP variable
-    nb_fit: tuple = ()  # fitted lines ((sigma, f0_hz, zeta), ...) for models that cannot carry them
     _columns: dict = field(default_factory=dict, repr=False)
     _kept: dict = field(default_factory=dict, repr=False)
 
@@ -262,22 +267,26 @@ class _Problem:
         return m
 
     def model_bins(self, model):
-        v = np.asarray(model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt),
-                       dtype=np.float64)
-        return v + self.extra_lines(model, self.f, sampled=self.dt is not None)
+        """Model PSD at the bins: ``psd_sampled(f, dt)`` (block means) or ``psd(f)``; lines included."""
+        return np.asarray(model.psd(self.f) if self.dt is None else model.psd_sampled(self.f, self.dt),
+                          dtype=np.float64)
 
-    def extra_lines(self, model, f, sampled):
-        """PSD of the fitted lines when `model` cannot carry them (a NoiseModel without ``narrowband``)."""
-        if not self.nb_fit or hasattr(model, "narrowband"):
-            return 0.0
-        out = np.zeros_like(f)
-        for s, f0, z in self.nb_fit:
-            out = out + s * s * (_line_psd_sampled(f, f0, z, self.dt) if sampled else _line_psd(f, f0, z))
-        return out
+
+def _exclude_mask(f, exclude):
+    """Bins of f (Hz) inside any closed interval of `exclude` ((f_lo_hz, f_hi_hz, reason), ...)."""
+    mask = np.zeros(f.size, dtype=bool)
+    for item in exclude or ():
+        try:
+            f_lo, f_hi, _ = item
+            f_lo, f_hi = float(f_lo), float(f_hi)
+        except (TypeError, ValueError):
+            raise ValueError(f"exclude entries must be (f_lo_hz, f_hi_hz, reason), got {item!r}") from None
+        mask |= (f >= f_lo) & (f <= f_hi)
+    return mask
 
 
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-             n_tests=None):
+             n_tests=None, exclude=()):
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     f_all = np.asarray(frequency, dtype=np.float64)
@@ -302,7 +311,8 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
     else:
         if bands_per_decade is None or int(bands_per_decade) < 1:
             raise ValueError("bands_per_decade must be a positive integer in smoothed mode")
-        starts, counts, rows_edf = _band_groups(f, int(bands_per_decade), nu, taper, min_edf)
+        starts, counts, rows_edf = _band_groups(f, int(bands_per_decade), nu, taper, min_edf,
+                                                split=_exclude_mask(f, exclude))
         f_rows = _group_mean(f, starts, counts)
         targets = _group_mean(raw, starts, counts)
         rows_edf = np.broadcast_to(rows_edf, targets.shape)
@@ -569,8 +579,8 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
 
 
 def _x_to_model(sol, dt, narrowband=()):
-    """NoiseModel of an LP solution and the fitted lines ((sigma, f0_hz, zeta), ...); the model carries the
-    lines when NoiseModel accepts ``narrowband`` (the agreed interface), else only the tuple returns them."""
+    """NoiseModel of an LP solution (its ``narrowband`` holds the fitted lines (sigma, f0_hz, zeta)) and an
+    empty tuple (kept for the (model, extra lines) call form)."""
     from imupipe.models import NoiseModel
 
     N = K = 0.0
@@ -589,31 +599,26 @@ def _x_to_model(sol, dt, narrowband=()):
             if v > 0:
                 gm.append((math.sqrt(v), sol.T[i]))
     gm.sort(key=lambda st: st[1])
-    if lines:
-        try:
-            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt, narrowband=tuple(lines)), ()
-        except TypeError:  # a NoiseModel without line support: the lines travel beside it
-            return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), tuple(lines)
-    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt), ()
+    return NoiseModel(white=N, gauss_markov=tuple(gm), random_walk=K, dt=dt, narrowband=tuple(lines)), ()
 
 
 def _line_psd(f, f0_hz, zeta):
-    r"""Two-sided PSD of a unit-variance second-order GM (damped oscillator), u^2/Hz:
-    :math:`S(f) = q / ((\omega_0^2 - \omega^2)^2 + (2\zeta\omega_0\omega)^2)`, :math:`\omega = 2\pi f`,
-    :math:`q = 4\zeta\omega_0^3` (variance 1; the agreed narrowband interface)."""
-    w0 = 2 * math.pi * float(f0_hz)
-    w = 2 * np.pi * np.asarray(f, dtype=np.float64)
-    return 4.0 * zeta * w0**3 / ((w0 * w0 - w * w) ** 2 + (2 * zeta * w0 * w) ** 2)
+    r"""Two-sided PSD of a unit-variance second-order GM (damped oscillator), u^2/Hz: the line column of the
+    LP, :func:`imupipe.models.narrowband_psd` with sigma = 1 (one home for the formula:
+    :math:`S(f) = q / ((\omega_0^2 - \omega^2)^2 + (2\zeta\omega_0\omega)^2)`, :math:`q = 4\zeta\omega_0^3`)."""
+    from imupipe.models import narrowband_psd
+
+    return narrowband_psd(f, 1.0, float(f0_hz), float(zeta))
 
 
-def _line_psd_sampled(f, f0_hz, zeta, dt, n_alias=400):
+def _line_psd_sampled(f, f0_hz, zeta, dt):
     r"""PSD of the block means over dt of a unit-variance line, on the sampled sequence (two-sided, u^2/Hz):
-    :math:`\sum_k S(f + k/\Delta t)\,\mathrm{sinc}^2((f + k/\Delta t)\Delta t)`, |k| <= n_alias (terms fall as
-    k^-6: the truncation error is below 1e-12 relative of the peak for lines inside a few 1/dt)."""
-    f = np.asarray(f, dtype=np.float64)
-    k = np.arange(-n_alias, n_alias + 1)[:, None]
-    fk = f[None, :] + k / dt
-    return np.sum(_line_psd(fk, f0_hz, zeta) * np.sinc(fk * dt) ** 2, axis=0)
+    ``NoiseModel(narrowband=((1, f0_hz, zeta),)).psd_sampled(f, dt)``, the closed form of the alias sum
+    :math:`\sum_k S(f + k/\Delta t)\,\mathrm{sinc}^2((f + k/\Delta t)\Delta t)` (the same function the bound's
+    model is evaluated with, so the LP column and the reported margin cannot disagree)."""
+    from imupipe.models import NoiseModel
+
+    return NoiseModel(narrowband=((1.0, float(f0_hz), float(zeta)),)).psd_sampled(f, dt)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -649,8 +654,7 @@ def _all_frequency_margin(prob, model):
     res = {"allf_margin": float("inf"), "allf_margin_frequency": None}
     ok = prob.lo_t > 0
     if np.any(ok):
-        r = (np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64)
-             + prob.extra_lines(model, prob.lo_f[ok], sampled=False)) / prob.lo_t[ok]
+        r = np.asarray(model.psd(prob.lo_f[ok]), dtype=np.float64) / prob.lo_t[ok]
         j = int(np.argmin(r))
         res.update(allf_margin=float(r[j]), allf_margin_frequency=float(prob.lo_f[ok][j]))
     for req, val, what in ((prob.k2_req, model.random_walk**2, 0.0), (prob.n2_req, model.white**2, float("inf"))):
@@ -879,7 +883,7 @@ def bound_psd(
             raise ValueError(f"min_edf must be a number, None or 'auto', got {min_edf!r}")
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-                    n_tests)
+                    n_tests, exclude=exclude)
     allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     nb = []
@@ -962,12 +966,12 @@ def bound_psd(
                 else:
                     decisions[cand] = (f"not in the spec and not needed by the data "
                                        f"(looseness gain {gain:.3g} <= {add_threshold:g})")
-        model, prob.nb_fit = _x_to_model(sol, dt, prob.narrowband)
+        model, _ = _x_to_model(sol, dt, prob.narrowband)
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
                    dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
                    narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
-                               for sg, f0, z in (prob.nb_fit or getattr(model, "narrowband", ()))])
+                               for sg, f0, z in model.narrowband])
     return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
                    T_profile=prof, n_lp=n_lp, details=details)
 
