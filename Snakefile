@@ -38,6 +38,7 @@ include: "workflow/rules/stack.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/bound.smk"
 include: "workflow/rules/kf.smk"
+include: "workflow/rules/kalibr.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/tables.smk"
 

@@ -223,6 +223,11 @@ def bounds_of_sensors(wildcards):
     return {s: f"{RESULTS}/bound/{wildcards.spec}/{s}.yaml" for s in SENSORS}
 
 
+# Targets that the stage files included after this one add to `rule all` (each stage file extends it
+# with its own outputs, so a new stage needs no edit here).
+EXTRA_TARGETS = []
+
+
 def final_outputs():
     # Per-axis outputs are asked for too: Snakemake re-runs a job for a missing output only when some job asks
     # for that output, so a dataset added to the sheet must show up here to re-run the per-sensor merges.
@@ -243,7 +248,7 @@ def final_outputs():
     )
     out += [f"{RESULTS}/figures/inflation_effect.png"]
     out += expand(f"{RESULTS}/tables/{{spec}}/inflation.md", spec=SPECS)
-    return out
+    return out + EXTRA_TARGETS
 
 
 # ---------------------------------------------------------------------------------------------------------
