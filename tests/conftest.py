@@ -24,3 +24,19 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(20211101)
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory):
+    """A complete run of the tiny configuration (tests/configs/tiny.yaml) in a copy of the checkout (its own
+    spec sheets), run from the copy's folder: (folder, config file). Shared by every workflow test module."""
+    import shutil
+
+    pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip install -e '.[test]')")
+    from workflow_helpers import TINY, copy_checkout, snakemake
+
+    work = copy_checkout(tmp_path_factory.mktemp("tiny") / "checkout")
+    config = work / "tiny.yaml"
+    shutil.copy2(TINY, config)
+    snakemake(work, config=config, snakefile=work / "Snakefile")
+    return work, config

@@ -29,67 +29,9 @@ pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip 
 
 from imupipe.models import NoiseModel  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-TINY = ROOT / "tests" / "configs" / "tiny.yaml"
-SNAKEMAKE = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"), "--cores", "2"]
-# the rules downstream of the spec sheet: a change of the sheet re-runs these and nothing else
-SPEC_RULES = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "all"}
-# results/{name}/ and logs/{name}/ of tests/configs/tiny.yaml
-RES, LOG = "results/tiny", "logs/tiny"
-# what the checkout copy needs to run (imupipe itself is installed)
-CHECKOUT = ("Snakefile", "workflow", "config")
-ENV = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
-
-
-def snakemake(workdir, *args, config=TINY, check=True, snakefile=None, **kw):
-    """Run Snakemake in `workdir` (--directory) with the repository's Snakefile, or with `snakefile` (a copy of
-    the checkout, run from its own folder)."""
-    base = SNAKEMAKE if snakefile is None else [*SNAKEMAKE[:3], "--snakefile", str(snakefile), *SNAKEMAKE[5:]]
-    cmd = [*base, "--directory", str(workdir), "--configfile", str(config), *args]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=ENV, **kw)
-    if check and proc.returncode != 0:
-        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-5000:]}")
-    return proc
-
-
-def dry_run_jobs(workdir, *args, config=TINY, snakefile=None):
-    """Rule -> job count from a dry run's "Job stats" table."""
-    if snakefile is None and (Path(workdir) / "Snakefile").is_file():
-        snakefile = Path(workdir) / "Snakefile"
-    out = snakemake(workdir, "-n", *args, config=config, snakefile=snakefile).stdout
-    counts = {}
-    if "Job stats:" in out:
-        table = out.split("Job stats:", 1)[1]
-        for line in table.splitlines()[3:]:
-            m = re.match(r"^(\w+)\s+(\d+)$", line.strip())
-            if not m:
-                break
-            if m.group(1) != "total":
-                counts[m.group(1)] = int(m.group(2))
-    return counts
-
-
-def tiny_config(tmp_path, **changes):
-    cfg = yaml.safe_load(TINY.read_text())
-    for key, value in changes.items():
-        cfg[key] = value
-    path = tmp_path / "config.yaml"
-    path.write_text(yaml.safe_dump(cfg))
-    return path
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    """A complete run of the tiny configuration in a copy of the checkout (its own spec sheets), run from the
-    copy's folder: (folder, config file)."""
-    work = tmp_path_factory.mktemp("tiny") / "checkout"
-    work.mkdir()
-    for name in CHECKOUT:
-        (shutil.copytree if (ROOT / name).is_dir() else shutil.copy2)(ROOT / name, work / name)
-    config = work / "tiny.yaml"
-    shutil.copy2(TINY, config)
-    snakemake(work, config=config, snakefile=work / "Snakefile")
-    return work, config
+from workflow_helpers import (  # noqa: E402
+    CHECKOUT, ENV, LOG, RES, ROOT, SNAKEMAKE, SPEC_RULES, TINY, dry_run_jobs, snakemake, tiny_config,
+)
 
 
 class TestContract:
