@@ -226,6 +226,8 @@ def bounds_of_sensors(wildcards):
 # Targets that the stage files included after this one add to `rule all` (each stage file extends it
 # with its own outputs, so a new stage needs no edit here).
 EXTRA_TARGETS = []
+# Files the run summary reads, by kind (stage files add theirs: SUMMARY_INPUTS["contract"] = [...]).
+SUMMARY_INPUTS = {}
 
 
 def final_outputs():
