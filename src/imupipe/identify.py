@@ -73,42 +73,60 @@ _SUBSTITUTES = {"random_walk": ("ramp",)}
 # ---------------------------------------------------------------------------------------------
 # input handling and AV basis
 # ---------------------------------------------------------------------------------------------
+def _curves_of(a, name):
+    """`a` as a list of 1-D float arrays (one per curve), or None for a single 1-D array / scalar."""
+    if isinstance(a, (list, tuple)) and len(a) and np.ndim(a[0]) >= 1:
+        return [np.ravel(np.asarray(x, dtype=np.float64)) for x in a]
+    try:
+        arr = np.asarray(a, dtype=np.float64)
+    except ValueError as exc:  # ragged nested sequence
+        raise ValueError(f"{name}: give one array per curve (curves may differ in length): {exc}") from None
+    if arr.ndim == 2:
+        return list(arr)
+    if arr.ndim > 2:
+        raise ValueError(f"{name}: 1-D or 2-D (curve, tau) expected, got shape {arr.shape}")
+    return None
+
+
 def _pool(tau, avar, edf, return_curve=False):
-    """Concatenate one curve or several (sequences of 1-D arrays / 2-D arrays) into flat arrays.
+    """Concatenate one curve or several into flat arrays (curves may have different lengths: records of
+    different length or rate).
 
-    Points with non-finite or non-positive AV, tau or edf are dropped.
+    `avar`: one 1-D array, a 2-D array (curve, tau) or a sequence of 1-D arrays; `tau`: the same shape, or one
+    1-D grid shared by every curve; `edf`: a scalar, the same shape as `avar`, or one 1-D array per tau of a
+    shared grid. Points with non-finite or non-positive AV, tau or edf are dropped. With `return_curve`, the
+    curve index of every point is returned too.
     """
-
-    def flat(a):
-        if isinstance(a, (list, tuple)) and len(a) and np.ndim(a[0]) >= 1:
-            return np.concatenate([np.ravel(np.asarray(x, dtype=np.float64)) for x in a])
-        return np.ravel(np.asarray(a, dtype=np.float64))
-
-    if isinstance(avar, (list, tuple)) and len(avar) and np.ndim(avar[0]) >= 1:
-        cid = np.concatenate([np.full(np.size(a), i) for i, a in enumerate(avar)])
-    elif np.ndim(avar) == 2:
-        cid = np.repeat(np.arange(np.shape(avar)[0]), np.shape(avar)[1])
-    else:
-        cid = np.zeros(np.size(avar), dtype=np.int64)
-    t, y = flat(tau), flat(avar)
-    if t.shape != y.shape:
-        # one tau grid shared by several curves (2-D avar)
-        a = np.asarray(avar, dtype=np.float64)
-        if a.ndim == 2 and a.shape[-1] == np.size(tau):
-            t = np.tile(np.ravel(np.asarray(tau, dtype=np.float64)), a.shape[0])
+    ys = _curves_of(avar, "avar")
+    if ys is None:
+        ys = [np.ravel(np.asarray(avar, dtype=np.float64))]
+    ts = _curves_of(tau, "tau")
+    if ts is None:
+        t1 = np.ravel(np.asarray(tau, dtype=np.float64))
+        if len(ys) == 1 and t1.size == ys[0].size:
+            ts = [t1]
+        elif all(y.size == t1.size for y in ys):
+            ts = [t1] * len(ys)
         else:
-            raise ValueError(f"tau ({np.shape(tau)}) and avar ({np.shape(avar)}) do not match")
-    e = np.asarray(edf, dtype=np.float64)
-    if e.ndim == 0:
-        e = np.full(t.shape, float(e))
+            raise ValueError(f"tau ({t1.size} values) does not match avar (curves of {[y.size for y in ys]})")
+    if len(ts) != len(ys) or any(a.size != b.size for a, b in zip(ts, ys)):
+        raise ValueError(f"tau (curves of {[x.size for x in ts]}) and avar (curves of {[y.size for y in ys]}) "
+                         "do not match")
+    if np.ndim(edf) == 0 and not isinstance(edf, (list, tuple)):
+        es = [np.full(y.size, float(edf)) for y in ys]
     else:
-        e = flat(edf)
-        if e.size != t.size:
-            ee = np.asarray(edf, dtype=np.float64)
-            if ee.ndim == 1 and t.size % ee.size == 0:
-                e = np.tile(ee, t.size // ee.size)
+        es = _curves_of(edf, "edf")
+        if es is None:
+            e1 = np.ravel(np.asarray(edf, dtype=np.float64))
+            if all(y.size == e1.size for y in ys):
+                es = [e1] * len(ys)
             else:
-                raise ValueError(f"edf ({np.shape(edf)}) does not match avar ({np.shape(avar)})")
+                raise ValueError(f"edf ({e1.size} values) does not match avar (curves of {[y.size for y in ys]})")
+        if len(es) != len(ys) or any(a.size != b.size for a, b in zip(es, ys)):
+            raise ValueError(f"edf (curves of {[x.size for x in es]}) does not match avar (curves of "
+                             f"{[y.size for y in ys]})")
+    t, y, e = np.concatenate(ts), np.concatenate(ys), np.concatenate(es)
+    cid = np.concatenate([np.full(v.size, i, dtype=np.int64) for i, v in enumerate(ys)])
     ok = np.isfinite(t) & np.isfinite(y) & np.isfinite(e) & (t > 0) & (y > 0) & (e > 0)
     if ok.sum() < 2:
         raise ValueError("fewer than 2 usable Allan variance points (finite, positive tau, avar, edf)")
@@ -410,6 +428,55 @@ def _params_to_model(flat, dt=None):
     return NoiseModel(gauss_markov=tuple(gm), dt=dt, **kw)
 
 
+def _adequacy(chi2, dof, chi2_boot, chi2_cov, level):
+    r"""Goodness of fit of an AV fit (helper of :func:`fit_allan`).
+
+    Three calibrations, the first available is used for ``p_value``:
+
+    * ``bootstrap``: the Pearson :math:`\chi^2` against its values on the bootstrap replicates (each drawn
+      from the fitted model with the AVs' exact correlation, and refitted the same way): :math:`p = (1 +
+      \#\{\chi^{2*} \ge \chi^2\})/(1 + B)` (a parametric-bootstrap goodness-of-fit test, Davison &
+      Hinkley 1997, section 4.2); over-dispersion :math:`\phi = \chi^2 / \overline{\chi^{2*}}`. When no
+      replicate reaches the observed value, p is the smaller of 1/(1 + B) and the covariance p below.
+    * ``covariance``: the generalised statistic with the exact AV covariance (:func:`_chi2_covariance`)
+      against :math:`\chi^2_{dof}`; :math:`\phi` = statistic/dof.
+    * ``independent``: Pearson :math:`\chi^2` against :math:`\chi^2_{dof}` as if the AV points were
+      independent (they are not: optimistic); :math:`\phi = \chi^2/dof`.
+
+    ``adequate = p >= level``; ``widening`` :math:`= \sqrt{\max(\phi, 1)}`.
+    """
+    from scipy.special import chdtrc
+
+    boot = np.asarray(chi2_boot, dtype=np.float64)
+    boot = boot[np.isfinite(boot)]
+    out = {"chi2": float(chi2), "dof": int(dof), "chi2_per_dof": float(chi2 / dof) if dof > 0 else float("nan"),
+           "chi2_covariance": None if chi2_cov is None else float(chi2_cov), "level": float(level)}
+    if boot.size >= 20:
+        n_ge = int(np.count_nonzero(boot >= chi2))
+        p = (1.0 + n_ge) / (1.0 + boot.size)
+        phi = float(chi2 / max(np.mean(boot), 1e-300))
+        method = f"bootstrap (Pearson chi2 against {boot.size} correlated replicates refitted)"
+        if n_ge == 0 and chi2_cov is not None and dof > 0:
+            # beyond every replicate: the tail from the covariance statistic (finer than 1/(1 + B))
+            p = min(p, float(chdtrc(dof, chi2_cov)))
+            method += "; beyond every replicate, tail p from the covariance statistic"
+        out["p_value_resolution"] = 1.0 / (1.0 + boot.size)
+    elif chi2_cov is not None and dof > 0:
+        p = float(chdtrc(dof, chi2_cov))
+        phi = float(chi2_cov / dof)
+        method = "covariance (generalised chi2 with the exact AV covariance, chi2(dof) reference)"
+    elif dof > 0:
+        p = float(chdtrc(dof, chi2))
+        phi = float(chi2 / dof)
+        method = "independent (Pearson chi2 against chi2(dof); AV correlation ignored: optimistic)"
+    else:
+        p, phi, method = float("nan"), float("nan"), "none (no degrees of freedom left)"
+    out.update(p_value=float(p), method=method, overdispersion=phi,
+               adequate=bool(not np.isfinite(p) or p >= level),
+               widening=float(math.sqrt(max(phi, 1.0))) if np.isfinite(phi) else 1.0)
+    return out
+
+
 # ---------------------------------------------------------------------------------------------
 # public API
 # ---------------------------------------------------------------------------------------------
@@ -473,6 +540,11 @@ class AllanFit:
     notes: list = field(default_factory=list)
     T_grid: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     random_walk_profile: dict = field(default_factory=dict)
+    adequacy: dict = field(default_factory=dict)
+    on_boundary: dict = field(default_factory=dict)
+    interval_kind: dict = field(default_factory=dict)
+    selected: object = field(repr=False, default=None)
+    selection: dict = field(repr=False, default_factory=dict)
 
     def to_dict(self) -> dict:
         """Plain dict for YAML: SI values, intervals, chi2, notes."""
@@ -497,6 +569,11 @@ class AllanFit:
             "n_bootstrap": int(self.bootstrap.shape[0]),
             "random_walk_profile": {k: fl(v) for k, v in self.random_walk_profile.items()},
             "notes": list(self.notes),
+            "adequacy": {k: (fl(v) if isinstance(v, (float, np.floating)) else v)
+                         for k, v in self.adequacy.items()},
+            "on_boundary": {k: bool(v) for k, v in self.on_boundary.items()},
+            "interval_kind": dict(self.interval_kind),
+            **({"selected": self.selected.to_dict()} if isinstance(self.selected, AllanFit) else {}),
         }
 
 
@@ -514,6 +591,7 @@ def fit_allan(
     bootstrap: str = "correlated",
     rate: float | None = None,
     n_samples=None,
+    adequacy_level: float = 0.01,
 ) -> AllanFit:
     r"""Fit noise components to one or several (pooled) Allan-variance curves.
 
@@ -619,7 +697,10 @@ def fit_allan(
                 "rate= and n_samples= (allan_variance(...).attrs 'rate_hz' and 'n_samples'), or n_boot=0"
             )
         n_curves = int(cid.max()) + 1
-        lengths = np.broadcast_to(np.asarray(n_samples, dtype=np.int64), (n_curves,))
+        lengths = _per_curve(n_samples, n_curves, "n_samples", np.int64)
+        rates = _per_curve(rate, n_curves, "rate", np.float64)
+        if np.any(~np.isfinite(rates) | (rates <= 0)) or np.any(lengths < 2):
+            raise ValueError(f"rate (Hz) must be positive and n_samples >= 2 per curve, got {rates}, {lengths}")
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
     grid = _default_T_grid(t) if T_grid is None else np.asarray(T_grid, dtype=np.float64)
     if "gauss_markov" in comps and (grid.size == 0 or np.any(grid <= 0)):
@@ -635,6 +716,7 @@ def fit_allan(
         raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
     rng = np.random.default_rng(rng)
     boots = np.full((int(n_boot), len(names)), np.nan)
+    chi2_boot = np.full(int(n_boot), np.nan)
     # the random walk's profile interval (see the docstring): the statistic at the bootstrap's own K
     k_deltas = np.full(int(n_boot), np.nan) if n_boot > 0 and "random_walk" in comps else None
     rest = tuple(comp for comp in comps if comp != "random_walk")
@@ -643,13 +725,13 @@ def fit_allan(
         # bootstrap grid: a little coarser than the fit's, same span
         bgrid = grid if grid.size <= 30 else np.logspace(math.log10(grid[0]), math.log10(grid[-1]), 30)
         if bootstrap in ("correlated", "series"):
-            ms = np.rint(t * float(rate)).astype(np.int64)
-            sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rate))
+            ms = np.rint(t * rates[cid]).astype(np.int64)
+            sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rates[0]))
         if bootstrap == "series":
             from imupipe.allan import overlapping_avar
             from imupipe.simulate import simulate
         elif bootstrap == "correlated":
-            ystar_all = _correlated_draws(sim_model, best.m, ms, cid, lengths, float(rate), int(n_boot), rng)
+            ystar_all = _correlated_draws(sim_model, best.m, ms, cid, lengths, rates, int(n_boot), rng)
         for b in range(int(n_boot)):
             if bootstrap == "correlated":
                 ystar = ystar_all[b]
@@ -657,13 +739,14 @@ def fit_allan(
                 ystar = np.empty_like(y)
                 for ci in range(n_curves):
                     sel = np.flatnonzero(cid == ci)
-                    x = simulate(sim_model, int(lengths[ci]), float(rate), rng)
+                    x = simulate(replace(sim_model, dt=1.0 / float(rates[ci])), int(lengths[ci]), float(rates[ci]), rng)
                     for k in sel:
-                        ystar[k] = overlapping_avar(x, float(rate), int(ms[k]))
+                        ystar[k] = overlapping_avar(x, float(rates[ci]), int(ms[k]))
             else:
                 ystar = best.m * rng.chisquare(e) / e
             ystar = np.maximum(ystar, 1e-300)
             sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
+            chi2_boot[b] = sol.chi2
             pb = _solution_to_params(sol, comps, n_gm)
             boots[b] = [pb[k] for k in names]
             if k_deltas is not None:
@@ -712,6 +795,70 @@ def fit_allan(
                     "(poorly identified; GM and random walk trade off)"
                 )
     n_free = int(np.count_nonzero(best.p)) + n_gm
+    dof = int(t.size - n_free)
+    # adequacy: the Pearson statistic against its own null distribution (AV correlation included)
+    chi2_cov = None
+    if rate is not None and n_samples is not None:
+        n_curves = int(cid.max()) + 1
+        lengths = _per_curve(n_samples, n_curves, "n_samples", np.int64)
+        rates = _per_curve(rate, n_curves, "rate", np.float64)
+        ms_all = np.rint(t * rates[cid]).astype(np.int64)
+        cov_model = model if model.dt is not None else replace(model, dt=1.0 / float(rates[0]))
+        try:
+            chi2_cov = _chi2_covariance(y, best.m, cov_model, ms_all, cid, lengths, rates)
+        except ValueError:  # averaging factors outside the record (inconsistent n_samples): no statistic
+            chi2_cov = None
+    adequacy = _adequacy(best.chi2, dof, chi2_boot if bootstrap != "chi2" else np.zeros(0), chi2_cov,
+                         float(adequacy_level))
+    on_boundary, interval_kind = {}, {}
+    for k in names:
+        on_boundary[k], interval_kind[k] = False, "two-sided"
+    if n_gm and grid.size >= 2:
+        g = np.sort(grid)
+        for i in range(1, n_gm + 1):
+            T_i = params.get(f"gm_T_{i}", float("nan"))
+            if not np.isfinite(T_i):
+                continue
+            lo_i, hi_i = intervals.get(f"gm_T_{i}", (np.nan, np.nan))
+            if T_i <= g[0] * (1 + 1e-3):
+                # the data want a T at or below the shortest the search allows: only an upper end is known
+                on_boundary[f"gm_T_{i}"] = True
+                interval_kind[f"gm_T_{i}"] = "one-sided (upper end only; T at the lower end of the search)"
+                up = max(hi_i if np.isfinite(hi_i) else -np.inf, g[1])
+                intervals[f"gm_T_{i}"] = (0.0, float(up))
+                notes.append(f"GM term {i}: T = {T_i:.3g} s sits on the lowest time constant searched; T is only "
+                             f"bounded above ({up:.3g} s) and the term may be white noise seen through the "
+                             "shortest tau")
+            elif T_i >= g[-1] * (1 - 1e-3):
+                on_boundary[f"gm_T_{i}"] = True
+                interval_kind[f"gm_T_{i}"] = "one-sided (lower end only; T at the upper end of the search)"
+                low = min(lo_i if np.isfinite(lo_i) else np.inf, g[-2])
+                intervals[f"gm_T_{i}"] = (float(low), float("inf"))
+                notes.append(f"GM term {i}: T = {T_i:.3g} s sits on the longest time constant searched; T is only "
+                             f"bounded below ({low:.3g} s): the term is confounded with a random walk")
+    for k in names:
+        if not k.startswith("gm_T") and params[k] == 0.0 and k in intervals:
+            on_boundary[k] = True  # NNLS at its constraint: the interval's lower end is 0, one-sided
+            interval_kind[k] = "one-sided (coefficient fitted as 0: upper end only)"
+            lo_k, hi_k = intervals[k]
+            intervals[k] = (0.0, hi_k)
+    if not adequacy["adequate"]:
+        f = adequacy["widening"]
+        for k, (lo_k, hi_k) in list(intervals.items()):
+            est = params[k]
+            if not (np.isfinite(est) and est > 0):
+                continue
+            # quasi-likelihood over-dispersion: the spread about the estimate scales by sqrt(phi),
+            # on the log scale so a positive parameter keeps a positive interval
+            lo_w = est * (lo_k / est) ** f if np.isfinite(lo_k) and lo_k > 0 else lo_k
+            hi_w = est * (hi_k / est) ** f if np.isfinite(hi_k) and hi_k > 0 else hi_k
+            intervals[k] = (float(lo_w), float(hi_w))
+        notes.append(
+            f"the model does not describe the data: chi2/dof = {adequacy['chi2_per_dof']:.3g}, p = "
+            f"{adequacy['p_value']:.3g} < {adequacy_level:g} ({adequacy['method']}); the intervals are widened "
+            f"by the over-dispersion factor {f:.3g} (quasi-likelihood) and are indicative only: a component is "
+            "missing (e.g. a spectral line) or the pooled curves differ (see the pooling test)"
+        )
     return AllanFit(
         model=model,
         params=params,
@@ -719,7 +866,7 @@ def fit_allan(
         p_zero=p_zero,
         confidence=c,
         chi2=best.chi2,
-        dof=int(t.size - n_free),
+        dof=dof,
         n_points=int(t.size),
         components=comps,
         n_gm=n_gm,
@@ -729,27 +876,66 @@ def fit_allan(
         notes=notes,
         T_grid=grid,
         random_walk_profile=random_walk_profile,
+        adequacy=adequacy,
+        on_boundary=on_boundary,
+        interval_kind=interval_kind,
     )
 
 
-def _correlated_draws(model, mean, ms, cid, lengths, rate, n_boot, rng):
+def _per_curve(v, n_curves, name, dtype):
+    """A scalar or one value per curve as an array of `n_curves` values."""
+    a = np.asarray(v, dtype=np.float64).ravel()
+    if a.size == 1:
+        a = np.full(n_curves, a[0])
+    elif a.size < n_curves:
+        raise ValueError(f"{name}: one value per pooled curve expected ({n_curves}), got {a.size}")
+    a = a[:n_curves]
+    return np.rint(a).astype(dtype) if np.dtype(dtype).kind in "iu" else a.astype(dtype)
+
+
+def _correlated_draws(model, mean, ms, cid, lengths, rates, n_boot, rng):
     """Bootstrap AV replicates of every pooled curve: chi2 marginals, the model's correlation.
 
     Curves are independent records; within a curve the covariance is
     :func:`imupipe.avcov.avar_covariance` of the fitted model (computed once per distinct grid and
-    record length).
+    record length and rate; `rates` one per curve, Hz).
     """
-    from imupipe.avcov import avar_covariance, correlated_replicates
+    from imupipe.avcov import correlated_replicates
 
     out = np.empty((n_boot, mean.size))
+    for ci, sel, cov in _curve_covariances(model, ms, cid, lengths, rates):
+        out[:, sel] = correlated_replicates(mean[sel], cov, n_boot, rng)
+    return out
+
+
+def _curve_covariances(model, ms, cid, lengths, rates):
+    """(curve, point indices, AV covariance under `model`) of every pooled curve, u^4; one computation per
+    distinct (averaging factors, record length, rate)."""
+    from imupipe.avcov import avar_covariance
+
     cache = {}
     for ci in np.unique(cid):
         sel = np.flatnonzero(cid == ci)
-        key = (tuple(ms[sel]), int(lengths[ci]))
+        key = (tuple(ms[sel]), int(lengths[ci]), float(rates[ci]))
         if key not in cache:
-            cache[key] = avar_covariance(model, ms[sel], int(lengths[ci]), rate)
-        out[:, sel] = correlated_replicates(mean[sel], cache[key], n_boot, rng)
-    return out
+            cache[key] = avar_covariance(model, ms[sel], int(lengths[ci]), float(rates[ci]))
+        yield int(ci), sel, cache[key]
+
+
+def _chi2_covariance(y, m, model, ms, cid, lengths, rates):
+    r"""Generalised (Mahalanobis) statistic :math:`\sum_c r_c^T C_c^{-1} r_c`, :math:`r = y - m`, with
+    :math:`C_c` the exact covariance of curve c's overlapping AV estimates under `model`
+    (:func:`imupipe.avcov.avar_covariance`); eigen-directions below 1e-10 of the largest are left out (the
+    AVs of neighbouring taus are nearly collinear). Dimensionless."""
+    total = 0.0
+    for _, sel, cov in _curve_covariances(model, ms, cid, lengths, rates):
+        d = np.sqrt(np.diag(cov))
+        rho = cov / np.outer(d, d)
+        w, v = np.linalg.eigh(rho)
+        keep = w > 1e-10 * w.max()
+        z = v[:, keep].T @ ((y[sel] - m[sel]) / d)
+        total += float(np.sum(z * z / w[keep]))
+    return total
 
 
 def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:
