@@ -112,7 +112,7 @@ def _pool(tau, avar, edf, return_curve=False):
     if len(ts) != len(ys) or any(a.size != b.size for a, b in zip(ts, ys)):
         raise ValueError(f"tau (curves of {[x.size for x in ts]}) and avar (curves of {[y.size for y in ys]}) "
                          "do not match")
-    if np.ndim(edf) == 0 and not isinstance(edf, (list, tuple)):
+    if not isinstance(edf, (list, tuple)) and np.ndim(edf) == 0:
         es = [np.full(y.size, float(edf)) for y in ys]
     else:
         es = _curves_of(edf, "edf")
