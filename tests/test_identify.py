@@ -448,3 +448,14 @@ class TestSelectedRefit:
         fit = fit_allan(tau, avar, edf, n_gm=2, n_boot=0)
         sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
         assert "white" in sel["kept"]
+
+
+def test_conservative_end_is_the_upper_end():
+    truth = TRUTHS["white+gm+rw"]
+    t, y, e, n = record_av(truth, 1.0, RATE, 91)
+    fit = fit_allan(t, y, e, components=COMPS3, n_boot=30, rate=RATE, n_samples=n, rng=9)
+    cons = fit.conservative()
+    assert "gm_T_1" not in cons
+    for k, v in cons.items():
+        assert v == max(fit.params[k], fit.intervals[k][1])
+    assert fit.to_dict()["conservative"] == cons

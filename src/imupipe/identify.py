@@ -549,8 +549,21 @@ class AllanFit:
     selected: object = field(repr=False, default=None)
     selection: dict = field(repr=False, default_factory=dict)
 
+    def conservative(self) -> dict:
+        """The integrity side of every amplitude parameter (``white``, ``random_walk``, ``flicker``,
+        ``gm_sigma_i``, ...): the upper end of its interval where there is one (NaN intervals: the estimate),
+        same units as :attr:`params`. Time constants are not included: which end of T is conservative depends
+        on the application band."""
+        out = {}
+        for k, v in self.params.items():
+            if k.startswith("gm_T"):
+                continue
+            hi = self.intervals.get(k, (np.nan, np.nan))[1]
+            out[k] = float(max(v, hi)) if np.isfinite(hi) else float(v)
+        return out
+
     def to_dict(self) -> dict:
-        """Plain dict for YAML: SI values, intervals, chi2, notes."""
+        """Plain dict for YAML: SI values, intervals, chi2, notes, adequacy, boundary flags."""
 
         def fl(x):
             x = float(x)
@@ -576,6 +589,7 @@ class AllanFit:
                          for k, v in self.adequacy.items()},
             "on_boundary": {k: bool(v) for k, v in self.on_boundary.items()},
             "interval_kind": dict(self.interval_kind),
+            "conservative": {k: fl(v) for k, v in self.conservative().items()},
             **({"selected": self.selected.to_dict()} if isinstance(self.selected, AllanFit) else {}),
         }
 
@@ -867,6 +881,13 @@ def fit_allan(
             interval_kind[k] = "one-sided (coefficient fitted as 0: upper end only)"
             lo_k, hi_k = intervals[k]
             intervals[k] = (0.0, hi_k)
+    if n_boot > 0 and "random_walk" in comps and p_zero.get("random_walk", 0) > 0.2:
+        interval_kind["random_walk"] = ("confounded with the GM: only the upper end is reliable (use it for "
+                                        "bounding)")
+        for i in range(1, n_gm + 1):
+            if not on_boundary.get(f"gm_sigma_{i}") and f"gm_sigma_{i}" in interval_kind:
+                interval_kind[f"gm_sigma_{i}"] = ("confounded with the random walk: only the upper end is "
+                                                  "reliable (use it for bounding)")
     if not adequacy["adequate"]:
         f = adequacy["widening"]
         for k, (lo_k, hi_k) in list(intervals.items()):
