@@ -3,7 +3,8 @@
 
 R independent records per case, one interval of stated level c (0.9) per parameter and record: if the
 intervals are right the number covering the truth is Binomial(R, c). The slow test (R = 200, 10 h at 10 Hz,
-AV on octave taus) asserts the count inside the binomial 95 % range of c; the fast one runs a few records of one
+AV on octave taus) asserts the count inside the binomial 95 % range of c (only its lower end for a truth on
+the boundary, K = 0, which every interval reaching 0 covers); the fast one runs a few records of one
 case and fails below the binomial 0.1 % quantile (derived, not tuned: a correct interval fails it with
 probability <= 0.001). A parameter of a component the selection dropped counts as covered only when the truth
 has no such component (K = 0); a one-sided interval (on a search boundary) covers when the truth lies in it.
@@ -82,7 +83,10 @@ def test_coverage_200_records(case):
     R = 200
     hits, _ = coverage(case, R, hours=10.0, seed=2026)
     lo, hi = binom.ppf(0.025, R, LEVEL), binom.ppf(0.975, R, LEVEL)
-    assert all(lo <= h <= hi for h in hits.values()), (hits, lo, hi)
+    true = truth_params(CASES[case][0])
+    # a truth on the parameter's boundary (K = 0) is covered by every interval reaching 0, i.e. whenever the
+    # data do not exclude it: coverage >= the level by construction there, only the lower end is asserted
+    assert all(lo <= h and (h <= hi or true[k] == 0.0) for k, h in hits.items()), (hits, lo, hi)
 
 
 def test_coverage_fast():
