@@ -459,3 +459,36 @@ def test_conservative_end_is_the_upper_end():
     for k, v in cons.items():
         assert v == max(fit.params[k], fit.intervals[k][1])
     assert fit.to_dict()["conservative"] == cons
+
+
+@pytest.mark.shared_data
+def test_adis16405_gyro_adequacy_and_pooling(shared_data):
+    # Real ADIS16405 gyro (imu1, 100 Hz, 1e6 samples, deg/s): the white + GM + RW model does not describe the
+    # AV (chi2/dof in the thousands pooled, a p-value at the floor), the fit says so and widens its intervals;
+    # the z axis's N is ~40 % above x and y, which the pooling test must call inconsistent (19 replicates: an
+    # exact-level 0.05 Monte Carlo test), giving per-axis N
+    import warnings
+
+    import rdata
+
+    from imupipe.identify import pooling_test
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # rdata: no constructor for R class "imu"
+        raw = rdata.read_rda(str(shared_data / "adis16405" / "raw" / "adis_16405_imu1.rda"))["adis_16405_imu1"]
+    x = np.asarray(raw, dtype=np.float64)[:, :3] * np.pi / 180.0
+    curves_ = [allan_variance(x[:, j], 100.0, taus="octave") for j in range(3)]
+    t = [c.tau.values[np.isfinite(c.avar.values)] for c in curves_]
+    y = [c.avar.values[np.isfinite(c.avar.values)] for c in curves_]
+    e = [c.edf.values[np.isfinite(c.avar.values)] for c in curves_]
+    n = x.shape[0]
+    fit = fit_allan(t, y, e, components=COMPS3, n_boot=19, rate=100.0, n_samples=n, rng=1)
+    assert not fit.adequacy["adequate"] and fit.adequacy["chi2_per_dof"] > 100
+    lo, hi = fit.intervals["white"]
+    assert (hi - lo) / fit.params["white"] > 0.05  # not the +-0.15 % of an unflagged fit
+    assert any("does not describe the data" in s for s in fit.notes)
+    pt = pooling_test(t, y, e, components=COMPS3, rate=100.0, n_samples=[n] * 3, labels=["x", "y", "z"],
+                      n_boot=19, level=0.05, rng=2)
+    assert not pt["consistent"]
+    N = {c["label"]: c["params"]["white"] for c in pt["per_curve"]}
+    assert N["z"] > 1.3 * max(N["x"], N["y"])

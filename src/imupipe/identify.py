@@ -1334,12 +1334,13 @@ def pooling_test(
 
     Statistic: the drop of the fit statistic from one pooled fit to one fit per curve, relative to the
     per-curve fits' own misfit (an F-type ratio, so a misfit every curve shares, e.g. a component the model
-    lacks, does not count as a difference between curves):
+    lacks, does not count as a difference between curves; the median over curves, so that one badly fitted
+    curve does not hide the differences between the others):
 
     .. math::
 
-        F = \frac{(\chi^2_{pooled} - \sum_c \chi^2_c) / d_1}{\sum_c \chi^2_c / d_2},
-        \quad d_1 = (C - 1)\,p,\ d_2 = \sum_c \mathrm{dof}_c,
+        F = \frac{(\chi^2_{pooled} - \sum_c \chi^2_c) / d_1}{\mathrm{median}_c(\chi^2_c / \mathrm{dof}_c)},
+        \quad d_1 = (C - 1)\,p,
 
     with :math:`p` the number of free parameters (coefficients + GM time constants). Calibration: `n_boot`
     replicates of every curve drawn from the pooled fit with the exact correlation of the overlapping AV
@@ -1368,7 +1369,8 @@ def pooling_test(
     Returns
     -------
     dict
-        ``consistent``, ``statistic`` (F), ``p_value``, ``p_value_resolution``, ``level``, ``d1``, ``d2``,
+        ``consistent``, ``statistic`` (F), ``p_value``, ``p_value_resolution``, ``level``, ``d1``, ``d2`` (sum of
+        the per-curve dof),
         ``chi2_pooled``, ``method``, ``pooled`` (parameters of the pooled fit), ``per_curve`` (list of
         ``{label, params, chi2, dof, chi2_per_dof, p_value, adequate}`` with the covariance adequacy of each
         curve's own fit, SI parameters as :attr:`AllanFit.params`), ``note``.
@@ -1396,7 +1398,10 @@ def pooling_test(
         d1 = max((n_curves - 1) * n_free, 1)
         d2 = max(int(sum(s.size - (sol.p.size + ngm) for s, sol in zip(sels, per))), 1)
         chi2_per = float(sum(sol.chi2 for sol in per))
-        return (pooled.chi2 - chi2_per) / d1 / max(chi2_per / d2, 1e-300), pooled, per, d1, d2
+        # each curve's own misfit per degree of freedom; the median, so that one badly fitted curve does not
+        # hide the differences between the others
+        phi = float(np.median([sol.chi2 / max(s.size - (sol.p.size + ngm), 1) for s, sol in zip(sels, per)]))
+        return (pooled.chi2 - chi2_per) / d1 / max(phi, 1e-300), pooled, per, d1, d2
 
     F, pooled, per, d1, d2 = stat(y)
     rng = np.random.default_rng(rng)
@@ -1406,6 +1411,7 @@ def pooling_test(
     if n_boot > 0 and n_curves > 1:
         draws = _correlated_draws(model, pooled.m, ms, cid, lengths, rates, int(n_boot), rng)
         F_boot = np.array([stat(np.maximum(d, 1e-300))[0] for d in draws])
+    d2 = int(sum(s.size - (sol.p.size + ngm) for s, sol in zip(sels, per)))
     p = (1.0 + np.count_nonzero(F_boot >= F)) / (1.0 + F_boot.size) if F_boot.size else float("nan")
     per_curve = []
     for c, (s, sol) in enumerate(zip(sels, per)):
@@ -1439,7 +1445,7 @@ def pooling_test(
         "d1": int(d1),
         "d2": int(d2),
         "chi2_pooled": float(pooled.chi2),
-        "method": ("F = ((chi2_pooled - sum chi2_curve)/d1)/(sum chi2_curve/d2), calibrated on "
+        "method": ("F = ((chi2_pooled - sum chi2_curve)/d1)/median(chi2_curve/dof_curve), calibrated on "
                    f"{F_boot.size} replicates of the pooled fit with the exact AV correlation (per-curve "
                    "length and rate), refitted pooled and per curve"),
         "pooled": {k: float(v) for k, v in _solution_to_params(pooled, comps, ngm).items()},
