@@ -64,6 +64,7 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
     n = int(hours * 3600 * RATE)
     rng = np.random.default_rng([seed, zlib.crc32(case.encode())])
     hits = dict.fromkeys(true, 0)
+    one_sided = dict.fromkeys(true, 0)  # records where the reported interval was one-sided / upper-limit only
     for _ in range(n_records):
         av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
         t, y, e = av.tau.values, av.avar.values, av.edf.values
@@ -72,13 +73,16 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
         rep = refit_selected(full, sel, t, y, e, n_boot=n_boot, confidence=LEVEL, rng=rng, rate=RATE, n_samples=n)
         for k, v in true.items():
             hits[k] += covered(rep, k, v)
+            one_sided[k] += bool(rep.on_boundary.get(k, True))
+    coverage.one_sided = one_sided
     return hits, n_records
 
 
 # Measured (python tests/test_coverage.py CASE 200): white_gm N 0.92, K 0.985 (truth 0), GM sigma 0.89, T 0.885;
 # tactical N 0.89, K 0.88, GM sigma 0.89, T 0.82 -- T below the binomial range [0.855, 0.94] (GM/random-walk
 # confounding at 10 h: the percentile interval of T is too narrow); mems (before the dropped random walk got
-# its upper limit) N 0.865, GM 0.89/0.90/0.925/0.885, K 0.01.
+# its upper limit) N 0.865, GM 0.89/0.90/0.925/0.885, K 0.01; after: N 0.89, GM sigma/T 0.89/0.885 and
+# 0.915/0.895, K 0.99 (upper limits of a random walk the data do not show: conservative).
 SHORTFALL = {"tactical_white_gm_rw": "GM T covers 0.82 over 200 records at nominal 0.90 (confounded with K)"}
 
 
@@ -92,9 +96,12 @@ def test_coverage_200_records(case):
     hits, _ = coverage(case, R, hours=10.0, seed=2026)
     lo, hi = binom.ppf(0.025, R, LEVEL), binom.ppf(0.975, R, LEVEL)
     true = truth_params(CASES[case][0])
-    # a truth on the parameter's boundary (K = 0) is covered by every interval reaching 0, i.e. whenever the
-    # data do not exclude it: coverage >= the level by construction there, only the lower end is asserted
-    assert all(lo <= h and (h <= hi or true[k] == 0.0) for k, h in hits.items()), (hits, lo, hi)
+    # a truth on the parameter's boundary (K = 0) is covered by every interval reaching 0, and an upper limit
+    # given for a component the data do not show ([0, upper]) is conservative by design: coverage >= the
+    # level there, so only the lower end is asserted where the truth is 0 or any record's interval was
+    # one-sided
+    upper_applies = {k: true[k] != 0.0 and coverage.one_sided[k] == 0 for k in hits}
+    assert all(lo <= h and (h <= hi or not upper_applies[k]) for k, h in hits.items()), (hits, lo, hi)
 
 
 def test_coverage_fast():

@@ -659,7 +659,9 @@ def fit_allan(
     10 Hz per unseen truth (tests/test_coverage.py): white + GM N 0.92, GM sigma 0.89, T 0.885; tactical
     white + GM + random walk N 0.89, K 0.88, GM sigma 0.89, but GM T 0.82 (below the binomial range
     [0.855, 0.94]: T is confounded with K at 10 h and its percentile interval is too narrow; use the
-    conservative end of sigma for bounding).
+    conservative end of sigma for bounding); MEMS white + two GMs + random walk N 0.89, GM sigma and T
+    0.89/0.885 and 0.915/0.895, K 0.99 (the random walk is dropped by the selection in 99 % of the records
+    and reported as an upper limit: conservative).
 
     With one 10 h record GM and rate random walk are confounded (method.md section 4): K is often
     fitted as 0 and the GM parameters have 50-200 % spread, while white noise is recovered to < 1 %.
