@@ -474,7 +474,7 @@ class TestChi2Upper:
         assert abs(covered.mean() - 0.95) < 4 * math.sqrt(0.95 * 0.05 / n_fam)
 
     def test_raw_maximum_overshoot(self, rng):
-        # method.md section 3: the maximum of 15 raw single-window periodograms of white noise
+        # docs/method.md, section "Estimators": the maximum of 15 raw single-window periodograms of white noise
         # overshoots the true PSD about ln(15 * 12600) ~ 12x (chi2_2/2 is exponential)
         maxima = [psd(rng.standard_normal(36000), 1.0).psd.values[2:-1].max() for _ in range(15)]
         assert 8 < max(maxima) < 20

@@ -18,7 +18,7 @@ Kalibr field                    imupipe         unit
 
 Kalibr discretises with the IMU's own sample interval :math:`\Delta t = 1/\text{update\_rate}`:
 :math:`\sigma_d = \sigma/\sqrt{\Delta t}` (white) and :math:`\sigma_{b,d} = \sigma_b\sqrt{\Delta t}` (random
-walk), the same rules as docs/method.md, section "Discrete noise". ``update_rate`` must therefore be the
+walk), the same rules as docs/method.md, section "Slip: discrete driving noise". ``update_rate`` must therefore be the
 rate of the recorded IMU messages, not the filter rate.
 
 Kalibr has no Gauss-Markov state. Each GM term (sigma, T) is folded into the random walk so that the PSD

@@ -682,7 +682,7 @@ def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction:
     so that the true PSD lies below :math:`S_{up}` at all :math:`n` tested ordinates (bins x curves)
     simultaneously with probability at least :math:`c` (Bonferroni: any dependence; Sidak: exact
     for independent ordinates, and valid for positively dependent ones). This is the
-    statistically stated alternative to bounding the raw periodograms (method.md section 3).
+    statistically stated alternative to bounding the raw periodograms (docs/method.md, section "Estimators").
 
     Parameters
     ----------

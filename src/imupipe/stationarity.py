@@ -1,12 +1,12 @@
-r"""Stationarity checks of static IMU records (method.md section 5).
+r"""Stationarity checks of static IMU records (docs/method.md, section "Stationarity").
 
 The paper (Gallon et al. 2021) declares a record stationary when a Levene test of equal variances
 and a two-sample Kolmogorov-Smirnov test of equal distributions both accept at the 95 % level,
 on the 1 Hz block-averaged record split into segments. Both tests assume **independent** samples.
 A stationary white + Gauss-Markov (GM) process at 1 Hz has serially correlated samples, so the
 two halves of one record differ by much more than independent samples would: the paper's KS test
-then rejects stationarity far more often than its nominal 5 % (method.md quotes ~76 %; the tests
-of this module reproduce the effect).
+then rejects stationarity far more often than its nominal 5 % (about 76 % of stationary records; see
+docs/method.md, section "Stationarity"; the tests of this module reproduce the effect).
 
 Three versions are provided:
 

@@ -61,7 +61,7 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
       taus where flicker is the identified model's largest AV term (a GM's AV vanishes as
       :math:`\tau \to 0`, so no GM covers flat flicker at every tau; elsewhere the other components
       carry the AV); ``passed = None`` if flicker never dominates. A GM with :math:`\sigma = B`
-      does not cover it: its ADEV peaks at :math:`0.6174\sigma < 0.664 B` (method.md 2.3);
+      does not cover it: its ADEV peaks at :math:`0.6174\sigma < 0.664 B` (docs/method.md, section "Slip: the flicker constant and Gauss-Markov");
     * ``bias (gauss_markov + flicker)``: the bound's GM terms against the identified GM and flicker
       together, when both are present;
     * ``quantization``, ``ramp``: not Kalman-filter states; reported with ``passed = None``.
@@ -199,7 +199,7 @@ def upper_envelope(fit, kept=None):
                 T_hi = lo_hi[1] if math.isfinite(lo_hi[1]) and lo_hi[1] > 0 else T
                 a, c = min(T, T_lo), max(T, T_hi)
                 # the tightest single GM above every GM with sigma <= s and T in [a, c]: sigma_m^2 T_m >= s^2 c
-                # (f -> 0) and sigma_m^2 / T_m >= s^2 / a (f -> inf) (method.md, "The bound")
+                # (f -> 0) and sigma_m^2 / T_m >= s^2 / a (f -> inf) (docs/method.md, section "The bound")
                 gm.append((s * (c / a) ** 0.25, math.sqrt(a * c)))
             i += 1
     k = up("random_walk")
