@@ -268,7 +268,9 @@ def noise_model(
     if sensor not in spec_sheet.models:
         raise ValueError(f"spec {spec_sheet.name!r}: no '{sensor}' section")
     rate = float(rate_hz)
-    units = "rad/s" if sensor == "gyro" else "m/s^2"
+    from imupipe.units import SI_UNITS
+
+    units = SI_UNITS[sensor]
 
     allan, spectra = {}, {}
     for label, x in curves.items():

@@ -290,10 +290,10 @@ def read_kalibr(path) -> dict:
 
 
 def model_of_bound(bound_yaml: Mapping) -> NoiseModel:
-    """The bound model of a per-sensor bound contract (``results/.../bound/{sensor}.yaml``), SI."""
+    """The bound model of a per-sensor bound contract (``results/.../bound/{sensor}.yaml``), SI
+    (:meth:`NoiseModel.from_dict` of its ``bound`` section: narrowband lines included)."""
     try:
         b = bound_yaml["bound"]
     except (KeyError, TypeError):
         raise ValueError("bound YAML: no 'bound' section (expected the per-sensor bound contract)") from None
-    return NoiseModel(white=b.get("white") or 0.0, random_walk=b.get("random_walk") or 0.0,
-                      gauss_markov=tuple((g["sigma"], g["T"]) for g in b.get("gauss_markov") or ()))
+    return NoiseModel.from_dict(b)

@@ -47,6 +47,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from imupipe.units import SI_UNITS
+
 __all__ = [
     "ContinuousModel",
     "continuous_model",
@@ -56,7 +58,7 @@ __all__ = [
     "kalibr_yaml",
 ]
 
-_RATE_UNIT = {"accel": "m/s^2", "gyro": "rad/s"}
+_RATE_UNIT = SI_UNITS
 
 
 class ContinuousModel(NamedTuple):
