@@ -16,7 +16,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "imupipe"
 
 LAYERS = [
-    {"__init__", "_kernels", "units", "io", "labelled"},
+    {"__init__", "_kernels", "units", "io", "labelled", "search"},
     {"models", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},

@@ -308,8 +308,9 @@ def _solve_fixed(t, y, e, comps, T, m0=None, offset=None):
 
 def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
     """Best solution over GM time constants (grid, then bounded refinement in log T); `offset`: a fixed
-    part of the model (:func:`_wnnls`)."""
-    from scipy.optimize import minimize, minimize_scalar
+    part of the model (:func:`_wnnls`). One GM: Brent's method in ln T between the grid neighbours
+    (:func:`imupipe.search.minimize_bounded`, scipy's bounded method without its import)."""
+    from imupipe.search import minimize_bounded
 
     solve = functools.partial(_solve_fixed, offset=offset)
     if "gauss_markov" not in comps:
@@ -329,18 +330,16 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
             lo = math.log(grid[max(i - 1, 0)])
             hi = math.log(grid[min(i + 1, grid.size - 1)])
             if hi > lo:
-                res = minimize_scalar(
-                    lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
-                    bounds=(lo, hi),
-                    method="bounded",
-                    options={"xatol": 1e-3},
-                )
+                res = minimize_bounded(lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
+                                       lo, hi, xatol=1e-3)
                 cand = solve(t, y, e, comps, (math.exp(res.x),), m0=best.m)
                 if cand.chi2 < best.chi2:
                     best = cand
         return best, (grid, chis)
     # several GM terms: coarse grid over increasing tuples, then Nelder-Mead on log T
     from itertools import combinations
+
+    from scipy.optimize import minimize
 
     coarse = grid[:: max(1, grid.size // 12)]
     best = None
