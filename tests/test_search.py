@@ -60,3 +60,19 @@ def test_bad_bounds_are_named():
         minimize_bounded(lambda x: x, 1.0, 1.0)
     with pytest.raises(ValueError, match="finite"):
         minimize_bounded(lambda x: x, 0.0, math.inf)
+
+
+def test_log_grid_and_neighbour_refinement():
+    from imupipe.search import log_grid, refine_between_neighbours
+
+    g = log_grid(0.0, 2.0, 4)
+    np.testing.assert_allclose(g, 10.0 ** np.arange(9) / 10.0 ** (np.arange(9) * 0.75), rtol=1e-12)  # 10^(k/4)
+    assert log_grid(1.0, 1.1, 2, min_points=3).size == 3
+    # the minimum of (ln T - ln 30)^2 on the grid 1, 10, 100, 1000 s is at 10 s or 100 s; the refinement
+    # between that point's neighbours finds ln 30 to its tolerance
+    grid = np.array([1.0, 10.0, 100.0, 1000.0])
+    f = lambda lt: (lt - math.log(30.0)) ** 2  # noqa: E731
+    i = int(np.argmin([f(math.log(T)) for T in grid]))
+    res = refine_between_neighbours(f, grid, i, 1e-6)
+    assert abs(res.x - math.log(30.0)) < 1e-5
+    assert refine_between_neighbours(f, np.array([5.0]), 0, 1e-3) is None

@@ -283,12 +283,13 @@ def _default_T_grid(tau, per_decade=8):
     # a GM with T below the shortest tau looks like white noise; one whose AV peak (1.89 T) lies
     # beyond the longest tau looks like a random walk (and a random walk with K^2 = 2 sigma^2/T
     # dominates it): outside [tau_min, tau_max/2] T is not identifiable and only feeds confounding
+    from imupipe.search import log_grid
+
     t = np.asarray(tau)
     lo, hi = math.log10(t.min()), math.log10(t.max() / 2.0)
     if hi <= lo:
         hi = lo + 1.0
-    n = max(3, int(round((hi - lo) * per_decade)) + 1)
-    return np.logspace(lo, hi, n)
+    return log_grid(lo, hi, per_decade, min_points=3)
 
 
 @dataclass
@@ -310,7 +311,7 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
     """Best solution over GM time constants (grid, then bounded refinement in log T); `offset`: a fixed
     part of the model (:func:`_wnnls`). One GM: Brent's method in ln T between the grid neighbours
     (:func:`imupipe.search.minimize_bounded`, scipy's bounded method without its import)."""
-    from imupipe.search import minimize_bounded
+    from imupipe.search import refine_between_neighbours
 
     solve = functools.partial(_solve_fixed, offset=offset)
     if "gauss_markov" not in comps:
@@ -327,11 +328,9 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
         i = int(np.argmin(chis))
         best = sols[i]
         if refine and grid.size >= 2:
-            lo = math.log(grid[max(i - 1, 0)])
-            hi = math.log(grid[min(i + 1, grid.size - 1)])
-            if hi > lo:
-                res = minimize_bounded(lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
-                                       lo, hi, xatol=1e-3)
+            res = refine_between_neighbours(lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
+                                            grid, i, 1e-3)
+            if res is not None:
                 cand = solve(t, y, e, comps, (math.exp(res.x),), m0=best.m)
                 if cand.chi2 < best.chi2:
                     best = cand

@@ -21,7 +21,7 @@ import math
 from collections.abc import Callable
 from typing import NamedTuple
 
-__all__ = ["BoundedMinimum", "minimize_bounded"]
+__all__ = ["BoundedMinimum", "log_grid", "minimize_bounded", "refine_between_neighbours"]
 
 #: Relative tolerance on x: the square root of the double-precision machine epsilon (as rounded in scipy).
 _SQRT_EPS = math.sqrt(2.2e-16)
@@ -136,3 +136,27 @@ def minimize_bounded(fun: Callable[[float], float], lo: float, hi: float, xatol:
             success = False
             break
     return BoundedMinimum(x, fx, nfev, success)
+
+
+def log_grid(lo_log10: float, hi_log10: float, per_decade: float, min_points: int = 1):
+    r"""Log-spaced grid from :math:`10^{lo}` to :math:`10^{hi}` with `per_decade` points per decade
+    (rounded to a whole count, both ends included, at least `min_points`): the grid of Gauss-Markov time
+    constants (s) profiled by the identification and the bound before the refinement of
+    :func:`refine_between_neighbours`. Returns a numpy array."""
+    import numpy as np
+
+    n = max(int(min_points), int(round((hi_log10 - lo_log10) * per_decade)) + 1)
+    return np.logspace(lo_log10, hi_log10, n)
+
+
+def refine_between_neighbours(fun: Callable[[float], float], grid, i: int, xatol: float) -> BoundedMinimum | None:
+    r"""Profile refinement of one time constant: :func:`minimize_bounded` of ``fun(ln T)`` between the
+    grid neighbours of the best grid point ``grid[i]`` (the point itself at either end), in :math:`\ln T`
+    with absolute tolerance `xatol` (0.001 = 0.1 % in T). None when that interval is empty (a one-point
+    grid). Shared by :func:`imupipe.identify.fit_allan` (T by the fit statistic) and
+    :func:`imupipe.bound.bound_psd` (T by the LP objective)."""
+    lo = math.log(grid[max(i - 1, 0)])
+    hi = math.log(grid[min(i + 1, len(grid) - 1)])
+    if not hi > lo:
+        return None
+    return minimize_bounded(fun, lo, hi, xatol=xatol)

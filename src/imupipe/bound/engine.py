@@ -497,11 +497,13 @@ def _solve_lp(prob, comps, Ts):
 
 
 def _default_T_grid(prob, per_decade=10):
+    """GM time constants (s) from half a decade below 1/(2 pi f_max) to a decade above 1/(2 pi f_min)."""
+    from imupipe.search import log_grid
+
     f = prob.f
     lo = math.log10(1.0 / (2 * math.pi * f.max())) - 0.5
     hi = math.log10(1.0 / (2 * math.pi * f.min())) + 1.0
-    n = int(round((hi - lo) * per_decade)) + 1
-    return np.logspace(lo, hi, n)
+    return log_grid(lo, hi, per_decade)
 
 
 # Absolute tolerance of the bounded refinement in ln T (0.1 % in T). The objective is smooth in ln T at its
@@ -514,7 +516,7 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
     """LP over the GM time constants: grid, then bounded refinement (Brent's method in ln T,
     :func:`imupipe.search.minimize_bounded`, scipy's bounded method without the import; Nelder-Mead for
     n_gm > 1)."""
-    from imupipe.search import minimize_bounded
+    from imupipe.search import refine_between_neighbours
 
     n_lp = 0
     if "gauss_markov" not in comps or n_gm == 0:
@@ -528,8 +530,6 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
         i = int(np.argmin(objs))
         best = sols[i]
         if refine and grid.size >= 3:
-            lo = math.log(grid[max(i - 1, 0)])
-            hi = math.log(grid[min(i + 1, grid.size - 1)])
             cache = {}
 
             def fun(lt):
@@ -537,7 +537,7 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
                 cache[lt] = s
                 return s.objective
 
-            minimize_bounded(fun, lo, hi, xatol=_T_XATOL)
+            refine_between_neighbours(fun, grid, i, _T_XATOL)
             for s in cache.values():
                 n_lp += s.n_lp
                 if s.objective < best.objective:
