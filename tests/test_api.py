@@ -167,3 +167,17 @@ def test_bad_input_is_named():
         noise_model({"a": np.zeros((2, 10))}, RATE, "gyro", SPEC)
     with pytest.raises(ValueError, match="shorter than window_s"):
         noise_model({"a": np.random.default_rng(0).standard_normal(1000)}, RATE, "gyro", SPEC)
+
+
+def test_lines_policy_model_carries_the_line_to_the_filter():
+    # a 0.3 Hz sinusoid (amplitude 3e-4 rad/s, inside the 1 Hz decimated band) on two records: the search
+    # finds it, the policy models it, the bound carries it as a narrowband term and the KF gets its states
+    rng = np.random.default_rng(3)
+    t = np.arange(int(DURATION_S * RATE)) / RATE
+    line = 3e-4 * np.sin(2 * np.pi * 0.3 * t)
+    curves = {f"d{i}/x": simulate(TRUTH, t.size, RATE, rng=rng) + line for i in (1, 2)}
+    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS)
+    assert len(r.lines.narrowband) == 1 and r.lines.narrowband[0][0] == pytest.approx(0.3, abs=1e-3)
+    assert len(r.model.narrowband) == 1 and r.bounded
+    assert "nb" in r.kf["states"]
+    assert r.to_dict()["lines"]["policy"] == "model"
