@@ -1,7 +1,8 @@
-"""One-call API (imupipe.api.noise_model): the same result as the workflow's identify and bound scripts run on
-the same records (their `main` functions, on the per-sensor files the workflow would have written)."""
+"""One-call API (imupipe.api.noise_model): the same result as the library calls the workflow's stages make, on
+the files the workflow would have written (per-axis netCDF, per-sensor stacks, the identify and bound YAML read
+back), so that the in-memory path and the file path agree. The comparison is with the library calls, not with
+the workflow scripts' internals (their signatures change with the rules)."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -20,13 +21,6 @@ TRUTH = NoiseModel(white=1.0e-4, gauss_markov=((2.0e-5, 300.0),), random_walk=5.
 SETTINGS = dict(window_s=1200.0, step_s=600.0)
 
 
-def _script(name):
-    spec = importlib.util.spec_from_file_location(f"wf_{name}", ROOT / "workflow" / "scripts" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.fixture(scope="module")
 def records():
     rng = np.random.default_rng(3)
@@ -40,11 +34,18 @@ def result(records):
 
 @pytest.fixture(scope="module")
 def workflow(records, tmp_path_factory):
-    """The workflow's per-axis files (reduce), per-sensor stacks (collect) and the identify and bound
-    scripts' outputs for the same records and the same (default) settings."""
+    """The workflow's per-axis files (allan, decimate + psd), per-sensor stacks (stack) and the library calls of
+    the identify, bound and kf stages on them, for the same records and the same (default) settings; each
+    stage's YAML is written and read back as the next stage reads it."""
     from imupipe.allan import allan_variance
+    from imupipe.bound import bound_psd, upper_envelope
+    from imupipe.identify import fit_allan, refit_selected, select_components
+    from imupipe.io import write_yaml_atomic
+    from imupipe.kf import export_kf
     from imupipe.merge import Stacked
     from imupipe.spectra import decimate, psd
+    from imupipe.specsheet import load_spec
+    from imupipe.verify import verification_report
 
     tmp = tmp_path_factory.mktemp("wf")
     av_paths, psd_paths, curves = [], [], []
@@ -66,24 +67,52 @@ def workflow(records, tmp_path_factory):
         st.set_included({"curves": curves})
         st.attrs["sensor"] = "gyro"
         st.to_netcdf(out)
-    _script("identify").main(
-        path_allan=str(tmp / "allan.nc"), components=["white", "gauss_markov", "flicker", "random_walk",
-                                                       "quantization", "ramp"],
-        n_gm=1, n_boot=0, confidence=0.95, significance=0.05, relevance=0.05, rate_hz=1.0, horizon_s=600.0,
-        truth=None, path_out=str(tmp / "identify.yaml"), sensor="gyro")
-    axis_out = [str(tmp / "axes" / d / "gyro" / f"{a}.yaml") for d, a in (k.split("/") for k in records)]
-    _script("bound").main(
-        path_spectra=str(tmp / "spectra.nc"), path_allan=str(tmp / "allan.nc"),
-        path_identified=str(tmp / "identify.yaml"), path_spec=str(SPEC), mode="raw", n_gm=1, confidence=0.95,
-        bands_per_decade=10, compare_paper=False, kf_dt_s=1.0, horizon_s=600.0, axis_out=axis_out,
-        path_out=str(tmp / "bound.yaml"), kf_out=str(tmp / "kf.yaml"), sensor="gyro")
-    return {k: read_yaml(tmp / f"{k}.yaml") for k in ("identify", "bound", "kf")}
+
+    # identify: pooled fit, selection, selected refit (identify YAML: model, selection, model_selected)
+    av = Stacked(tmp / "allan.nc")
+    data = []
+    for d, a in av.curves(included_only=True):
+        avar, edf = av.at("avar", d, a), av.at("edf", d, a)
+        ok = np.isfinite(avar) & np.isfinite(edf)
+        data.append((av["tau"][ok], avar[ok], edf[ok], int(av.at("n_samples", d, a))))
+    taus, avars, edfs = ([c[i] for c in data] for i in range(3))
+    rate = float(av.attrs["rate_hz"])
+    kw = dict(n_boot=0, confidence=0.95, rng=20211, dt=1.0 / rate, rate=rate, n_samples=[c[3] for c in data])
+    fit = fit_allan(taus, avars, edfs, components=["white", "gauss_markov", "flicker", "random_walk",
+                                                   "quantization", "ramp"], n_gm=1, **kw)
+    selection = select_components(fit, taus, avars, edfs, rate_hz=1.0, horizon_s=600.0, significance=0.05,
+                                  relevance=0.05)
+    selected = refit_selected(fit, selection, taus, avars, edfs, **kw)
+    write_yaml_atomic({"model": fit.model.to_dict(), "model_selected": selected.model.to_dict(),
+                       "selection": {"kept": list(selection["kept"])}}, tmp / "identify.yaml")
+    identify = read_yaml(tmp / "identify.yaml")
+
+    # bound: all-frequency bound of the kept components with the selected refit's upper envelope
+    sp = Stacked(tmp / "spectra.nc")
+    f = sp["frequency"]
+    psds = {f"{d}/{a}": sp.at("psd", d, a) for d, a in sp.curves(included_only=True)}
+    edf = np.array([np.broadcast_to(sp.at("edf", d, a), f.shape) for d, a in sp.curves(included_only=True)])
+    spec = load_spec(SPEC)
+    upper = upper_envelope(selected, selection)
+    result = bound_psd(f, psds, spec.models["gyro"], dt=1.0 / float(sp.attrs["rate_hz"]), mode="raw", n_gm=1,
+                       confidence=0.95, bands_per_decade=10, edf=edf, keep=identify["selection"]["kept"],
+                       taper=sp.attrs.get("taper", "hann"), horizon_s=600.0 + 600.0, upper_model=upper)
+    write_yaml_atomic(result.to_dict(sensor="gyro"), tmp / "bound.yaml")
+    bound = read_yaml(tmp / "bound.yaml")
+
+    # kf and verification: the bound YAML's model
+    m = NoiseModel.from_dict(bound["bound"])
+    kf = export_kf(m, 1.0, sensor="gyro", p0_random_walk=m.random_walk**2 * 600.0 if m.random_walk > 0 else None)
+    ver = verification_report(m, "gyro", spec=spec.models["gyro"], upper=upper, fix_s=600.0, horizon_s=600.0,
+                              filter_rate_hz=1.0)
+    return {"identify": identify, "bound": bound, "kf": kf, "verification": ver}
 
 
 def test_identification_equals_the_workflows(result, workflow):
     assert result.selection["kept"] == workflow["identify"]["selection"]["kept"]
     # same library calls on the same numbers; YAML writes floats by repr, so the round trip is exact
     assert result.fit.model.to_dict() == workflow["identify"]["model"]
+    assert result.selected.model.to_dict() == workflow["identify"]["model_selected"]
 
 
 def test_bound_and_kf_equal_the_workflows(result, workflow):
@@ -99,12 +128,18 @@ def test_bound_and_kf_equal_the_workflows(result, workflow):
                                rtol=1e-12, atol=0)
     np.testing.assert_allclose(np.array(result.kf["P0"], dtype=float), np.array(workflow["kf"]["P0"], dtype=float),
                                rtol=1e-12, atol=0)
+    assert result.verification["passed"] == workflow["verification"]["passed"]
+    checks, wchecks = result.verification["verification"]["checks"], workflow["verification"]["verification"]["checks"]
+    assert set(checks) == set(wchecks) and checks
+    for name in checks:  # same model, same scenario: the covariance analysis is deterministic
+        assert checks[name]["worst_outage_ratio"] == pytest.approx(wchecks[name]["worst_outage_ratio"], rel=1e-12)
 
 
 def test_result_object(result, capfd):
     assert result.bounded is True and result.model is result.bound.model
     d = result.to_dict()
-    assert set(d) >= {"bound", "identify", "kf", "curves", "rate_hz"}
+    assert set(d) >= {"bound", "identify", "kf", "curves", "rate_hz", "upper_envelope", "verification"}
+    assert "model_selected" in d["identify"]
     assert d["curves"] == ["d1/x", "d1/y", "d2/x", "d2/y"]
     import yaml
 
@@ -132,3 +167,17 @@ def test_bad_input_is_named():
         noise_model({"a": np.zeros((2, 10))}, RATE, "gyro", SPEC)
     with pytest.raises(ValueError, match="shorter than window_s"):
         noise_model({"a": np.random.default_rng(0).standard_normal(1000)}, RATE, "gyro", SPEC)
+
+
+def test_lines_policy_model_carries_the_line_to_the_filter():
+    # a 0.3 Hz sinusoid (amplitude 3e-4 rad/s, inside the 1 Hz decimated band) on two records: the search
+    # finds it, the policy models it, the bound carries it as a narrowband term and the KF gets its states
+    rng = np.random.default_rng(3)
+    t = np.arange(int(DURATION_S * RATE)) / RATE
+    line = 3e-4 * np.sin(2 * np.pi * 0.3 * t)
+    curves = {f"d{i}/x": simulate(TRUTH, t.size, RATE, rng=rng) + line for i in (1, 2)}
+    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS)
+    assert len(r.lines.narrowband) == 1 and r.lines.narrowband[0][0] == pytest.approx(0.3, abs=1e-3)
+    assert len(r.model.narrowband) == 1 and r.bounded
+    assert "nb" in r.kf["states"]
+    assert r.to_dict()["lines"]["policy"] == "model"

@@ -44,7 +44,7 @@ def white_periodograms(N, n_curves, rng):
     return ds.frequency.values, np.array(out), ds.edf.values
 
 
-# a STIM-300-like gyro in SI (paper Table 2 spec column, K read as (deg/h)/sqrt(s): method.md 2.4)
+# a STIM-300-like gyro in SI (paper Table 2 spec column, K read as (deg/h)/sqrt(s): docs/method.md, section "Slip: units of K")
 DEG_H = math.pi / 180 / 3600
 TRUTH = NoiseModel(
     white=0.3 / 60 * math.pi / 180,  # 0.3 deg/sqrt(h)
@@ -296,7 +296,7 @@ class TestAllanComponents:
         assert gm_bounds_gm(4e-5, 150.0, 2e-5, 200.0)
 
     def test_gm_with_sigma_b_does_not_bound_flicker_b(self):
-        # method.md 2.3: a GM's ADEV peaks at 0.6174 sigma < 0.664 B, so sigma = B fails everywhere
+        # docs/method.md, section "Slip: the flicker constant and Gauss-Markov": a GM's ADEV peaks at 0.6174 sigma < 0.664 B, so sigma = B fails everywhere
         B = 1e-5
         identified = NoiseModel(white=1e-4, flicker=B)
         res = check_allan_components(NoiseModel(white=1e-4, gauss_markov=((B, 100.0),)), identified, self.TAU)

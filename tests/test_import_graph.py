@@ -16,26 +16,37 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "imupipe"
 
 LAYERS = [
-    {"__init__", "_kernels", "units", "io", "labelled"},
-    {"models", "allan", "spectra", "simulate", "merge", "readers"},
+    {"__init__", "_kernels", "units", "io", "labelled", "search"},
+    {"models", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},
-    {"bound", "kf"},
-    {"plot"},
+    {"bound", "kf", "kalibr"},
+    {"verify", "plot"},
+    {"api", "cli", "__main__"},
 ]
 LAYER_OF = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 
-def modules() -> dict[str, Path]:
-    return {p.stem: p for p in sorted(PACKAGE.glob("*.py"))} | {
-        p.name.split(".")[0]: p for p in PACKAGE.glob("_kernels*.c")}
+def modules() -> dict[str, list[Path]]:
+    """Top-level modules of imupipe, each with its files: a package (a folder with __init__.py) is one node
+    made of all its files."""
+    found = {p.stem: [p] for p in sorted(PACKAGE.glob("*.py"))}
+    found |= {p.name.split(".")[0]: [p] for p in PACKAGE.glob("_kernels*.c")}
+    found |= {d.name: sorted(d.rglob("*.py")) for d in sorted(PACKAGE.iterdir())
+              if d.is_dir() and (d / "__init__.py").exists()}
+    return found
 
 
-def imports_of(path: Path) -> set[str]:
-    """Names of the imupipe modules that the Python file `path` imports (at any depth of the file)."""
+def imports_of(path: Path, package: tuple[str, ...] = ()) -> set[str]:
+    """Names of the top-level imupipe modules that the Python file `path` imports (at any depth of the file).
+
+    `package` is the dotted place of the file's folder below imupipe (``("bound",)`` for bound/engine.py), so
+    that relative imports resolve; the file's own top-level module is left out.
+    """
     if path.suffix != ".py":
         return set()
     tree = ast.parse(path.read_text(), filename=str(path))
+    here = ("imupipe", *package)
     found = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -44,17 +55,21 @@ def imports_of(path: Path) -> set[str]:
                 if parts[0] == "imupipe" and len(parts) > 1:
                     found.add(parts[1])
         elif isinstance(node, ast.ImportFrom):
-            if node.level:  # relative: from . import x / from .x import y
-                mod = node.module.split(".")[0] if node.module else None
-                found |= {mod} if mod else {a.name for a in node.names}
+            if node.level:  # relative: from . import x / from .x import y / from ..x import y
+                base = list(here[:len(here) - node.level + 1])
+                parts = base + (node.module.split(".") if node.module else [])
             elif node.module and node.module.split(".")[0] == "imupipe":
                 parts = node.module.split(".")
-                found |= {parts[1]} if len(parts) > 1 else {a.name for a in node.names}
-    return found - {path.stem}
+            else:
+                continue
+            found |= {parts[1]} if len(parts) > 1 else {a.name for a in node.names}
+    own = package[0] if package else path.stem
+    return found - {own}
 
 
 def graph() -> dict[str, set[str]]:
-    return {name: imports_of(path) for name, path in modules().items()}
+    return {name: set().union(*(imports_of(p, p.relative_to(PACKAGE).parent.parts) for p in paths))
+            for name, paths in modules().items()}
 
 
 def test_every_module_has_a_layer():
@@ -105,3 +120,19 @@ def test_imports_of_reads_every_form(tmp_path, source, expected):
     path = tmp_path / "mod.py"
     path.write_text(source)
     assert imports_of(path) == expected
+
+
+@pytest.mark.parametrize("source, expected", [
+    ("from .engine import bound_psd\n", set()),  # inside its own package
+    ("from ..models import NoiseModel\n", {"models"}),
+    ("from imupipe.bound.report import x\nfrom imupipe.units import SI_UNITS\n", {"units"}),
+])
+def test_imports_of_resolves_inside_a_package(tmp_path, source, expected):
+    path = tmp_path / "mod.py"
+    path.write_text(source)
+    assert imports_of(path, ("bound",)) == expected
+
+
+def test_packages_are_nodes():
+    g = graph()
+    assert {"bound", "readers"} <= set(g) and "units" in g["readers"] and "models" in g["bound"]

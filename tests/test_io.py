@@ -61,3 +61,21 @@ def test_other_errors_pass_unchanged(tmp_path):
         with atomic_path(tmp_path / "x.nc"):
             raise ValueError("boom")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_plain_turns_numpy_into_yaml_types():
+    import math
+
+    import numpy as np
+    import yaml
+
+    from imupipe.io import plain
+
+    obj = {1: np.float64(0.5), "a": (np.int32(3), np.bool_(True)), "b": np.array([1.0, np.nan]),
+           "c": {"d": np.float32(np.inf), "e": "text", "f": None}}
+    out = plain(obj)
+    assert out == {"1": 0.5, "a": [3, True], "b": [1.0, None], "c": {"d": None, "e": "text", "f": None}}
+    assert type(out["a"][0]) is int and type(out["a"][1]) is bool and type(out["1"]) is float
+    yaml.safe_dump(out)  # raises on any numpy type left
+    kept = plain(obj, nonfinite_to_none=False)
+    assert math.isnan(kept["b"][1]) and kept["c"]["d"] == math.inf

@@ -12,7 +12,7 @@ from imupipe.models import NoiseModel
 N_ACC = 0.0425 / 60.0
 SIGMA_ACC = 0.165e-3 * 9.80665
 T_ACC = 120.0
-K_ACC = 3.625e-6 * 9.80665  # (g)/sqrt(s) read as the paper's units discussion (method.md 2.4)
+K_ACC = 3.625e-6 * 9.80665  # (g)/sqrt(s) read as the paper's units discussion (docs/method.md, section "Slip: units of K")
 
 
 @pytest.fixture

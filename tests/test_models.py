@@ -270,3 +270,14 @@ def test_flicker_cache_is_content_keyed():
     a[:] = 0.0  # the returned PSD is the caller's to modify
     assert np.all(m.psd_sampled(f, 1.0) > 0)
     assert not models._flicker_alias_sum(f).flags.writeable
+
+
+def test_from_dict_reads_a_bound_yaml_section():
+    # the `bound` section of a bound YAML: nulls for absent components, GM and lines as dicts
+    from imupipe.kalibr import model_of_bound
+
+    section = {"white": 1e-4, "gauss_markov": [{"sigma": 2e-5, "T": 300.0}], "random_walk": None,
+               "narrowband": [{"sigma": 1e-5, "f0_hz": 0.45, "zeta": 0.01}]}
+    m = NoiseModel.from_dict(section)
+    assert m == NoiseModel(white=1e-4, gauss_markov=((2e-5, 300.0),), narrowband=((1e-5, 0.45, 0.01),))
+    assert model_of_bound({"bound": section}) == m  # the lines are kept (Kalibr then refuses them by name)

@@ -474,7 +474,7 @@ class TestChi2Upper:
         assert abs(covered.mean() - 0.95) < 4 * math.sqrt(0.95 * 0.05 / n_fam)
 
     def test_raw_maximum_overshoot(self, rng):
-        # method.md section 3: the maximum of 15 raw single-window periodograms of white noise
+        # docs/method.md, section "Estimators": the maximum of 15 raw single-window periodograms of white noise
         # overshoots the true PSD about ln(15 * 12600) ~ 12x (chi2_2/2 is exponential)
         maxima = [psd(rng.standard_normal(36000), 1.0).psd.values[2:-1].max() for _ in range(15)]
         assert 8 < max(maxima) < 20
@@ -488,3 +488,15 @@ class TestChi2Upper:
             chi2_upper(1.0, 2.0, 0.95, correction="holm")
         with pytest.raises(ValueError, match="edf"):
             chi2_upper(1.0, 0.0)
+
+
+def test_shared_band_helpers_match_closed_forms():
+    from imupipe.spectra import band_edf_factor, bin_correlation, log_band_index
+
+    r = bin_correlation("hann", 5)
+    # Hann: r_1 = 4/9, r_2 = 1/36, zero beyond (Percival & Walden 1993, section 6.7)
+    np.testing.assert_allclose(r, [1.0, 4 / 9, 1 / 36, 0.0, 0.0, 0.0], rtol=1e-12, atol=1e-15)
+    assert band_edf_factor(r, 3) == pytest.approx(1 + 2 * ((2 / 3) * 4 / 9 + (1 / 3) / 36), rel=1e-15)
+    assert list(bin_correlation(None, 2)) == [1.0, 0.0, 0.0] and band_edf_factor(bin_correlation(None, 4), 4) == 1.0
+    # decade edges belong to the upper band, also where log10 rounds just below the integer
+    assert list(log_band_index(np.array([0.1, 0.99, 1.0, 1.2589254117941673, 10.0]), 10)) == [-10, -1, 0, 1, 10]

@@ -27,7 +27,7 @@ from imupipe.stationarity import (
 def white_plus_gm(white_std, gm_sigma, gm_T, dt=1.0):
     """Null-record generator gen(n, rng): white noise + first-order GM started at steady state.
 
-    Exact discretisation: phi = exp(-dt/T), driving std sigma * sqrt(1 - phi^2) (method.md 2.2).
+    Exact discretisation: phi = exp(-dt/T), driving std sigma * sqrt(1 - phi^2) (docs/method.md, section "Slip: discrete driving noise").
     """
     phi = math.exp(-dt / gm_T)
     q = gm_sigma * math.sqrt(1.0 - phi**2)
@@ -190,7 +190,7 @@ class TestPaperTest:
 # ---------------------------------------------------------------------------------------------
 class TestCalibrated:
     def test_correlated_noise_paper_rejects_calibrated_does_not(self, rng):
-        # method.md section 5: on stationary white + GM noise at 1 Hz the paper's KS on halves
+        # docs/method.md, section "Stationarity": on stationary white + GM noise at 1 Hz the paper's KS on halves
         # rejects far more often than 5 % (serially correlated samples), the calibrated test
         # ~5 %. 100 records of 2000 s (GM sigma = white std, T = 50 s), 39 null draws each
         # ((39 + 1) * 0.05 = 2: an exact-level Monte Carlo test). Binomial sd at 5 %: 2.2 %.

@@ -3,11 +3,15 @@ r"""One call from in-memory records to a bounding noise model: :func:`noise_mode
 The steps are the workflow's, in its order, with its defaults (``config/config.yaml``): per curve (one
 axis of one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block
 average to ``decimate_hz`` and its two-sided Welch PSD; then, over every curve of the sensor type, the pooled
-Allan-variance fit (:func:`imupipe.identify.fit_allan`) and the model selection for the application band
-(:func:`imupipe.identify.select_components`); the global PSD bound against the spec sheet
-(:func:`imupipe.bound.bound_psd`, restricted to the components the selection kept); and the Kalman-filter
-matrices of the bound at the filter step (:func:`imupipe.kf.export_kf`). Stationarity tests, figures and
-tables are left to the workflow.
+Allan-variance fit (:func:`imupipe.identify.fit_allan`), the model selection for the application band
+(:func:`imupipe.identify.select_components`) and the refit of the selected components
+(:func:`imupipe.identify.refit_selected`); optionally the narrowband lines of every curve
+(:func:`imupipe.lines.find_lines`) and their policy (:func:`imupipe.lines.line_policy`); the all-frequency
+PSD bound against the spec sheet (:func:`imupipe.bound.bound_psd` restricted to the kept components, with the
+selected refit's upper confidence envelope :func:`imupipe.bound.upper_envelope` imposed below the lowest bin
+down to the outage horizon); the Kalman-filter matrices of the bound at the filter step
+(:func:`imupipe.kf.export_kf`); and the covariance verification of the bound in the reference scenario
+(:func:`imupipe.verify.verification_report`). Stationarity tests, figures and tables are left to the workflow.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
 
@@ -58,6 +62,15 @@ class NoiseModelResult:
         Curve label -> ``xarray.Dataset`` of :func:`imupipe.psd` (decimated, two-sided).
     rate_hz, decimate_hz, kf_dt_s : float
         Record rate (Hz), decimated rate (Hz), filter step (s).
+    selected : imupipe.identify.AllanFit
+        :func:`imupipe.identify.refit_selected`: the fit of the kept components only (the workflow's
+        ``model_selected``).
+    upper : imupipe.models.NoiseModel
+        :func:`imupipe.bound.upper_envelope` of `selected`: imposed by the bound below the lowest PSD bin.
+    lines : imupipe.lines.LinePolicy or None
+        The lines policy applied to the bound (None when no policy was asked for).
+    verification : dict or None
+        :func:`imupipe.verify.verification_report` of the bound (None when ``verify=False``).
     """
 
     sensor: str
@@ -71,6 +84,10 @@ class NoiseModelResult:
     rate_hz: float = 0.0
     decimate_hz: float = 1.0
     kf_dt_s: float = 1.0
+    selected: Any = None
+    upper: Any = None
+    lines: Any = None
+    verification: dict | None = None
 
     @property
     def model(self):
@@ -85,19 +102,28 @@ class NoiseModelResult:
     def to_dict(self) -> dict:
         """Plain, YAML-ready dict: ``bound`` (the bound contract's fields), ``identify`` (fit, model,
         selection), ``kf``; SI units, PSDs two-sided."""
-        from imupipe.bound import _plain
+        from imupipe.io import plain
 
         sel = {k: self.selection.get(k) for k in ("kept", "dropped", "reasons", "band_hz")}
-        return {
+        out = {
             "sensor": self.sensor,
             "spec_name": self.spec_name,
             "rate_hz": float(self.rate_hz),
             "decimate_hz": float(self.decimate_hz),
             "curves": list(self.allan),
             "bound": self.bound.to_dict(sensor=self.sensor),
-            "identify": {"fit": self.fit.to_dict(), "model": self.fit.model.to_dict(), "selection": _plain(sel)},
-            "kf": _plain(self.kf),
+            "identify": {"fit": self.fit.to_dict(), "model": self.fit.model.to_dict(), "selection": plain(sel)},
+            "kf": plain(self.kf),
         }
+        if self.selected is not None:
+            out["identify"]["model_selected"] = self.selected.model.to_dict()
+        if self.upper is not None:
+            out["upper_envelope"] = self.upper.to_dict()
+        if self.lines is not None:
+            out["lines"] = plain(self.lines.to_dict())
+        if self.verification is not None:
+            out["verification"] = plain(self.verification)
+        return out
 
 
 @contextmanager
@@ -168,6 +194,12 @@ def noise_model(
     bound_confidence: float = 0.95,
     bands_per_decade: int = 10,
     seed: int = 20211,
+    lines_policy: str | None = None,
+    lines_resolution_hz: float = 0.002,
+    lines_alpha: float = 0.01,
+    fix_s: float = 600.0,
+    verify: bool = True,
+    sigma_fix: float | None = None,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -198,6 +230,16 @@ def noise_model(
         :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
     seed : int, optional
         Seed of the fit's bootstrap (default 20211, the workflow's).
+    lines_policy : {None, "model", "exclude", "keep"}, optional
+        Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
+        `lines_resolution_hz`, Hz, and `lines_alpha`) and apply :func:`imupipe.lines.line_policy` over the
+        whole decimated band (default None: no search).
+    fix_s : float, optional
+        Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's
+        all-frequency horizon is ``fix_s + horizon_s``.
+    verify, sigma_fix :
+        Run :func:`imupipe.verify.verification_report` on the bound (default True); `sigma_fix` is the fix
+        standard deviation (m for accel, rad for gyro; default the scenario's).
 
     Returns
     -------
@@ -210,8 +252,8 @@ def noise_model(
         unknown sensor, or a spec sheet without that sensor.
     """
     from imupipe.allan import allan_variance
-    from imupipe.bound import bound_psd
-    from imupipe.identify import fit_allan, select_components
+    from imupipe.bound import bound_psd, upper_envelope
+    from imupipe.identify import fit_allan, refit_selected, select_components
     from imupipe.kf import export_kf
     from imupipe.models import NoiseModel
     from imupipe.spectra import decimate, psd
@@ -226,7 +268,9 @@ def noise_model(
     if sensor not in spec_sheet.models:
         raise ValueError(f"spec {spec_sheet.name!r}: no '{sensor}' section")
     rate = float(rate_hz)
-    units = "rad/s" if sensor == "gyro" else "m/s^2"
+    from imupipe.units import SI_UNITS
+
+    units = SI_UNITS[sensor]
 
     allan, spectra = {}, {}
     for label, x in curves.items():
@@ -249,11 +293,13 @@ def noise_model(
         avars.append(a[ok])
         edfs.append(e[ok])
         ns.append(int(np.asarray(x).size))
-    fit = fit_allan(taus_l, avars, edfs, components=list(components), n_gm=n_gm, n_boot=n_boot,
-                    confidence=fit_confidence, rng=seed, dt=1.0 / rate, rate=rate, n_samples=ns)
+    fit_kw = dict(n_boot=n_boot, confidence=fit_confidence, rng=seed, dt=1.0 / rate, rate=rate, n_samples=ns)
+    fit = fit_allan(taus_l, avars, edfs, components=list(components), n_gm=n_gm, **fit_kw)
     selection = select_components(fit, taus_l, avars, edfs, rate_hz=application_rate_hz, horizon_s=horizon_s,
                                   significance=significance, relevance=relevance)
     kept = selection["kept"]
+    selected = refit_selected(fit, selection, taus_l, avars, edfs, **fit_kw)
+    upper = upper_envelope(selected, selection)
 
     first = next(iter(spectra.values()))
     f = first["frequency"].values
@@ -265,16 +311,34 @@ def noise_model(
         psd_curves[label] = sp["psd"].values
         edf.append(np.broadcast_to(sp["edf"].values, f.shape))
     dt = 1.0 / float(first.attrs.get("rate_hz", decimate_hz))
+    policy, line_kw = None, {}
+    if lines_policy is not None:
+        from imupipe.lines import find_lines, line_policy
+
+        found = [ln for label, x in curves.items()
+                 for ln in find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=lines_resolution_hz,
+                                      alpha=lines_alpha, units=units, label=label).lines]
+        policy = line_policy(found, dt, (0.0, 0.5 / dt), policy=lines_policy, frequency=f)
+        line_kw = policy.bound_kwargs()
     with _no_stdout_fd():
         result = bound_psd(f, psd_curves, spec_sheet.models[sensor], dt=dt, mode=mode, n_gm=n_gm,
                            confidence=bound_confidence, bands_per_decade=bands_per_decade, edf=np.array(edf),
-                           keep=kept, taper=first.attrs.get("taper", taper))
+                           keep=kept, taper=first.attrs.get("taper", taper), horizon_s=fix_s + horizon_s,
+                           upper_model=upper, **line_kw)
 
-    m = result.model
-    m = NoiseModel(white=m.white, random_walk=m.random_walk, gauss_markov=tuple(m.gauss_markov))
+    # the bound YAML's model as the workflow's KF stage reads it back (narrowband lines included)
+    m = NoiseModel.from_dict(result.to_dict(sensor=sensor)["bound"])
     kf_dt = 1.0 / float(application_rate_hz)
     p0_rw = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
     kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw)
+    verification = None
+    if verify:
+        from imupipe.verify import verification_report
+
+        verification = verification_report(m, sensor, spec=spec_sheet.models[sensor], upper=upper, fix_s=fix_s,
+                                           horizon_s=horizon_s, sigma_fix=sigma_fix,
+                                           filter_rate_hz=application_rate_hz)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=result, fit=fit, selection=selection,
                             kf=kf, allan=allan, spectra=spectra, rate_hz=rate, decimate_hz=float(decimate_hz),
-                            kf_dt_s=kf_dt)
+                            kf_dt_s=kf_dt, selected=selected, upper=upper, lines=policy,
+                            verification=verification)

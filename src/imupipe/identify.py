@@ -2,7 +2,7 @@ r"""Identification of IMU noise components from Allan variances.
 
 The Allan variance (AV) of a sum of independent processes is the sum of their AVs, and for a
 fixed Gauss-Markov (GM) time constant :math:`T` every component's AV is linear in its squared
-coefficient (IEEE Std 952 Annex C; Gallon et al. 2021, eqs. 5, 10, 11; method.md section 1):
+coefficient (IEEE Std 952 Annex C; Gallon et al. 2021, eqs. 5, 10, 11; docs/method.md, section "Allan variance from a PSD"):
 
 .. math::
 
@@ -64,7 +64,7 @@ __all__ = [
 #: Components :func:`fit_allan` knows, in the order of the linear coefficients.
 COMPONENTS = ("white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp")
 
-#: sqrt(2 ln 2 / pi): flicker ADEV plateau = 0.664 B (IEEE Std 952; method.md 2.3).
+#: sqrt(2 ln 2 / pi): flicker ADEV plateau = 0.664 B (IEEE Std 952; docs/method.md, section "Slip: the flicker constant and Gauss-Markov").
 _FLICKER_ADEV = math.sqrt(2.0 * math.log(2.0) / math.pi)
 
 # Components removed together with the tested one in the refit test of select_components: a rate
@@ -283,12 +283,13 @@ def _default_T_grid(tau, per_decade=8):
     # a GM with T below the shortest tau looks like white noise; one whose AV peak (1.89 T) lies
     # beyond the longest tau looks like a random walk (and a random walk with K^2 = 2 sigma^2/T
     # dominates it): outside [tau_min, tau_max/2] T is not identifiable and only feeds confounding
+    from imupipe.search import log_grid
+
     t = np.asarray(tau)
     lo, hi = math.log10(t.min()), math.log10(t.max() / 2.0)
     if hi <= lo:
         hi = lo + 1.0
-    n = max(3, int(round((hi - lo) * per_decade)) + 1)
-    return np.logspace(lo, hi, n)
+    return log_grid(lo, hi, per_decade, min_points=3)
 
 
 @dataclass
@@ -308,8 +309,9 @@ def _solve_fixed(t, y, e, comps, T, m0=None, offset=None):
 
 def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
     """Best solution over GM time constants (grid, then bounded refinement in log T); `offset`: a fixed
-    part of the model (:func:`_wnnls`)."""
-    from scipy.optimize import minimize, minimize_scalar
+    part of the model (:func:`_wnnls`). One GM: Brent's method in ln T between the grid neighbours
+    (:func:`imupipe.search.minimize_bounded`, scipy's bounded method without its import)."""
+    from imupipe.search import refine_between_neighbours
 
     solve = functools.partial(_solve_fixed, offset=offset)
     if "gauss_markov" not in comps:
@@ -326,21 +328,17 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
         i = int(np.argmin(chis))
         best = sols[i]
         if refine and grid.size >= 2:
-            lo = math.log(grid[max(i - 1, 0)])
-            hi = math.log(grid[min(i + 1, grid.size - 1)])
-            if hi > lo:
-                res = minimize_scalar(
-                    lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
-                    bounds=(lo, hi),
-                    method="bounded",
-                    options={"xatol": 1e-3},
-                )
+            res = refine_between_neighbours(lambda lt: solve(t, y, e, comps, (math.exp(lt),), m0=best.m).chi2,
+                                            grid, i, 1e-3)
+            if res is not None:
                 cand = solve(t, y, e, comps, (math.exp(res.x),), m0=best.m)
                 if cand.chi2 < best.chi2:
                     best = cand
         return best, (grid, chis)
     # several GM terms: coarse grid over increasing tuples, then Nelder-Mead on log T
     from itertools import combinations
+
+    from scipy.optimize import minimize
 
     coarse = grid[:: max(1, grid.size // 12)]
     best = None
@@ -663,7 +661,7 @@ def fit_allan(
     0.89/0.885 and 0.915/0.895, K 0.99 (the random walk is dropped by the selection in 99 % of the records
     and reported as an upper limit: conservative).
 
-    With one 10 h record GM and rate random walk are confounded (method.md section 4): K is often
+    With one 10 h record GM and rate random walk are confounded (docs/method.md, section "Identification"): K is often
     fitted as 0 and the GM parameters have 50-200 % spread, while white noise is recovered to < 1 %.
     The result's `notes` say so when the bootstrap shows it.
 
@@ -830,7 +828,8 @@ def fit_allan(
         if "random_walk" in comps and p_zero.get("random_walk", 0) > 0.2:
             notes.append(
                 f"random walk K is fitted as 0 in {100 * p_zero['random_walk']:.0f} % of bootstrap "
-                "replicates: the record does not pin it down (GM/random-walk confounding, method.md 4)"
+                "replicates: the record does not pin it down (GM/random-walk confounding; docs/method.md, "
+                "section 'Identification')"
             )
         for i in range(1, n_gm + 1):
             s_lo, s_hi = intervals.get(f"gm_sigma_{i}", (np.nan, np.nan))
@@ -1111,7 +1110,7 @@ def select_components(
     end?": the null drops the rate ramp too (it absorbs the rise and is no filter state) and caps
     the GM time constants at :math:`\tau_{max}/8`, so that a GM cannot mimic a +1/2 slope over the
     last octaves; a random walk and a GM with :math:`T` near the record length are
-    indistinguishable there (method.md 4), and keeping the random-walk state is the integrity side.
+    indistinguishable there (docs/method.md, section "Identification"), and keeping the random-walk state is the integrity side.
     Keeping a component on either test is the conservative side. Both tests
     treat the AV points as independent; overlapping AV estimates at neighbouring taus are
     positively correlated, so the nominal level is approximate (a component fitted to a chance

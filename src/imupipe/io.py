@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 __all__ = ["atomic_path", "write_yaml_atomic", "write_text_atomic", "read_yaml",
-           "write_series", "read_series", "remove_stale_temp", "DiskFullError", "TEMP_PREFIX"]
+           "write_series", "read_series", "remove_stale_temp", "DiskFullError", "TEMP_PREFIX", "plain"]
 
 #: Prefix of the temporary files of :func:`atomic_path` (``.tmp-<name>-<random><suffix>``).
 TEMP_PREFIX = ".tmp-"
@@ -241,3 +241,31 @@ def run_job(main, log_path, **kwargs) -> None:
         log.close()
         sys.exit(1)
     logging.info("done in %.3f s", time.perf_counter() - t0)
+
+
+def plain(obj, *, nonfinite_to_none: bool = True):
+    """Numpy containers and scalars -> plain Python, for YAML (``yaml.safe_dump`` takes no numpy types).
+
+    Mappings become dicts with ``str`` keys, lists/tuples/arrays become lists (recursively), numpy booleans
+    ``bool``, numpy integers ``int``, floats ``float``; a NaN or infinite float becomes ``None`` (YAML ``null``:
+    "not available") unless `nonfinite_to_none` is False, when it stays a float (YAML ``.nan``/``.inf``).
+    Anything else (str, None, Python ints and bools) is returned as it is.
+    """
+    import math
+
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): plain(v, nonfinite_to_none=nonfinite_to_none) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v, nonfinite_to_none=nonfinite_to_none) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return plain(obj.tolist(), nonfinite_to_none=nonfinite_to_none)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) or not nonfinite_to_none else None
+    return obj

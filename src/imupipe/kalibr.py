@@ -18,7 +18,7 @@ Kalibr field                    imupipe         unit
 
 Kalibr discretises with the IMU's own sample interval :math:`\Delta t = 1/\text{update\_rate}`:
 :math:`\sigma_d = \sigma/\sqrt{\Delta t}` (white) and :math:`\sigma_{b,d} = \sigma_b\sqrt{\Delta t}` (random
-walk), the same rules as docs/method.md, section "Discrete noise". ``update_rate`` must therefore be the
+walk), the same rules as docs/method.md, section "Slip: discrete driving noise". ``update_rate`` must therefore be the
 rate of the recorded IMU messages, not the filter rate.
 
 Kalibr has no Gauss-Markov state. Each GM term (sigma, T) is folded into the random walk so that the PSD
@@ -290,10 +290,10 @@ def read_kalibr(path) -> dict:
 
 
 def model_of_bound(bound_yaml: Mapping) -> NoiseModel:
-    """The bound model of a per-sensor bound contract (``results/.../bound/{sensor}.yaml``), SI."""
+    """The bound model of a per-sensor bound contract (``results/.../bound/{sensor}.yaml``), SI
+    (:meth:`NoiseModel.from_dict` of its ``bound`` section: narrowband lines included)."""
     try:
         b = bound_yaml["bound"]
     except (KeyError, TypeError):
         raise ValueError("bound YAML: no 'bound' section (expected the per-sensor bound contract)") from None
-    return NoiseModel(white=b.get("white") or 0.0, random_walk=b.get("random_walk") or 0.0,
-                      gauss_markov=tuple((g["sigma"], g["T"]) for g in b.get("gauss_markov") or ()))
+    return NoiseModel.from_dict(b)

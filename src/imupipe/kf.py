@@ -24,7 +24,7 @@ F^T\end{bmatrix}\Delta t`, :math:`e^{M} = \begin{bmatrix} \cdot & \Phi^{-1} Q_d 
 \Phi^T\end{bmatrix}`. Closed forms it reproduces (tests): GM :math:`\Phi = e^{-\Delta t/T}`,
 :math:`Q_d = \sigma^2(1 - e^{-2\Delta t/T})`; random walk :math:`Q_d = K^2 \Delta t` (driving
 standard deviation :math:`K\sqrt{\Delta t}`, **not** the paper's :math:`\sigma_p = K \Delta t`,
-which agrees only at :math:`\Delta t = 1` s: method.md 2.2); velocity random walk
+which agrees only at :math:`\Delta t = 1` s: docs/method.md, section "Slip: discrete driving noise"); velocity random walk
 :math:`Q_{d,vv} = N^2 \Delta t`; white rate noise as a discrete measurement/input noise
 :math:`N^2/\Delta t` per sample.
 
@@ -47,6 +47,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from imupipe.units import SI_UNITS
+
 __all__ = [
     "ContinuousModel",
     "continuous_model",
@@ -56,7 +58,7 @@ __all__ = [
     "kalibr_yaml",
 ]
 
-_RATE_UNIT = {"accel": "m/s^2", "gyro": "rad/s"}
+_RATE_UNIT = SI_UNITS
 
 
 class ContinuousModel(NamedTuple):
@@ -270,7 +272,7 @@ def initial_covariance(model, states, p0_random_walk: float | None = None, var_x
     position and rate of a stationary oscillator are uncorrelated.
 
     A GM bias started at its steady-state variance :math:`\sigma^2` is stationary, which the PSD
-    bound's guarantee needs (method.md section 6). The random walk has no steady state: its
+    bound's guarantee needs (docs/method.md, section "The bound"). The random walk has no steady state: its
     initial variance must be stated (e.g. the turn-on bias repeatability squared, or
     :math:`K^2 t_0` for a bias left to wander :math:`t_0` seconds before the filter starts).
 

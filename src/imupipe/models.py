@@ -504,12 +504,16 @@ class NoiseModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> "NoiseModel":
-        """Build from :meth:`to_dict` output; unknown keys are an error naming the key."""
+        """Build from :meth:`to_dict` output or the ``bound`` section of a bound YAML; unknown keys are an
+        error naming the key. A scalar component given as ``None`` (YAML ``null``) is absent (0)."""
         unknown = set(d) - {"white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp", "dt",
                             "narrowband"}
         if unknown:
             raise ValueError(f"unknown NoiseModel key(s): {sorted(unknown)}")
         kw = dict(d)
+        for name in ("white", "random_walk", "flicker", "quantization", "ramp"):
+            if name in kw and kw[name] is None:
+                kw[name] = 0.0
         kw["gauss_markov"] = tuple(
             (g["sigma"], g["T"]) if isinstance(g, dict) else tuple(g) for g in kw.get("gauss_markov") or ()
         )

@@ -39,6 +39,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from imupipe.units import SI_UNITS, STANDARD_GRAVITY
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -59,9 +61,9 @@ __all__ = [
 ]
 
 #: SI rate unit of each sensor.
-RATE_UNITS = {"gyro": "rad/s", "accel": "m/s^2"}
+RATE_UNITS = SI_UNITS
 #: SI two-sided PSD unit of each sensor.
-PSD_UNITS = {"gyro": "(rad/s)^2/Hz", "accel": "(m/s^2)^2/Hz"}
+PSD_UNITS = {sensor: f"({unit})^2/Hz" for sensor, unit in SI_UNITS.items()}
 #: Spec-sheet rate units used by ``display_unit="spec"``.
 SPEC_RATE_UNITS = {"gyro": "deg/h", "accel": "mg"}
 
@@ -78,9 +80,6 @@ _EXTRA_GM_COLOURS = ("C1", "C6", "C8", "C9", "C7")
 _SAMPLE_COLOUR = "0.6"
 _SPEC_COLOUR = "tab:red"
 _BOUND_COLOUR = "tab:green"
-
-_G0 = 9.80665  # standard gravity, m/s^2
-
 
 # ---------------------------------------------------------------------------------------------
 # helpers
@@ -561,7 +560,7 @@ def table3_model(dt: float = 1.0) -> "NoiseModel":
     """
     from imupipe.models import NoiseModel
 
-    return NoiseModel(white=0.1 / 60.0, gauss_markov=((1e-2 * _G0, 1e3),), random_walk=1e-4, dt=dt)
+    return NoiseModel(white=0.1 / 60.0, gauss_markov=((1e-2 * STANDARD_GRAVITY, 1e3),), random_walk=1e-4, dt=dt)
 
 
 def _factor_text(k):

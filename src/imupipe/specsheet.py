@@ -3,7 +3,7 @@ r"""Spec sheets (and simulation truths): YAML files of noise parameters, each va
 A spec sheet states, per sensor type, the stochastic parameters of a manufacturer's data sheet.
 Every value carries an explicit unit, converted once to SI by :mod:`imupipe.units`; a missing or
 ambiguous unit is an error that names the file and the key. Components a sheet leaves out are
-absent from the model (the bound then adds them only if the data need them, method.md 6)::
+absent from the model (the bound then adds them only if the data need them, docs/method.md, section "The bound")::
 
     name: STIM-300
     source: Gallon et al. 2021, Table 2
@@ -19,7 +19,7 @@ absent from the model (the bound then adds them only if the data need them, meth
 Optional per sensor: ``flicker`` (B, rate unit), ``quantization`` (Q, e.g. deg or m/s) and
 ``ramp`` (R, e.g. deg/h^2). The same format describes the "true" model of simulated data.
 
-Model PSDs are two-sided (method.md 1): :math:`S_2 = N^2 + \sum 2\sigma^2 T/(1 + (2\pi f T)^2)
+Model PSDs are two-sided (docs/method.md, section "Conventions: the PSD"): :math:`S_2 = N^2 + \sum 2\sigma^2 T/(1 + (2\pi f T)^2)
 + K^2/(2\pi f)^2 + B^2/(2\pi f)`.
 """
 

@@ -48,7 +48,10 @@ import numpy as np
 __all__ = [
     "LogBands",
     "TAPERS",
+    "band_edf_factor",
+    "bin_correlation",
     "chi2_upper",
+    "log_band_index",
     "decimate",
     "get_taper",
     "psd",
@@ -283,11 +286,20 @@ def welch_edf(taper, nperseg: int, step: int, n_segments: int) -> float:
     return 2.0 * k / (1.0 + 2.0 * total)
 
 
-def _bin_correlation(taper, max_lag: int, nperseg: int | None = None) -> np.ndarray:
-    r"""Squared correlation :math:`r_j` of periodogram ordinates j bins apart (Gaussian, flat spectrum).
+def bin_correlation(taper, max_lag: int, nperseg: int | None = None) -> np.ndarray:
+    r"""Squared correlation :math:`r_j`, j = 0 .. `max_lag`, of periodogram ordinates j bins apart
+    (Gaussian data, locally flat spectrum; Percival & Walden 1993, section 6.7).
 
     .. math:: r_j = \left|\sum_n w_n^2 e^{-2\pi i j n / N}\right|^2 \Big/ \left(\sum_n w_n^2\right)^2
+
+    `taper` is a name of :data:`TAPERS` (evaluated at N = `nperseg`, default 4096: for a cosine-sum taper
+    r_j does not depend on N once N > twice its number of terms), an array of taper values, or None
+    (independent ordinates: r_0 = 1, r_j = 0 otherwise, exact for the boxcar). Dimensionless.
     """
+    if taper is None:
+        out = np.zeros(max_lag + 1)
+        out[0] = 1.0
+        return out
     if isinstance(taper, str):
         # cosine-sum tapers: r_j does not depend on N once N > 2 * (number of terms)
         nperseg = 4096 if nperseg is None else nperseg
@@ -301,6 +313,27 @@ def _bin_correlation(taper, max_lag: int, nperseg: int | None = None) -> np.ndar
     # numerical zeros of cosine-sum tapers are exactly zero in exact arithmetic
     out[out < 1e-20] = 0.0
     return out
+
+
+#: The former private name (kept for callers of the library).
+_bin_correlation = bin_correlation
+
+
+def band_edf_factor(r, m: int) -> float:
+    r"""Degrees-of-freedom divisor of an average of `m` adjacent periodogram ordinates whose squared
+    correlations j bins apart are ``r[j]`` (:func:`bin_correlation`):
+    :math:`1 + 2 \sum_{j=1}^{m-1} (1 - j/m)\, r_j` (Percival & Walden 1993, section 6.7): the band's edf is
+    the sum of its ordinates' edf divided by this. Dimensionless, >= 1."""
+    j = np.arange(1, m)
+    return 1.0 + 2.0 * np.sum((1.0 - j / m) * r[1:m])
+
+
+def log_band_index(frequency, bands_per_decade: int) -> np.ndarray:
+    r"""Log band of each (positive) frequency: :math:`b = \lfloor B \log_{10} f \rfloor` (B =
+    `bands_per_decade`; band b holds :math:`10^{b/B} \le f < 10^{(b+1)/B}`, edges aligned on decades, so
+    bands coincide across records of the same grid; a 1e-9 guard puts a bin on an edge in the upper band).
+    Integer array of the shape of `frequency` (Hz)."""
+    return np.floor(bands_per_decade * np.log10(frequency) + 1e-9).astype(np.int64)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -646,7 +679,7 @@ def smooth_log_bands(frequency, psd, bands_per_decade: int = 10, edf=2.0, taper=
     f, s, nu = f[keep], s[..., keep], nu[keep]
     if f.size == 0:
         raise ValueError("no positive frequency to band-average")
-    b = np.floor(bands_per_decade * np.log10(f) + 1e-9).astype(np.int64)
+    b = log_band_index(f, bands_per_decade)
     order = np.argsort(b, kind="stable")  # no-op for an increasing frequency grid
     f, s, nu, b = f[order], s[..., order], nu[order], b[order]
     counts = np.unique(b, return_counts=True)[1]
@@ -655,11 +688,8 @@ def smooth_log_bands(frequency, psd, bands_per_decade: int = 10, edf=2.0, taper=
     f_b = np.add.reduceat(f, start) / counts
     nu_sum = np.add.reduceat(nu, start)
     if taper is not None:
-        r = _bin_correlation(taper, int(counts.max()))
-        factor = np.empty(counts.size)
-        for i, m in enumerate(counts):
-            j = np.arange(1, m)
-            factor[i] = 1.0 + 2.0 * np.sum((1.0 - j / m) * r[1:m])
+        r = bin_correlation(taper, int(counts.max()))
+        factor = np.array([band_edf_factor(r, int(m)) for m in counts])
         nu_b = nu_sum / factor
     else:
         nu_b = nu_sum
@@ -682,7 +712,7 @@ def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction:
     so that the true PSD lies below :math:`S_{up}` at all :math:`n` tested ordinates (bins x curves)
     simultaneously with probability at least :math:`c` (Bonferroni: any dependence; Sidak: exact
     for independent ordinates, and valid for positively dependent ones). This is the
-    statistically stated alternative to bounding the raw periodograms (method.md section 3).
+    statistically stated alternative to bounding the raw periodograms (docs/method.md, section "Estimators").
 
     Parameters
     ----------

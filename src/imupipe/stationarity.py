@@ -1,12 +1,12 @@
-r"""Stationarity checks of static IMU records (method.md section 5).
+r"""Stationarity checks of static IMU records (docs/method.md, section "Stationarity").
 
 The paper (Gallon et al. 2021) declares a record stationary when a Levene test of equal variances
 and a two-sample Kolmogorov-Smirnov test of equal distributions both accept at the 95 % level,
 on the 1 Hz block-averaged record split into segments. Both tests assume **independent** samples.
 A stationary white + Gauss-Markov (GM) process at 1 Hz has serially correlated samples, so the
 two halves of one record differ by much more than independent samples would: the paper's KS test
-then rejects stationarity far more often than its nominal 5 % (method.md quotes ~76 %; the tests
-of this module reproduce the effect).
+then rejects stationarity far more often than its nominal 5 % (about 76 % of stationary records; see
+docs/method.md, section "Stationarity"; the tests of this module reproduce the effect).
 
 Three versions are provided:
 
@@ -65,6 +65,8 @@ try:  # optional compiled kernel; the NumPy path below gives the same statistics
     from imupipe import _kernels
 except ImportError:  # pragma: no cover - exercised by forcing backend="numpy" in the tests
     _kernels = None
+
+from imupipe.io import plain
 
 __all__ = [
     "bootstrap_stationarity",
@@ -186,13 +188,6 @@ def _null_statistics(records: np.ndarray, k: int, m: int, backend: str = "auto")
         return w, d
     segs = np.sort(_segments(records, k, m), axis=-1)
     return np.atleast_1d(levene_statistic(segs)), ks_statistics(segs).max(axis=-1)
-
-
-def _plain(v):
-    """numpy scalar -> Python scalar (for YAML)."""
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        return v.item()
-    return v
 
 
 # ---------------------------------------------------------------------------------------------
@@ -524,7 +519,7 @@ def calibrated_stationarity(
     out["rate_hz"] = rate
     out["seed"] = seeded
     out["paper"] = stationarity_tests(a, n_segments=k, alpha=alpha)
-    return _plain_dict(out)
+    return plain(out, nonfinite_to_none=False)
 
 
 def bootstrap_stationarity(
@@ -593,8 +588,5 @@ def bootstrap_stationarity(
     out["block_s"] = b / rate
     out["block_length"] = b
     out["paper"] = stationarity_tests(a, n_segments=k, alpha=alpha)
-    return _plain_dict(out)
+    return plain(out, nonfinite_to_none=False)
 
-
-def _plain_dict(d: dict) -> dict:
-    return {key: (_plain_dict(v) if isinstance(v, dict) else _plain(v)) for key, v in d.items()}

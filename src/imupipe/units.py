@@ -1,7 +1,7 @@
 r"""Spec-sheet units to SI and back.
 
 Spec sheets quote noise in units such as ``deg/sqrt(h)``, ``(deg/h)/sqrt(s)``, ``mg`` or
-``m/s/sqrt(h)``; imupipe works in SI internally (gyro rad/s, accel m/s^2, time s; method.md 1).
+``m/s/sqrt(h)``; imupipe works in SI internally (gyro rad/s, accel m/s^2, time s; docs/method.md, section "Conventions: units").
 This module converts once, at the edge, from a unit string named in the file.
 
 Grammar
@@ -69,7 +69,7 @@ time            time                    s, h
 
 A random-walk coefficient K given with plain rate dimension (``deg/h``) is refused with a
 hint: reading the +1/2 slope of an ADEV in deg/h at tau = 3 s gives K in (deg/h)/sqrt(s),
-not deg/h (nor deg/h^(3/2), a factor 60 away) (method.md 2.4).
+not deg/h (nor deg/h^(3/2), a factor 60 away) (docs/method.md, section "Slip: units of K").
 
 Examples
 --------
@@ -495,7 +495,8 @@ def _check(unit, quantity, sensor, key):
         if quantity == "random_walk" and parsed.dimension == _RATE[sensor]:
             msg += (
                 ". Common mistake: K read at tau = 3 s of an ADEV plotted in "
-                f"{unit} is in ({unit})/sqrt(s), not {unit} (method.md 2.4); name the unit explicitly"
+                f"{unit} is in ({unit})/sqrt(s), not {unit} (docs/method.md, section 'Slip: units of K'); "
+                "name the unit explicitly"
             )
         elif quantity == "white" and parsed.dimension == _RATE[sensor]:
             msg += ". A noise density is rate/sqrt(Hz); an angle/velocity random walk is e.g. deg/sqrt(h)"

@@ -2,7 +2,7 @@ r"""Verification of an exported noise model: does a Kalman filter built on it un
 
 A PSD bound is a means; the end is that a filter using the model reports a covariance :math:`P`
 that is not smaller than the true mean-square error (MSE) of its estimate over the application
-horizon (docs/method.md, "Integrity: what bounded must mean, and how to check it"). This module
+horizon (docs/method.md, section "Integrity: what bounded means"). This module
 checks that directly, by an exact covariance analysis of a mismatched linear filter.
 
 Reference filters (one axis; :func:`reference_scenario`):

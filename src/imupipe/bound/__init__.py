@@ -1,4 +1,4 @@
-r"""PSD overbounding of IMU errors by a Kalman-filter-ready noise model (method.md section 6).
+r"""PSD overbounding of IMU errors by a Kalman-filter-ready noise model (docs/method.md, section "The bound").
 
 Goal (Gallon, Joerger, Pervan, ION GNSS+ 2021, section II.2.e): a model of white noise, first-order
 Gauss-Markov (GM) terms and a random walk whose two-sided PSD

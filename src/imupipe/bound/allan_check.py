@@ -46,6 +46,16 @@ def gm_bounds_gm(sigma_m: float, T_m: float, sigma: float, T: float, rtol: float
     return bool(lo and hi)
 
 
+def _gm_terms_avar(model, t):
+    """Allan variance (u^2) of the sum of `model`'s Gauss-Markov terms at the averaging times `t` (s)."""
+    from imupipe.models import gm_avar
+
+    out = np.zeros_like(t)
+    for s, T in model.gauss_markov:
+        out = out + np.asarray(gm_avar(t, s, T), dtype=np.float64)
+    return out
+
+
 def check_allan_components(bound_model, identified_model, tau) -> dict:
     r"""Component-wise AV check: does each bound component dominate its identified counterpart?
 
@@ -61,7 +71,7 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
       taus where flicker is the identified model's largest AV term (a GM's AV vanishes as
       :math:`\tau \to 0`, so no GM covers flat flicker at every tau; elsewhere the other components
       carry the AV); ``passed = None`` if flicker never dominates. A GM with :math:`\sigma = B`
-      does not cover it: its ADEV peaks at :math:`0.6174\sigma < 0.664 B` (method.md 2.3);
+      does not cover it: its ADEV peaks at :math:`0.6174\sigma < 0.664 B` (docs/method.md, section "Slip: the flicker constant and Gauss-Markov");
     * ``bias (gauss_markov + flicker)``: the bound's GM terms against the identified GM and flicker
       together, when both are present;
     * ``quantization``, ``ramp``: not Kalman-filter states; reported with ``passed = None``.
@@ -82,7 +92,7 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
         "reason": str}``; margin is min over tau of AV_bound/AV_identified (inf if the identified
         component is absent).
     """
-    from imupipe.models import FLICKER_AV, gm_avar
+    from imupipe.models import FLICKER_AV
 
     t = np.asarray(tau, dtype=np.float64)
     t = t[np.isfinite(t) & (t > 0)]
@@ -90,10 +100,7 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
         raise ValueError("tau must contain positive averaging times (s)")
 
     def gm_av(model):
-        out = np.zeros_like(t)
-        for s, T in model.gauss_markov:
-            out = out + np.asarray(gm_avar(t, s, T), dtype=np.float64)
-        return out
+        return _gm_terms_avar(model, t)
 
     def entry(av_b, av_i, what, t=t):
         if not np.any(av_i > 0):
@@ -199,7 +206,7 @@ def upper_envelope(fit, kept=None):
                 T_hi = lo_hi[1] if math.isfinite(lo_hi[1]) and lo_hi[1] > 0 else T
                 a, c = min(T, T_lo), max(T, T_hi)
                 # the tightest single GM above every GM with sigma <= s and T in [a, c]: sigma_m^2 T_m >= s^2 c
-                # (f -> 0) and sigma_m^2 / T_m >= s^2 / a (f -> inf) (method.md, "The bound")
+                # (f -> 0) and sigma_m^2 / T_m >= s^2 / a (f -> inf) (docs/method.md, section "The bound")
                 gm.append((s * (c / a) ** 0.25, math.sqrt(a * c)))
             i += 1
     k = up("random_walk")
@@ -235,7 +242,7 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         margin, tau_s, reason}; ``total``: {passed, worst_ratio, curve, tau_s, n_compared, shortfalls:
         [{curve, tau_s, ratio}]}; ``passed``: no shortfall anywhere.
     """
-    from imupipe.models import FLICKER_AV, gm_avar
+    from imupipe.models import FLICKER_AV
 
     t = np.asarray(tau, dtype=np.float64)
     good = np.isfinite(t) & (t > 0)
@@ -251,10 +258,7 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
     b = bound_model
 
     def gm_av(model):
-        out = np.zeros_like(t)
-        for s, T in model.gauss_markov:
-            out = out + np.asarray(gm_avar(t, s, T), dtype=np.float64)
-        return out
+        return _gm_terms_avar(model, t)
 
     def compare(av_b, av_i, what, sel=None):
         sel = np.ones_like(t, dtype=bool) if sel is None else sel

@@ -64,22 +64,11 @@ def _log_weights(f):
 
 
 def _bin_r(taper, max_lag):
-    """Squared correlation r_j of periodogram ordinates j bins apart for `taper` (flat spectrum)."""
-    if taper is None:
-        r = np.zeros(max_lag + 1)
-        r[0] = 1.0
-        return r
-    from imupipe.spectra import get_taper
+    """Squared correlation r_j of periodogram ordinates j bins apart for `taper` (flat spectrum):
+    :func:`imupipe.spectra.bin_correlation`."""
+    from imupipe.spectra import bin_correlation
 
-    n = 4096 if isinstance(taper, str) else len(np.asarray(taper))
-    w = get_taper(taper, n)
-    w2 = w * w
-    spec = np.abs(np.fft.rfft(w2)) ** 2 / float(w2.sum()) ** 2
-    r = np.zeros(max_lag + 1)
-    k = min(max_lag + 1, spec.size)
-    r[:k] = spec[:k]
-    r[r < 1e-20] = 0.0
-    return r
+    return bin_correlation(taper, max_lag)
 
 
 def _band_groups(f, bands_per_decade, nu, taper, min_edf, split=None):
@@ -88,14 +77,15 @@ def _band_groups(f, bands_per_decade, nu, taper, min_edf, split=None):
     least `min_edf` degrees of freedom, then split wherever the boolean bin mask `split` (the bins of
     the ``exclude`` intervals) changes, so that an excluded interval is a set of whole groups and no
     bin outside it is excluded with it. Returns (starts, counts, group edf (C, G))."""
-    b = np.floor(bands_per_decade * np.log10(f) + 1e-9).astype(np.int64)
+    from imupipe.spectra import band_edf_factor, log_band_index
+
+    b = log_band_index(f, bands_per_decade)
     _, counts = np.unique(b, return_counts=True)
     starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
     r = _bin_r(taper, int(f.size))
 
     def factor(m):
-        j = np.arange(1, m)
-        return 1.0 + 2.0 * np.sum((1.0 - j / m) * r[1:m])
+        return band_edf_factor(r, m)
 
     nu2 = np.atleast_2d(nu)  # (1 or C, F)
     if min_edf is not None and min_edf > 0:
@@ -507,11 +497,13 @@ def _solve_lp(prob, comps, Ts):
 
 
 def _default_T_grid(prob, per_decade=10):
+    """GM time constants (s) from half a decade below 1/(2 pi f_max) to a decade above 1/(2 pi f_min)."""
+    from imupipe.search import log_grid
+
     f = prob.f
     lo = math.log10(1.0 / (2 * math.pi * f.max())) - 0.5
     hi = math.log10(1.0 / (2 * math.pi * f.min())) + 1.0
-    n = int(round((hi - lo) * per_decade)) + 1
-    return np.logspace(lo, hi, n)
+    return log_grid(lo, hi, per_decade)
 
 
 # Absolute tolerance of the bounded refinement in ln T (0.1 % in T). The objective is smooth in ln T at its
@@ -521,8 +513,10 @@ _T_XATOL = 1e-3
 
 
 def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
-    """LP over the GM time constants: grid, then bounded refinement (Nelder-Mead for n_gm > 1)."""
-    from scipy.optimize import minimize, minimize_scalar
+    """LP over the GM time constants: grid, then bounded refinement (Brent's method in ln T,
+    :func:`imupipe.search.minimize_bounded`, scipy's bounded method without the import; Nelder-Mead for
+    n_gm > 1)."""
+    from imupipe.search import refine_between_neighbours
 
     n_lp = 0
     if "gauss_markov" not in comps or n_gm == 0:
@@ -536,8 +530,6 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
         i = int(np.argmin(objs))
         best = sols[i]
         if refine and grid.size >= 3:
-            lo = math.log(grid[max(i - 1, 0)])
-            hi = math.log(grid[min(i + 1, grid.size - 1)])
             cache = {}
 
             def fun(lt):
@@ -545,7 +537,7 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
                 cache[lt] = s
                 return s.objective
 
-            minimize_scalar(fun, bounds=(lo, hi), method="bounded", options={"xatol": _T_XATOL})
+            refine_between_neighbours(fun, grid, i, _T_XATOL)
             for s in cache.values():
                 n_lp += s.n_lp
                 if s.objective < best.objective:
@@ -553,6 +545,8 @@ def _profile_T(prob, comps, n_gm, T_grid, extra_T=(), refine=True):
         best.n_lp = n_lp
         return best, (grid, objs)
     from itertools import combinations
+
+    from scipy.optimize import minimize
 
     coarse = grid[:: max(1, grid.size // 14)]
     best = None

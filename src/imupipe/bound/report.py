@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from imupipe.io import plain
+
 
 
 def _inflation(bound, spec):
@@ -110,7 +112,7 @@ class BoundResult:
             Unit per quantity as written in the spec sheet, keys among ``white``, ``gm_sigma``,
             ``time``, ``random_walk`` (e.g. ``{"white": "deg/sqrt(h)", "gm_sigma": "deg/h",
             "time": "s", "random_walk": "(deg/h)/sqrt(s)"}``). Converted with
-            :func:`imupipe.units.from_si`; without it (or without that module) only SI is written.
+            :func:`imupipe.units.from_si`; without it only SI is written.
         sensor : str, optional
             ``gyro`` or ``accel`` (passed to the unit conversion).
         """
@@ -167,27 +169,14 @@ class BoundResult:
 
 
 def _plain(obj):
-    """numpy scalars/arrays -> Python floats/lists (YAML-safe)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [_plain(v) for v in obj.tolist()]
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    return obj
+    """numpy scalars/arrays -> Python floats/lists (YAML-safe): :func:`imupipe.io.plain`."""
+    return plain(obj)
 
 
 def _to_spec_units(model, spec_units, sensor):
-    """Model parameters in the spec's units via imupipe.units.from_si (SI only if unavailable)."""
-    try:
-        from imupipe.units import from_si
-    except ImportError:
-        return None, "imupipe.units not available: values in SI only"
+    """Model parameters in the spec's units via imupipe.units.from_si."""
+    from imupipe.units import from_si
+
     out = {}
     try:
         if "white" in spec_units:

@@ -95,7 +95,6 @@ SHEET_COLUMNS = {
     "long_gap_policy": "gap_policy fill: fail (default) or split for longer gaps",
 }
 
-_SI_UNITS = SI_UNITS
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _TIME_ALIASES = {  # CF / UDUNITS spellings of the same units
     **dict.fromkeys(("sec", "secs", "second", "seconds"), "s"),
@@ -292,14 +291,14 @@ def _unit_factor(unit: Any, sensor: str, key: str) -> float:
     """SI factor of a gyro or accel ``unit`` (SI value = stored value * factor), by :func:`imupipe.units.rate_factor`."""
     if _blank(unit):
         raise DataError(
-            f"{key}: unit missing (expected e.g. {_SI_UNITS[sensor]!r} or {_example_unit(sensor)!r})"
+            f"{key}: unit missing (expected e.g. {SI_UNITS[sensor]!r} or {_example_unit(sensor)!r})"
         )
     text = str(unit).strip()
     try:
         return rate_factor(text, sensor)
     except UnitError as exc:
         raise DataError(
-            f"{key}: unknown unit {text!r} for {sensor} ({exc}); expected e.g. {_SI_UNITS[sensor]!r}, "
+            f"{key}: unknown unit {text!r} for {sensor} ({exc}); expected e.g. {SI_UNITS[sensor]!r}, "
             f"{_example_unit(sensor)!r} (accepted spellings: docs/inputs.md)"
         ) from None
 

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from imupipe.readers._common import DataError
+from imupipe.units import SI_UNITS
 
 __all__ = [
     "PLAUSIBLE_SI",
@@ -197,7 +198,7 @@ def check_values(x: np.ndarray, sensor: str, column: str, where: str, row_text=N
     limit = PLAUSIBLE_SI[sensor]
     peak = int(np.argmax(a))
     if a[peak] > limit:
-        unit = "rad/s" if sensor == "gyro" else "m/s^2"
+        unit = SI_UNITS[sensor]
         raise DataError(
             f"{where}: {column} has a sample of {float(x[peak]):.6g} {unit} at {row_text(peak)} "
             f"({int(np.count_nonzero(a > limit))} beyond the limit in all); a {sensor} sample must satisfy "

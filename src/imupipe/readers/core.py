@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from imupipe.readers._common import *  # noqa: F403
-from imupipe.readers._common import _ROS_FIELDS, _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _SI_UNITS, _cell, _example_unit, _normalise_channels, _normalise_units, _unit_factor, _EXTENSIONS
+from imupipe.readers._common import _ROS_FIELDS, _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, SI_UNITS, _cell, _example_unit, _normalise_channels, _normalise_units, _unit_factor, _EXTENSIONS
 
 
 from imupipe.readers.arrays import _load_npy, _load_npz
@@ -401,7 +401,7 @@ def read_dataset(
             if unit is None:
                 raise DataError(
                     f"{where}: {sensor}_unit missing for {_chname(key)} (the file does not say); "
-                    f"expected e.g. {_SI_UNITS[sensor]!r} or {_example_unit(sensor)!r}"
+                    f"expected e.g. {SI_UNITS[sensor]!r} or {_example_unit(sensor)!r}"
                 )
         elif raw.file_units.get(key):
             if not math.isclose(stored_factor, _unit_factor(unit, sensor, origin), rel_tol=1e-9):
@@ -448,7 +448,7 @@ def read_dataset(
         channels=chans,
         rate_hz=float(rate),
         source=source,
-        units={k: _SI_UNITS[k[0]] for k in keys},
+        units={k: SI_UNITS[k[0]] for k in keys},
         file_units={k: mapped_units[k] for k in keys},
         columns={k: columns[k] for k in keys},
         segments=tuple(segments),

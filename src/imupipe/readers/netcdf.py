@@ -18,10 +18,7 @@ from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _reso
 
 
 def _load_netcdf(path, specs, variable, time_column, time_unit, where) -> _Raw:
-    try:
-        import netCDF4
-    except ImportError as exc:  # pragma: no cover - a dependency of the package
-        raise DataError(f"{where}: reading netCDF needs the netCDF4 package") from exc
+    import netCDF4
     try:
         ds = netCDF4.Dataset(path, "r")
     except OSError as exc:

@@ -56,10 +56,7 @@ def _r_numeric(obj, where, name) -> np.ndarray:
 
 
 def _load_rdata(path, specs, variable, time_column, time_unit, where) -> _Raw:
-    try:
-        import rdata
-    except ImportError as exc:  # pragma: no cover - a dependency of the package
-        raise DataError(f"{where}: reading R files needs the rdata package") from exc
+    import rdata
     try:
         parsed = rdata.parser.parse_file(path)
     except Exception as exc:  # rdata raises assorted errors on corrupt input

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from imupipe.readers._common import *  # noqa: F403
-from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _ROS_FIELDS, _SI_UNITS
+from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _ROS_FIELDS, SI_UNITS
 
 log = logging.getLogger(__name__)
 
@@ -118,7 +118,7 @@ def _imu_raw(values, ns, specs, topic, source) -> _Raw:
         names={k: f"{topic}:{specs[k]}" for k in specs},
         time=(ns - ns[0]).astype(np.float64) * 1e-9,  # s after the first message: no loss of precision
         time_name=f"{topic} {'header.stamp' if source == 'header' else 'bag time'} (t from the first message)",
-        default_units=dict(_SI_UNITS),  # sensor_msgs/Imu is SI by definition (REP 103/145)
+        default_units=dict(SI_UNITS),  # sensor_msgs/Imu is SI by definition (REP 103/145)
         detail=f"topic {topic!r}",
     )
 
