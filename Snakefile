@@ -27,6 +27,7 @@ configfile: "config/config.yaml"
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/product_common.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/decimate.smk"

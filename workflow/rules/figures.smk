@@ -2,23 +2,6 @@
 # effect of each parameter (Fig. 7). Axes in config figures.units (spec-sheet units by default); every figure is
 # a PNG (the report's) and, with figures.format svg or pdf, also a file of that format beside it. Lines found by
 # the lines stage (when the workflow has it) are marked at their aliases on the decimated PSD.
-FIGURES = config["figures"]
-FIG_FORMAT = FIGURES["format"]
-FIG_NAMES = ["psd_bound", "allan_components", "inflation_steps", "allan_readoffs"]
-
-
-def lines_of_sensor(wildcards):
-    """The lines stage's per-axis files of the job's sensor, once the workflow has a rule `lines`."""
-    if any(r.name == "lines" for r in workflow.rules):
-        return {"lines": per_axis("lines", "yaml")(wildcards)}
-    return {}
-
-
-def copies(pattern):
-    """`pattern` (with {fig}) in figures.format, every figure, or [] for png (the PNG is always written)."""
-    if FIG_FORMAT == "png":
-        return []
-    return [pattern.format(fig=fig, ext=FIG_FORMAT) for fig in FIG_NAMES]
 
 
 rule figures:
@@ -103,3 +86,8 @@ rule inflation_effect:
 
 
 EXTRA_TARGETS.extend(expand(f"{RESULTS}/figures/{{spec}}/allan_readoffs_{{sensor}}.png", spec=SPECS, sensor=SENSORS))
+if FIG_FORMAT != "png":
+    EXTRA_TARGETS.extend(
+        expand(f"{RESULTS}/figures/{{spec}}/{{fig}}_{{sensor}}.{FIG_FORMAT}", spec=SPECS, fig=FIG_NAMES, sensor=SENSORS)
+    )
+    EXTRA_TARGETS.append(f"{RESULTS}/figures/inflation_effect.{FIG_FORMAT}")

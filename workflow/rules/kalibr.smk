@@ -4,16 +4,6 @@
 # the run summary): Kalibr's two terms cannot carry the line, and values without it would not bound.
 
 
-def kalibr_rates():
-    """Dataset -> IMU sample rate (Hz): the dataset sheet's rate_hz, or simulation.rate_hz."""
-    return {name: float(row["rate_hz"]) for name, row in DATASETS.items()}
-
-
-def kalibr_topics():
-    """Dataset -> the sheet's topic cell (None where the sheet has none, e.g. CSV or netCDF files)."""
-    return {name: row.get("topic") for name, row in DATASETS.items()}
-
-
 rule kalibr:
     input:
         gyro=f"{RESULTS}/bound/{{spec}}/gyro.yaml",
@@ -28,8 +18,8 @@ rule kalibr:
             labels={"file": "Kalibr imu.yaml", "spec": "{spec}"},
         ),
     params:
-        rates=kalibr_rates(),
-        topics=kalibr_topics(),
+        rates=KALIBR_RATES,
+        topics=KALIBR_TOPICS,
     threads: 1
     resources:
         mem_mb=MEM_MB["kalibr"],

@@ -10,55 +10,16 @@ SUMMARY_INPUTS.setdefault("identify", []).extend(expand(f"{RESULTS}/identify/{{s
 SUMMARY_INPUTS.setdefault("stationarity", []).extend(
     expand(f"{RESULTS}/stationarity/{{sensor}}.yaml", sensor=SENSORS)
 )
-SUMMARY_MD = f"{RESULTS}/summary.md"
-# The report's first page: workflow/report/workflow.rst followed by the summary, written by rule summary (the
-# `report:` directive of the Snakefile takes it when it exists, else the plain workflow.rst).
-REPORT_FRONT = f"{RESULTS}/report/workflow.rst"
 MEM_MB["summary"] = 100
 RUNTIME_MIN["summary"] = 10
 MEM_MB["report_file"] = 100
 RUNTIME_MIN["report_file"] = 10
 
 
-def summary_inputs(wildcards):
-    """Every file of SUMMARY_INPUTS by kind (duplicates dropped, order kept)."""
-    return {kind: list(dict.fromkeys(paths)) for kind, paths in SUMMARY_INPUTS.items() if paths}
-
-
-def print_summary(failed=False):
-    """Print the run summary on the terminal (onsuccess / onerror): summary.md when this run wrote it, else the
-    summary of whatever files the run left (imupipe.summary.summarise_run), and after a failure where the logs
-    are. Never raises: a handler must not hide the run's own error."""
-    try:
-        from imupipe.summary import summarise_run
-
-        md = Path(SUMMARY_MD)
-        if not failed and md.is_file():
-            text = md.read_text()
-        else:
-            text = summarise_run(RESULTS) if Path(RESULTS).is_dir() else ""
-            if text:
-                text = "(partial: from the files this run has written so far)\n" + text
-        if text:
-            print("\n" + text.rstrip(), flush=True)
-        if failed:
-            print(f"\nRUN FAILED: the failed job's log is under {LOGS}/ (the error above names it); "
-                  f"summary.md is written only by a complete run.", flush=True)
-        elif md.is_file():
-            print(f"\nSummary: {md}; report: snakemake --report {RESULTS}/report.html (make report)", flush=True)
-    except Exception as exc:  # pragma: no cover - a broken summary must not mask the run's status
-        print(f"(run summary unavailable: {exc})", flush=True)
-
-
-def report_text():
-    """The report's first page (absolute path): the summary's front page when a run wrote it, else workflow.rst."""
-    front = Path(REPORT_FRONT).resolve()
-    return str(front) if front.is_file() else str(ROOT / "workflow" / "report" / "workflow.rst")
-
-
 rule summary:
     input:
         unpack(summary_inputs),
+        template=repo_path("workflow/report/workflow.rst"),
     output:
         markdown=SUMMARY_MD,
         html=report(
@@ -69,7 +30,6 @@ rule summary:
         ),
         front=REPORT_FRONT,
     params:
-        template=str(ROOT / "workflow" / "report" / "workflow.rst"),
         kinds=list(SUMMARY_INPUTS),
         specs=SPECS,
         sensors=SENSORS,

@@ -86,9 +86,25 @@ def render(files: dict, sensors: list, specs: list, name: str) -> str:
     return "\n\n".join(texts) + "\n"
 
 
+def compact(text: str) -> str:
+    """The summary without the states-kept reasons, for the report's first page (short, beside the rule graph;
+    the full text is the "0 Summary" page and summary.md)."""
+    out, skipping = [], False
+    for line in text.splitlines():
+        if line.startswith("- states kept"):
+            out.append(line)
+            skipping = True
+            continue
+        if skipping and line.startswith("  - "):
+            continue
+        skipping = False
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
 def front_page(template: str, html_page: str) -> str:
-    """The report's first page (reStructuredText): the workflow description, then the summary as raw HTML (its
-    tables rendered), the HTML kept out of the report's Jinja rendering."""
+    """The report's first page (reStructuredText): the workflow description, then the (compact) summary as raw
+    HTML (its tables rendered), the HTML kept out of the report's Jinja rendering."""
     style = re.search(r"<style>(.*?)</style>", html_page, flags=re.S)
     body = re.search(r"<body>(.*?)</body>", html_page, flags=re.S)
     css = style.group(1) if style else ""
@@ -96,10 +112,14 @@ def front_page(template: str, html_page: str) -> str:
     css = re.sub(r"(^|\})\s*body\{[^}]*\}", r"\1", css)
     css = re.sub(r"(^|\})([^{}]+)\{", lambda m: m.group(1) + ",".join(f".imupipe-summary {sel.strip()}"
                                                                    for sel in m.group(2).split(",")) + "{", css)
+    # the report centres its content panel vertically (flex, h-screen): a page taller than the window would lose
+    # its top, out of scroll reach; "safe center" centres only what fits
+    css += ".grow.flex.items-center.justify-center.h-screen{align-items:safe center}.imupipe-summary h1{font-size:1.4em}"
     inner = f'<style>{css}</style><div class="imupipe-summary">{body.group(1) if body else html_page}</div>'
     raw = "\n".join("   " + ln for ln in inner.splitlines())
     return (Path(template).read_text().rstrip() + "\n\n"
-            "The run summary (also ``summary.md`` of the run, and the category \"0 Summary\"):\n\n"
+            "The run summary (in full with the reasons for each state: the category \"0 Summary\" and ``summary.md``"
+            " of the run):\n\n"
             "{% raw %}\n.. raw:: html\n\n" + raw + "\n\n{% endraw %}\n")
 
 
@@ -112,7 +132,8 @@ def main(files: dict, sensors: list, specs: list, name: str, path_md: str, path_
     page = markdown_to_html(text, title=f"imupipe run summary: {name}")
     write_text_atomic(page, path_html)
     Path(path_front).parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(front_page(template, page), path_front)
+    front = markdown_to_html(compact(text), title=f"imupipe run summary: {name}")
+    write_text_atomic(front_page(template, front), path_front)
     logging.info("summary of %d file(s) written to %s", sum(len(v) for v in files.values()), path_md)
 
 
@@ -121,4 +142,4 @@ if __name__ == "__main__":
              else [snakemake.input[kind]] for kind in snakemake.params.kinds if kind in snakemake.input.keys()}
     run_job(main, snakemake.log[0], files=files, sensors=list(snakemake.params.sensors),
             specs=list(snakemake.params.specs), name=snakemake.params.name, path_md=snakemake.output.markdown,
-            path_html=snakemake.output.html, template=snakemake.params.template, path_front=snakemake.output.front)
+            path_html=snakemake.output.html, template=snakemake.input.template, path_front=snakemake.output.front)
