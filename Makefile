@@ -24,9 +24,13 @@ env: $(VENV)/.installed
 # when it is up to date).
 BYTECODE = $(VENV)/bin/python -m compileall -q src/imupipe
 
-run: env  ## the default paper-scale workflow (simulated STIM-300-like data)
+# Snakemake's job listing is kept quiet by default (progress and errors only; every job's own log is under
+# logs/<name>/, the run summary is printed at the end): `make run VERBOSE=1` shows every job.
+QUIET = $(if $(VERBOSE),,--quiet rules host reason)
+
+run: env  ## the default paper-scale workflow (simulated STIM-300-like data); ends with the run summary
 	$(BYTECODE)
-	$(SNAKEMAKE)
+	$(SNAKEMAKE) $(QUIET)
 
 test: env  ## the test suite (slow paper-scale checks excluded)
 	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q -m "not slow"
@@ -37,9 +41,9 @@ test-all: env  ## every test, paper-scale ones included
 bench: env  ## speed against error, with allantools in the same run
 	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/python benchmarks/run.py
 
-report: env  ## the HTML report of the default run (results/<name>/report.html; name: the config's `name`)
+report: env  ## the HTML report of a finished run (results/<name>/report.html; the summary on its first page)
 	$(BYTECODE)
-	$(SNAKEMAKE) --report results/$$($(VENV)/bin/python -c "import yaml; print(yaml.safe_load(open('$(CONFIG)')).get('name', 'paper'))")/report.html
+	$(SNAKEMAKE) $(QUIET) --report results/$$($(VENV)/bin/python -c "import yaml; print(yaml.safe_load(open('$(CONFIG)')).get('name', 'paper'))")/report.html
 
 rulegraph: env  ## docs/figures/rulegraph.svg (needs graphviz's dot)
 	$(SNAKEMAKE) --rulegraph | dot -Tsvg > docs/figures/rulegraph.svg

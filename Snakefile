@@ -13,7 +13,8 @@
 #   bound/{spec}/axes/{dataset}/{sensor}/{axis}.yaml                                (bound_axis)
 #   bound/{spec}/{sensor}.yaml                 global bound (the contract file)     (bound)
 #   kf/{spec}/{sensor}.yaml, kf/{spec}/kalibr_imu.yaml                              (kf, kalibr)
-#   figures/..., tables/{spec}/inflation.{md,csv}                                   (figures, tables)
+#   figures/..., tables/{spec}/inflation.{md,csv,html}                              (figures, tables)
+#   summary.md, summary.html, report/...       run summary, report's first page     (summary, report_file)
 #   benchmarks/{rule}/...tsv                   Snakemake's per-job wall time and peak memory
 # Only bound_axis, bound, figures and tables read config/specs/{spec}.yaml.
 
@@ -25,10 +26,8 @@ min_version("9.0")
 configfile: "config/config.yaml"
 
 
-report: "workflow/report/workflow.rst"
-
-
 include: "workflow/rules/common.smk"
+include: "workflow/rules/product_common.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/decimate.smk"
@@ -41,6 +40,19 @@ include: "workflow/rules/kf.smk"
 include: "workflow/rules/kalibr.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/tables.smk"
+include: "workflow/rules/summary.smk"
+
+
+# The report's first page: the workflow description and the run summary (summary.smk).
+report: report_text()
+
+
+onsuccess:
+    print_summary()
+
+
+onerror:
+    print_summary(failed=True)
 
 
 rule all:

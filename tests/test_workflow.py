@@ -117,7 +117,7 @@ class TestCaching:
     # the rules that read it (their params) and, through the files they write, every rule downstream of them;
     # no other rule. The merge stages keep the psd and Allan branches apart: a PSD setting re-runs neither the
     # Allan variance nor the identification, an Allan setting neither the decimation nor the PSD.
-    AFTER_BOUND = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "all"}
+    AFTER_BOUND = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "summary", "report_file", "all"}
     AFTER_IDENTIFY = {"identify"} | AFTER_BOUND
     AFTER_VERDICTS = {"stationarity_summary", "stack"} | AFTER_IDENTIFY
     SECTIONS = {
@@ -154,8 +154,9 @@ class TestCaching:
             spec.write_text(text)
             os.utime(spec, ns=(stat.st_atime_ns, stat.st_mtime_ns))
         # 2 sensors x (2 datasets x 3 axes) per-axis bounds, 2 global bounds, 2 KF files, 1 Kalibr file,
-        # 2 figure jobs, 1 table job
-        assert jobs == {"bound_axis": 12, "bound": 2, "kf": 2, "kalibr": 1, "figures": 2, "tables": 1, "all": 1}
+        # 2 figure jobs, 1 table job, the summary and the report's copies of 2 KF and 2 bound files
+        assert jobs == {"bound_axis": 12, "bound": 2, "kf": 2, "kalibr": 1, "figures": 2, "tables": 1, "summary": 1,
+                        "report_file": 4, "all": 1}
 
     def test_copied_checkout_reruns_nothing(self, tiny_run, tmp_path):
         # every path Snakemake records is relative: the checkout with its results copied elsewhere (modification

@@ -1,10 +1,14 @@
-# Figures of one spec sheet and sensor type (paper Figures 5, 6, 8) and the effect of each parameter (Fig. 7).
+# Figures of one spec sheet and sensor type (paper Figures 5, 6, 8, and the Allan read-offs of N, B, K) and the
+# effect of each parameter (Fig. 7). Axes in config figures.units (spec-sheet units by default); every figure is
+# a PNG (the report's) and, with figures.format svg or pdf, also a file of that format beside it. Lines found by
+# the lines stage (when the workflow has it) are marked at their aliases on the decimated PSD.
 
 
 rule figures:
     # before kf, kalibr and tables when both are ready: the figures are the longer jobs at the end of a run
     priority: 1
     input:
+        unpack(lines_of_sensor),
         spectra=f"{RESULTS}/spectra/{{sensor}}.nc",
         allan=f"{RESULTS}/allan/{{sensor}}.nc",
         identified=f"{RESULTS}/identify/{{sensor}}.yaml",
@@ -32,6 +36,18 @@ rule figures:
             subcategory="{sensor}",
             labels={"figure": "hand inflation (Fig. 8)", "spec": "{spec}", "sensor": "{sensor}"},
         ),
+        allan_readoffs=report(
+            f"{RESULTS}/figures/{{spec}}/allan_readoffs_{{sensor}}.png",
+            caption="../report/allan_readoffs.rst",
+            category="Bound",
+            subcategory="{sensor}",
+            labels={"figure": "Allan read-offs N, B, K", "spec": "{spec}", "sensor": "{sensor}"},
+        ),
+        copies=copies(f"{RESULTS}/figures/{{{{spec}}}}/{{fig}}_{{{{sensor}}}}.{{ext}}"),
+    params:
+        units=FIGURES["units"],
+        format=FIG_FORMAT,
+        decimate_rate_hz=config["decimate"]["rate_hz"],
     threads: 1
     resources:
         mem_mb=MEM_MB["figures"],
@@ -54,6 +70,7 @@ rule inflation_effect:
             category="Method",
             labels={"figure": "effect of each parameter (Fig. 7)"},
         ),
+        copies=[f"{RESULTS}/figures/inflation_effect.{FIG_FORMAT}"] if FIG_FORMAT != "png" else [],
     threads: 1
     resources:
         mem_mb=MEM_MB["inflation_effect"],
@@ -66,3 +83,11 @@ rule inflation_effect:
         "../envs/imupipe.yaml"
     script:
         "../scripts/inflation_effect.py"
+
+
+EXTRA_TARGETS.extend(expand(f"{RESULTS}/figures/{{spec}}/allan_readoffs_{{sensor}}.png", spec=SPECS, sensor=SENSORS))
+if FIG_FORMAT != "png":
+    EXTRA_TARGETS.extend(
+        expand(f"{RESULTS}/figures/{{spec}}/{{fig}}_{{sensor}}.{FIG_FORMAT}", spec=SPECS, fig=FIG_NAMES, sensor=SENSORS)
+    )
+    EXTRA_TARGETS.append(f"{RESULTS}/figures/inflation_effect.{FIG_FORMAT}")

@@ -1,14 +1,25 @@
-# Kalibr-style imu.yaml of both sensor types of one spec sheet.
+# Kalibr imu.yaml of both sensor types of one spec sheet: the bounding continuous-time densities, the IMU's
+# sample rate as update_rate (one rate for every dataset, else the job refuses, naming each) and the topic of the
+# dataset sheet. A bound with a narrowband line is refused (no Kalibr fields written, the reason in the file and in
+# the run summary): Kalibr's two terms cannot carry the line, and values without it would not bound.
 
 
 rule kalibr:
     input:
         gyro=f"{RESULTS}/bound/{{spec}}/gyro.yaml",
         accel=f"{RESULTS}/bound/{{spec}}/accel.yaml",
+        identified_gyro=f"{RESULTS}/identify/gyro.yaml",
+        identified_accel=f"{RESULTS}/identify/accel.yaml",
     output:
-        kalibr=f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml",
+        kalibr=report(
+            f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml",
+            caption="../report/kalibr.rst",
+            category="Exports",
+            labels={"file": "Kalibr imu.yaml", "spec": "{spec}"},
+        ),
     params:
-        rate_hz=config["application"]["rate_hz"],
+        rates=KALIBR_RATES,
+        topics=KALIBR_TOPICS,
     threads: 1
     resources:
         mem_mb=MEM_MB["kalibr"],
@@ -21,3 +32,7 @@ rule kalibr:
         "../envs/imupipe.yaml"
     script:
         "../scripts/kalibr.py"
+
+
+if set(SENSORS) == {"gyro", "accel"}:
+    SUMMARY_INPUTS.setdefault("kalibr", []).extend(expand(f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml", spec=SPECS))

@@ -1,4 +1,4 @@
-"""Spec vs bound parameters in the spec sheet's units (paper Table 2), markdown and CSV (rule tables)."""
+"""Spec vs bound parameters in the spec sheet's units (paper Table 2), markdown, CSV and HTML (rule tables)."""
 
 import csv
 import io
@@ -6,8 +6,9 @@ import io
 from imupipe.io import read_yaml, run_job, write_text_atomic
 
 
-def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str) -> None:
+def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str, path_html: str) -> None:
     from imupipe.models import NoiseModel
+    from imupipe.summary import markdown_to_html
     from imupipe.specsheet import inflation_rows, load_spec
 
     spec = load_spec(path_spec)
@@ -31,6 +32,7 @@ def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str
     md += ["", "Margins (min S_model/S_sample over all curves and frequencies): "
            + ", ".join(f"{s} {fmt(read_yaml(p)['margin'])}" for s, p in zip(sensors, paths)), ""]
     write_text_atomic("\n".join(md), path_md)
+    write_text_atomic(markdown_to_html("\n".join(md), title=f"{spec.name}: spec sheet vs bound"), path_html)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]))
     w.writeheader()
@@ -41,4 +43,5 @@ def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str
 if __name__ == "__main__":
     run_job(main, snakemake.log[0], paths=[snakemake.input[s] for s in snakemake.params.sensors],
             sensors=list(snakemake.params.sensors),
-            path_spec=snakemake.input.spec, path_md=snakemake.output.markdown, path_csv=snakemake.output.csv)
+            path_spec=snakemake.input.spec, path_md=snakemake.output.markdown, path_csv=snakemake.output.csv,
+            path_html=snakemake.output.html)
