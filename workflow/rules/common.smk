@@ -356,6 +356,25 @@ MEM_MB = {
 RUNTIME_MIN = {name: 10 for name in [*MEM_MB, "simulate"]}
 
 
+def ingest_rule_groups():
+    """Rule name -> (channels, datasets): the datasets sharing one set of channels share one ingest rule
+    (ingest.smk): `ingest` for every axis of every configured sensor, `ingest_<channels>` otherwise."""
+    groups = {}
+    for name in DATASETS:
+        groups.setdefault(tuple(channels_of(name)), []).append(name)
+    full = tuple((s, a) for s in SENSORS for a in AXES)
+    return {
+        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
+        for chans, names in groups.items()
+    }
+
+
+def ingest_params(wildcards):
+    """Reader settings of the job: the psd.window_s minimum record length is checked at start-up
+    (common.smk, _check_records); ingest names that key too if a record read shorter than probed."""
+    return {"min_duration_s": float(config["psd"]["window_s"]), "min_duration_key": "psd.window_s"}
+
+
 def simulate_mem_mb(wildcards):
     """The simulation's work arrays (measured 12.8 x one axis's samples at 40 h): 200 MB + 14 x one axis."""
     return int(200 + 14 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200

@@ -31,24 +31,7 @@ rule simulate:
 # `ingest_gyro_x`), each constrained to its datasets. netCDF and npy/npz records are read one channel at a
 # time (readers.read_channel: peak memory about one channel); text, R and bag records are parsed whole once
 # (their layout has no per-channel access), then written one channel after the other.
-def _channel_groups():
-    groups = {}
-    for name in DATASETS:
-        groups.setdefault(tuple(channels_of(name)), []).append(name)
-    full = tuple((s, a) for s in SENSORS for a in AXES)
-    return {
-        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
-        for chans, names in groups.items()
-    }
-
-
-def ingest_params(wildcards):
-    """Reader settings of the job: the psd.window_s minimum record length is checked at start-up
-    (common.smk, _check_records); ingest names that key too if a record read shorter than probed."""
-    return {"min_duration_s": float(config["psd"]["window_s"]), "min_duration_key": "psd.window_s"}
-
-
-INGEST_RULES = _channel_groups()
+INGEST_RULES = ingest_rule_groups()
 
 for _rule_name, (_chans, _names) in INGEST_RULES.items():
 
