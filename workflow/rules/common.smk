@@ -369,6 +369,19 @@ def ingest_rule_groups():
     }
 
 
+def ingest_rule_groups():
+    """Rule name -> (channels, datasets): the datasets sharing one set of channels share one ingest rule
+    (ingest.smk): `ingest` for every axis of every configured sensor, `ingest_<channels>` otherwise."""
+    groups = {}
+    for name in DATASETS:
+        groups.setdefault(tuple(channels_of(name)), []).append(name)
+    full = tuple((s, a) for s in SENSORS for a in AXES)
+    return {
+        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
+        for chans, names in groups.items()
+    }
+
+
 def ingest_params(wildcards):
     """Reader settings of the job: the psd.window_s minimum record length is checked at start-up
     (common.smk, _check_records); ingest names that key too if a record read shorter than probed."""

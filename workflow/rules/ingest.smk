@@ -47,7 +47,6 @@ for _rule_name, (_chans, _names) in INGEST_RULES.items():
         params:
             row=sheet_row,
             channels=[f"{s}_{a}" for s, a in _chans],
-            reader=ingest_params,
         threads: 1
         resources:
             mem_mb=ingest_mem_mb,

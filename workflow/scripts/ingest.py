@@ -6,7 +6,9 @@ and are parsed whole once (readers.read_dataset_row), then written one channel a
 channels the dataset sheet names (or all three axes of a sensor naming none) are read and written.
 
 Each output carries the gap fill of its record (attrs ``n_filled``: gaps filled, ``filled_rows``: the 0-based
-file rows before each filled gap, comma separated; docs/inputs.md, "Gaps")."""
+file rows before each filled gap, comma separated; docs/inputs.md, "Timestamps and gaps"). The record length
+against psd.window_s is checked once, at start-up (common.smk): ingest takes no analysis setting, so a change
+of another section does not re-run it."""
 
 import logging
 from pathlib import Path
@@ -33,7 +35,7 @@ def _meta(rec, key) -> dict:
             "filled_rows": ",".join(str(g.row) for g in rec.filled)}
 
 
-def channels(row: dict, keys: list, dataset: str, reader: dict):
+def channels(row: dict, keys: list, dataset: str):
     """(sensor, axis, samples in SI, attributes) of each channel `keys` ("gyro_x", ...), one at a time."""
     kwargs = sheet_row_to_kwargs(row, base_dir=None)  # recording paths are relative to the working directory
     pairs = [tuple(k.split("_", 1)) for k in keys]
@@ -41,7 +43,7 @@ def channels(row: dict, keys: list, dataset: str, reader: dict):
     if fmt in PER_CHANNEL_FORMATS:
         path, kwargs["format"] = kwargs.pop("path"), fmt
         for i, key in enumerate(pairs):
-            rec = read_channel(key, path, **kwargs, **reader)
+            rec = read_channel(key, path, **kwargs)
             if i == 0:
                 _log_record(rec, dataset)
             yield (*key, rec[key], _meta(rec, key))
@@ -49,7 +51,7 @@ def channels(row: dict, keys: list, dataset: str, reader: dict):
         return
     if kwargs.get("channels"):  # read only the configured channels
         row = {k: v for k, v in row.items() if not (k[:-2] in SI_UNITS and k[-2:] in ("_x", "_y", "_z")) or k in keys}
-    rec = read_dataset_row(row, base_dir=None, **reader)
+    rec = read_dataset_row(row, base_dir=None)
     _log_record(rec, dataset)
     for key in pairs:
         yield (*key, rec[key], _meta(rec, key))
@@ -62,12 +64,11 @@ def write_channel(path: str, x, sensor: str, axis: str, dataset: str, meta: dict
                         "n_filled": meta["n_filled"], "filled_rows": meta["filled_rows"]})
 
 
-def main(row: dict, keys: list, outputs: dict, dataset: str, reader: dict) -> None:
-    for sensor, axis, x, meta in channels(row, keys, dataset, reader):
+def main(row: dict, keys: list, outputs: dict, dataset: str) -> None:
+    for sensor, axis, x, meta in channels(row, keys, dataset):
         write_channel(outputs[f"{sensor}_{axis}"], x, sensor, axis, dataset, meta)
 
 
 if __name__ == "__main__":
     run_job(main, snakemake.log[0], row=dict(snakemake.params.row), keys=list(snakemake.params.channels),
-            outputs=dict(snakemake.output.items()), dataset=snakemake.wildcards.dataset,
-            reader=dict(snakemake.params.reader))
+            outputs=dict(snakemake.output.items()), dataset=snakemake.wildcards.dataset)
