@@ -27,7 +27,8 @@ RATE_HZ = 10.0
 N = 24000  # 40 min at 10 Hz: four 600 s Welch windows (psd.window_s below), 2400 decimated samples at 1 Hz
 NAMES = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
 CHANNELS = dict(zip(["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"], NAMES[1:]))
-SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", *CHANNELS, "time_column"]
+SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", *CHANNELS, "time_column",
+                 "gap_policy", "fill_max_samples"]
 
 
 def _table(seed):
@@ -157,6 +158,9 @@ BAD = [
 ]
 
 
+DROPS = [1000, 5000, 9000, 13000, 17000]  # 0-based rows dropped from the drops.csv record
+
+
 @pytest.fixture(scope="module")
 def fault_run(tmp_path_factory):
     """One --keep-going run: the good dataset (netCDF, read one channel at a time) and every BAD row."""
@@ -165,7 +169,10 @@ def fault_run(tmp_path_factory):
     data.mkdir()
     good = _table(1)
     _nc(data / "good.nc", good)
-    rows = [_row("good", "data_faults/good.nc", format="netcdf", time_column=None)]
+    # a second good dataset: a text log with five single-sample drops, filled (gap_policy fill)
+    _csv(data / "drops.csv", np.delete(_table(8), DROPS, axis=0))
+    rows = [_row("good", "data_faults/good.nc", format="netcdf", time_column=None),
+            _row("drops+1.v2", "data_faults/drops.csv", gap_policy="fill", fill_max_samples=1)]
     for name, make, _ in BAD:
         path, cells = make(data, good)
         rows.append(_row(name, f"data_faults/{path}", **cells))
@@ -202,6 +209,11 @@ def test_good_dataset_results_present(fault_run):
             assert (res / folder / "good" / s / f"{a}.{ext}").is_file(), (folder, s, a)
     with netCDF4.Dataset(res / "series" / "good" / "gyro" / "x.nc") as nc:
         assert nc.getncattr("n_filled") == 0 and nc.variables["signal"].units == "rad/s"
+    with netCDF4.Dataset(res / "series" / "drops+1.v2" / "accel" / "z.nc") as nc:
+        # five gaps filled, each after the file row before the dropped one (rows shift by one per earlier drop)
+        assert nc.getncattr("n_filled") == 5 and nc.dimensions["sample"].size == N
+        assert nc.getncattr("filled_rows") == ",".join(str(r - 1 - i) for i, r in enumerate(DROPS))
+    assert (res / "psd" / "drops+1.v2" / "gyro" / "z.nc").is_file()
     # the per-sensor merges need every dataset: none is left looking complete
     assert not (res / "stack").exists() and not list(res.glob("spectra/*.nc"))
 

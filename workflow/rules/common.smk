@@ -205,7 +205,7 @@ _check_records()
 
 
 wildcard_constraints:
-    dataset="|".join(DATASETS),
+    dataset="|".join(re.escape(n) for n in DATASETS),
     sensor="gyro|accel",
     axis="x|y|z",
     spec="|".join(SPECS),
