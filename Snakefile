@@ -55,6 +55,19 @@ onerror:
     print_summary(failed=True)
 
 
+# start-up cleanup and end-of-run temp removal (workflow/rules/common.smk, docs/inputs.md "Stale outputs")
+onstart:
+    on_start()
+
+
+onsuccess:
+    on_finish()
+
+
+onerror:
+    on_finish()
+
+
 rule all:
     default_target: True
     input:

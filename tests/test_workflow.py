@@ -169,7 +169,8 @@ class TestCaching:
     def test_partial_configfile_on_top_of_the_default(self, tmp_path):
         # a --configfile naming one key keeps every other key of config/config.yaml
         partial = tmp_path / "partial.yaml"
-        partial.write_text("name: partial\nsimulation: {n_datasets: 1, duration_h: 1.0, rate_hz: 10.0,"
+        # (8 h: the default psd.window_s, 7 h, is checked against the record at start-up)
+        partial.write_text("name: partial\nsimulation: {n_datasets: 1, duration_h: 8.0, rate_hz: 10.0,"
                            " truth: config/truth/stim300_like.yaml, seed: 1}\n")
         jobs = dry_run_jobs(tmp_path, config=partial)
         assert jobs["simulate"] == 1 and jobs["allan"] == 6 and jobs["bound"] == 2, jobs
@@ -334,8 +335,7 @@ def _bad_input_files(folder, rng):
         "dup": ("dup.csv", {}, ["dup.csv", "duplicate timestamp", "row 699"]),
         "nonmono": ("nonmono.csv", {}, ["nonmono.csv", "not increasing", "row 601"]),
         "rate": ("fast.csv", {}, ["fast.csv", "rate_hz = 2 Hz", "4 Hz"]),
-        # psd.window_s reaches the psd stage alone: a record shorter than the window fails there
-        "short": ("short.csv", {}, ["short.csv", "longer than the record"]),
+        # a record shorter than psd.window_s stops the run at start-up (tests/test_workflow_faults.py)
         "const": ("const.csv", {}, ["const.csv", "gyro_y", "constant"]),
         "unit": ("good.csv", {"gyro_unit": "furlong/s"}, ["gyro_unit", "furlong"]),
         "column": ("good.csv", {"gyro_y": "gyro_q"}, ["gyro_q", "not found"]),

@@ -7,6 +7,7 @@
 # directory too, so a checkout moved or copied elsewhere with its results re-runs nothing.
 import csv
 import os
+import re
 from pathlib import Path
 
 import yaml
@@ -64,41 +65,71 @@ def repo_path(path):
 def _shares_root(p):
     cwd = Path.cwd().resolve()
     try:
-        return os.path.commonpath([str(p.resolve()), str(cwd)]) != os.sep
+        target = str(p.resolve())
+    except (RuntimeError, OSError):  # a symbolic link loop: its ingest job names it
+        target = os.path.abspath(p)
+    try:
+        return os.path.commonpath([target, str(cwd)]) != os.sep
     except ValueError:
         return False
 
 
 def _read_sheet(path):
-    """Rows of the dataset sheet (TSV) as dicts of non-empty cells, validated one by one."""
+    """Rows of the dataset sheet (TSV) as dicts of non-empty cells, validated one by one: the header (no
+    duplicated column), each dataset name (it names folders), each row against the sheet schema, and the
+    channel columns of the configured sensors (a sensor names one, two or three axes, or none: then the
+    file's own gyro_x ... columns, or a bag's sensor_msgs/Imu fields, give all three)."""
+    from imupipe.readers import DataError, check_sheet_header, validate_dataset_name
+
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"config key 'datasets': dataset sheet {str(path)!r} not found")
-    with open(path, newline="") as fh:
-        rows = list(csv.DictReader(fh, delimiter="\t"))
+    try:
+        check_sheet_header(path)
+    except DataError as exc:
+        raise ValueError(str(exc)) from None
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        lines = [line for line in fh if not line.lstrip().startswith("#")]
+    rows = list(csv.DictReader(lines, delimiter="\t"))
     if not rows:
         raise ValueError(f"dataset sheet {str(path)!r} has no rows")
     out = {}
     for i, row in enumerate(rows, start=2):
+        if None in row:
+            raise ValueError(f"{path}, line {i}: {len(row[None])} more cell(s) than the header has columns"
+                             f" ({len(row) - 1}); expected one cell per header column")
         cells = {k.strip(): v.strip() for k, v in row.items() if k is not None and v is not None and v.strip()}
-        if "rate_hz" in cells:
-            try:
-                cells["rate_hz"] = float(cells["rate_hz"])
-            except ValueError:
-                raise ValueError(f"{path}, line {i}: rate_hz = {cells['rate_hz']!r} is not a number (Hz)")
+        try:
+            validate_dataset_name(cells.get("dataset"), where=f"{path}, line {i}")
+        except DataError as exc:
+            raise ValueError(str(exc)) from None
+        for key, kind, what in (("rate_hz", float, "a number (Hz)"), ("fill_max_samples", int, "an integer (samples)"),
+                                ("fill_max_s", float, "a number (s)")):
+            if key in cells:
+                try:
+                    cells[key] = kind(cells[key])
+                except ValueError:
+                    raise ValueError(f"{path}, line {i}: {key} = {cells[key]!r} is not {what}") from None
         try:
             validate(cells, schema="../schemas/datasets.schema.yaml", set_default=False)
         except Exception as exc:
-            raise ValueError(f"{path}, line {i}: {exc}")
+            first = str(exc).splitlines()[0]
+            raise ValueError(f"{path}, line {i} (dataset {cells.get('dataset')!r}): {first}") from None
         name = cells["dataset"]
         if name in out:
             raise ValueError(f"{path}, line {i}: dataset {name!r} appears twice")
-        missing = [f"{s}_{a}" for s in SENSORS for a in AXES if f"{s}_{a}" not in cells]
-        if missing:
-            raise ValueError(f"{path}, line {i}: dataset {name!r} has no column for {', '.join(missing)}"
-                             f" (config sensors: {SENSORS})")
         out[name] = cells
     return out
+
+
+def _axes_of_row(cells):
+    """{sensor: axes} of one dataset: the axes whose column the sheet names; a sensor naming none takes all
+    three (the file's default column names or a bag's sensor_msgs/Imu fields)."""
+    axes = {}
+    for s in SENSORS:
+        given = [a for a in AXES if f"{s}_{a}" in cells]
+        axes[s] = given or list(AXES)
+    return axes
 
 
 SIMULATION = config.get("simulation")
@@ -129,8 +160,52 @@ else:
     }
 
 
+# Axes of each dataset and sensor: {dataset: {sensor: [axis, ...]}} (the sheet's channel columns; a simulation
+# has all three). Every helper naming per-axis files uses these.
+AXES_OF = {name: _axes_of_row(row) for name, row in DATASETS.items()}
+
+
+def channels_of(dataset):
+    """The (sensor, axis) channels of a dataset, sensor-major."""
+    return [(s, a) for s in SENSORS for a in AXES_OF[dataset][s]]
+
+
+def _check_records():
+    """Start-up check of every record against the config (issue 19: once, before any job, naming the key):
+    the record is long enough for `psd.window_s`, its rate divides into `decimate.rate_hz`, the decimated
+    record fills `stationarity.n_segments`. The metadata come from a cheap probe of each file (header, row
+    count, rate; no samples for netCDF/npy). A file that cannot be probed is left to its own ingest job,
+    which fails that dataset alone with the reader's message; a config mismatch stops the run here, with
+    every dataset's message at once."""
+    from imupipe.readers import ConfigError, check_against_config, probe_row
+
+    problems = []
+    for name, row in DATASETS.items():
+        if SIMULATION:
+            rate = float(SIMULATION["rate_hz"])
+            n = int(round(float(SIMULATION["duration_h"]) * 3600.0 * rate))
+            meta = {"rate_hz": rate, "n_samples": n, "duration_s": n / rate}
+        else:
+            try:
+                meta = probe_row(row)
+            except Exception:  # noqa: BLE001 (any failure of the cheap probe: the ingest job reads the file
+                continue  # and reports it with the reader's message, for this dataset only)
+        rate_known = (meta["rate_hz"] if isinstance(meta, dict) else meta.rate_hz) is not None
+        try:  # a rate only the timestamps give (no rate_hz cell) is checked by the decimate job
+            check_against_config(meta, window_s=config["psd"]["window_s"],
+                                 decimate_rate_hz=config["decimate"]["rate_hz"] if rate_known else None,
+                                 n_segments=config["stationarity"]["n_segments"], dataset=name)
+        except ConfigError as exc:
+            problems.append(str(exc))
+    if problems:
+        raise ValueError("records do not fit the config:\n  " + "\n  ".join(problems))
+
+
+_check_records()
+
+
 wildcard_constraints:
-    dataset="|".join(DATASETS),
+    dataset="|".join(re.escape(n) for n in DATASETS),
     sensor="gyro|accel",
     axis="x|y|z",
     spec="|".join(SPECS),
@@ -190,13 +265,17 @@ def spec_file(wildcards):
     return repo_path(Path(config["spec_dir"]) / f"{wildcards.spec}.yaml")
 
 
+def per_axis_files(folder, ext, sensor, prefix=""):
+    """results/{name}/{folder}/{prefix}{dataset}/{sensor}/{axis}.{ext} of every dataset and each of its axes of
+    `sensor` (the sheet's), dataset-major (the order of the stacked files' curves)."""
+    return [f"{RESULTS}/{folder}/{prefix}{d}/{sensor}/{a}.{ext}" for d in DATASETS for a in AXES_OF[d][sensor]]
+
+
 def per_axis(folder, ext):
-    """Input function: results/{name}/{folder}/{dataset}/{sensor}/{axis}.{ext} of every dataset and axis of the
-    job's sensor, dataset-major (the order of the stacked files' curves)."""
+    """Input function: per_axis_files of the job's sensor."""
 
     def files(wildcards):
-        return expand(f"{RESULTS}/{folder}/{{dataset}}/{wildcards.sensor}/{{axis}}.{ext}", dataset=list(DATASETS),
-                      axis=AXES)
+        return per_axis_files(folder, ext, wildcards.sensor)
 
     return files
 
@@ -214,9 +293,8 @@ def stack_join(wildcards):
 
 
 def axis_bounds_of(wildcards):
-    """The per-axis bounds of the job's spec sheet and sensor, every dataset and axis."""
-    return expand(f"{RESULTS}/bound/{wildcards.spec}/axes/{{dataset}}/{wildcards.sensor}/{{axis}}.yaml",
-                  dataset=list(DATASETS), axis=AXES)
+    """The per-axis bounds of the job's spec sheet and sensor, every dataset and each of its axes."""
+    return per_axis_files(f"bound/{wildcards.spec}", "yaml", wildcards.sensor, prefix="axes/")
 
 
 def bounds_of_sensors(wildcards):
@@ -233,9 +311,8 @@ SUMMARY_INPUTS = {}
 def final_outputs():
     # Per-axis outputs are asked for too: Snakemake re-runs a job for a missing output only when some job asks
     # for that output, so a dataset added to the sheet must show up here to re-run the per-sensor merges.
-    each_axis = dict(dataset=list(DATASETS), sensor=SENSORS, axis=AXES)
-    out = expand(f"{RESULTS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.yaml", **each_axis)
-    out += expand(f"{RESULTS}/bound/{{spec}}/axes/{{dataset}}/{{sensor}}/{{axis}}.yaml", spec=SPECS, **each_axis)
+    out = [f for s in SENSORS for f in per_axis_files("stationarity", "yaml", s)]
+    out += [f for p in SPECS for s in SENSORS for f in per_axis_files(f"bound/{p}", "yaml", s, prefix="axes/")]
     out += expand(f"{RESULTS}/{{kind}}/{{sensor}}.nc", kind=["spectra", "allan"], sensor=SENSORS)
     out += expand(f"{RESULTS}/identify/{{sensor}}.yaml", sensor=SENSORS)
     out += expand(f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml", spec=SPECS, sensor=SENSORS)
@@ -258,7 +335,8 @@ def final_outputs():
 # 5 x 10 h at 125 Hz, one axis = 36 MB of float64 samples, 2 loaded cores; python benchmarks/dag.py):
 # ingest 275 MB (a 216 MB recording), allan 115, decimate 95, psd 82, stationarity 187, stationarity_summary 26,
 # stack 73, identify 114, bound_axis 119, bound 128, kf 69, kalibr 44, figures 141, inflation_effect 91,
-# tables 44; longest job 14 s. At 40 h (one dataset, one axis = 144 MB): simulate 1843 MB, ingest 913, allan 207,
+# tables 44; longest job 14 s. At 40 h (one dataset, one axis = 144 MB): simulate 1843 MB, ingest 913 (whole
+# record; per channel since, ingest_mem_mb: 507), allan 207,
 # stationarity 353 (its calibrated null grows with the record), psd 77. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
 # their input's size (ingest: the recording; allan, decimate: one axis); the others about twice the measured
 # peak. Wall time: 10 min, plus 1 min per 20 MB of full-rate input, far above the measured times.
@@ -279,14 +357,55 @@ MEM_MB = {
 RUNTIME_MIN = {name: 10 for name in [*MEM_MB, "simulate"]}
 
 
+def ingest_rule_groups():
+    """Rule name -> (channels, datasets): the datasets sharing one set of channels share one ingest rule
+    (ingest.smk): `ingest` for every axis of every configured sensor, `ingest_<channels>` otherwise."""
+    groups = {}
+    for name in DATASETS:
+        groups.setdefault(tuple(channels_of(name)), []).append(name)
+    full = tuple((s, a) for s in SENSORS for a in AXES)
+    return {
+        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
+        for chans, names in groups.items()
+    }
+
+
+def ingest_rule_groups():
+    """Rule name -> (channels, datasets): the datasets sharing one set of channels share one ingest rule
+    (ingest.smk): `ingest` for every axis of every configured sensor, `ingest_<channels>` otherwise."""
+    groups = {}
+    for name in DATASETS:
+        groups.setdefault(tuple(channels_of(name)), []).append(name)
+    full = tuple((s, a) for s in SENSORS for a in AXES)
+    return {
+        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
+        for chans, names in groups.items()
+    }
+
+
+def ingest_params(wildcards):
+    """Reader settings of the job: the psd.window_s minimum record length is checked at start-up
+    (common.smk, _check_records); ingest names that key too if a record read shorter than probed."""
+    return {"min_duration_s": float(config["psd"]["window_s"]), "min_duration_key": "psd.window_s"}
+
+
 def simulate_mem_mb(wildcards):
     """The simulation's work arrays (measured 12.8 x one axis's samples at 40 h): 200 MB + 14 x one axis."""
     return int(200 + 14 * 8e-6 * SIMULATION["duration_h"] * 3600.0 * SIMULATION["rate_hz"]) if SIMULATION else 200
 
 
 def ingest_mem_mb(wildcards, input):
-    """The whole recording in memory (the readers read every channel at once): 100 MB + 1.5 x its file size."""
-    return int(100 + 1.5 * input.size_mb)
+    """Text, R and bag records are read whole (the readers parse every channel at once): 100 MB + 1.5 x the
+    file size. netCDF and npy/npz records are read one channel at a time (ingest.py): 100 MB + 3.5 x the
+    file size per channel written (the read channel, the range check's temporaries and the write; measured
+    peak at 125 Hz: 171 MB at 10 h, 507 MB at 40 h = 3.2 x one axis's 144 MB; an over-estimate when the file
+    holds more variables than the dataset writes)."""
+    size = input.size_mb
+    fmt = str(DATASETS[wildcards.dataset].get("format", "auto")).lower()
+    suffix = Path(DATASETS[wildcards.dataset]["path"]).suffix.lower()
+    if SIMULATION or fmt in ("netcdf", "nc", "npy", "npz") or (fmt == "auto" and suffix in (".nc", ".nc4", ".cdf", ".npy", ".npz")):
+        return int(100 + 3.5 * size / max(1, len(channels_of(wildcards.dataset))))
+    return int(100 + 1.5 * size)
 
 
 def axis_mem_mb(wildcards, input):
@@ -297,3 +416,73 @@ def axis_mem_mb(wildcards, input):
 def full_rate_runtime(wildcards, input):
     """10 min plus 1 min per 20 MB of full-rate input."""
     return int(10 + input.size_mb / 20)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Nothing stale (docs/inputs.md, "Stale outputs"): the Snakefile's onstart handler calls on_start(), its
+# onsuccess and onerror handlers on_finish(). When the run builds the default target (rule all), every file
+# under results/{name}/ and logs/{name}/ that no job of this run's DAG writes (a spec, dataset, sensor or
+# axis no longer configured) is removed, and so are the existing outputs of every job that will run: a job
+# downstream of one that fails then leaves no file that looks complete. A run of named targets only removes
+# the outputs of the jobs it runs. Temporary files (.tmp-*) of killed jobs are removed at start and at end.
+# Files a stage writes outside the DAG's jobs are kept by adding glob patterns (relative to results/{name}/
+# or logs/{name}/) to KEEP_UNDER_RESULTS.
+KEEP_UNDER_RESULTS = []
+
+
+def _job_files(job):
+    files = [str(f) for f in job.output]
+    files += [str(f) for f in job.log]
+    if job.benchmark:
+        files.append(str(job.benchmark))
+    return files
+
+
+def _is_kept(path, root):
+    from fnmatch import fnmatch
+
+    rel = os.path.relpath(path, root)
+    return any(fnmatch(rel, pattern) for pattern in KEEP_UNDER_RESULTS)
+
+
+def on_start():
+    """Remove temporary files, the outputs this run does not produce and the outputs of the jobs that will
+    run; log each removed file (Snakemake's log)."""
+    from snakemake.logging import logger
+
+    from imupipe.io import remove_stale_temp
+
+    removed = [str(p) for root in (RESULTS, LOGS) for p in remove_stale_temp(root)]
+    dag = workflow.dag
+    jobs = list(dag.jobs)
+    rerun = set(dag.needrun_jobs())
+    for job in rerun:
+        for f in _job_files(job):
+            if os.path.lexists(f) and not os.path.isdir(f):
+                os.remove(f)
+                removed.append(f)
+    if any(job.rule.name == "all" for job in jobs):
+        produced = {os.path.normpath(f) for job in jobs for f in _job_files(job)}
+        for root in (RESULTS, LOGS):
+            for folder, _, names in os.walk(root):
+                for n in names:
+                    f = os.path.normpath(os.path.join(folder, n))
+                    if f not in produced and not _is_kept(f, root):
+                        os.remove(f)
+                        removed.append(f)
+        for root in (RESULTS, LOGS):  # folders left empty
+            for folder, subdirs, names in sorted(os.walk(root), key=lambda t: -len(t[0])):
+                if folder != root and not os.listdir(folder):
+                    os.rmdir(folder)
+    for f in sorted(removed):
+        logger.info(f"imupipe: removed {f} (stale: not produced by this run's config, or re-made by this run)")
+    if removed:
+        logger.info(f"imupipe: removed {len(removed)} stale file(s) under {RESULTS} and {LOGS}")
+
+
+def on_finish():
+    """Remove temporary files left by killed jobs (success or error)."""
+    from imupipe.io import remove_stale_temp
+
+    for root in (RESULTS, LOGS):
+        remove_stale_temp(root)

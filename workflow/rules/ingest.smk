@@ -25,28 +25,37 @@ rule simulate:
         "../scripts/simulate.py"
 
 
-# Reads the recording with the readers' whole-record call, then writes the channels one after the other.
-rule ingest:
-    input:
-        unpack(raw_input),
-    output:
-        **{
-            f"{s}_{a}": f"{RESULTS}/series/{{dataset}}/{s}/{a}.nc"
-            for s in SENSORS
-            for a in AXES
-        },
-    params:
-        row=sheet_row,
-        sensors=SENSORS,
-    threads: 1
-    resources:
-        mem_mb=ingest_mem_mb,
-        runtime=full_rate_runtime,
-    log:
-        f"{LOGS}/ingest/{{dataset}}.log",
-    benchmark:
-        f"{BENCHMARKS}/ingest/{{dataset}}.tsv"
-    conda:
-        "../envs/imupipe.yaml"
-    script:
-        "../scripts/ingest.py"
+# One ingest rule per set of channels: a dataset's sheet row may name one, two or three axes of a sensor
+# (AXES_OF, common.smk), and a rule's outputs cannot depend on the dataset. The rule of the datasets with
+# every axis of every configured sensor is `ingest`; the others are `ingest_<channels>` (e.g.
+# `ingest_gyro_x`), each constrained to its datasets. netCDF and npy/npz records are read one channel at a
+# time (readers.read_channel: peak memory about one channel); text, R and bag records are parsed whole once
+# (their layout has no per-channel access), then written one channel after the other.
+INGEST_RULES = ingest_rule_groups()
+
+for _rule_name, (_chans, _names) in INGEST_RULES.items():
+
+    rule:
+        name:
+            _rule_name
+        wildcard_constraints:
+            dataset="|".join(re.escape(n) for n in _names),
+        input:
+            unpack(raw_input),
+        output:
+            **{f"{s}_{a}": f"{RESULTS}/series/{{dataset}}/{s}/{a}.nc" for s, a in _chans},
+        params:
+            row=sheet_row,
+            channels=[f"{s}_{a}" for s, a in _chans],
+        threads: 1
+        resources:
+            mem_mb=ingest_mem_mb,
+            runtime=full_rate_runtime,
+        log:
+            f"{LOGS}/ingest/{{dataset}}.log",
+        benchmark:
+            f"{BENCHMARKS}/ingest/{{dataset}}.tsv"
+        conda:
+            "../envs/imupipe.yaml"
+        script:
+            "../scripts/ingest.py"

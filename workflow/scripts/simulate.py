@@ -5,9 +5,9 @@ import numpy as np
 from imupipe.io import atomic_path, run_job
 from imupipe.simulate import simulate
 from imupipe.specsheet import load_spec
+from imupipe.units import STANDARD_GRAVITY as GRAVITY  # m/s^2, the one definition
 
 AXES = ("x", "y", "z")
-GRAVITY = 9.80665  # m/s^2
 
 
 def main(truth: str, seed: int, duration_s: float, rate_hz: float, gravity_axis, path_out: str, name: str) -> None:
