@@ -47,25 +47,20 @@ include: "workflow/rules/summary.smk"
 report: report_text()
 
 
-onsuccess:
-    print_summary()
-
-
-onerror:
-    print_summary(failed=True)
-
-
-# start-up cleanup and end-of-run temp removal (workflow/rules/common.smk, docs/inputs.md "Stale outputs")
+# start-up cleanup of stale outputs and temp files, end-of-run temp removal (workflow/rules/common.smk,
+# docs/inputs.md "Stale outputs"), then the run summary on the terminal (workflow/rules/summary.smk)
 onstart:
     on_start()
 
 
 onsuccess:
     on_finish()
+    print_summary()
 
 
 onerror:
     on_finish()
+    print_summary(failed=True)
 
 
 rule all:
