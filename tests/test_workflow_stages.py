@@ -175,3 +175,99 @@ class TestScripts:
         with pytest.raises(ValueError, match=r"series\.nc.*lines\.resolution_hz"):
             _script("lines").main(path_series=path, resolution_hz=0.001, alpha=0.01, floor_window_bins=51,
                                   path_lines=str(tmp_path / "l.yaml"))
+
+
+@pytest.fixture(scope="module")
+def mixed_run(tmp_path_factory):
+    """Two recordings of different length and rate through the whole workflow: 0.5 h at 20 Hz ("short", its
+    three gyro axes one and the same simulated record) and 0.75 h at 25 Hz ("long"), drawn from the tiny
+    config's true model; PSD windows of 15 min (the short record holds one at 7.5 min spacing)."""
+    from imupipe.simulate import simulate
+    from imupipe.specsheet import load_spec
+    from workflow_helpers import copy_checkout, tiny_config
+
+    work = copy_checkout(tmp_path_factory.mktemp("mixed") / "checkout")
+    truth = load_spec(ROOT / "config" / "truth" / "stim300_like.yaml").models
+    cols = [f"{s}_{a}" for s in SENSORS for a in AXES]
+    rows = []
+    for i, (name, hours, rate) in enumerate((("short", 0.5, 20.0), ("long", 0.75, 25.0))):
+        n = int(hours * 3600 * rate)
+        data = np.column_stack([simulate(truth[s], n, rate, rng=100 * i + j) for j, s in enumerate(
+            [s for s in SENSORS for _ in AXES])])
+        if name == "short":
+            data[:, 1] = data[:, 2] = data[:, 0]  # the same record on gyro x, y and z
+        path = work / f"{name}.csv"
+        np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="")
+        rows.append([name, str(path), f"{rate:g}", "rad/s", "m/s^2", *cols])
+    sheet = work / "datasets.tsv"
+    head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", *cols]
+    sheet.write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
+    config = tiny_config(work, datasets=str(sheet), simulation=None,
+                         psd={"window_s": 900.0, "step_s": 450.0, "taper": "hann", "detrend": "constant",
+                              "confidence": 0.95})
+    snakemake(work, config=config, snakefile=work / "Snakefile")
+    return work, config
+
+
+class TestRecordsOfDifferentLengthAndRate:
+    def test_bounded_with_per_curve_rate(self, mixed_run):
+        import netCDF4
+
+        work, _ = mixed_run
+        for sensor in SENSORS:
+            with netCDF4.Dataset(work / RES / "allan" / f"{sensor}.nc") as nc:
+                datasets = [str(v) for v in nc.variables["dataset"][:]]
+                rates = np.asarray(nc.variables["rate_hz"][:])
+                assert nc.variables["rate_hz"].units == "Hz"
+            assert rates.shape == (2, 3)
+            expect = {"short": 20.0, "long": 25.0}
+            for i, d in enumerate(datasets):
+                assert np.all(rates[i] == expect[d]), (d, rates[i])
+            ident = yaml.safe_load((work / RES / "identify" / f"{sensor}.yaml").read_text())
+            assert ident["rate_hz"] == {f"{d}/{a}": expect[d] for d in datasets for a in AXES}
+            assert ident["n_samples"]["short/x"] == 36000 and ident["n_samples"]["long/x"] == 67500
+            assert {c["label"]: c["rate_hz"] for c in ident["pooling"]["per_curve"]} == ident["rate_hz"]
+            for key in ("model", "model_selected", "upper_envelope_model", "selection", "fit", "slope_line"):
+                assert key in ident
+            assert ident["adequacy"]["pooled"]["p_value"] is not None
+            assert set(ident["adequacy"]["per_curve"]) == set(ident["rate_hz"])
+            bound = yaml.safe_load((work / RES / "bound" / "stim300" / f"{sensor}.yaml").read_text())
+            assert bound["bounded"] is True and bound["n_curves"] == 6
+
+    def test_identical_axes_identical_verdicts(self, mixed_run):
+        # the null draws are seeded from the record, not the axis name: the one record on three axes gets one
+        # verdict, p-value, Monte Carlo error and number of draws
+        work, _ = mixed_run
+        verdicts = [yaml.safe_load((work / RES / "stationarity" / "short" / "gyro" / f"{a}.yaml").read_text())
+                    for a in AXES]
+        keys = ("stationary", "p_value", "p_value_mc_se", "n_sim_run", "closeness", "close_to_level")
+        assert all(k in verdicts[0] for k in keys)
+        for v in verdicts[1:]:
+            assert {k: v[k] for k in keys} == {k: verdicts[0][k] for k in keys}
+            assert v["calibrated"]["ks_statistic"] == verdicts[0]["calibrated"]["ks_statistic"]
+        lines = [yaml.safe_load((work / RES / "lines" / "short" / "gyro" / f"{a}.yaml").read_text())["lines"]
+                 for a in AXES]
+        assert lines[0] == lines[1] == lines[2]
+
+    def test_identical_rerun(self, mixed_run, tmp_path):
+        # the stochastic stages re-run on the run's own inputs (seeded bootstrap and pooling test, record-seeded
+        # null) write byte-identical files
+        work, config = mixed_run
+        cfg = {**yaml.safe_load((ROOT / "config" / "config.yaml").read_text()), **yaml.safe_load(config.read_text())}
+        st, idn = cfg["stationarity"], cfg["identify"]
+        res = work / RES
+        again = tmp_path / "verdict.yaml"
+        _script("stationarity").main(
+            path_decimated=str(res / "decimated/long/accel/z.nc"), path_allan=str(res / "allan/long/accel/z.nc"),
+            n_segments=st["n_segments"], alpha=st["alpha"], test=st["test"], n_sim=st["n_sim"],
+            n_sim_max=st.get("n_sim_max", 1599), close_z=st.get("close_z", 2.0), path_out=str(again))
+        assert again.read_bytes() == (res / "stationarity/long/accel/z.yaml").read_bytes()
+        again = tmp_path / "identify.yaml"
+        _script("identify").main(
+            path_allan=str(res / "allan/gyro.nc"), components=idn["components"], n_gm=idn["n_gm"],
+            n_boot=idn["n_boot"], confidence=idn["confidence"], significance=idn["significance"],
+            relevance=idn["relevance"], adequacy_level=idn.get("adequacy_level", 0.01),
+            pooling_level=idn.get("pooling_level", 0.01), pooling_n_boot=idn.get("pooling_n_boot", 99),
+            rate_hz=cfg["application"]["rate_hz"], horizon_s=cfg["application"]["horizon_s"], truth=None,
+            path_out=str(again), sensor="gyro")
+        assert again.read_bytes() == (res / "identify/gyro.yaml").read_bytes()
