@@ -271,3 +271,34 @@ class TestRecordsOfDifferentLengthAndRate:
             rate_hz=cfg["application"]["rate_hz"], horizon_s=cfg["application"]["horizon_s"], truth=None,
             path_out=str(again), sensor="gyro")
         assert again.read_bytes() == (res / "identify/gyro.yaml").read_bytes()
+
+
+class TestDominatingModel:
+    """identify.dominating_model: the envelope the bound reads when the axes are identified apart."""
+
+    def test_dominates_every_model_and_touches_the_extremes(self):
+        from imupipe.identify import dominating_model
+        from imupipe.models import NoiseModel
+
+        models = [NoiseModel(white=1e-3, gauss_markov=((2e-4, 10.0),), random_walk=1e-6),
+                  NoiseModel(white=1.4e-3, gauss_markov=((1e-4, 300.0),), flicker=5e-5),
+                  NoiseModel(white=0.9e-3)]
+        env = dominating_model(models)
+        f = np.logspace(-6, 2, 2001)
+        for m in models:
+            # every component dominates its counterpart: the sum dominates everywhere (float rounding only)
+            assert np.all(env.psd(f) >= m.psd(f) * (1 - 1e-12))
+        assert env.white == 1.4e-3 and env.random_walk == 1e-6 and env.flicker == 5e-5
+        (s, T), = env.gauss_markov
+        # the GM's two asymptotes are the largest of the terms': 2 sigma^2 T (f -> 0), 2 sigma^2 / T / (2 pi f)^2
+        assert s * s * T == pytest.approx(max(2e-4**2 * 10.0, 1e-4**2 * 300.0), rel=1e-12)
+        assert s * s / T == pytest.approx(max(2e-4**2 / 10.0, 1e-4**2 / 300.0), rel=1e-12)
+
+    def test_one_model_is_its_own_envelope(self):
+        from imupipe.identify import dominating_model
+        from imupipe.models import NoiseModel
+
+        m = NoiseModel(white=1e-3, gauss_markov=((2e-4, 10.0), (1e-4, 500.0)), random_walk=1e-6)
+        env = dominating_model([m])
+        assert env.white == m.white and env.random_walk == m.random_walk
+        assert np.allclose(env.gauss_markov, m.gauss_markov, rtol=1e-12, atol=0)
