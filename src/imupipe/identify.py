@@ -902,8 +902,10 @@ def fit_allan(
                 continue
             # quasi-likelihood over-dispersion: the spread about the estimate scales by sqrt(phi),
             # on the log scale so a positive parameter keeps a positive interval
-            lo_w = est * (lo_k / est) ** f if np.isfinite(lo_k) and lo_k > 0 else lo_k
-            hi_w = est * (hi_k / est) ** f if np.isfinite(hi_k) and hi_k > 0 else hi_k
+            # (in numpy floats: a widened end beyond the float range is 0 or inf, not an OverflowError)
+            with np.errstate(over="ignore", under="ignore"):
+                lo_w = est * np.float64(lo_k / est) ** f if np.isfinite(lo_k) and lo_k > 0 else lo_k
+                hi_w = est * np.float64(hi_k / est) ** f if np.isfinite(hi_k) and hi_k > 0 else hi_k
             intervals[k] = (float(lo_w), float(hi_w))
         notes.append(
             f"the model does not describe the data: chi2/dof = {adequacy['chi2_per_dof']:.3g}, p = "

@@ -33,9 +33,21 @@ def _envelope(fit, kept):
     return upper_envelope(fit, kept)
 
 
+def _envelope_ratio(envelope: dict, model) -> dict:
+    """Envelope over estimate of each amplitude (white, random_walk, flicker; gm_sigma_i with GM terms matched in
+    order), dimensionless; None where the estimate is 0 (a component the envelope adds, e.g. a dropped random walk
+    at its upper limit)."""
+    est = {"white": model.white, "random_walk": model.random_walk, "flicker": model.flicker}
+    env = {k: envelope.get(k, 0.0) for k in est}
+    for i, term in enumerate(envelope.get("gauss_markov") or [], start=1):
+        env[f"gm_sigma_{i}"] = term["sigma"]
+        est[f"gm_sigma_{i}"] = model.gauss_markov[i - 1][0] if len(model.gauss_markov) >= i else 0.0
+    return {k: (float(env[k] / est[k]) if est[k] > 0 else None) for k in env if env[k] > 0 or est[k] > 0}
+
+
 def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: float, significance: float,
-         relevance: float, adequacy_level: float, pooling_level: float, pooling_n_boot: int, rate_hz: float,
-         horizon_s: float, truth, path_out: str, sensor: str) -> None:
+         relevance: float, rate_hz: float, horizon_s: float, truth, path_out: str, sensor: str,
+         adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99) -> None:
     from imupipe.identify import dominating_model, fit_allan, pooling_test, refit_selected, select_components, slope_line
     from imupipe.merge import Stacked
 
@@ -103,6 +115,12 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
                                  "`upper_envelope_model` dominates the pooled and every per-axis envelope")
     else:
         out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+    out["upper_envelope_ratio"] = _envelope_ratio(out["upper_envelope_model"], selected.model)
+    if not out["adequacy"]["pooled"].get("adequate", True):
+        out["upper_envelope_note"] = (
+            "the selected model does not describe the data (adequacy): its intervals are widened by the "
+            f"over-dispersion factor {out['adequacy']['pooled'].get('widening')}, so the envelope's upper ends are "
+            "indicative only and may be far above the data (upper_envelope_ratio: envelope / estimate)")
     out["upper_envelope"] = ("kept components at the upper ends of the selected refit's intervals, each GM as the "
                              "tightest single GM over its interval box, the random walk at its upper limit even when "
                              "dropped (imupipe.bound.upper_envelope); SI")
