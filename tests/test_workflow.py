@@ -129,6 +129,8 @@ class TestCaching:
         "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
+        "outliers": ({"k": 6.0}, {"outliers", "all"}),  # warn: a report; the stages read the series
+        "lines": ({"alpha": 0.05}, {"lines", "all"}),
     }
 
     @pytest.mark.parametrize("section", sorted(SECTIONS))
@@ -137,7 +139,7 @@ class TestCaching:
         change, expected = self.SECTIONS[section]
         key = section.split("_")[0]
         cfg = yaml.safe_load(config.read_text())
-        cfg[key] = {**cfg[key], **change}
+        cfg[key] = {**cfg.get(key, {}), **change}
         changed = work / f"changed_{section}.yaml"
         changed.write_text(yaml.safe_dump(cfg))
         jobs = dry_run_jobs(work, config=changed)
@@ -191,7 +193,8 @@ class TestCaching:
             assert jobs.get(rule) == 6, (rule, jobs)  # the new dataset's 6 axes only
         assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
         # the dataset list reaches every rule after the recordings; the Figure 7 job depends on nothing
-        assert set(jobs) == {"simulate", "ingest", "allan", "decimate", "psd"} | self.AFTER_VERDICTS | {"stationarity"}
+        assert set(jobs) == ({"simulate", "ingest", "allan", "decimate", "psd", "outliers", "lines"} | self.AFTER_VERDICTS
+                             | {"stationarity"})
 
 
 class TestBadInput:
