@@ -55,6 +55,8 @@ def _xarray_stack(paths, join):
         first = first or dict(ds.attrs)
         ds = ds.reset_coords(drop=True)
         ds["n_samples"] = xr.DataArray(int(n), attrs={"long_name": "samples in the record", "units": "1"})
+        ds["rate_hz"] = xr.DataArray(float(ds.attrs["rate_hz"]),  # per curve (records of different rates)
+                                     attrs={"long_name": "sampling rate of the curve's record", "units": "Hz"})
         ds.attrs = {}
         by_dataset.setdefault(dataset, []).append(ds.expand_dims({"axis": [axis]}))
     per_dataset = [xr.concat(v, dim="axis", join=join).sortby("axis") for v in by_dataset.values()]

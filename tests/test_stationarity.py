@@ -217,9 +217,9 @@ class TestCalibrated:
     def test_p_value_formula_and_output(self, rng):
         # a null that can never reach the observed statistics: p = 1/(1 + n_sim)
         x = np.concatenate([rng.standard_normal(500), 10 + 5 * rng.standard_normal(500)])
-        res = calibrated_stationarity(x, 2.0, lambda n, g: g.standard_normal(n), n_sim=19, rng=1)
+        res = calibrated_stationarity(x, 2.0, lambda n, g: g.standard_normal(n), n_sim=19, rng=1, n_sim_max=None)
         assert res["levene_p"] == res["ks_p"] == res["p_value"] == pytest.approx(1 / 20)
-        assert res["rate_hz"] == 2.0 and res["n_sim"] == 19
+        assert res["rate_hz"] == 2.0 and res["n_sim"] == 19 and not res["extended"]
         assert res["paper"]["stationary"] is False
         yaml = pytest.importorskip("yaml")
         assert yaml.safe_load(yaml.safe_dump(res)) == res
@@ -234,8 +234,8 @@ class TestCalibrated:
             x = gen(2000, rng)
             if i % 4 == 0:
                 x[1000:] *= 1.3
-            full = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=False)
-            fast = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=True)
+            full = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=False, n_sim_max=None)
+            fast = calibrated_stationarity(x, 1.0, gen, n_sim=39, rng=i, stop_early=True, n_sim_max=None)
             assert fast["stationary"] == full["stationary"]
             assert full["n_sim_run"] == 39 and not full["stopped_early"]
             # the lemma the stopping rule rests on: the calibrated p-value is at least the observed min-p
@@ -316,3 +316,37 @@ class TestBlockBootstrap:
             bootstrap_stationarity(rng.standard_normal(100), 1.0, block_s=0.1)
         with pytest.raises(ValueError, match="block_s"):
             bootstrap_stationarity(rng.standard_normal(100), 1.0, block_s=200.0)
+
+
+class TestStableVerdicts:
+    def test_same_record_on_three_axes_same_verdict(self, rng):
+        # common random numbers: the default seed comes from the record, so copies of one record (three axes
+        # of identical data) get bit-identical null draws and results, whatever generator state surrounds them
+        gen = white_plus_gm(1.0, 1.0, 30.0)
+        x = gen(3000, rng)
+        res = [calibrated_stationarity(x.copy(), 1.0, gen, n_sim=39) for _ in range(3)]
+        assert res[0] == res[1] == res[2] and res[0]["seed"] == "data"
+        # a different record gets different draws (the seed is not a constant)
+        other = calibrated_stationarity(gen(3000, rng), 1.0, gen, n_sim=39, stop_early=False)
+        full = calibrated_stationarity(x, 1.0, gen, n_sim=39, stop_early=False)
+        assert other["levene_p"] != full["levene_p"] or other["ks_p"] != full["ks_p"]
+
+    def test_close_verdicts_draw_more(self):
+        # A null that never reaches the observed statistics: the p-value falls like 1/(1 + n) with the number
+        # of draws n. At n_sim = 19 it sits within 2 Monte Carlo standard errors of alpha = 0.05 (a close
+        # verdict), so the draws double (19, 39, 79, ...) until p is more than 2 se from alpha.
+        x = np.concatenate([np.random.default_rng(3).standard_normal(500),
+                            10 + np.random.default_rng(4).standard_normal(500)])
+        null = lambda n, g: g.standard_normal(n)  # noqa: E731
+        fixed = calibrated_stationarity(x, 1.0, null, n_sim=19, n_sim_max=None)
+        assert abs(fixed["closeness"]) <= 2 and not fixed["extended"]
+        res = calibrated_stationarity(x, 1.0, null, n_sim=19, n_sim_max=1000)
+        assert res["extended"] and res["n_sim_run"] in (39, 79, 159, 319, 639) and abs(res["closeness"]) > 2
+        half = calibrated_stationarity(x, 1.0, null, n_sim=19, n_sim_max=(res["n_sim_run"] - 1) // 2)
+        assert abs(half["closeness"]) <= 2  # the stage before was still close: no draw was wasted
+        p, n = res["p_value"], res["n_sim_run"] + 1
+        assert res["p_value_mc_se"] == pytest.approx(math.sqrt(p * (1 - p) / n))
+        assert res["p_value"] < fixed["p_value"]
+        # a verdict far from the level is not extended
+        far = calibrated_stationarity(x, 1.0, null, n_sim=199, n_sim_max=1000)
+        assert not far["extended"] and far["n_sim_run"] == 199

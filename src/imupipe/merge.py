@@ -11,6 +11,7 @@ from typing import NamedTuple
 __all__ = ["Stacked"]
 
 _PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
+_RATE_ATTRS = {"long_name": "sampling rate of the curve's record", "units": "Hz"}
 _INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
 _LABEL_ATTRS = {"dataset": {"long_name": "dataset"}, "axis": {"long_name": "sensor axis"}}
 
@@ -113,7 +114,10 @@ class Stacked:
         coordinate (PSDs of one configuration); ``"outer"``: the sorted union, missing entries NaN (AV grids
         of records of different lengths; an integer variable with a missing entry is stored as float with
         NaN, since NaN has no integer value). Per-file record lengths (global attr ``n_samples``) become
-        the variable ``n_samples`` (dataset, axis); global attrs are the first file's minus per-file ones.
+        the variable ``n_samples`` (dataset, axis), per-file rates (global attr ``rate_hz``, Hz) the variable
+        ``rate_hz`` (dataset, axis; NaN where a curve is missing); global attrs are the first file's minus
+        per-file ones (the global ``rate_hz`` is kept as the first file's for older readers: use
+        :meth:`rate_of` for a curve's own rate).
         """
         import numpy as np
 
@@ -142,6 +146,7 @@ class Stacked:
         shape = (len(out.datasets), len(out.axes))
         values, attrs, dtypes = {}, {}, {}
         n_samples = np.full(shape, np.nan)
+        rates = np.full(shape, np.nan)
         have = np.zeros(shape, dtype=bool)
         for f in files:
             i, j = out.datasets.index(f.dataset), out.axes.index(f.axis)
@@ -150,6 +155,8 @@ class Stacked:
             have[i, j] = True
             if f.attrs.get("n_samples") is not None:
                 n_samples[i, j] = int(f.attrs["n_samples"])
+            if f.attrs.get("rate_hz") is not None:
+                rates[i, j] = float(f.attrs["rate_hz"])
             at = np.searchsorted(index, f.index)
             for name, (v, a) in f.data.items():
                 if name not in values:
@@ -163,6 +170,8 @@ class Stacked:
         if not np.isnan(n_samples).all():
             ns = n_samples.astype(np.int64) if not np.isnan(n_samples).any() else n_samples
             out.variables["n_samples"] = (ns, ("dataset", "axis"), {"long_name": "samples in the record", "units": "1"})
+        if not np.isnan(rates).all():
+            out.variables["rate_hz"] = (rates, ("dataset", "axis"), dict(_RATE_ATTRS))
         return out
 
     def set_included(self, summary: dict) -> None:
@@ -231,6 +240,21 @@ class Stacked:
         index = tuple(self.datasets.index(dataset) if d == "dataset" else self.axes.index(axis) if d == "axis"
                       else slice(None) for d in dims)
         return values[index]
+
+    def rate_of(self, dataset, axis) -> float:
+        """Sampling rate of one curve's record, Hz: the per-curve variable ``rate_hz`` (dataset, axis) where the
+        file has it, else the global attribute ``rate_hz`` (files stacked before the per-curve rate existed,
+        whose curves all had the first file's rate)."""
+        import math
+
+        if "rate_hz" in self.variables:
+            r = float(self.at("rate_hz", dataset, axis))
+            if math.isfinite(r) and r > 0:
+                return r
+            raise ValueError(f"{self.path}: no rate_hz for dataset {dataset!r}, axis {axis!r}")
+        if "rate_hz" not in self.attrs:
+            raise ValueError(f"{self.path}: neither a rate_hz variable (dataset, axis) nor a rate_hz attribute")
+        return float(self.attrs["rate_hz"])
 
     def curves(self, included_only=False):
         """(dataset, axis) of every curve in file order; with `included_only`, those whose ``included``

@@ -283,7 +283,28 @@ def stationarity_tests(x, n_segments: int = 2, alpha: float = 0.05) -> dict:
 # ---------------------------------------------------------------------------------------------
 # Monte Carlo calibration (model or block bootstrap)
 # ---------------------------------------------------------------------------------------------
-def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null: str, stop_early: bool = False) -> dict:
+def _data_seed(a: np.ndarray, k: int) -> int:
+    """A seed from the record's bytes and the number of segments (common random numbers: identical records
+    get identical null draws, whatever their axis or dataset name)."""
+    import hashlib
+
+    h = hashlib.blake2b(np.ascontiguousarray(a, dtype=np.float64).tobytes(), digest_size=8)
+    h.update(int(k).to_bytes(4, "little"))
+    return int.from_bytes(h.digest(), "little")
+
+
+def _generator(rng, a: np.ndarray, k: int):
+    """``rng="data"``: a generator seeded from the record (:func:`_data_seed`); otherwise
+    ``numpy.random.default_rng(rng)``."""
+    if isinstance(rng, str):
+        if rng != "data":
+            raise ValueError(f"rng must be a Generator, an int, None or 'data', got {rng!r}")
+        return np.random.default_rng(_data_seed(a, k)), "data"
+    return np.random.default_rng(rng), ("given" if rng is not None else "fresh entropy")
+
+
+def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null: str, stop_early: bool = False,
+                 n_sim_max: int | None = None, close_z: float = 2.0) -> dict:
     """Observed (W, D_max) against n_sim null records drawn in batches by draw(count) -> (count, L).
 
     stop_early: stop once the verdict of the full n_sim test is certain. With a = 1 + #{W_s >= W_obs}
@@ -292,69 +313,93 @@ def _monte_carlo(a, k, m, alpha, n_sim, draw: Callable[[int], np.ndarray], null:
     (p-values are ranks), so the calibrated p-value is >= min(a, b)/(1 + n_sim). The counts a and b
     only grow with more draws, so once min(a, b)/(1 + n_sim) > alpha on the draws so far the full
     test cannot reject (the sequential Monte Carlo p-value idea of Besag & Clifford 1991).
+
+    n_sim_max: when, after the n_sim draws, the p-value lies within `close_z` Monte Carlo standard errors
+    sqrt(p (1 - p)/(n + 1)) of alpha, the number of draws is doubled (up to n_sim_max) until it does not
+    (or n_sim_max is reached): the resolution goes where the verdict is close.
     """
     d_obs = ks_statistics(_segments(a, k, m))  # per pair, for the report
     w_obs = float(_null_statistics(a[None, :], k, m)[0][0])  # as the null's W (same rounding)
     batch = max(1, _BATCH_SAMPLES // a.size)
+    n_sim = int(n_sim)
+    n_sim_max = n_sim if n_sim_max is None else max(int(n_sim_max), n_sim)
     # first batch: enough records for the stopping rule to fire on a typical stationary record
     first = min(batch, 2 * max(1, math.ceil(alpha * (n_sim + 1)))) if stop_early else batch
     w_sim, d_sim = [], []
     done = 0
     stopped = False
     as_extreme_w = as_extreme_d = 1  # records (the observed included) reaching the observed W, D
-    while done < n_sim:
-        if stop_early and done and min(as_extreme_w, as_extreme_d) / (n_sim + 1) > alpha:
-            stopped = True
+    target = n_sim
+    while True:
+        while done < target:
+            if stop_early and done and target == n_sim and min(as_extreme_w, as_extreme_d) / (n_sim + 1) > alpha:
+                stopped = True
+                break
+            # batches grow geometrically (first, first, 2 first, ...) so the stopping rule is checked often
+            count = min(max(first, done), batch, target - done)
+            sims = np.asarray(draw(count), dtype=np.float64)
+            if sims.shape != (count, a.size):
+                raise ValueError(f"null simulator returned shape {sims.shape}, expected {(count, a.size)}")
+            w_batch, d_batch = _null_statistics(sims, k, m)
+            w_sim.append(w_batch)
+            d_sim.append(d_batch)
+            as_extreme_w += int(np.count_nonzero(w_sim[-1] >= w_obs))
+            as_extreme_d += int(np.count_nonzero(d_sim[-1] >= d_obs.max()))
+            done += count
+        pvals, p_combined = _rank_pvalues(w_obs, float(d_obs.max()), w_sim, d_sim)
+        se = math.sqrt(p_combined * (1.0 - p_combined) / (done + 1))
+        if stopped or target >= n_sim_max or abs(p_combined - alpha) > close_z * se:
             break
-        # batches grow geometrically (first, first, 2 first, ...) so the stopping rule is checked often
-        count = min(max(first, done), batch, n_sim - done)
-        sims = np.asarray(draw(count), dtype=np.float64)
-        if sims.shape != (count, a.size):
-            raise ValueError(f"null simulator returned shape {sims.shape}, expected {(count, a.size)}")
-        w_batch, d_batch = _null_statistics(sims, k, m)
-        w_sim.append(w_batch)
-        d_sim.append(d_batch)
-        as_extreme_w += int(np.count_nonzero(w_sim[-1] >= w_obs))
-        as_extreme_d += int(np.count_nonzero(d_sim[-1] >= d_obs.max()))
-        done += count
+        target = min(n_sim_max, 2 * target + 1)  # (target + 1) doubles: alpha (n + 1) stays an integer
+    alpha = float(alpha)
+    n_all = done + 1
+    return {
+        "test": "Levene W and max KS D, Monte Carlo null",
+        "null": null,
+        "n_sim": int(n_sim),
+        "n_sim_max": int(n_sim_max),
+        "n_sim_run": int(done),
+        "stopped_early": stopped,
+        "extended": bool(done > n_sim),
+        "n_segments": k,
+        "segment_length": int(m),
+        "n_dropped": int(a.size - k * m),
+        "alpha": alpha,
+        "levene_statistic": w_obs,
+        "levene_p": float(pvals[0]),
+        "ks_statistic": [float(v) for v in d_obs],
+        "ks_statistic_max": float(d_obs.max()),
+        "ks_p": float(pvals[1]),
+        "p_value": p_combined,
+        "p_value_mc_se": float(se),
+        "closeness": float((p_combined - alpha) / se) if se > 0 else math.copysign(math.inf, p_combined - alpha),
+        "stationary": bool(p_combined > alpha),
+        "combination": (
+            "p-values (1 + #null >= observed)/(1 + n_sim) for Levene W and for max_i KS D_i; "
+            "verdict from the min of the two, calibrated on the same null draws (single-step min-p)"
+        ),
+        "sequential": (
+            f"draws doubled (up to n_sim_max) while p lies within {close_z:g} Monte Carlo standard errors "
+            "sqrt(p (1 - p)/(n_sim_run + 1)) of alpha; closeness = (p - alpha)/se"
+        ),
+        "min_p_resolution": 1.0 / n_all,
+    }
+
+
+def _rank_pvalues(w_obs, d_obs_max, w_sim, d_sim):
+    """Rank p-values (Hope 1968) of the observed record's W and D_max among all draws + 1, and the Monte Carlo
+    p-value of their minimum on the same draws (single-step min-p)."""
     w_sim = np.concatenate(w_sim)
     d_sim = np.concatenate(d_sim)
-
-    # rank-based p-values of every record (observed first) among all done + 1 (Hope 1968);
-    # the combined test is the min-p statistic calibrated on the same draws
-    stats = np.stack([np.concatenate(([w_obs], w_sim)), np.concatenate(([d_obs.max()], d_sim))], axis=1)
-    n_all = done + 1
+    stats = np.stack([np.concatenate(([w_obs], w_sim)), np.concatenate(([d_obs_max], d_sim))], axis=1)
+    n_all = stats.shape[0]
     pvals = np.empty_like(stats)
     for c in range(2):
         sorted_c = np.sort(stats[:, c])
         # number of records with a statistic >= this one
         pvals[:, c] = (n_all - np.searchsorted(sorted_c, stats[:, c], side="left")) / n_all
     minp = pvals.min(axis=1)
-    p_combined = float(np.count_nonzero(minp <= minp[0]) / n_all)
-    alpha = float(alpha)
-    return {
-        "test": "Levene W and max KS D, Monte Carlo null",
-        "null": null,
-        "n_sim": int(n_sim),
-        "n_sim_run": int(done),
-        "stopped_early": stopped,
-        "n_segments": k,
-        "segment_length": int(m),
-        "n_dropped": int(a.size - k * m),
-        "alpha": alpha,
-        "levene_statistic": w_obs,
-        "levene_p": float(pvals[0, 0]),
-        "ks_statistic": [float(v) for v in d_obs],
-        "ks_statistic_max": float(d_obs.max()),
-        "ks_p": float(pvals[0, 1]),
-        "p_value": p_combined,
-        "stationary": bool(p_combined > alpha),
-        "combination": (
-            "p-values (1 + #null >= observed)/(1 + n_sim) for Levene W and for max_i KS D_i; "
-            "verdict from the min of the two, calibrated on the same null draws (single-step min-p)"
-        ),
-        "min_p_resolution": 1.0 / n_all,
-    }
+    return pvals[0], float(np.count_nonzero(minp <= minp[0]) / n_all)
 
 
 def calibrated_stationarity(
@@ -363,9 +408,11 @@ def calibrated_stationarity(
     model,
     n_segments: int = 2,
     alpha: float = 0.05,
-    n_sim: int = 200,
-    rng=None,
+    n_sim: int = 199,
+    rng="data",
     stop_early: bool = True,
+    n_sim_max: int | None = 1599,
+    close_z: float = 2.0,
 ) -> dict:
     r"""Levene + KS stationarity test calibrated on a simulated stationary null.
 
@@ -405,10 +452,18 @@ def calibrated_stationarity(
     alpha : float, optional
         Level of the combined test. Default 0.05.
     n_sim : int, optional
-        Number of simulated records. Default 200 (p resolution 1/201; keep (n_sim + 1) * alpha an
+        Number of simulated records. Default 199 (p resolution 1/200; keep (n_sim + 1) * alpha an
         integer for an exact level, e.g. 199 or 999).
-    rng : numpy.random.Generator or int or None, optional
-        Seed or generator (``numpy.random.default_rng(rng)``).
+    rng : numpy.random.Generator or int or None or "data", optional
+        Seed or generator (``numpy.random.default_rng(rng)``); ``"data"`` (default): seeded from a hash of
+        the record itself (common random numbers: identical records, e.g. the same data on three axes, get
+        the same null draws and the same verdict, whatever their names).
+    n_sim_max : int or None, optional
+        Sequential extension: when the p-value after `n_sim` draws lies within `close_z` Monte Carlo
+        standard errors of `alpha`, the draws are doubled until it does not or `n_sim_max` is reached.
+        Default 1599 (None: no extension).
+    close_z : float, optional
+        Standard errors that count as close. Default 2.
     stop_early : bool, optional
         Stop drawing once the verdict of the full `n_sim` test is certain: when at least
         :math:`\alpha (1 + n_{sim})` null records reach the observed Levene W and at least as many
@@ -422,8 +477,10 @@ def calibrated_stationarity(
     -------
     dict
         ``levene_statistic``, ``levene_p``, ``ks_statistic`` (per pair), ``ks_statistic_max``,
-        ``ks_p``, ``p_value`` (combined), ``stationary``, ``n_sim``, ``n_sim_run``,
-        ``stopped_early``, ``null``, ``combination`` and the settings; plus ``paper``: the dict of
+        ``ks_p``, ``p_value`` (combined), ``p_value_mc_se`` (its Monte Carlo standard error),
+        ``closeness`` ((p - alpha)/se), ``stationary``, ``n_sim``, ``n_sim_max``, ``n_sim_run``, ``extended``,
+        ``stopped_early``, ``seed`` (how the generator was seeded), ``null``, ``combination`` and the settings;
+        plus ``paper``: the dict of
         :func:`stationarity_tests` on the same record. Plain Python types.
     """
     a, k, m = _check_args(x, n_segments, alpha)
@@ -433,7 +490,7 @@ def calibrated_stationarity(
     n_sim = int(n_sim)
     if n_sim < 1:
         raise ValueError("n_sim must be >= 1")
-    gen = np.random.default_rng(rng)
+    gen, seeded = _generator(rng, a, k)
     n = a.size
 
     batch = None
@@ -462,8 +519,10 @@ def calibrated_stationarity(
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # constant-record warnings belong to the observed record only
-        out = _monte_carlo(a, k, m, alpha, n_sim, draw, null, stop_early=stop_early)
+        out = _monte_carlo(a, k, m, alpha, n_sim, draw, null, stop_early=stop_early, n_sim_max=n_sim_max,
+                           close_z=close_z)
     out["rate_hz"] = rate
+    out["seed"] = seeded
     out["paper"] = stationarity_tests(a, n_segments=k, alpha=alpha)
     return _plain_dict(out)
 
