@@ -607,7 +607,7 @@ def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model
 
     lines = []
     for name, doc in docs.items():
-        if not isinstance(doc, dict) or not isinstance(doc.get("lines", None), (list, type(None))):
+        if not isinstance(doc, dict) or "lines" not in doc or not isinstance(doc["lines"], (list, type(None))):
             raise ValueError(f"{name}: expected a lines file with a 'lines' list (LineSearch.to_dict())")
         try:
             lines += [Line(**d) for d in doc.get("lines") or ()]
