@@ -30,6 +30,8 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/ingest.smk"
+include: "workflow/rules/outliers.smk"
+include: "workflow/rules/lines.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/decimate.smk"
 include: "workflow/rules/psd.smk"

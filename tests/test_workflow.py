@@ -130,6 +130,8 @@ class TestCaching:
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
         "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "all"}),
+        "outliers": ({"k": 6.0}, {"outliers", "all"}),  # warn: a report; the stages read the series
+        "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor
     }
 
     @pytest.mark.parametrize("section", sorted(SECTIONS))
@@ -191,7 +193,8 @@ class TestCaching:
             assert jobs.get(rule) == 6, (rule, jobs)  # the new dataset's 6 axes only
         assert jobs.get("ingest") == 1 and jobs.get("simulate") == 1, jobs
         # the dataset list reaches every rule after the recordings; the Figure 7 job depends on nothing
-        assert set(jobs) == {"simulate", "ingest", "allan", "decimate", "psd"} | self.AFTER_VERDICTS | {"stationarity"}
+        assert set(jobs) == ({"simulate", "ingest", "allan", "decimate", "psd", "outliers", "lines"} | self.AFTER_VERDICTS
+                             | {"stationarity"})
 
 
 class TestBadInput:

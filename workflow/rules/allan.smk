@@ -4,7 +4,7 @@
 
 rule allan:
     input:
-        series=f"{RESULTS}/series/{{dataset}}/{{sensor}}/{{axis}}.nc",
+        series=FULL_RATE_SERIES,
     output:
         allan=f"{RESULTS}/allan/{{dataset}}/{{sensor}}/{{axis}}.nc",
     params:

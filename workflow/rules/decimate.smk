@@ -3,7 +3,7 @@
 
 rule decimate:
     input:
-        series=f"{RESULTS}/series/{{dataset}}/{{sensor}}/{{axis}}.nc",
+        series=FULL_RATE_SERIES,
     output:
         decimated=f"{RESULTS}/decimated/{{dataset}}/{{sensor}}/{{axis}}.nc",
     params:

@@ -1,4 +1,6 @@
-# Pooled Allan-variance fit per sensor type, model selection for the application band.
+# Allan-variance identification per sensor type: the pooled fit and its adequacy, model selection for the
+# application band, the selected model refitted, the pooling test (per-axis fits where the curves differ) and
+# the identified upper envelope the bound reads (upper_envelope_model).
 
 
 rule identify:
@@ -14,6 +16,9 @@ rule identify:
         confidence=config["identify"]["confidence"],
         significance=config["identify"]["significance"],
         relevance=config["identify"]["relevance"],
+        adequacy_level=config["identify"]["adequacy_level"],
+        pooling_level=config["identify"]["pooling_level"],
+        pooling_n_boot=config["identify"]["pooling_n_boot"],
         rate_hz=config["application"]["rate_hz"],
         horizon_s=config["application"]["horizon_s"],
     threads: 1

@@ -14,6 +14,8 @@ rule stationarity:
         alpha=config["stationarity"]["alpha"],
         test=config["stationarity"]["test"],
         n_sim=config["stationarity"]["n_sim"],
+        n_sim_max=config["stationarity"]["n_sim_max"],
+        close_z=config["stationarity"]["close_z"],
     group:
         "per_axis"
     threads: 1

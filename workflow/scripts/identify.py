@@ -1,5 +1,8 @@
-"""Pooled Allan-variance fit of one sensor type, model selection for the application band, slope-line
-readings for comparison, and (simulated data) the truth beside the fit (rule identify)."""
+"""Allan-variance identification of one sensor type (rule identify): the pooled fit with its adequacy, model
+selection for the application band, the SELECTED model refitted (the parameters to report and bound), the test
+whether the curves may be pooled at all (and, where not, one identification per axis), the conservative (upper)
+ends and the identified upper envelope for the bound, slope-line readings for comparison, and (simulated data)
+the truth beside the fit. Each curve is fitted at its own record's rate and length."""
 
 import logging
 
@@ -7,45 +10,103 @@ import numpy as np
 
 from imupipe.io import run_job, write_yaml_atomic
 
+SEED_FIT, SEED_POOLING = 20211, 20212
+
 
 def curves_of(av):
-    """(label, tau, avar, edf, n_samples) of every included curve of a :class:`imupipe.merge.Stacked`
-    Allan-variance file, NaN entries removed."""
+    """(label, tau, avar, edf, n_samples, rate_hz, axis) of every included curve of a
+    :class:`imupipe.merge.Stacked` Allan-variance file, NaN entries removed (records of different lengths
+    have different tau grids), each with its own record's rate."""
     out = []
     tau = av["tau"]
     for d, a in av.curves(included_only=True):
         avar, edf = av.at("avar", d, a), av.at("edf", d, a)
         ok = np.isfinite(avar) & np.isfinite(edf)
-        out.append((f"{d}/{a}", tau[ok], avar[ok], edf[ok], int(av.at("n_samples", d, a))))
+        out.append((f"{d}/{a}", tau[ok], avar[ok], edf[ok], int(av.at("n_samples", d, a)), av.rate_of(d, a), a))
     return out
 
 
+def _envelope(fit, kept):
+    """The upper confidence envelope of the kept components of `fit` (imupipe.bound.upper_envelope)."""
+    from imupipe.bound import upper_envelope
+
+    return upper_envelope(fit, kept)
+
+
 def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: float, significance: float,
-         relevance: float, rate_hz: float, horizon_s: float, truth, path_out: str, sensor: str) -> None:
-    from imupipe.identify import fit_allan, select_components, slope_line
+         relevance: float, adequacy_level: float, pooling_level: float, pooling_n_boot: int, rate_hz: float,
+         horizon_s: float, truth, path_out: str, sensor: str) -> None:
+    from imupipe.identify import dominating_model, fit_allan, pooling_test, refit_selected, select_components, slope_line
     from imupipe.merge import Stacked
 
     av = Stacked(path_allan)
     curves = curves_of(av)
-    taus = [c[1] for c in curves]
-    avars = [c[2] for c in curves]
-    edfs = [c[3] for c in curves]
-    rate = float(av.attrs["rate_hz"])
-    fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, n_boot=n_boot, confidence=confidence,
-                    rng=20211, dt=1.0 / rate, rate=rate, n_samples=[c[4] for c in curves])
+    if not curves:
+        raise ValueError(f"{path_allan}: no included curve (stationarity.on_fail = exclude left none)")
+    labels = [c[0] for c in curves]
+    taus, avars, edfs = [c[1] for c in curves], [c[2] for c in curves], [c[3] for c in curves]
+    ns, rates = [c[4] for c in curves], [c[5] for c in curves]
+    fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], rate=rates, n_samples=ns,
+                  adequacy_level=adequacy_level)
+    fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=SEED_FIT, **fit_kw)
     selection = select_components(fit, taus, avars, edfs, rate_hz=rate_hz, horizon_s=horizon_s,
                                   significance=significance, relevance=relevance)
-    logging.info("kept %s; dropped %s", selection["kept"], selection["dropped"])
+    kept = list(selection["kept"])
+    logging.info("kept %s; dropped %s", kept, selection["dropped"])
+    selected = refit_selected(fit, selection, taus, avars, edfs, rng=SEED_FIT, **fit_kw)
+    pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, rate=rates, n_samples=ns,
+                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
+    logging.info("pooling: %s", pooling["note"])
+    envelope = _envelope(selected, kept)
+
     out = {
         "sensor": sensor,
-        "curves": [c[0] for c in curves],
-        "fit": fit.to_dict(),
+        "curves": labels,
+        "rate_hz": {lab: float(r) for lab, r in zip(labels, rates)},
+        "n_samples": {lab: int(n) for lab, n in zip(labels, ns)},
+        "fit": fit.to_dict(),  # the full fit (every allowed component); `selected` inside: the refit
         "model": fit.model.to_dict(),
+        "model_selected": selected.model.to_dict(),  # the parameters to report and bound
         "selection": {k: selection[k] for k in ("kept", "dropped", "reasons", "reduced_model", "band_hz")},
+        "adequacy": {"pooled": selected.to_dict()["adequacy"], "full_fit": fit.to_dict()["adequacy"],
+                     "per_curve": {c["label"]: {k: c[k] for k in ("chi2", "dof", "chi2_per_dof", "p_value",
+                                                                  "adequate")} for c in pooling["per_curve"]}},
+        "on_boundary": {k: bool(v) for k, v in selected.on_boundary.items()},
+        "conservative": selected.to_dict()["conservative"],
+        "pooling": pooling,
+        "upper_envelope_model": envelope.to_dict(),
         "slope_line": {},
     }
     out["selection"]["band_hz"] = [float(v) for v in out["selection"]["band_hz"]] if out["selection"]["band_hz"] else None
-    for label, t, y, _, _ in curves:
+    if not pooling["consistent"]:
+        # one identification per axis (its datasets pooled; one dataset: one curve), same kept components
+        per_axis = {}
+        for axis in sorted({c[6] for c in curves}):
+            idx = [i for i, c in enumerate(curves) if c[6] == axis]
+            kw = {**fit_kw, "rate": [rates[i] for i in idx], "n_samples": [ns[i] for i in idx],
+                  "dt": 1.0 / rates[idx[0]]}
+            fa = fit_allan([taus[i] for i in idx], [avars[i] for i in idx], [edfs[i] for i in idx],
+                           components=tuple(kept), n_gm=n_gm if "gauss_markov" in kept else 0, rng=SEED_FIT, **kw)
+            d = fa.to_dict()
+            per_axis[axis] = {"curves": [labels[i] for i in idx], "model": fa.model.to_dict(),
+                              "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
+                              "on_boundary": d["on_boundary"], "conservative": d["conservative"],
+                              "upper_envelope_model": _envelope(fa, kept).to_dict(), "notes": d["notes"]}
+        out["per_axis"] = per_axis
+        # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
+        from imupipe.models import NoiseModel
+
+        out["upper_envelope_model"] = dominating_model(
+            [envelope] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()]).to_dict()
+        out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the "
+                                 "pooled fit is kept for reference, `per_axis` gives each axis's parameters and "
+                                 "`upper_envelope_model` dominates the pooled and every per-axis envelope")
+    else:
+        out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+    out["upper_envelope"] = ("kept components at the upper ends of the selected refit's intervals, each GM as the "
+                             "tightest single GM over its interval box, the random walk at its upper limit even when "
+                             "dropped (imupipe.bound.upper_envelope); SI")
+    for label, t, y, *_ in curves:
         sl = slope_line(t, np.sqrt(y))
         out["slope_line"][label] = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in sl.items()}
     if truth:
@@ -54,13 +115,16 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
         true = load_spec(truth).models[sensor]
         out["truth"] = true.to_dict()
         if true.white > 0:
-            out["white_relative_error"] = float(fit.model.white / true.white - 1.0)
-    write_yaml_atomic(out, path_out, header=f"{sensor}: Allan-variance identification, pooled over {len(curves)} curves; SI units")
+            out["white_relative_error"] = float(selected.model.white / true.white - 1.0)
+    out["units"] = ("SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, quantization u*s, "
+                    "ramp u/s, gm_sigma u, gm_T s; rate_hz Hz; chi2, p-values dimensionless")
+    write_yaml_atomic(out, path_out, header=f"{sensor}: Allan-variance identification of {len(curves)} curves; SI units")
 
 
 if __name__ == "__main__":
     p = snakemake.params
     run_job(main, snakemake.log[0], path_allan=snakemake.input.allan, components=list(p.components), n_gm=p.n_gm,
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
-            rate_hz=p.rate_hz, horizon_s=p.horizon_s, truth=snakemake.input.truth or None, path_out=snakemake.output.identified,
-            sensor=snakemake.wildcards.sensor)
+            adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
+            rate_hz=p.rate_hz, horizon_s=p.horizon_s, truth=snakemake.input.truth or None,
+            path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)

@@ -1,0 +1,40 @@
+# Spectral lines of one full-rate axis (before decimation, on the cleaned series when outliers.policy is
+# `remove`): imupipe.lines.find_lines at lines.resolution_hz, family-wise level lines.alpha. The bound reads these
+# files with lines.policy (per sensor) and lines.application_band_hz.
+
+
+# memory: the axis and its segments' spectra: 80 MB + 4 x the axis file's size
+MEM_MB["lines"] = lambda wildcards, input: int(80 + 4 * input.size_mb)
+RUNTIME_MIN["lines"] = full_rate_runtime
+
+
+rule lines:
+    input:
+        series=FULL_RATE_SERIES,
+    output:
+        lines=f"{RESULTS}/lines/{{dataset}}/{{sensor}}/{{axis}}.yaml",
+    params:
+        resolution_hz=config["lines"]["resolution_hz"],
+        alpha=config["lines"]["alpha"],
+        floor_window_bins=config["lines"]["floor_window_bins"],
+    group:
+        "per_axis"
+    threads: 1
+    resources:
+        mem_mb=MEM_MB["lines"],
+        runtime=RUNTIME_MIN["lines"],
+    log:
+        f"{LOGS}/lines/{{dataset}}/{{sensor}}/{{axis}}.log",
+    benchmark:
+        f"{BENCHMARKS}/lines/{{dataset}}/{{sensor}}/{{axis}}.tsv"
+    conda:
+        "../envs/imupipe.yaml"
+    script:
+        "../scripts/lines.py"
+
+
+# The bound reads the lines files of its sensor with per_axis("lines", "yaml") (common.smk).
+LINE_FILES = expand(f"{RESULTS}/lines/{{dataset}}/{{sensor}}/{{axis}}.yaml", dataset=list(DATASETS),
+                    sensor=SENSORS, axis=AXES)
+EXTRA_TARGETS.extend(LINE_FILES)
+SUMMARY_INPUTS["lines"] = LINE_FILES
