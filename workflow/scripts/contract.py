@@ -64,6 +64,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "all_frequency_margin_frequency_hz": bound.get("all_frequency_margin_frequency_hz"),
         "allan_check_passed": bound.get("allan_check_passed"),
         "per_axis": bound.get("per_axis"),
+        **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
         "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_t_s", "worst_ratio",
                                                        "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
                          for name, ch in exported["verification"].get("checks", {}).items()},
