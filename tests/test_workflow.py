@@ -130,7 +130,7 @@ class TestCaching:
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
         "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "all"}),
-        "outliers": ({"k": 6.0}, {"outliers", "all"}),  # warn: a report; the stages read the series
+        "outliers": ({"k": 6.0}, {"outliers", "integrity", "all"}),  # warn: a report (and the run verdict, last)
         "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor
     }
 
