@@ -66,10 +66,10 @@ class TestContract:
     def test_bound_file_and_margin_recomputed(self, tiny_run, sensor):
         work, _ = tiny_run
         b = yaml.safe_load((work / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
-        for key in ("bound", "bound_spec_units", "inflation", "bounded", "margin", "margin_curve", "spec", "mode"):
+        for key in ("bound", "bound_spec_units", "inflation", "psd_bounded", "margin", "margin_curve", "spec", "mode"):
             assert key in b, key
-        assert b["bounded"] is True
-        assert b["margin"] >= 1.0
+        assert b["psd_bounded"] is True
+        assert b["margin"] >= 1 - 1e-9  # the LP's stated rounding (psd_bounded uses the same)
         model = NoiseModel(white=b["bound"]["white"], random_walk=b["bound"]["random_walk"],
                            gauss_markov=tuple((g["sigma"], g["T"]) for g in b["bound"]["gauss_markov"]))
         with xr.open_dataset(work / f"{RES}/spectra/{sensor}.nc") as ds:
@@ -117,7 +117,8 @@ class TestCaching:
     # the rules that read it (their params) and, through the files they write, every rule downstream of them;
     # no other rule. The merge stages keep the psd and Allan branches apart: a PSD setting re-runs neither the
     # Allan variance nor the identification, an Allan setting neither the decimation nor the PSD.
-    AFTER_BOUND = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "summary", "report_file", "all"}
+    AFTER_BOUND = {"bound_axis", "bound", "verify", "contract", "kf", "kalibr", "figures", "tables", "integrity",
+                   "summary", "report_file", "all"}
     AFTER_IDENTIFY = {"identify"} | AFTER_BOUND
     AFTER_VERDICTS = {"stationarity_summary", "stack"} | AFTER_IDENTIFY
     SECTIONS = {
@@ -129,8 +130,9 @@ class TestCaching:
         "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
-        "outliers": ({"k": 6.0}, {"outliers", "all"}),  # warn: a report; the stages read the series
-        "lines": ({"alpha": 0.05}, {"lines", "all"}),
+        "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "all"}),
+        "outliers": ({"k": 6.0}, {"outliers", "integrity", "all"}),  # warn: a report (and the run verdict, last)
+        "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor
     }
 
     @pytest.mark.parametrize("section", sorted(SECTIONS))
@@ -139,7 +141,7 @@ class TestCaching:
         change, expected = self.SECTIONS[section]
         key = section.split("_")[0]
         cfg = yaml.safe_load(config.read_text())
-        cfg[key] = {**cfg.get(key, {}), **change}
+        cfg[key] = {**cfg.get(key, {}), **change}  # a section the tiny config leaves to its defaults
         changed = work / f"changed_{section}.yaml"
         changed.write_text(yaml.safe_dump(cfg))
         jobs = dry_run_jobs(work, config=changed)
@@ -156,9 +158,10 @@ class TestCaching:
             spec.write_text(text)
             os.utime(spec, ns=(stat.st_atime_ns, stat.st_mtime_ns))
         # 2 sensors x (2 datasets x 3 axes) per-axis bounds, 2 global bounds, 2 KF files, 1 Kalibr file,
-        # 2 figure jobs, 1 table job, the summary and the report's copies of 2 KF and 2 bound files
-        assert jobs == {"bound_axis": 12, "bound": 2, "kf": 2, "kalibr": 1, "figures": 2, "tables": 1, "summary": 1,
-                        "report_file": 4, "all": 1}
+        # 2 figure jobs, 1 table job, 2 verifications, 2 contracts, 1 run verdict, the summary and the report's
+        # copies of 2 KF and 2 bound files
+        assert jobs == {"bound_axis": 12, "bound": 2, "kf": 2, "kalibr": 1, "figures": 2, "tables": 1, "verify": 2,
+                        "contract": 2, "integrity": 1, "summary": 1, "report_file": 4, "all": 1}
 
     def test_copied_checkout_reruns_nothing(self, tiny_run, tmp_path):
         # every path Snakemake records is relative: the checkout with its results copied elsewhere (modification
@@ -257,9 +260,7 @@ class TestResume:
                     xr.testing.assert_identical(a.load(), b.load())
             a = yaml.safe_load((work / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
             b = yaml.safe_load((tmp_path / f"{RES}/bound/stim300/{sensor}.yaml").read_text())
-            for d in (a, b):
-                d.pop("solve_time_s")
-            assert a == b
+            assert a == b  # no wall clock in the file (the LP's solve time is in the log)
 
 
 class TestReport:
@@ -283,14 +284,16 @@ class TestRealData:
         snakemake(tmp_path, config=config)
         for sensor in ("gyro", "accel"):
             b = yaml.safe_load((tmp_path / f"results/adis16405/bound/adis16405/{sensor}.yaml").read_text())
-            assert b["bounded"] is True and b["margin"] >= 1 - 1e-9
+            assert b["psd_bounded"] is True and b["margin"] >= 1 - 1e-9
+            c = yaml.safe_load((tmp_path / f"results/adis16405/contract/adis16405/{sensor}.yaml").read_text())
+            assert c["bounded"] is True, c["failed_checks"]
             assert b["n_curves"] == 6
             ident = yaml.safe_load((tmp_path / f"results/adis16405/identify/{sensor}.yaml").read_text())
             kept = ident["selection"]["kept"]
             assert "white" in kept
             assert set(kept) | set(ident["selection"]["dropped"]) >= {"white", "random_walk"}
             assert all(name in ident["selection"]["reasons"] for name in kept)
-            assert b["allan_check"]["white"]["passed"] is True
+            assert b["allan_check"]["components"]["white"]["status"] == "ok"
 
 
 def _bad_input_files(folder, rng):

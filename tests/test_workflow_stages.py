@@ -89,7 +89,7 @@ class TestDag:
     def test_warn_policy_change_reruns_the_reports_alone(self, tiny_run):
         work, config = tiny_run
         jobs = dry_run_jobs(work, config=_changed(work, config, "k", outliers={"k": 6.0}))
-        assert jobs == {"outliers": 12, "all": 1}
+        assert jobs == {"outliers": 12, "integrity": 1, "all": 1}  # the run's verdict is the last job: after every output
 
     def test_remove_policy_feeds_the_cleaned_series(self, tiny_run):
         # with `remove` the full-rate stages read results/<name>/cleaned/ (the outliers job's second output)
@@ -232,7 +232,7 @@ class TestRecordsOfDifferentLengthAndRate:
             assert ident["adequacy"]["pooled"]["p_value"] is not None
             assert set(ident["adequacy"]["per_curve"]) == set(ident["rate_hz"])
             bound = yaml.safe_load((work / RES / "bound" / "stim300" / f"{sensor}.yaml").read_text())
-            assert bound["bounded"] is True and bound["n_curves"] == 6
+            assert bound["psd_bounded"] is True and bound["n_curves"] == 6
 
     def test_identical_axes_identical_verdicts(self, mixed_run):
         # the null draws are seeded from the record, not the axis name: the one record on three axes gets one

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "tests" / "configs" / "tiny.yaml"
 SNAKEMAKE = [sys.executable, "-m", "snakemake", "--snakefile", str(ROOT / "Snakefile"), "--cores", "2"]
 # the rules downstream of the spec sheet: a change of the sheet re-runs these and nothing else
-SPEC_RULES = {"bound_axis", "bound", "kf", "kalibr", "figures", "tables", "summary", "report_file", "all"}
+SPEC_RULES = {"bound_axis", "bound", "verify", "contract", "kf", "kalibr", "figures", "tables", "integrity",
+              "summary", "report_file", "all"}
 # results/{name}/ and logs/{name}/ of tests/configs/tiny.yaml
 RES, LOG = "results/tiny", "logs/tiny"
 # what the checkout copy needs to run (imupipe itself is installed)

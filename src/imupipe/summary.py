@@ -320,7 +320,7 @@ def sensors_from_paths(sensors: Sequence[str], bounds: Sequence[str], identify: 
 def discover_run(results: str | Path) -> dict:
     """The per-sensor files of a finished run under `results`, by spec sheet.
 
-    Looks for ``bound/{spec}/{sensor}.yaml`` (a bound contract: has ``bounded`` and ``sensor``),
+    Looks for ``contract/{spec}/{sensor}.yaml`` or ``bound/{spec}/{sensor}.yaml`` (a contract: has ``bounded`` and ``sensor``),
     ``identify/{sensor}.yaml`` and ``stationarity/{sensor}.yaml`` anywhere below `results` (so a
     ``results/<run name>/`` level is found as well).
 
@@ -333,7 +333,8 @@ def discover_run(results: str | Path) -> dict:
 
     results = Path(results)
     out: dict = {}
-    for path in sorted(results.rglob("bound/*/*.yaml")):
+    # the integrity contract (contract/{spec}/{sensor}.yaml, the verdict) after, and so in place of, the bound file
+    for path in [*sorted(results.rglob("bound/*/*.yaml")), *sorted(results.rglob("contract/*/*.yaml"))]:
         if path.parent.name == "axes" or "axes" in path.parts[len(results.parts):-1]:
             continue
         try:

@@ -578,3 +578,110 @@ def verification_report(bound_model, sensor: str, spec=None, upper=None, truth=N
                                             rate_hz=rate_hz, scenario=sc) if reduced is not bound_model else None}
     return {"sensor": sensor, "verification": ver, "reduction": red, "passed": ver["passed"],
             "units": "SI; sigma_fix m (accel) or rad (gyro); times s; ratios dimensionless"}
+
+
+def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model", application_band_hz=None):
+    """:func:`imupipe.lines.line_policy` of every line in lines files (the workflow's per-axis lines YAMLs).
+
+    Parameters
+    ----------
+    docs : mapping of str to dict
+        File name -> content (:meth:`imupipe.lines.LineSearch.to_dict`: a ``lines`` list of
+        :class:`imupipe.lines.Line` fields).
+    dt : float
+        Decimated sample interval, s.
+    frequency : array_like, optional
+        Decimated PSD frequency grid, Hz.
+    policy : {"model", "exclude", "keep"}
+    application_band_hz : (float, float) or None
+        Band of the decimated spectrum the filter is sensitive to, Hz; None: all of it, [0, 1/(2 dt)].
+
+    Returns
+    -------
+    imupipe.lines.LinePolicy or None
+        None when `docs` is empty (no lines stage).
+    """
+    if not docs:
+        return None
+    from imupipe.lines import Line, line_policy
+
+    lines = []
+    for name, doc in docs.items():
+        if not isinstance(doc, dict) or "lines" not in doc or not isinstance(doc["lines"], (list, type(None))):
+            raise ValueError(f"{name}: expected a lines file with a 'lines' list (LineSearch.to_dict())")
+        try:
+            lines += [Line(**d) for d in doc.get("lines") or ()]
+        except TypeError as exc:
+            raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
+    band = application_band_hz if application_band_hz is not None else (0.0, 0.5 / float(dt))
+    return line_policy(lines, float(dt), band, policy=policy, frequency=frequency)
+
+
+def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth=None, records=None,
+                       rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
+                       sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
+                       replay_z: float = 2.0):
+    r"""The verification stage of one spec and sensor: :func:`verification_report` plus the model to export
+    and the time series of its checks (for :func:`imupipe.plot.plot_verification`).
+
+    Checks of `bound_model` in the reference filter of `sensor` (:func:`reference_scenario` with `fix_s` s of
+    fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `filter_rate_hz` Hz, then an
+    outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
+    identified upper envelope) and ``spec``; replay of ``records`` (rate `rate_hz`, Hz) passing when the
+    worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff) (:func:`replay`). With `reduce`, :func:`reduce_by_integrity`
+    against (upper, spec); the reduced model is exported only when it drops something AND passes every
+    check above (truth and replay included), else the bound's own model is.
+
+    Returns
+    -------
+    (dict, dict)
+        The YAML-ready report (keys of :func:`verification_report` plus ``exported``: ``reduced`` (bool),
+        ``reason``, ``model`` (SI :meth:`NoiseModel.to_dict`) and ``verification`` (its checks)), and the
+        series: label -> :class:`Verification` of the exported model.
+    """
+    kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s)
+    if sigma_fix is not None:
+        kw["sigma_fix"] = sigma_fix
+    sc = reference_scenario(sensor, **kw)
+
+    def run(model):
+        series = {}
+        for name, m in (("truth", truth), ("upper_envelope", upper), ("spec", spec)):
+            if m is not None:
+                series[name] = covariance_analysis(model, m, sc)
+        if records is not None:
+            if rate_hz is None:
+                raise ValueError("verification_stage: replay records need rate_hz")
+            series["replay"] = replay(model, records, rate_hz, sc, z=replay_z)
+        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
+                            "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad"},
+               "checks": {k: v.to_dict() for k, v in series.items()}}
+        ver["passed"] = all(c["passed"] for c in ver["checks"].values())
+        return ver, series
+
+    ver, series = run(bound_model)
+    red, exported = None, {"reduced": False, "model": bound_model.to_dict(), "verification": ver,
+                           "reason": "no reduction asked (verify.reduce false)" if not reduce else
+                           "no reduction accepted"}
+    if reduce and (upper is not None or spec is not None):
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec], sensor, sc)
+        red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
+               "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
+               "verification": None}
+        if red["accepted"]:
+            rver, rseries = run(reduced)
+            red["verification"] = rver
+            if rver["passed"]:
+                exported = {"reduced": True, "model": reduced.to_dict(), "verification": rver,
+                            "reason": f"dropped {', '.join(red['accepted'])}: every check passes without it"}
+                series = rseries
+            else:
+                failed = [k for k, c in rver["checks"].items() if not c["passed"]]
+                exported["reason"] = (f"reduction ({', '.join(red['accepted'])}) refused: the reduced model fails "
+                                      f"{', '.join(failed)}")
+    if not ver["checks"]:
+        exported["reason"] += "; no verification check could run"
+    report = {"sensor": sensor, "verification": ver, "reduction": red, "exported": exported,
+              "passed": bool(exported["verification"]["passed"] and exported["verification"]["checks"]),
+              "units": "SI; sigma_fix m (accel) or rad (gyro); times s; ratios dimensionless"}
+    return report, series

@@ -1,7 +1,15 @@
 # The bound of one sensor type against one spec sheet: the tightest model of each axis alone (bound_axis),
-# then the global bound over every included curve and the spec sheet (the contract file), with the
-# Allan-domain check per component and the paper's hand inflation for comparison (bound). With kf,
-# figures and tables the only stages that read the spec sheet: a new spec sheet re-runs these jobs alone.
+# then the global bound over every included curve and the spec sheet (bound), with the Allan-domain check of
+# the kept components and the paper's hand inflation for comparison. Both bound over all frequencies: below
+# the lowest PSD bin down to 0.01 / horizon (horizon = verify.fix_s + application.horizon_s) the bound's PSD
+# stays above the spec sheet's and the identified model's upper confidence envelope (docs/method.md, "Bound
+# over all frequencies"). Spectral lines found by the lines stage enter through the sensor's line policy
+# (`lines.policy`: model | exclude | keep); until that stage is part of the workflow the lines input is empty.
+# With kf, verify, contract, figures and tables the only stages that read the spec sheet: a new spec sheet
+# re-runs these jobs alone.
+
+
+include: "integrity_helpers.smk"
 
 
 rule bound_axis:
@@ -9,6 +17,7 @@ rule bound_axis:
         psd=f"{RESULTS}/psd/{{dataset}}/{{sensor}}/{{axis}}.nc",
         identified=f"{RESULTS}/identify/{{sensor}}.yaml",
         spec=spec_file,
+        lines=lines_files_of,
     output:
         bound=f"{RESULTS}/bound/{{spec}}/axes/{{dataset}}/{{sensor}}/{{axis}}.yaml",
     params:
@@ -16,6 +25,8 @@ rule bound_axis:
         n_gm=config["bound"]["n_gm"],
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
+        horizon_s=bound_horizon_s(),
+        lines=lines_params(),
     threads: 1
     resources:
         mem_mb=MEM_MB["bound_axis"],
@@ -37,6 +48,7 @@ rule bound:
         identified=f"{RESULTS}/identify/{{sensor}}.yaml",
         spec=spec_file,
         axis_bounds=axis_bounds_of,
+        lines=lines_files_of,
     output:
         bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
     params:
@@ -45,6 +57,8 @@ rule bound:
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
+        horizon_s=bound_horizon_s(),
+        lines=lines_params(),
     threads: 1
     resources:
         mem_mb=MEM_MB["bound"],

@@ -1,9 +1,13 @@
-# Kalman-filter matrices of a global bound (one axis, SI).
+# Kalman-filter matrices of the exported model (one axis, SI): the bound's model, reduced by integrity when the
+# verification accepted a reduction (verify), marked with the contract's verdict (a failing model is written
+# for diagnosis, marked `bounded: false`).
 
 
 rule kf:
     input:
         bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
+        verify=f"{RESULTS}/verify/{{spec}}/{{sensor}}.yaml",
+        contract=f"{RESULTS}/contract/{{spec}}/{{sensor}}.yaml",
     output:
         kf=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
     params:

@@ -1,27 +1,39 @@
-"""Kalman-filter matrices of one global bound, one axis, SI (rule kf): continuous F, G, Qc of paper eq. 17 (or
-eq. 19 without the random-walk state), exact discrete Phi, Qd by Van Loan, and P0."""
+"""Kalman-filter matrices of the exported model, one axis, SI (rule kf): continuous F, G, Qc of paper eq. 17 (or
+eq. 19 without the random-walk state), narrowband states of the model's lines, exact discrete Phi, Qd by Van
+Loan, and P0. The model is the bound's (all of it: white, GM, random walk, narrowband), or its reduction by
+integrity when the verification accepted one; the contract's verdict marks the file."""
 
 from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 
-def main(path_bound: str, dt_s: float, horizon_s: float, path_out: str, sensor: str) -> None:
+def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, horizon_s: float, path_out: str,
+         sensor: str) -> None:
     from imupipe.kf import export_kf
     from imupipe.models import NoiseModel
 
-    bound = read_yaml(path_bound)
-    b = bound["bound"]
-    model = NoiseModel(white=b["white"] or 0.0, random_walk=b["random_walk"] or 0.0,
-                       gauss_markov=tuple((g["sigma"], g["T"]) for g in b["gauss_markov"]))
+    bound, ver, con = read_yaml(path_bound), read_yaml(path_verify), read_yaml(path_contract)
+    model = NoiseModel.from_dict(ver["exported"]["model"])
     # The random walk has no steady state: start it with what it accumulates over the application horizon,
     # K^2 * horizon (u^2); replace by the turn-on bias repeatability squared when the spec sheet gives it.
     p0_rw = model.random_walk**2 * horizon_s if model.random_walk > 0 else None
+    red = ver.get("reduction")
     out = {"sensor": sensor, "spec_name": bound["spec_name"], "dt_s": dt_s,
+           "bounded": bool(con["bounded"]), "verified": bool(con["verified"]),
+           "failed_checks": [f["check"] for f in con["failed_checks"]],
+           "warning": None if con["bounded"] else
+           "NOT BOUNDED: this model failed the integrity checks of the contract file; for diagnosis only",
+           "reduction": {"exported_reduced": bool(ver["exported"]["reduced"]), "reason": ver["exported"]["reason"],
+                         "tried": red["tried"] if red else [], "accepted": red["accepted"] if red else [],
+                         "refused": red["refused"] if red else []},
            "p0_random_walk_rule": "K^2 * application.horizon_s" if p0_rw else None,
            **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw)}
-    write_yaml_atomic(out, path_out, header=f"{sensor}: Kalman-filter model of the bound (SI), one axis")
+    head = f"{sensor}: Kalman-filter model of the bound (SI), one axis"
+    if not con["bounded"]:
+        head = f"NOT BOUNDED (see the contract file): {head}"
+    write_yaml_atomic(out, path_out, header=head)
 
 
 if __name__ == "__main__":
-    p = snakemake.params
-    run_job(main, snakemake.log[0], path_bound=snakemake.input.bound, dt_s=p.dt_s, horizon_s=p.horizon_s,
-            path_out=snakemake.output.kf, sensor=snakemake.wildcards.sensor)
+    p, i = snakemake.params, snakemake.input
+    run_job(main, snakemake.log[0], path_bound=i.bound, path_verify=i.verify, path_contract=i.contract,
+            dt_s=p.dt_s, horizon_s=p.horizon_s, path_out=snakemake.output.kf, sensor=snakemake.wildcards.sensor)

@@ -19,7 +19,7 @@ def main(paths: list, sensors: list, path_spec: str, path_md: str, path_csv: str
         model = NoiseModel(white=b["white"] or 0.0, random_walk=b["random_walk"] or 0.0,
                            gauss_markov=tuple((g["sigma"], g["T"]) for g in b["gauss_markov"]))
         for r in inflation_rows(spec, sensor, model):
-            rows.append({"sensor": sensor, **r, "mode": bound["mode"], "bounded": bound["bounded"],
+            rows.append({"sensor": sensor, **r, "mode": bound["mode"], "bounded": bound.get("psd_bounded", bound.get("bounded")),
                          "margin": bound["margin"]})
 
     def fmt(v):

@@ -142,6 +142,7 @@ from imupipe.bound.allan_check import (  # noqa: F401
     check_allan_components,
     gm_bounds_gm,
     upper_envelope,
+    upper_envelope_from_identification,
 )
 
 __all__ = [
@@ -157,4 +158,5 @@ __all__ = [
     "gm_bounds_gm",
     "upper_envelope",
     "check_allan",
+    "upper_envelope_from_identification",
 ]

@@ -337,3 +337,40 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
     passed = all(v["status"] != "shortfall" for v in comps.values()) and total["passed"] is not False
     return {"components": comps, "total": total, "passed": bool(passed), "confidence": float(confidence),
             "units": "tau s; ratios of Allan variances (dimensionless)"}
+
+
+def upper_envelope_from_identification(identified: dict):
+    """The identified upper confidence envelope (SI :class:`imupipe.models.NoiseModel`) of an identify file.
+
+    Parameters
+    ----------
+    identified : dict
+        The content of ``results/<name>/identify/{sensor}.yaml``: its ``upper_envelope_model`` (a
+        :meth:`NoiseModel.to_dict`) when present, else its ``fit`` (``params``, ``intervals``,
+        ``random_walk_profile``, as :meth:`imupipe.identify.AllanFit.to_dict` writes them, None for NaN) and
+        ``selection.kept``, from which :func:`upper_envelope` rebuilds the envelope.
+
+    Raises
+    ------
+    ValueError
+        Neither an ``upper_envelope_model`` nor a ``fit`` with ``params``.
+    """
+    from types import SimpleNamespace
+
+    from imupipe.models import NoiseModel
+
+    if identified.get("upper_envelope_model"):
+        return NoiseModel.from_dict(identified["upper_envelope_model"])
+    fit = identified.get("fit") or {}
+    if "params" not in fit:
+        raise ValueError("identify file: no 'upper_envelope_model' and no 'fit.params' to rebuild the upper envelope")
+
+    def num(v):
+        return float("nan") if v is None else float(v)
+
+    view = SimpleNamespace(
+        params={k: num(v) for k, v in (fit.get("params") or {}).items()},
+        intervals={k: (num(v[0]), num(v[1])) for k, v in (fit.get("intervals") or {}).items()},
+        random_walk_profile={k: num(v) for k, v in (fit.get("random_walk_profile") or {}).items()},
+    )
+    return upper_envelope(view, (identified.get("selection") or {}).get("kept"))

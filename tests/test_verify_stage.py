@@ -1,0 +1,71 @@
+"""The library pieces the workflow's integrity stages call: the upper envelope rebuilt from an identify file,
+the line policy of lines files, and the verification stage (verification, reduction by integrity, the model to
+export)."""
+
+import math
+
+import pytest
+
+from imupipe.bound import upper_envelope_from_identification
+from imupipe.models import NoiseModel
+from imupipe.verify import line_policy_from_files, verification_stage
+
+
+def test_upper_envelope_from_an_identify_file_closed_form():
+    # kept white and GM at their upper limits; the GM box sigma <= s_up, T in [T_lo, T_hi] dominated by the single
+    # GM T_m = sqrt(T_lo T_hi), sigma_m = s_up (T_hi/T_lo)^(1/4); the random walk at its profile limit although
+    # model selection dropped it (method: "Bound over all frequencies")
+    ident = {"fit": {"params": {"white": 1e-3, "gm_sigma_1": 2e-4, "gm_T_1": 100.0, "random_walk": 0.0,
+                                "flicker": None},
+                     "intervals": {"white": [0.9e-3, 1.2e-3], "gm_sigma_1": [1e-4, 3e-4], "gm_T_1": [50.0, 200.0],
+                                   "random_walk": [0.0, None]},
+                     "random_walk_profile": {"upper": 1e-6, "threshold": 2.7}},
+             "selection": {"kept": ["white", "gauss_markov"]}}
+    m = upper_envelope_from_identification(ident)
+    assert m.white == pytest.approx(1.2e-3, rel=1e-15)
+    ((s, T),) = m.gauss_markov
+    assert T == pytest.approx(100.0, rel=1e-15) and s == pytest.approx(3e-4 * 4.0**0.25, rel=1e-15)
+    assert m.random_walk == pytest.approx(1e-6, rel=1e-15)
+    # a written envelope is used as it is
+    given = NoiseModel(white=2e-3, random_walk=3e-6)
+    assert upper_envelope_from_identification({**ident, "upper_envelope_model": given.to_dict()}).white == 2e-3
+    with pytest.raises(ValueError, match="upper_envelope_model"):
+        upper_envelope_from_identification({"selection": {"kept": []}})
+
+
+def test_line_policy_from_files_names_a_bad_file():
+    assert line_policy_from_files({}, 1.0) is None
+    with pytest.raises(ValueError, match="x.yaml"):
+        line_policy_from_files({"x.yaml": {"nothing": 1}}, 1.0)
+    with pytest.raises(ValueError, match="y.yaml"):
+        line_policy_from_files({"y.yaml": {"lines": [{"not_a_field": 1.0}]}}, 1.0)
+
+
+# a short reference filter (fixes 100 s, outage 600 s at 1 Hz) keeps these analyses fast
+SHORT = dict(fix_s=100.0, horizon_s=600.0, filter_rate_hz=1.0)
+TRUTH = NoiseModel(white=2e-3, gauss_markov=((5e-4, 200.0),), random_walk=2e-5)
+
+
+def test_matched_model_passes_and_an_unflated_one_fails():
+    rep, series = verification_stage(TRUTH, "accel", upper=TRUTH, spec=TRUTH, reduce=False, **SHORT)
+    # exact analysis of a filter matched to its truth: MSE/P = 1 to the recursions' rounding (1e-6 allowed)
+    assert rep["passed"] and rep["exported"]["reduced"] is False
+    assert set(series) == {"upper_envelope", "spec"}
+    assert all(abs(v.worst_ratio - 1.0) < 1e-6 for v in series.values())
+    # white noise at half its true value: the filter under-states its error, the stage says so
+    low = NoiseModel(white=1e-3, gauss_markov=TRUTH.gauss_markov, random_walk=TRUTH.random_walk)
+    rep, _ = verification_stage(low, "accel", upper=TRUTH, reduce=False, **SHORT)
+    assert rep["passed"] is False and rep["verification"]["checks"]["upper_envelope"]["worst_ratio"] > 1.0
+
+
+def test_reduction_exported_only_when_verified():
+    # a bound with a GM term far below the truth's white noise over the horizon: dropping it is verified
+    # (the remaining white noise and random walk dominate it), dropping the random walk is not
+    bound = NoiseModel(white=3e-3, gauss_markov=((1e-6, 50.0),), random_walk=3e-5)
+    rep, _ = verification_stage(bound, "accel", upper=TRUTH, spec=TRUTH, reduce=True, **SHORT)
+    red = rep["reduction"]
+    assert {t["drop"] for t in red["tried"]} == set(red["accepted"]) | set(red["refused"])
+    assert "random_walk" in red["refused"]
+    assert any(a.startswith("gauss_markov") for a in red["accepted"])
+    assert rep["exported"]["reduced"] is True and rep["exported"]["verification"]["passed"]
+    assert rep["exported"]["model"]["gauss_markov"] == [] and math.isclose(rep["exported"]["model"]["white"], 3e-3)

@@ -1,0 +1,133 @@
+"""End to end: the integrity stages of the workflow on the tiny run (tests/configs/tiny.yaml): the bound over
+all frequencies with the identified upper envelope, the verification of the exported model (verify/), the
+contract (contract/), the KF file marked by it, identical files from identical runs, and the exit status of a
+run whose model fails (the spec sheet itself exported as the bound: the unflated spec of issue 21)."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+
+import pytest
+import yaml
+
+from workflow_helpers import RES, snakemake
+
+SENSORS = ("gyro", "accel")
+
+
+def _yaml(path):
+    return yaml.safe_load(path.read_text())
+
+
+@pytest.mark.parametrize("sensor", SENSORS)
+def test_contract_bounded_means_every_check_passed(tiny_run, sensor):
+    work, _ = tiny_run
+    c = _yaml(work / f"{RES}/contract/stim300/{sensor}.yaml")
+    v = _yaml(work / f"{RES}/verify/stim300/{sensor}.yaml")
+    b = _yaml(work / f"{RES}/bound/stim300/{sensor}.yaml")
+    # the bound file carries the PSD verdict only, under its own name; the verdict is the contract's
+    assert "bounded" not in b and b["psd_bounded"] is True
+    assert set(c["checks_run"]) >= {"psd_margin", "spec_bound_all_f", "allan_components", "verification"}
+    checks = v["exported"]["verification"]["checks"]
+    # simulated data: the truth, the upper envelope, the spec sheet and the replay of the records are all checked
+    assert set(checks) == {"truth", "upper_envelope", "spec", "replay"}
+    assert c["bounded"] is (not c["failed_checks"] and all(ch["passed"] for ch in checks.values()))
+    assert c["bounded"] is True and c["verified"] is True
+    # the numbers the contract repeats are the verification's
+    for name, ch in checks.items():
+        assert c["verification"][name]["worst_outage_ratio"] == ch["worst_outage_ratio"]
+        # exact analyses pass at MSE/P <= 1 + 1e-6, the replay within its Monte Carlo allowance
+        assert ch["worst_ratio"] <= 1.0 + ch["tolerance"]
+    # the horizon of the all-frequency bound is the reference filter's fixes plus the outage (tiny: 600 + 600 s)
+    assert b["horizon_s"] == 1200.0 and b["all_frequency_margin"] >= 1 - 1e-9
+    # the bound used the identify file's upper envelope as it is (imposed below the lowest bin and over the band)
+    ident = _yaml(work / f"{RES}/identify/{sensor}.yaml")
+    if "upper_envelope_model" in ident:
+        for key in ("white", "random_walk", "gauss_markov"):
+            assert b["upper_envelope"][key] == ident["upper_envelope_model"][key]
+    # the reduction is reported: what was tried, and each attempt accepted or refused
+    red = v["reduction"]
+    assert red is not None and {t["drop"] for t in red["tried"]} == set(red["accepted"]) | set(red["refused"])
+
+
+@pytest.mark.parametrize("sensor", SENSORS)
+def test_kf_file_is_the_exported_model_marked_by_the_contract(tiny_run, sensor):
+    work, _ = tiny_run
+    kf = _yaml(work / f"{RES}/kf/stim300/{sensor}.yaml")
+    c = _yaml(work / f"{RES}/contract/stim300/{sensor}.yaml")
+    assert kf["bounded"] is c["bounded"] and kf["verified"] is c["verified"]
+    assert c["kf_file"] == f"{RES}/kf/stim300/{sensor}.yaml"
+    p = kf["parameters"]
+    assert p["white"] == c["model"]["white"] and p["random_walk"] == c["model"]["random_walk"]
+    by_T = sorted(c["model"]["gauss_markov"], key=lambda g: g["T"])  # the KF file lists GM terms by increasing T
+    assert [(g["sigma"], g["T"]) for g in p["gauss_markov"]] == [(g["sigma"], g["T"]) for g in by_T]
+    assert kf["reduction"]["exported_reduced"] is c["model_reduced"]
+
+
+def test_verdict_and_summary_inputs(tiny_run):
+    work, _ = tiny_run
+    v = _yaml(work / f"{RES}/contract/verdict.yaml")
+    assert v["all_bounded"] is True and {r["sensor"] for r in v["contracts"]} == set(SENSORS)
+    for sensor in SENSORS:
+        assert (work / f"{RES}/figures/stim300/verify_{sensor}.png").stat().st_size > 10_000
+
+
+def _hashes(work, folders):
+    out = {}
+    for folder in folders:
+        for p in sorted((work / RES / folder).rglob("*.yaml")):
+            out[str(p.relative_to(work))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+@pytest.mark.slow
+def test_identical_runs_give_identical_files(tiny_run, tmp_path):
+    """Forced re-runs of the bound, verification, contract and KF jobs write byte-identical YAML files (no wall
+    clock in them; the LP's solve time is in the logs)."""
+    work, config = tiny_run
+    copy = tmp_path / "copy"
+    shutil.copytree(work, copy, symlinks=True)
+    folders = ("bound", "verify", "contract", "kf")
+    before = _hashes(copy, folders)
+    snakemake(copy, "--forcerun", "bound_axis", "bound", "verify", "contract", "kf", config=copy / config.name,
+              snakefile=copy / "Snakefile")
+    assert _hashes(copy, folders) == before
+
+
+def test_unflated_spec_fails_the_run_after_writing_the_contract(tiny_run, tmp_path):
+    """The spec sheet's own model exported as the bound (the unflated spec): the verification fails, the
+    contract says bounded: false with the failed checks and their numbers, the KF file is written and marked,
+    and the run exits non-zero naming the failed checks; with verify.on_failure: warn it exits 0 and the
+    run's verdict file says so."""
+    work, config = tiny_run
+    copy = tmp_path / "copy"
+    shutil.copytree(work, copy, symlinks=True)
+    path = copy / f"{RES}/bound/stim300/accel.yaml"
+    b = _yaml(path)
+    b["bound"] = {**b["spec"]}  # the spec sheet as the bound (SI, same keys)
+    path.write_text(yaml.safe_dump(b, sort_keys=False))
+    proc = snakemake(copy, config=copy / config.name, snakefile=copy / "Snakefile", check=False)
+    assert proc.returncode != 0
+    assert "NOT BOUNDED" in proc.stderr and "verification" in proc.stderr
+    c = _yaml(copy / f"{RES}/contract/stim300/accel.yaml")
+    assert c["bounded"] is False and c["verified"] is False
+    failed = [f for f in c["failed_checks"] if f["check"] == "verification"]
+    assert failed and all(f["worst_ratio"] > 1.0 + f["tolerance"] for f in failed)
+    # the outputs of the failure are all there: the marked KF file, the verification figure
+    kf = _yaml(copy / f"{RES}/kf/stim300/accel.yaml")
+    assert kf["bounded"] is False and "NOT BOUNDED" in kf["warning"]
+    assert (copy / f"{RES}/figures/stim300/verify_accel.png").is_file()
+    assert not (copy / f"{RES}/contract/verdict.yaml").exists()
+    # the gyro is untouched and still bounded
+    assert _yaml(copy / f"{RES}/contract/stim300/gyro.yaml")["bounded"] is True
+    cfg = _yaml(config)
+    cfg["verify"] = {"on_failure": "warn"}
+    warn = copy / "warn.yaml"
+    warn.write_text(yaml.safe_dump(cfg))
+    proc = snakemake(copy, config=warn, snakefile=copy / "Snakefile", check=False)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "NOT BOUNDED" in proc.stderr
+    v = _yaml(copy / f"{RES}/contract/verdict.yaml")
+    assert v["all_bounded"] is False
+    assert [r["bounded"] for r in v["contracts"] if r["sensor"] == "accel"] == [False]

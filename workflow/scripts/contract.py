@@ -1,0 +1,118 @@
+"""The integrity contract of one spec sheet and sensor type (rule contract) and the run's verdict over every
+contract (rule integrity).
+
+contract: `bounded` is true only when every check passed AND the verification ran: PSD margin over the sample
+bins, the spec sheet over all frequencies, the Allan-domain check of the kept components, the reference-filter
+verification of the exported model (imupipe.verify.integrity_contract). A failing model is still written, marked.
+integrity: with verify.on_failure = fail, a contract that is not bounded fails this job (the last of the run,
+after the figures, tables and summary are written), naming the failed checks; with warn, it logs a warning."""
+
+import logging
+import sys
+from types import SimpleNamespace
+
+from imupipe.io import read_yaml, run_job, write_yaml_atomic
+
+HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
+bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
+reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
+times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
+u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter."""
+
+
+def _bound_view(b: dict):
+    """The bound file's margins as the attributes imupipe.verify.integrity_contract reads (None: not finite)."""
+    def num(v, default=float("nan")):
+        return default if v is None else float(v)
+
+    return SimpleNamespace(margin=num(b.get("margin")), margin_curve=b.get("margin_curve"),
+                           margin_frequency=num(b.get("margin_frequency_hz")),
+                           spec_margin=num(b.get("spec_margin"), float("inf")),
+                           spec_margin_frequency=b.get("spec_margin_frequency_hz"),
+                           allf_margin=num(b.get("all_frequency_margin"), float("inf")),
+                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
+
+
+def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
+             sensor: str) -> None:
+    from imupipe.bound import _to_spec_units
+    from imupipe.models import NoiseModel
+    from imupipe.specsheet import display_units, load_spec
+    from imupipe.verify import integrity_contract
+
+    bound, ver = read_yaml(path_bound), read_yaml(path_verify)
+    exported = ver["exported"]
+    filt = f"{sensor} reference filter"
+    verification = {filt: exported["verification"]} if exported["verification"].get("checks") else None
+    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification)
+    spec = load_spec(path_spec)
+    model = NoiseModel.from_dict(exported["model"])
+    in_spec_units, note = _to_spec_units(model, display_units(spec, sensor), sensor)
+    out = {
+        "sensor": sensor, "spec_name": bound["spec_name"],
+        "bounded": c["bounded"], "verified": c["verified"], "failed_checks": c["failed_checks"],
+        "checks_run": c["checks_run"], "note": c["note"],
+        "on_failure": on_failure,
+        "model": exported["model"], "model_spec_units": in_spec_units,
+        "model_reduced": bool(exported["reduced"]), "model_reason": exported["reason"],
+        "inflation": bound.get("inflation"),
+        "kf_file": kf_file,
+        # the bound's numbers the run summary reads beside the verdict
+        "psd_bounded": bound.get("psd_bounded"), "margin": bound.get("margin"),
+        "margin_curve": bound.get("margin_curve"), "margin_frequency_hz": bound.get("margin_frequency_hz"),
+        "spec_margin": bound.get("spec_margin"), "all_frequency_margin": bound.get("all_frequency_margin"),
+        "all_frequency_margin_frequency_hz": bound.get("all_frequency_margin_frequency_hz"),
+        "allan_check_passed": bound.get("allan_check_passed"),
+        "per_axis": bound.get("per_axis"),
+        **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
+        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_t_s", "worst_ratio",
+                                                       "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
+                         for name, ch in exported["verification"].get("checks", {}).items()},
+        "reduction": None if ver.get("reduction") is None else
+        {k: ver["reduction"][k] for k in ("accepted", "refused", "tried")},
+    }
+    if note:
+        out["unit_note"] = note
+    if not c["bounded"]:
+        logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
+    write_yaml_atomic(out, path_out, header=HEADER)
+
+
+def failed_names(doc: dict) -> str:
+    """One line naming each failed check and its number."""
+    parts = []
+    for f in doc.get("failed_checks") or ():
+        num = next((f[k] for k in ("worst_ratio", "margin", "ratio") if k in f), None)
+        where = f.get("against") or f.get("component") or f.get("curve") or ""
+        parts.append(f"{f['check']}{' ' + str(where) if where else ''}"
+                     f"{'' if num is None else f' ({num:.4g})'}")
+    if not doc.get("verified") and not any(f["check"] == "verification" for f in doc.get("failed_checks") or ()):
+        parts.append("verification did not run")
+    return "; ".join(parts) or "none"
+
+
+def verdict(contracts: list, on_failure: str, path_out: str) -> None:
+    docs = [read_yaml(p) for p in contracts]
+    failing = [d for d in docs if not d["bounded"]]
+    rows = [{"spec_name": d["spec_name"], "sensor": d["sensor"], "bounded": d["bounded"], "verified": d["verified"],
+             "failed_checks": failed_names(d) if not d["bounded"] else "none", "contract": p}
+            for d, p in zip(docs, contracts)]
+    msg = "; ".join(f"{d['sensor']} against {d['spec_name']}: {failed_names(d)}" for d in failing)
+    if failing and on_failure == "fail":
+        text = (f"imupipe integrity: NOT BOUNDED ({msg}). The models are written, marked bounded: false, in the "
+                f"contract files; verify.on_failure: warn downgrades this to a warning.")
+        raise ValueError(text)  # run_job prints it on the terminal and exits non-zero
+    if failing:
+        logging.warning("NOT BOUNDED (verify.on_failure: warn): %s", msg)
+        print(f"imupipe integrity warning: NOT BOUNDED ({msg})", file=sys.__stderr__)
+    write_yaml_atomic({"all_bounded": not failing, "on_failure": on_failure, "contracts": rows}, path_out,
+                      header="the run's integrity verdict: every contract's bounded flag (contract/{spec}/{sensor}.yaml)")
+
+
+if __name__ == "__main__":
+    p, i, o = snakemake.params, snakemake.input, snakemake.output
+    if snakemake.rule == "integrity":
+        run_job(verdict, snakemake.log[0], contracts=list(i.contracts), on_failure=p.on_failure, path_out=o.verdict)
+    else:
+        run_job(contract, snakemake.log[0], path_bound=i.bound, path_verify=i.verify, path_spec=i.spec,
+                kf_file=p.kf_file, on_failure=p.on_failure, path_out=o.contract, sensor=snakemake.wildcards.sensor)
