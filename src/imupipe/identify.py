@@ -546,6 +546,10 @@ class AllanFit:
     interval_kind: dict = field(default_factory=dict)
     selected: object = field(repr=False, default=None)
     selection: dict = field(repr=False, default_factory=dict)
+    #: the intervals before the over-dispersion widening of an inadequate fit (equal to `intervals` when the
+    #: fit is adequate): the fitted model's own statistical limits, which the bound's envelope below the
+    #: lowest PSD bin uses (imupipe.bound.upper_envelope)
+    intervals_statistical: dict = field(default_factory=dict)
 
     def conservative(self) -> dict:
         """The integrity side of every amplitude parameter (``white``, ``random_walk``, ``flicker``,
@@ -588,6 +592,8 @@ class AllanFit:
             "on_boundary": {k: bool(v) for k, v in self.on_boundary.items()},
             "interval_kind": dict(self.interval_kind),
             "conservative": {k: fl(v) for k, v in self.conservative().items()},
+            **({"intervals_statistical": {k: [fl(a), fl(b)] for k, (a, b) in self.intervals_statistical.items()}}
+               if self.intervals_statistical and self.intervals_statistical != self.intervals else {}),
             **({"selected": self.selected.to_dict()} if isinstance(self.selected, AllanFit) else {}),
         }
 
@@ -893,6 +899,7 @@ def fit_allan(
             if not on_boundary.get(f"gm_sigma_{i}") and f"gm_sigma_{i}" in interval_kind:
                 interval_kind[f"gm_sigma_{i}"] = ("confounded with the random walk: only the upper end is "
                                                   "reliable (use it for bounding)")
+    intervals_statistical = dict(intervals)
     if not adequacy["adequate"]:
         f = adequacy["widening"]
         for k, (lo_k, hi_k) in list(intervals.items()):
@@ -932,7 +939,8 @@ def fit_allan(
         adequacy=adequacy,
         on_boundary=on_boundary,
         interval_kind=interval_kind,
-    )
+            intervals_statistical=intervals_statistical,
+)
 
 
 def _per_curve(v, n_curves, name, dtype):

@@ -118,10 +118,12 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     out["upper_envelope_ratio"] = _envelope_ratio(out["upper_envelope_model"], selected.model)
     if not out["adequacy"]["pooled"].get("adequate", True):
         out["upper_envelope_note"] = (
-            "the selected model does not describe the data (adequacy): its intervals are widened by the "
-            f"over-dispersion factor {out['adequacy']['pooled'].get('widening')}, so the envelope's upper ends are "
-            "indicative only and may be far above the data (upper_envelope_ratio: envelope / estimate)")
-    out["upper_envelope"] = ("kept components at the upper ends of the selected refit's intervals, each GM as the "
+            "the selected model does not describe the data (adequacy): its reported intervals are widened by the "
+            f"over-dispersion factor {out['adequacy']['pooled'].get('widening')}, but the envelope uses the model's "
+            "statistical limits (not widened), so below the lowest PSD bin the bound rests on a model the data "
+            "reject; the verification's replay of the records is the model-free check over the horizon")
+    out["upper_envelope"] = ("kept components at the upper ends of the selected refit's statistical intervals (before any "
+                             "over-dispersion widening), each GM as the "
                              "tightest single GM over its interval box, the random walk at its upper limit even when "
                              "dropped (imupipe.bound.upper_envelope); SI")
     for label, t, y, *_ in curves:

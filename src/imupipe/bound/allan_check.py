@@ -152,7 +152,7 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
 # ---------------------------------------------------------------------------------------------
 # identified upper envelope and the Allan-domain check against kept components
 # ---------------------------------------------------------------------------------------------
-def upper_envelope(fit, kept=None):
+def upper_envelope(fit, kept=None, intervals: str = "statistical"):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -171,6 +171,14 @@ def upper_envelope(fit, kept=None):
     kept : sequence of str or dict, optional
         Components kept by model selection (names or a ``select_components`` result). Default: all of
         the fit's components with a non-zero estimate.
+    intervals : {"statistical", "widened"}, optional
+        Which upper ends: ``"statistical"`` (default) the fitted model's own confidence limits
+        (``fit.intervals_statistical`` where the fit carries them), ``"widened"`` the intervals after the
+        over-dispersion widening of an inadequate fit (``fit.intervals``). On real records whose fit the
+        data reject (chi2/dof in the thousands) the widened ends are factors of 10^3-10^14 above the
+        estimates and would turn the bound into a useless one; the statistical ends are limits
+        conditional on the fitted model. The bound file flags an inadequate fit in either case, and the
+        replay of the records in the verification stage is the model-free check over the horizon.
 
     Returns
     -------
@@ -181,7 +189,11 @@ def upper_envelope(fit, kept=None):
 
     if isinstance(kept, dict):
         kept = kept.get("kept", [])
+    if intervals not in ("statistical", "widened"):
+        raise ValueError(f"upper_envelope: intervals must be 'statistical' or 'widened', got {intervals!r}")
     p, iv = fit.params, fit.intervals
+    if intervals == "statistical" and getattr(fit, "intervals_statistical", None):
+        iv = fit.intervals_statistical
 
     def up(name):
         v = float(p.get(name, 0.0) or 0.0)
@@ -371,6 +383,7 @@ def upper_envelope_from_identification(identified: dict):
     view = SimpleNamespace(
         params={k: num(v) for k, v in (fit.get("params") or {}).items()},
         intervals={k: (num(v[0]), num(v[1])) for k, v in (fit.get("intervals") or {}).items()},
+        intervals_statistical={k: (num(v[0]), num(v[1])) for k, v in (fit.get("intervals_statistical") or {}).items()},
         random_walk_profile={k: num(v) for k, v in (fit.get("random_walk_profile") or {}).items()},
     )
     return upper_envelope(view, (identified.get("selection") or {}).get("kept"))
