@@ -547,3 +547,44 @@ def test_exclude_in_band_modes_drops_exactly_the_interval_bins():
         if mode != "confidence":
             r3 = bound_psd(f, curves, NoiseModel(white=N), dt=1.0, mode=mode, keep=("white",))
             assert r3.model.white > 1.1 * r.model.white, mode
+
+
+class TestRandomWalkCap:
+    """imupipe.bound.random_walk_cap: the largest K the recorded Allan variances allow (model-free)."""
+
+    def test_pure_random_walk_cap_is_just_above_k(self):
+        from scipy.stats import chi2
+
+        from imupipe.bound import random_walk_cap
+
+        tau = np.array([1.0, 10.0, 100.0, 1000.0])
+        K = 1e-3
+        edf = np.array([1e5, 1e4, 1e3, 100.0])
+        cap = random_walk_cap([(tau, K**2 * tau / 3.0, edf)], confidence=0.95)
+        # AV = K^2 tau / 3 exactly: the cap is K sqrt(edf / chi2_edf(alpha')) at the tau whose limit is
+        # tightest, alpha' = 0.05 / 4; it can only be above K, and at most the loosest of the four factors
+        factors = np.sqrt(edf / chi2.ppf(0.05 / 4, edf))
+        assert K < cap <= K * factors.max() * (1 + 1e-12)
+        assert cap == pytest.approx(K * factors.min(), rel=1e-9)
+
+    def test_cap_covers_every_curve_and_ignores_nan(self):
+        from imupipe.bound import random_walk_cap
+
+        tau = np.array([1.0, 10.0, 100.0])
+        edf = np.full(3, 1e4)
+        small = random_walk_cap([(tau, 1e-8 * tau / 3.0, edf)])
+        big = random_walk_cap([(tau, 1e-6 * tau / 3.0, edf)])
+        both = random_walk_cap([(tau, 1e-8 * tau / 3.0, edf), (tau, np.r_[1e-6 * tau[:2] / 3.0, np.nan], edf)])
+        assert both == pytest.approx(big, rel=2e-2) and both > small  # the envelope must cover each curve
+        assert random_walk_cap([]) == np.inf
+
+    def test_envelope_random_walk_capped_but_not_below_the_estimate(self):
+        from types import SimpleNamespace
+
+        from imupipe.bound import upper_envelope
+
+        fit = SimpleNamespace(params={"white": 1e-3, "random_walk": 2e-5}, intervals={"random_walk": (0.0, 1.0)},
+                              random_walk_profile={"upper": 5.0})
+        assert upper_envelope(fit, ["white", "random_walk"]).random_walk == 5.0
+        assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-4).random_walk == 1e-4
+        assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-6).random_walk == 2e-5

@@ -130,8 +130,9 @@ class TestCaching:
         "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
-        "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "all"}),
-        "outliers": ({"k": 6.0}, {"outliers", "integrity", "all"}),  # warn: a report (and the run verdict, last)
+        "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "summary", "report_file", "all"}),
+        # warn: a report, which the run summary reads (and the run verdict, the last job)
+        "outliers": ({"k": 6.0}, {"outliers", "summary", "integrity", "all"}),
         "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor
     }
 

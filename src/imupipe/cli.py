@@ -273,16 +273,13 @@ def _cmd_run(args) -> int:
         extra.append("--dry-run")
     if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
         extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
-    workdir = Path(args.directory).resolve() if args.directory else checkout_root()
     cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
     import os
 
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
-    status = subprocess.call(cmd, env=env)
-    if status == 0 and not args.dry_run and "--dry-run" not in extra and "-n" not in extra:
-        _print_summary(workdir / "results")
-    return status
+    # the workflow itself prints the run summary at the end of a run (onsuccess / onerror of the Snakefile)
+    return subprocess.call(cmd, env=env)
 
 
 def _print_summary(results: Path) -> None:

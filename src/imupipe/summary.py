@@ -122,7 +122,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     if bound and bound.get("bounded") is False:
         out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
                         f"{_num(bound.get('margin_frequency_hz'))} Hz",
-                        f"not bounded: margin {_num(bound.get('margin'), '{:.4g}')} < 1", "fail"))
+                        (f"not bounded: margin {_num(bound.get('margin'), '{:.4g}')} < 1"
+                         if bound.get("margin") is None or float(bound.get("margin")) < 1.0 else
+                         f"not bounded: the PSD margin {_num(bound.get('margin'), '{:.4g}')} holds, another check "
+                         "failed (below)"), "fail"))
     if bound.get("verified") is False:
         out.append(Flag(sensor, "verification", "bound", "the bound's verification failed", "fail"))
     for fc in bound.get("failed_checks") or []:

@@ -26,11 +26,13 @@ def curves_of(av):
     return out
 
 
-def _envelope(fit, kept):
-    """The upper confidence envelope of the kept components of `fit` (imupipe.bound.upper_envelope)."""
-    from imupipe.bound import upper_envelope
+def _envelope(fit, kept, curves, confidence):
+    """The upper confidence envelope of the kept components of `fit` (imupipe.bound.upper_envelope), its random
+    walk at most what the curves' Allan variances allow (imupipe.bound.random_walk_cap)."""
+    from imupipe.bound import random_walk_cap, upper_envelope
 
-    return upper_envelope(fit, kept)
+    cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
+    return upper_envelope(fit, kept, random_walk_cap=cap)
 
 
 def _envelope_ratio(envelope: dict, model) -> dict:
@@ -69,7 +71,7 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, rate=rates, n_samples=ns,
                            labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
     logging.info("pooling: %s", pooling["note"])
-    envelope = _envelope(selected, kept)
+    envelope = _envelope(selected, kept, curves, confidence)
 
     out = {
         "sensor": sensor,
@@ -103,7 +105,8 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
             per_axis[axis] = {"curves": [labels[i] for i in idx], "model": fa.model.to_dict(),
                               "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
                               "on_boundary": d["on_boundary"], "conservative": d["conservative"],
-                              "upper_envelope_model": _envelope(fa, kept).to_dict(), "notes": d["notes"]}
+                              "upper_envelope_model": _envelope(fa, kept, [curves[i] for i in idx],
+                                                                confidence).to_dict(), "notes": d["notes"]}
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         from imupipe.models import NoiseModel
@@ -125,7 +128,8 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     out["upper_envelope"] = ("kept components at the upper ends of the selected refit's statistical intervals (before any "
                              "over-dispersion widening), each GM as the "
                              "tightest single GM over its interval box, the random walk at its upper limit even when "
-                             "dropped (imupipe.bound.upper_envelope); SI")
+                             "dropped, capped by what the recorded Allan variances allow (imupipe.bound.upper_envelope, "
+                             "random_walk_cap); SI")
     for label, t, y, *_ in curves:
         sl = slope_line(t, np.sqrt(y))
         out["slope_line"][label] = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in sl.items()}

@@ -11,6 +11,7 @@ values without the line as commented-out lines for a user who accepts the under-
 summary flags it."""
 
 import logging
+from dataclasses import replace
 
 from imupipe.io import read_yaml, run_job, write_text_atomic
 
@@ -50,14 +51,18 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     from imupipe.models import NoiseModel
 
     bounds = {"gyro": read_yaml(path_gyro), "accel": read_yaml(path_accel)}
-    ident = {s: NoiseModel.from_dict(read_yaml(p)["model"]) for s, p in (("gyro", path_id_gyro),
-                                                                      ("accel", path_id_accel))}
+    # the identified model the inflation factors compare with: the selected model refitted (kept components)
+    ident = {}
+    for s, p in (("gyro", path_id_gyro), ("accel", path_id_accel)):
+        doc = read_yaml(p)
+        ident[s] = NoiseModel.from_dict(doc.get("model_selected") or doc["model"])
     rate, topic = imu_rate(rates), rostopic_of(topics)
     source = (f"spec sheet {bounds['gyro'].get('spec_name', spec)} ({spec}), {bounds['gyro'].get('mode', '-')}-mode "
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
     lines = {s: lines_of(b) for s, b in bounds.items() if lines_of(b)}
-    # the two-term model of each bound (white, GM folded into the random walk); the lines are not in it
-    models = {s: model_of_bound(b) for s, b in bounds.items()}
+    # the two-term model of each bound (white, GM folded into the random walk); a line cannot be folded in, so
+    # the two-term values are computed without it and, where a bound has one, only written as comments
+    models = {s: replace(model_of_bound(b), narrowband=()) for s, b in bounds.items()}
     imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, rostopic=topic,
                      identified_gyro=ident["gyro"], identified_accel=ident["accel"])
     if lines:

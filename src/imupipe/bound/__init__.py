@@ -141,6 +141,7 @@ from imupipe.bound.allan_check import (  # noqa: F401
     check_allan,
     check_allan_components,
     gm_bounds_gm,
+    random_walk_cap,
     upper_envelope,
     upper_envelope_from_identification,
 )
@@ -156,6 +157,7 @@ __all__ = [
     "looseness",
     "check_allan_components",
     "gm_bounds_gm",
+    "random_walk_cap",
     "upper_envelope",
     "check_allan",
     "upper_envelope_from_identification",

@@ -152,7 +152,44 @@ def check_allan_components(bound_model, identified_model, tau) -> dict:
 # ---------------------------------------------------------------------------------------------
 # identified upper envelope and the Allan-domain check against kept components
 # ---------------------------------------------------------------------------------------------
-def upper_envelope(fit, kept=None, intervals: str = "statistical"):
+def random_walk_cap(curves, confidence: float = 0.95) -> float:
+    r"""The largest rate random walk K the recorded Allan variances allow, u/sqrt(s).
+
+    A random walk K alone gives :math:`\sigma^2(\tau) = K^2\tau/3` and every other component adds to it, so a
+    curve whose AV at :math:`\tau` has the upper confidence limit :math:`\hat\sigma^2 \nu / \chi^2_\nu(\alpha')`
+    (:math:`\nu` its equivalent degrees of freedom) excludes every
+    :math:`K > \sqrt{3\,\hat\sigma^2 \nu / (\chi^2_\nu(\alpha')\,\tau)}` at that level. Per curve the cap is the
+    smallest of these over its taus (:math:`\alpha' = (1 - c)/M` over its M taus, Bonferroni); over several
+    curves (the envelope must cover each) the largest per-curve cap. A model-free limit: it holds however
+    badly a model fits, unlike a profile limit of an inadequate fit.
+
+    Parameters
+    ----------
+    curves : sequence of (tau, avar, edf)
+        Averaging times (s), Allan variances (u^2) and their equivalent degrees of freedom, per curve.
+    confidence : float, optional
+        Level of each curve's cap. Default 0.95.
+
+    Returns
+    -------
+    float
+        K cap, u/sqrt(s); inf when no curve has a finite point.
+    """
+    from scipy.special import chdtri
+
+    caps = []
+    for tau, avar, edf in curves:
+        tau, avar, edf = (np.asarray(a, dtype=float) for a in (tau, avar, edf))
+        ok = np.isfinite(tau) & np.isfinite(avar) & np.isfinite(edf) & (tau > 0) & (avar > 0) & (edf > 0)
+        if not ok.any():
+            continue
+        a = (1.0 - confidence) / int(ok.sum())
+        upper = avar[ok] * edf[ok] / chdtri(edf[ok], 1.0 - a)  # chi2 quantile at probability a
+        caps.append(float(np.min(np.sqrt(3.0 * upper / tau[ok]))))
+    return max(caps) if caps else math.inf
+
+
+def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -171,6 +208,9 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical"):
     kept : sequence of str or dict, optional
         Components kept by model selection (names or a ``select_components`` result). Default: all of
         the fit's components with a non-zero estimate.
+    random_walk_cap : float, optional
+        A model-free upper limit of K from the recorded Allan variances (:func:`random_walk_cap`, u/sqrt(s)):
+        the envelope's K is then at most the cap (and at least the fit's estimate). Default: no cap.
     intervals : {"statistical", "widened"}, optional
         Which upper ends: ``"statistical"`` (default) the fitted model's own confidence limits
         (``fit.intervals_statistical`` where the fit carries them), ``"widened"`` the intervals after the
@@ -225,6 +265,8 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical"):
     prof = getattr(fit, "random_walk_profile", {}) or {}
     if math.isfinite(prof.get("upper", float("nan")) or float("nan")):
         k = max(k, float(prof["upper"]))
+    if random_walk_cap is not None and math.isfinite(random_walk_cap):
+        k = max(min(k, float(random_walk_cap)), float(p.get("random_walk", 0.0) or 0.0))
     return NoiseModel(white=up("white") if is_kept("white") else 0.0, gauss_markov=tuple(gm), random_walk=k,
                       flicker=up("flicker") if is_kept("flicker") else 0.0)
 
