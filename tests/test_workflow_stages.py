@@ -89,7 +89,7 @@ class TestDag:
     def test_warn_policy_change_reruns_the_reports_alone(self, tiny_run):
         work, config = tiny_run
         jobs = dry_run_jobs(work, config=_changed(work, config, "k", outliers={"k": 6.0}))
-        assert jobs == {"outliers": 12, "integrity": 1, "all": 1}  # the run's verdict is the last job: after every output
+        assert jobs == {"outliers": 12, "summary": 1, "integrity": 1, "all": 1}  # the run's verdict is the last job: after every output
 
     def test_remove_policy_feeds_the_cleaned_series(self, tiny_run):
         # with `remove` the full-rate stages read results/<name>/cleaned/ (the outliers job's second output)

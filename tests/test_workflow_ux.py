@@ -31,7 +31,8 @@ def test_summary_states_each_verdict_and_every_flag_of_the_run_files(tiny_run):
     n_flags = 0
     for sensor in ("gyro", "accel"):
         bound = _read(work, f"{RES}/bound/stim300/{sensor}.yaml")
-        assert f"## {sensor}: {'BOUNDED' if bound['bounded'] else 'NOT BOUNDED'}" in text
+        bounded = _read(work, f"{RES}/contract/stim300/{sensor}.yaml")["bounded"]  # the verdict is the contract's
+        assert f"## {sensor}: {'BOUNDED' if bounded else 'NOT BOUNDED'}" in text
         # every non-stationary curve of the verdict file is a FLAG line naming the curve
         for c in _read(work, f"{RES}/stationarity/{sensor}.yaml")["curves"]:
             if c.get("stationary") is False:
@@ -57,7 +58,7 @@ def test_report_front_page_and_html_carry_the_verdict(tiny_run):
     html = (work / RES / "summary.html").read_text()
     front = (work / RES / "report" / "workflow.rst").read_text()
     for sensor in ("gyro", "accel"):
-        bounded = _read(work, f"{RES}/bound/stim300/{sensor}.yaml")["bounded"]
+        bounded = _read(work, f"{RES}/contract/stim300/{sensor}.yaml")["bounded"]
         verdict = f"{sensor}: {'BOUNDED' if bounded else 'NOT BOUNDED'}"
         assert verdict in html and verdict in front
     assert "<table>" in front and ".. raw:: html" in front
@@ -105,7 +106,8 @@ def test_figures_section_reruns_only_the_figures(tiny_run):
         changed = work / "changed_figures.yaml"
         changed.write_text(yaml.safe_dump(cfg))
         jobs = dry_run_jobs(work, config=changed)
-        assert set(jobs) <= {"figures", "inflation_effect", "all"} and "figures" in jobs, (change, jobs)
+        # (and the run verdict, the last job of every run)
+        assert set(jobs) <= {"figures", "inflation_effect", "integrity", "all"} and "figures" in jobs, (change, jobs)
 
 
 def test_kalibr_refuses_a_bound_with_a_line(tiny_run, tmp_path):
@@ -135,10 +137,13 @@ def test_kalibr_refuses_a_bound_with_a_line(tiny_run, tmp_path):
 def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):
     work, _ = tiny_run
     kalibr = _script("kalibr")
-    with pytest.raises(ValueError, match=r"differ in sample rate \(a: 20 Hz, b: 100 Hz\)"):
-        kalibr.main(*(str(work / RES / p) for p in ("bound/stim300/gyro.yaml", "bound/stim300/accel.yaml",
-                                                     "identify/gyro.yaml", "identify/accel.yaml")),
-                    {"a": 20.0, "b": 100.0}, {}, str(tmp_path / "k.yaml"), "stim300")
+    # refused in the file, naming each rate (the run goes on: one Kalibr file holds one IMU rate)
+    kalibr.main(*(str(work / RES / p) for p in ("bound/stim300/gyro.yaml", "bound/stim300/accel.yaml",
+                                                 "identify/gyro.yaml", "identify/accel.yaml")),
+                {"a": 20.0, "b": 100.0}, {}, str(tmp_path / "k.yaml"), "stim300")
+    data = yaml.safe_load((tmp_path / "k.yaml").read_text())
+    assert data["refused"] is True and "differ in sample rate (a: 20 Hz, b: 100 Hz)" in data["reason"]
+    assert "accelerometer_noise_density" not in data
 
 
 def test_summary_is_printed_on_the_terminal_after_a_run(tiny_run):

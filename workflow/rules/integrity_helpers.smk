@@ -37,8 +37,7 @@ def lines_files_of(wildcards):
     input: an empty list until the lines stage is included)."""
     if "lines" not in {r.name for r in workflow.rules}:
         return []
-    return expand(f"{RESULTS}/lines/{{dataset}}/{wildcards.sensor}/{{axis}}.yaml", dataset=list(DATASETS),
-                  axis=AXES)
+    return per_axis_files("lines", "yaml", wildcards.sensor)
 
 
 def lines_params():

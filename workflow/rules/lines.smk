@@ -34,7 +34,6 @@ rule lines:
 
 
 # The bound reads the lines files of its sensor with per_axis("lines", "yaml") (common.smk).
-LINE_FILES = expand(f"{RESULTS}/lines/{{dataset}}/{{sensor}}/{{axis}}.yaml", dataset=list(DATASETS),
-                    sensor=SENSORS, axis=AXES)
+LINE_FILES = [f for s in SENSORS for f in per_axis_files("lines", "yaml", s)]
 EXTRA_TARGETS.extend(LINE_FILES)
 SUMMARY_INPUTS["lines"] = LINE_FILES

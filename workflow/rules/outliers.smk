@@ -44,7 +44,6 @@ rule outliers:
         "../scripts/outliers.py"
 
 
-OUTLIER_REPORTS = expand(f"{RESULTS}/outliers/{{dataset}}/{{sensor}}/{{axis}}.yaml", dataset=list(DATASETS),
-                         sensor=SENSORS, axis=AXES)
+OUTLIER_REPORTS = [f for s in SENSORS for f in per_axis_files("outliers", "yaml", s)]
 EXTRA_TARGETS.extend(OUTLIER_REPORTS)
 SUMMARY_INPUTS["outliers"] = OUTLIER_REPORTS

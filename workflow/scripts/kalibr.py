@@ -56,7 +56,16 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     for s, p in (("gyro", path_id_gyro), ("accel", path_id_accel)):
         doc = read_yaml(p)
         ident[s] = NoiseModel.from_dict(doc.get("model_selected") or doc["model"])
-    rate, topic = imu_rate(rates), rostopic_of(topics)
+    try:
+        rate = imu_rate(rates)
+    except ValueError as exc:  # one Kalibr file holds one IMU rate: refused, and said so, without failing the run
+        logging.warning("Kalibr export refused: %s", exc)
+        write_text_atomic("# Kalibr IMU noise model NOT WRITTEN by imupipe: the datasets differ in sample rate, and\n"
+                          "# Kalibr's update_rate is the IMU's one sample rate. Use the Kalman-filter export\n"
+                          f"# kf/{spec}/<sensor>.yaml, or run one configuration per rate.\n"
+                          f"{REFUSED}: true\nreason: {str(exc)!r}\n", path_out)
+        return
+    topic = rostopic_of(topics)
     source = (f"spec sheet {bounds['gyro'].get('spec_name', spec)} ({spec}), {bounds['gyro'].get('mode', '-')}-mode "
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
     lines = {s: lines_of(b) for s, b in bounds.items() if lines_of(b)}

@@ -71,7 +71,9 @@ def render(files: dict, sensors: list, specs: list, name: str) -> str:
                 continue
             for sp in [spec] if spec else specs:
                 entry = runs[sp][sensor]
-                if kind in ("bound", "identify", "stationarity"):
+                if kind == "contract":  # the verdict (bounded, verified, failed_checks) wins over the bound file
+                    entry["bound"] = {**entry.get("bound", {}), **data}
+                elif kind in ("bound", "identify", "stationarity"):
                     entry[kind] = {**data, **entry.get(kind, {})} if kind == "bound" else data
                 else:
                     _merge_checks(entry.setdefault("bound", {}), data)
