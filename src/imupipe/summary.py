@@ -92,6 +92,8 @@ def _items(obj) -> list:
                 return obj[key]
         out = []
         for k, v in obj.items():
+            if k == "units":  # the block that names the units of the other keys, not a finding
+                continue
             if isinstance(v, list):
                 out += [{"curve": k, **x} if isinstance(x, Mapping) else {"curve": k, "value": x} for x in v]
             elif isinstance(v, Mapping):
