@@ -6,11 +6,10 @@ paper's hand inflation for comparison. Not the verdict: `psd_bounded` says only 
 its targets; the verdict (`bounded`) is the contract file's (rule contract)."""
 
 import logging
-import math
 
 import numpy as np
 
-from imupipe.io import read_yaml, run_job, write_yaml_atomic
+from imupipe.io import plain, read_yaml, run_job, write_yaml_atomic
 
 HEADER = """global bound of one sensor type (README "Output contract"); the verdict is in contract/{spec}/{sensor}.yaml.
 SI: white N in u/sqrt(Hz), gauss_markov sigma in u and T in s, random_walk K in u/sqrt(s); u = rad/s (gyro), m/s^2 (accel).
@@ -70,7 +69,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
         edfs.append(al.at("edf", d, a))
     allan = check_allan(result.model, NoiseModel.from_dict(identified["model"]), al["tau"], kept=kept,
                         sample_avar=np.array(avars), sample_edf=np.array(edfs), labels=labels, horizon_s=horizon_s)
-    out["allan_check"] = _plain(allan)
+    out["allan_check"] = plain(allan)
     out["allan_check_passed"] = bool(allan["passed"])
     out["per_axis"] = [{"curve": ax["curve"], "psd_bounded": ax["psd_bounded"], "margin": ax["margin"],
                         "all_frequency_margin": ax.get("all_frequency_margin"), "inflation": ax["inflation"]}
@@ -84,28 +83,16 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
             "n_steps": int(hand.details.get("n_steps", 0)),
             "phases": _phase_ends(hand.details.get("history", [])),
         }
-    write_yaml_atomic(_plain(out), path_out, header=HEADER)
+    write_yaml_atomic(plain(out), path_out, header=HEADER)
 
 
 def _phase_ends(history):
     """The hand procedure's state at the start and at the end of each phase (paper Figure 8)."""
     keys = ("parameter", "N", "sigma", "T", "K", "margin")
     ends = [h for i, h in enumerate(history) if i == 0 or i + 1 == len(history) or history[i + 1][0] != h[0]]
-    return [dict(zip(keys, _plain(list(h)))) for h in ends]
+    return [dict(zip(keys, plain(list(h)))) for h in ends]
 
 
-def _plain(obj):
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 if __name__ == "__main__":

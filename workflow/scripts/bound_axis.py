@@ -4,11 +4,8 @@ same), over all frequencies as the global bound (spec sheet and identified upper
 bin), with the sensor's line policy."""
 
 import logging
-import math
 
-import numpy as np
-
-from imupipe.io import read_yaml, run_job, write_yaml_atomic
+from imupipe.io import plain, read_yaml, run_job, write_yaml_atomic
 
 AXIS_T_PER_DECADE = 4
 
@@ -44,19 +41,9 @@ def main(path_psd: str, path_identified: str, path_spec: str, mode: str, n_gm: i
     body.pop("solve_time_s", None)  # wall clock: in the log only
     out = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt, "horizon_s": float(horizon_s), **body,
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
-    write_yaml_atomic(_plain(out), path_out, header=f"per-axis bound of {label} against {spec.name}")
+    write_yaml_atomic(plain(out), path_out, header=f"per-axis bound of {label} against {spec.name}")
 
 
-def _plain(obj):
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
 
 
 if __name__ == "__main__":
