@@ -137,6 +137,11 @@ from imupipe.bound.engine import (  # noqa: F401
 from imupipe.bound.paper import (  # noqa: F401
     paper_inflation,
 )
+from imupipe.bound.axes import (  # noqa: F401
+    axis_of,
+    bound_by_axis,
+    curves_by_axis,
+)
 from imupipe.bound.allan_check import (  # noqa: F401
     check_allan,
     check_allan_components,
@@ -161,4 +166,7 @@ __all__ = [
     "upper_envelope",
     "check_allan",
     "upper_envelope_from_identification",
+    "bound_by_axis",
+    "curves_by_axis",
+    "axis_of",
 ]
