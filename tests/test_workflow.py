@@ -284,7 +284,8 @@ class TestRealData:
         decimated band too), the Allan total check over the application band [0.01, 1200] s; the axes differ
         (pooling test), so the bound, verify, contract and KF files carry per-axis models: each accel axis its own,
         the gyro z axis the global one, its own model named with its real shortfall (total AV below imu1/z's
-        lower limit at tau = 0.02 s, where the 21-22 Hz gyro lines sit above the decimated band)."""
+        lower limit at tau = 0.02 s: the z gyro's AV is flat from 0.01 to 0.02 s, power near 20 Hz that the z
+        axis's white + GM + random-walk fit does not describe)."""
         config = ROOT / "config" / "adis16405.yaml"
         proc = snakemake(tmp_path, config=config, check=False)
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
