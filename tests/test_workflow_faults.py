@@ -592,3 +592,32 @@ def test_one_axis_gyro_then_failed_rerun_then_identical_rerun(tmp_path):
     assert not differ, f"not byte-identical between identical runs: {differ}"
     assert _hashes(work / "results" / "other") == other  # the other config's results: untouched by all this
     assert not list(work.rglob(".tmp-*"))
+
+
+@pytest.mark.slow  # a complete run: minutes on a loaded machine
+def test_rate_from_timestamps_reaches_the_bound_and_kalibr(tmp_path):
+    """Two records whose sheet rows give no rate_hz (the phone log with five fills, the MCAP bag named by its
+    topic) run to the bound, the filters and the Kalibr file, whose update_rate is the rate the timestamps
+    gave (10 Hz) and whose topic is the sheet's."""
+    work = copy_checkout(tmp_path / "checkout")
+    data = work / "data_faults"
+    data.mkdir()
+    phone = _table(8)
+    phone[:, 0] = _jittered_stamps(N, RATE_HZ, 18)
+    _csv(data / "drops.csv", np.delete(phone, DROPS, axis=0))
+    bag = _bag(data, N_BAG, 12)
+    nothing = {k: None for k in ("rate_hz", "gyro_unit", "accel_unit", "time_column", *CHANNELS)}
+    rows = [_row("phone", "data_faults/drops.csv", rate_hz=None, gap_policy="fill", fill_max_samples=1),
+            _row("bag", f"data_faults/{bag.relative_to(data)}", topic="/imu", **nothing)]
+    config = _config(work, "norate", _sheet(work, rows))
+    snakemake(work, config=config, snakefile=work / "Snakefile", timeout=1800)
+    res = work / "results" / "norate"
+    for sensor in ("gyro", "accel"):
+        ident = yaml.safe_load((res / "identify" / f"{sensor}.yaml").read_text())
+        assert set(ident["rate_hz"].values()) == {RATE_HZ}
+        assert (res / "bound" / "stim300" / f"{sensor}.yaml").is_file()
+        assert (res / "kf" / "stim300" / f"{sensor}.yaml").is_file()
+    kalibr = yaml.safe_load((res / "kf" / "stim300" / "kalibr_imu.yaml").read_text())
+    assert not kalibr.get("refused"), kalibr  # white-noise records (seeded): no line, one rate
+    assert kalibr["update_rate"] == RATE_HZ and kalibr["rostopic"] == "/imu"
+    assert (res / "summary.md").is_file()
