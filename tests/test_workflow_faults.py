@@ -229,8 +229,9 @@ class _RewriteWhileRead(threading.Thread):
 
     @staticmethod
     def _stopped(pid):
+        """Whether the process has stopped (T, t), or ended (Z, X: it will not stop; its files are closed)."""
         with open(f"/proc/{pid}/stat") as fh:
-            return fh.read().rsplit(")", 1)[1].split()[0] in ("T", "t")
+            return fh.read().rsplit(")", 1)[1].split()[0] in ("T", "t", "Z", "X")
 
     def run(self):
         while not self.finish.is_set() and time.monotonic() < self.deadline:
