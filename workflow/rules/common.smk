@@ -370,19 +370,6 @@ def ingest_rule_groups():
     }
 
 
-def ingest_rule_groups():
-    """Rule name -> (channels, datasets): the datasets sharing one set of channels share one ingest rule
-    (ingest.smk): `ingest` for every axis of every configured sensor, `ingest_<channels>` otherwise."""
-    groups = {}
-    for name in DATASETS:
-        groups.setdefault(tuple(channels_of(name)), []).append(name)
-    full = tuple((s, a) for s in SENSORS for a in AXES)
-    return {
-        ("ingest" if chans == full else "ingest_" + "_".join(f"{s}_{a}" for s, a in chans)): (chans, names)
-        for chans, names in groups.items()
-    }
-
-
 def ingest_params(wildcards):
     """Reader settings of the job: the psd.window_s minimum record length is checked at start-up
     (common.smk, _check_records); ingest names that key too if a record read shorter than probed."""
@@ -472,7 +459,7 @@ def on_start():
                         removed.append(f)
         for root in (RESULTS, LOGS):  # folders left empty
             for folder, subdirs, names in sorted(os.walk(root), key=lambda t: -len(t[0])):
-                if folder != root and not os.listdir(folder):
+                if folder != root and not os.listdir(folder) and not os.path.ismount(folder):
                     os.rmdir(folder)
     for f in sorted(removed):
         logger.info(f"imupipe: removed {f} (stale: not produced by this run's config, or re-made by this run)")
