@@ -402,6 +402,32 @@ class TestAllFrequencies:
         r0 = bound_psd(f, c, spec, dt=1.0, horizon_s=4200.0, keep=("white", "gauss_markov"))
         assert np.min(r0.model.psd(g) / up.psd(g)) < 0.5
 
+    def test_envelope_above_the_sampled_band(self):
+        """The exported model is continuous-time: above the decimated band (f > 0.5 Hz here) only the identified
+        envelope (fitted to the full-rate AV) says what is there. Data: the 1 s block means of white 6e-4 plus a GM
+        (sigma 0.02, T 0.285 s, corner 0.56 Hz: the ADIS16405 gyro's shape); envelope: the same with white 7.6e-4.
+        In band the GM hides the white noise, so rows up to 0.5 Hz alone let the LP trade white for GM; above
+        the band the envelope's white wins. With the rows above the band and N >= N_up at f -> inf, the bound
+        covers the envelope at every frequency, and the exact covariance analysis of the gyro filter against
+        the envelope passes (MSE/P <= 1 + 1e-6); with rows below the band only ("below"), neither holds."""
+        from imupipe.verify import covariance_analysis, reference_scenario
+
+        f = np.linspace(0, 0.5, 201)
+        truth = NoiseModel(white=6e-4, gauss_markov=((0.02, 0.285),))
+        c = np.asarray(truth.psd_sampled(np.maximum(f, f[1]), 1.0))[None, :]
+        up = NoiseModel(white=7.6e-4, gauss_markov=((0.02, 0.285),))
+        kw = dict(dt=1.0, keep=("white", "gauss_markov"), horizon_s=1200.0, upper_model=up)
+        r = bound_psd(f, c, None, **kw)
+        r0 = bound_psd(f, c, None, upper_band="below", **kw)
+        g = np.logspace(math.log10(0.5), 4, 200)
+        assert r.bounded and r.model.white >= up.white * (1 - 1e-9)
+        assert np.all(r.model.psd(g) >= up.psd(g) * (1 - 1e-9))
+        assert r.details["all_frequency"]["N_upper"] == pytest.approx(up.white)
+        assert np.min(r0.model.psd(g) / up.psd(g)) < 0.999
+        sc = reference_scenario("gyro", rate_hz=1.0, fix_s=600.0, horizon_s=600.0)
+        assert covariance_analysis(r.model, up, sc).passed
+        assert not covariance_analysis(r0.model, up, sc).passed
+
     def test_spec_white_asymptote(self):
         # spec white noise must be met as f -> inf (a short-T GM cannot stand in for it)
         f, c = self.white_curves()
@@ -482,6 +508,73 @@ class TestCheckAllan:
         assert not rep["total"]["passed"] and len(rep["total"]["shortfalls"]) == self.TAU.size
         rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=2.0, horizon_s=1e4)
         assert rep["passed"] and rep["total"]["worst_ratio"] == pytest.approx(12.82 / 2 / 1.5, rel=0.01)
+
+
+    def test_total_check_restricted_to_the_application_band(self):
+        """The total-AV check runs over [1/application.rate_hz, horizon]: a bound too small inside that band
+        fails and is named; a shortfall only at taus below one filter step is reported (outside_band) and fails
+        nothing. Sample AV 1.5x the bound's with edf 1000: its Bonferroni lower limit is ~1.25x the bound's
+        (test above), a shortfall wherever it is compared."""
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=1e-4)
+        bound = NoiseModel(white=1.2e-4)
+        tau = np.logspace(-2, 3, 26)  # 0.01 s .. 1000 s
+        av = bound.avar(tau) * np.where(tau < 1.0, 1.5, 0.5)  # above the bound below 1 s only
+        rep = check_allan(bound, ident, tau, kept=["white"], sample_avar=av[None, :], sample_edf=1000.0,
+                          labels=["d1/z"], horizon_s=1200.0, tau_min_s=1.0)
+        tot = rep["total"]
+        assert rep["passed"] and tot["passed"] and tot["tau_band_s"] == [1.0, 1200.0]
+        assert tot["n_compared"] == int(np.sum(tau >= 1.0 - 1e-12))
+        assert tot["outside_band"]["worst_ratio"] < 1 and tot["outside_band"]["tau_s"] < 1.0
+        # the same check with the band from 0.01 s (a 100 Hz filter): the short-tau shortfall fails it
+        rep = check_allan(bound, ident, tau, kept=["white"], sample_avar=av[None, :], sample_edf=1000.0,
+                          labels=["d1/z"], horizon_s=1200.0, tau_min_s=0.01)
+        assert not rep["passed"] and rep["total"]["curve"] == "d1/z" and rep["total"]["tau_s"] < 1.0
+        # a bound too small INSIDE the band fails whatever the band's lower end
+        small = NoiseModel(white=0.5e-4)
+        rep = check_allan(small, ident, tau, kept=["white"], sample_avar=bound.avar(tau)[None, :],
+                          sample_edf=1000.0, labels=["d1/x"], horizon_s=1200.0, tau_min_s=1.0)
+        assert not rep["passed"] and rep["total"]["tau_s"] >= 1.0
+        assert len(rep["total"]["shortfalls"]) == rep["total"]["n_compared"]
+        with pytest.raises(ValueError, match="tau band"):
+            check_allan(bound, ident, tau, sample_avar=av[None, :], horizon_s=1.0, tau_min_s=2.0)
+
+
+class TestPerAxis:
+    def test_per_axis_models_differ_where_the_axes_differ_and_bound_their_own_curves(self):
+        """Two datasets x three axes of white noise, z with twice the density of x and y (as the ADIS16405 gyro
+        z differs from x, y). Each per-axis bound covers its own two curves, the spec sheet and its envelope; z's
+        N is well above x's: with 2 x 12600 ordinates per axis the largest periodogram ordinate is between 8.2
+        and 17.0 times the PSD (Gumbel 0.1 % and 99.9 % points of the largest of 2.5e4 unit exponentials), so
+        N_z/N_x >= 2 sqrt(8.2/17.0) = 1.39 except with probability ~2e-3; x's model does not cover z's curves
+        (the per-axis models are specific); the global bound covers every curve."""
+        from imupipe.bound import bound_by_axis, curves_by_axis
+
+        rng = np.random.default_rng(17)
+        dens = {"x": 1e-3, "y": 1e-3, "z": 2e-3}
+        curves = {}
+        for d in ("d1", "d2"):
+            for ax, N in dens.items():
+                f, c, edf = white_periodograms(N, 1, rng)
+                curves[f"{d}/{ax}"] = c[0]
+        assert curves_by_axis(curves) == {ax: [f"d1/{ax}", f"d2/{ax}"] for ax in dens}
+        spec = NoiseModel(white=0.5e-3)
+        ups = {ax: NoiseModel(white=N) for ax, N in dens.items()}
+        per = bound_by_axis(f, curves, spec, upper_models=ups, edf={k: edf for k in curves}, dt=1.0,
+                            keep=("white",), horizon_s=4200.0)
+        assert list(per) == ["x", "y", "z"]
+        for ax, (labels, res) in per.items():
+            assert labels == [f"d1/{ax}", f"d2/{ax}"]
+            assert res.bounded and res.allf_margin >= 1 - 1e-9
+            assert margin(res.model, f, np.array([curves[k] for k in labels]), dt=1.0)[0] >= 1 - 1e-9
+            assert res.model.white >= max(spec.white, ups[ax].white) * (1 - 1e-9)
+        assert per["z"][1].model.white / per["x"][1].model.white > 1.39
+        assert margin(per["x"][1].model, f, np.array([curves["d1/z"], curves["d2/z"]]), dt=1.0)[0] < 1
+        glob = bound_psd(f, np.array(list(curves.values())), spec, dt=1.0, keep=("white",), horizon_s=4200.0)
+        assert glob.model.white == pytest.approx(max(r.model.white for _, r in per.values()), rel=1e-6)
+        with pytest.raises(ValueError, match="dataset/axis"):
+            curves_by_axis(["no-axis"])
 
 
 class TestNarrowband:

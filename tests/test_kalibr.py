@@ -108,3 +108,12 @@ def test_read_kalibr_names_a_missing_field(tmp_path):
     path.write_text("gyroscope_noise_density: 1e-4\n")
     with pytest.raises(ValueError, match=r"imu.yaml: Kalibr field 'accelerometer_noise_density' \(m/s\^2/sqrt\(Hz\)\)"):
         read_kalibr(path)
+
+
+def test_dataset_rates_take_the_timestamps_rate_where_the_sheet_gives_none():
+    from imupipe.kalibr import dataset_rates
+
+    curves = {"a/x": 100.0, "a/y": 100.0, "b+1.v2/z": 300.0}
+    assert dataset_rates({"a": 125.0, "b+1.v2": None}, curves) == {"a": 125.0, "b+1.v2": 300.0}
+    with pytest.raises(ValueError, match=r"dataset 'c' has no rate_hz in the sheet and no curve .*\(curves: a/x"):
+        dataset_rates({"c": None}, curves)

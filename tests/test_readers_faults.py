@@ -141,6 +141,24 @@ class TestSilentlyWrong:
         with pytest.raises(DataError, match=r"imu\.csv: changed while it was read \(size \d+ -> \d+ bytes"):
             read_dataset(path, "csv", 100.0, CHANNELS, UNITS)
 
+    def test_file_torn_while_read_names_the_change_not_the_row(self, tmp_path, table, monkeypatch):
+        """A logger rewriting the file mid-read leaves the reader a torn last row: the message says the file
+        changed (the parse error is chained), not only that a line is malformed."""
+        import imupipe.readers.core as core
+
+        path = write_csv(tmp_path / "imu.csv", table)
+        original = core._load_text
+
+        def rewrite_then_load(*args, **kwargs):
+            text = path.read_text()
+            path.write_text(text[: len(text) // 2])  # cut inside a row
+            return original(*args, **kwargs)
+
+        monkeypatch.setattr(core, "_load_text", rewrite_then_load)
+        with pytest.raises(DataError, match=r"imu\.csv: changed while it was read \(size \d+ -> \d+ bytes") as info:
+            read_dataset(path, "csv", 100.0, CHANNELS, UNITS)
+        assert isinstance(info.value.__cause__, DataError) and "line" in str(info.value.__cause__)
+
 
 # ---------------------------------------------------------------------------------------------
 # crashes or hangs before: a parametrised table (error type, message naming file, column/row, expectation)

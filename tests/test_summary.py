@@ -131,3 +131,20 @@ def test_markdown_to_html_renders_the_summary_and_the_inflation_table():
     # nested reasons list, and text is escaped
     assert "<ul><li>white (kept): significant</li>" in page
     assert "<li>random_walk (dropped): contributes &lt; 5 % in the application band</li></ul></ul>" in page
+
+
+def test_per_axis_models_table_band_and_a_refused_axis_flagged():
+    """A contract with per-axis models: the table says which axis has its own model in the KF file; an axis whose
+    own contract failed is flagged (the global model covers it, so the verdict stays BOUNDED); the Allan check's
+    band is stated. Without per-axis models, neither the table nor the flag appears."""
+    per = {"x": {"inflation": {"N": 2.66}, "exported_in_kf": True, "kf": "axis x: its own model"},
+           "z": {"inflation": {"N": 1.31}, "exported_in_kf": False,
+                 "kf": "axis z: the global model (its own failed: allan_total adis_imu1/z (0.649))"}}
+    text = render_summary({"gyro": {"bound": _bound(per_axis_models=per, allan_tau_band_s=[0.01, 1200.0])}})
+    assert "## gyro: BOUNDED" in text and "0 failed, 1 flagged" in text
+    assert "| x | 2.66 | yes | axis x: its own model |" in text
+    assert "| z | 1.31 | no (global model) |" in text
+    assert "- FLAG per-axis model [z]: not exported: axis z: the global model (its own failed: allan_total" in text
+    assert "- Allan total check over the application band: tau from 0.01 to 1.2e+03 s" in text
+    plain = render_summary({"gyro": {"bound": _bound()}})
+    assert "Per-axis models" not in plain and "per-axis model" not in plain

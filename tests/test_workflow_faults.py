@@ -12,7 +12,12 @@ from __future__ import annotations
 import gzip
 import hashlib
 import os
+import re
 import shutil
+import signal
+import subprocess
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +33,8 @@ N = 24000  # 40 min at 10 Hz: four 600 s Welch windows (psd.window_s below), 240
 NAMES = ["t", "wx", "wy", "wz", "ax", "ay", "az"]
 CHANNELS = dict(zip(["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"], NAMES[1:]))
 SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", *CHANNELS, "time_column",
-                 "gap_policy", "fill_max_samples"]
+                 "time_unit", "topic", "gap_policy", "fill_max_samples"]
+X_ONLY = {"gyro_y": None, "gyro_z": None, "accel_y": None, "accel_z": None}  # a row naming gyro_x and accel_x
 
 
 def _table(seed):
@@ -159,30 +165,186 @@ BAD = [
 
 
 DROPS = [1000, 5000, 9000, 13000, 17000]  # 0-based rows dropped from the drops.csv record
+EPOCH_S = 1_700_000_000.0  # a phone's clock: Unix time (s)
+
+
+def _jittered_stamps(n, rate_hz, seed, sigma_s=1e-3):
+    """Unix-time stamps (s) of a `rate_hz` clock read with a jitter of `sigma_s` (clipped at 3 sigma, so that
+    every interval stays within (0.94, 1.06) periods at 10 Hz: sample steps, no gap)."""
+    rng = np.random.default_rng(seed)
+    return EPOCH_S + np.arange(n) / rate_hz + np.clip(rng.normal(0.0, sigma_s, n), -3 * sigma_s, 3 * sigma_s)
+
+
+def _ms_clock(rate_hz, duration_s, seed):
+    """Three columns (t in integer ms, wx rad/s, ax m/s^2) of a `rate_hz` record whose clock counts whole
+    milliseconds: t = floor(i * 1000 / rate), so that the intervals alternate (7, 8 ms at 128 Hz; 3, 4 ms at
+    300 Hz) and their median is not the rate, their mean is (within 1 ms over the record)."""
+    n = int(rate_hz * duration_s)
+    rng = np.random.default_rng(seed)
+    return np.column_stack([np.floor(np.arange(n) * 1000.0 / rate_hz), rng.normal(0.0, 1e-3, n),
+                            rng.normal(0.0, 1e-2, n)])
+
+
+def _bag(data, n, seed):
+    """A ROS 2 MCAP file of sensor_msgs/Imu on /imu at 10 Hz (and a /status topic), written with rosbags'
+    writer (tests/test_readers.py); the bare .mcap file, without its rosbag2 metadata.yaml."""
+    pytest.importorskip("rosbags")
+    import test_readers  # the module, not its classes: nothing of it is collected here
+
+    table = _table(seed)[:n]  # the columns of CHANNELS: gyro x y z, accel x y z
+    values = {(s, a): table[:, 1 + 3 * i + j] for i, s in enumerate(("gyro", "accel")) for j, a in enumerate("xyz")}
+    stamps = int(EPOCH_S) * 10**9 + np.arange(n) * 100_000_000
+    folder = test_readers.TestRosbag.write(data / "imu_bag", values, stamps, kind="mcap", topic="/imu")
+    return next(folder.glob("*.mcap"))
+
+
+class _RewriteWhileRead(threading.Thread):
+    """Rewrites a file (a shorter record, as a logger restarting its file would) while the workflow's ingest
+    job has it open: polls /proc/<pid>/fd of the processes running the ingest script until one holds the file,
+    stops that process (SIGSTOP), checks that the file is still open, rewrites it, and resumes the process
+    (SIGCONT). The process is stopped while its descriptor is open, so the rewrite happens mid-read whatever
+    the timing; `rewritten_in` records the process (None: the file was never seen open)."""
+
+    def __init__(self, path, text, timeout_s):
+        super().__init__(daemon=True)
+        self.path, self.text, self.deadline = os.path.realpath(path), text, time.monotonic() + timeout_s
+        self.rewritten_in = None
+        self.finish = threading.Event()
+
+    def _holds(self, pid):
+        try:
+            return any(os.readlink(f"/proc/{pid}/fd/{fd}") == self.path for fd in os.listdir(f"/proc/{pid}/fd"))
+        except OSError:  # gone, or a descriptor closed while listed
+            return False
+
+    def _ingest_jobs(self):
+        for pid in filter(str.isdigit, os.listdir("/proc")):
+            try:
+                with open(f"/proc/{pid}/cmdline", "rb") as fh:
+                    if b"ingest.py" not in fh.read():  # Snakemake runs the script as .snakemake/scripts/tmp*.ingest.py
+                        continue
+            except OSError:
+                continue
+            yield int(pid)
+
+    @staticmethod
+    def _stopped(pid):
+        """Whether the process has stopped (T, t), or ended (Z, X: it will not stop; its files are closed)."""
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] in ("T", "t", "Z", "X")
+
+    def run(self):
+        while not self.finish.is_set() and time.monotonic() < self.deadline:
+            for pid in self._ingest_jobs():
+                if not self._holds(pid):
+                    continue
+                try:
+                    os.kill(pid, signal.SIGSTOP)
+                except ProcessLookupError:
+                    continue
+                try:
+                    while not self._stopped(pid):
+                        time.sleep(0.001)
+                    if self._holds(pid):
+                        with open(self.path, "w") as fh:  # same file (inode), shorter content
+                            fh.write(self.text)
+                        self.rewritten_in = pid
+                except OSError:  # the process ended meanwhile
+                    pass
+                finally:
+                    try:
+                        os.kill(pid, signal.SIGCONT)
+                    except ProcessLookupError:
+                        pass
+                if self.rewritten_in is not None:
+                    return
+            time.sleep(0.02)  # the parse of N_REWRITTEN rows holds the file ~0.5 s or more: 25 polls
+
+
+N_REWRITTEN = 200_000  # 5.6 h at 10 Hz, ~30 MB: its parse holds the file open ~0.5 s (the watcher needs one poll)
+N_BAG = 7200  # 720 s at 10 Hz: one 600 s PSD window
+TMPFS_BYTES = 16384  # the full disk: 4 pages, less than one channel's 192 kB
+
+
+def _mount_tiny_tmpfs(folder):
+    """Mount a tmpfs of TMPFS_BYTES on `folder`; None when done, else why it could not be (the test skips)."""
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        return "mounting a tiny tmpfs needs root and mount(8)"
+    folder.mkdir(parents=True)
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={TMPFS_BYTES}", "tmpfs", str(folder)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        folder.rmdir()
+        return f"mount -t tmpfs failed: {proc.stderr.strip()}"
+    return None
 
 
 @pytest.fixture(scope="module")
 def fault_run(tmp_path_factory):
-    """One --keep-going run: the good dataset (netCDF, read one channel at a time) and every BAD row."""
+    """One --keep-going run: the good dataset (netCDF, read one channel at a time), inputs wrongly refused
+    before (a phone log: jittered stamps, no rate, five drops; integer-millisecond clocks; a ROS 2 bag named
+    by its topic), every BAD row, a CSV rewritten while its ingest job reads it, and a dataset whose
+    series folder is a full file system (a tiny tmpfs; left out where it cannot be mounted)."""
     work = copy_checkout(tmp_path_factory.mktemp("faults") / "checkout")
     data = work / "data_faults"
     data.mkdir()
     good = _table(1)
     _nc(data / "good.nc", good)
-    # a second good dataset: a text log with five single-sample drops, filled (gap_policy fill)
-    _csv(data / "drops.csv", np.delete(_table(8), DROPS, axis=0))
+    # a phone-like text log: Unix-time stamps with 1 ms jitter, rate_hz left empty, five single-sample
+    # drops, filled (gap_policy fill)
+    phone = _table(8)
+    phone[:, 0] = _jittered_stamps(N, RATE_HZ, 18)
+    _csv(data / "drops.csv", np.delete(phone, DROPS, axis=0))
+    # integer-millisecond clocks at 128 Hz (rate given) and 300 Hz (rate_hz left empty)
+    _csv(data / "ms128.csv", _ms_clock(128.0, 720.0, 10), header=["t", "wx", "ax"])
+    _csv(data / "ms300.csv", _ms_clock(300.0, 720.0, 11), header=["t", "wx", "ax"])
+    bag = _bag(data, N_BAG, 12)
+    nothing = {k: None for k in ("rate_hz", "gyro_unit", "accel_unit", "time_column", *CHANNELS)}
     rows = [_row("good", "data_faults/good.nc", format="netcdf", time_column=None),
-            _row("drops+1.v2", "data_faults/drops.csv", gap_policy="fill", fill_max_samples=1)]
+            _row("drops+1.v2", "data_faults/drops.csv", rate_hz=None, gap_policy="fill", fill_max_samples=1),
+            _row("ms128", "data_faults/ms128.csv", rate_hz=128.0, time_unit="ms", **X_ONLY),
+            _row("ms300", "data_faults/ms300.csv", rate_hz=None, time_unit="ms", **X_ONLY),
+            _row("bag", f"data_faults/{bag.relative_to(data)}", topic="/imu", **nothing)]
     for name, make, _ in BAD:
         path, cells = make(data, good)
         rows.append(_row(name, f"data_faults/{path}", **cells))
+    watcher = None
+    rewrite_skip = None if os.path.isdir("/proc/self/fd") else "watching a job's open files needs /proc/<pid>/fd (Linux)"
+    if rewrite_skip is None:
+        big = np.column_stack([np.arange(N_REWRITTEN) / RATE_HZ,
+                               np.random.default_rng(13).normal(0.0, 1e-3, (N_REWRITTEN, 6))])
+        big[:, 6] -= 9.80665
+        rewritten = _csv(data / "rewritten.csv", big)
+        lines = rewritten.read_text().splitlines(keepends=True)
+        rows.append(_row("rewritten", "data_faults/rewritten.csv"))
+        watcher = _RewriteWhileRead(rewritten, "".join(lines[: len(lines) // 2]), timeout_s=900)
+    full_folder = work / "results" / "faults" / "series" / "full"
+    full_skip = _mount_tiny_tmpfs(full_folder)
+    if full_skip is None:
+        _nc(data / "full.nc", _table(14))
+        rows.append(_row("full", "data_faults/full.nc", format="netcdf", time_column=None))
     config = _config(work, "faults", _sheet(work, rows))
-    proc = snakemake(work, "--keep-going", config=config, snakefile=work / "Snakefile", check=False, timeout=600)
-    return work, proc
+    cfg = yaml.safe_load(config.read_text())
+    cfg["stationarity"]["test"] = "paper"  # asymptotic p-values: the verdicts are not under test here, only made
+    config.write_text(yaml.safe_dump(cfg))
+    if watcher is not None:
+        watcher.start()
+    try:
+        proc = snakemake(work, "--keep-going", config=config, snakefile=work / "Snakefile", check=False, timeout=900)
+        if watcher is not None:
+            watcher.finish.set()
+            watcher.join()
+        yield work, proc, {"rewritten_in": watcher.rewritten_in if watcher is not None else None,
+                           "rewrite_skip": rewrite_skip, "full_skip": full_skip, "full_folder": full_folder}
+    finally:
+        if watcher is not None:
+            watcher.finish.set()
+        if full_skip is None:
+            subprocess.run(["umount", str(full_folder)], check=False)
 
 
 def test_fault_run_fails(fault_run):
-    _, proc = fault_run
+    _, proc, _ = fault_run
     assert proc.returncode == 1, proc.stderr[-3000:]
 
 
@@ -190,7 +352,7 @@ def test_fault_run_fails(fault_run):
 def test_bad_dataset_fails_alone_naming_the_culprit(fault_run, dataset, message):
     import re
 
-    work, proc = fault_run
+    work, proc, _ = fault_run
     log = work / "logs" / "faults" / "ingest" / f"{dataset}.log"
     assert log.is_file(), f"no ingest log for {dataset}"
     text = log.read_text()
@@ -202,7 +364,7 @@ def test_bad_dataset_fails_alone_naming_the_culprit(fault_run, dataset, message)
 def test_good_dataset_results_present(fault_run):
     import netCDF4
 
-    work, _ = fault_run
+    work, _, _ = fault_run
     res = work / "results" / "faults"
     for s, a in [(s, a) for s in ("gyro", "accel") for a in "xyz"]:
         for folder, ext in (("series", "nc"), ("allan", "nc"), ("decimated", "nc"), ("psd", "nc"), ("stationarity", "yaml")):
@@ -214,8 +376,82 @@ def test_good_dataset_results_present(fault_run):
         assert nc.getncattr("n_filled") == 5 and nc.dimensions["sample"].size == N
         assert nc.getncattr("filled_rows") == ",".join(str(r - 1 - i) for i, r in enumerate(DROPS))
     assert (res / "psd" / "drops+1.v2" / "gyro" / "z.nc").is_file()
+    with netCDF4.Dataset(res / "series" / "drops+1.v2" / "gyro" / "x.nc") as nc:
+        assert nc.rate_hz == RATE_HZ  # rate_hz left empty: the mean interval of the jittered stamps, snapped
+    with netCDF4.Dataset(res / "allan" / "drops+1.v2" / "gyro" / "x.nc") as nc:  # the AV carries the fill
+        assert nc.getncattr("n_filled") == 5
     # the per-sensor merges need every dataset: none is left looking complete
     assert not (res / "stack").exists() and not list(res.glob("spectra/*.nc"))
+
+
+# wrongly refused before, now run end to end (ingest and every per-axis stage): dataset, rate of the series
+# (Hz, exact), the channels its sheet row gives (None: all six, a bag's sensor_msgs/Imu fields)
+ACCEPTED = [
+    # (jittered stamps with rate_hz empty: the phone log drops+1.v2, test_good_dataset_results_present)
+    ("ms128", 128.0, [("gyro", "x"), ("accel", "x")]),  # integer-ms clock, rate_hz 128
+    ("ms300", 300.0, [("gyro", "x"), ("accel", "x")]),  # integer-ms clock, rate_hz empty
+    ("bag", 10.0, [(s, a) for s in ("gyro", "accel") for a in "xyz"]),  # ROS 2 MCAP, the row gives the topic
+]
+
+
+@pytest.mark.parametrize("dataset, rate, channels", ACCEPTED, ids=[a[0] for a in ACCEPTED])
+def test_accepted_inputs_run_every_per_axis_stage(fault_run, dataset, rate, channels):
+    import netCDF4
+
+    work, _, _ = fault_run
+    res = work / "results" / "faults"
+    log = (work / "logs" / "faults" / "ingest" / f"{dataset}.log").read_text()
+    assert "imupipe error" not in log, log[-2000:]
+    made = sorted((p.parent.name, p.stem) for p in (res / "series" / dataset).rglob("*.nc"))
+    assert made == sorted(channels)
+    for s, a in channels:
+        for folder, ext in (("allan", "nc"), ("decimated", "nc"), ("psd", "nc"), ("stationarity", "yaml")):
+            assert (res / folder / dataset / s / f"{a}.{ext}").is_file(), (folder, s, a)
+        with netCDF4.Dataset(res / "series" / dataset / s / f"{a}.nc") as nc:
+            assert nc.rate_hz == rate and nc.getncattr("n_filled") == 0
+        with netCDF4.Dataset(res / "decimated" / dataset / s / f"{a}.nc") as nc:
+            assert nc.rate_hz == 1.0  # the config's decimate.rate_hz: the ratio is an integer
+    if dataset == "bag":  # the samples of topic /imu, in SI as sensor_msgs/Imu states them
+        table = _table(12)[:N_BAG]
+        with netCDF4.Dataset(res / "series" / "bag" / "gyro" / "y.nc") as nc:
+            np.testing.assert_array_equal(nc.variables["signal"][:], table[:, 2])
+            assert nc.variables["signal"].units == "rad/s"
+        with netCDF4.Dataset(res / "series" / "bag" / "accel" / "z.nc") as nc:
+            np.testing.assert_array_equal(nc.variables["signal"][:], table[:, 6])
+
+
+def test_csv_rewritten_while_ingested_fails_naming_the_file(fault_run):
+    """The watcher rewrote rewritten.csv (half its rows) while the ingest job held it open: that dataset fails
+    with a message naming the file and the change; nothing of it is left; the good datasets' results are
+    there (test_good_dataset_results_present, same run)."""
+    work, proc, info = fault_run
+    if info["rewrite_skip"]:
+        pytest.skip(info["rewrite_skip"])
+    assert info["rewritten_in"] is not None, "the ingest job was never seen with rewritten.csv open"
+    text = (work / "logs" / "faults" / "ingest" / "rewritten.log").read_text()
+    message = r"imupipe error: data_faults/rewritten\.csv: changed while it was read \(size (\d+) -> (\d+) bytes"
+    m = re.search(message, text)
+    assert m, text[-2000:]
+    assert int(m.group(2)) < int(m.group(1))  # shortened
+    assert re.search(message, proc.stdout + proc.stderr)
+    assert _outputs_of(work, "faults", "rewritten") == []
+    assert (work / "results" / "faults" / "psd" / "good" / "gyro" / "x.nc").is_file()
+
+
+def test_full_disk_names_the_output_and_leaves_nothing(fault_run):
+    """The `full` dataset's series folder is a 16 kB tmpfs: writing its first channel fails with ENOSPC (netCDF:
+    "HDF error"); the job's log and the terminal say the disk is full and name the output; no file (neither
+    an output nor a temporary) is left on that file system."""
+    work, proc, info = fault_run
+    if info["full_skip"]:
+        pytest.skip(info["full_skip"])
+    text = (work / "logs" / "faults" / "ingest" / "full.log").read_text()
+    message = r"imupipe error: disk full: no space left on the device writing results/faults/series/full/gyro/x\.nc"
+    assert re.search(message, text), text[-2000:]
+    assert re.search(message, proc.stdout + proc.stderr)
+    assert [p for p in info["full_folder"].rglob("*") if not p.is_dir()] == []
+    assert _outputs_of(work, "faults", "full") == []
+    assert (work / "results" / "faults" / "psd" / "good" / "gyro" / "x.nc").is_file()
 
 
 # -------------------------------------------------------------------------------------------------
@@ -298,16 +534,10 @@ def test_rate_cell_not_a_number(startup_work):
 # one axis, nothing stale, byte-identical reruns
 # -------------------------------------------------------------------------------------------------
 def _hashes(root):
-    """sha256 of every .nc and .yaml under `root` (relative path -> digest). The bound YAML still holds the
-    solver's wall time (`solve_time_s`, to move to the logs): that line alone is left out of the digest."""
-    out = {}
-    for p in sorted(root.rglob("*")):
-        if p.suffix in (".nc", ".yaml") and p.is_file():
-            data = p.read_bytes()
-            if p.suffix == ".yaml":
-                data = b"\n".join(ln for ln in data.split(b"\n") if not ln.lstrip().startswith(b"solve_time_s:"))
-            out[str(p.relative_to(root))] = hashlib.sha256(data).hexdigest()
-    return out
+    """sha256 of every .nc and .yaml under `root` (relative path -> digest), whole files: wall-clock readings
+    (the LP's solve time) go to the job logs, not into the results."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.suffix in (".nc", ".yaml") and p.is_file()}
 
 
 def test_one_axis_gyro_then_failed_rerun_then_identical_rerun(tmp_path):
@@ -328,6 +558,17 @@ def test_one_axis_gyro_then_failed_rerun_then_identical_rerun(tmp_path):
     first = _hashes(res)
     assert len(first) > 10  # series, allan, decimated, psd, stationarity, stack, identify, bound, kf files
 
+    # a second config (another name, dataset and spec sheet) run in the same folder: its own results/other/,
+    # nothing of results/one/ touched (the per-sensor files of two configs do not overwrite each other)
+    _csv(work / "data_faults" / "other.csv", _table(7))
+    shutil.copy2(work / "config" / "specs" / "stim300.yaml", work / "config" / "specs" / "stim300c.yaml")
+    cfg_o = _config(work, "other", _sheet(work, [{**one, "dataset": "one", "path": "data_faults/other.csv"}],
+                                          name="o.tsv"), sensors=["gyro"], specs=["stim300c"])
+    snakemake(work, config=cfg_o, snakefile=work / "Snakefile", timeout=600)
+    other = _hashes(work / "results" / "other")
+    assert "bound/stim300c/gyro.yaml" in other and "identify/gyro.yaml" in other
+    assert _hashes(res) == first
+
     # failed rerun: a second spec sheet, a second good dataset and a bad one (an inf at row 100: the
     # start-up probe passes, the ingest job fails)
     shutil.copy2(work / "config" / "specs" / "stim300.yaml", work / "config" / "specs" / "stim300b.yaml")
@@ -345,8 +586,13 @@ def test_one_axis_gyro_then_failed_rerun_then_identical_rerun(tmp_path):
     assert not (res / "bound" / "stim300" / "gyro.yaml").exists()
     assert not (res / "identify" / "gyro.yaml").exists()
 
-    # the first config again, every job re-made: only its own outputs, identical bytes
+    # the first config again, every job re-made: only its own outputs, identical bytes; the temporary file a
+    # job killed by SIGKILL leaves beside its output (imupipe.io.atomic_path's name) is removed
+    killed = res / "psd" / "one" / "gyro" / ".tmp-x.nc-k1ll3d.nc"
+    killed.parent.mkdir(parents=True, exist_ok=True)
+    killed.write_bytes(b"half a netCDF file")
     proc = snakemake(work, "--forceall", config=cfg_a, snakefile=work / "Snakefile", timeout=600)
+    assert not killed.exists()
     assert not (res / "bound" / "stim300b").exists()
     assert _outputs_of(work, "one", "bad") == [] and _outputs_of(work, "one", "two") == []
     assert not list((work / "logs" / "one").rglob("bad*")) and not list((work / "logs" / "one").rglob("two*"))
@@ -355,4 +601,34 @@ def test_one_axis_gyro_then_failed_rerun_then_identical_rerun(tmp_path):
     assert again.keys() == first.keys()
     differ = [k for k in first if first[k] != again[k]]
     assert not differ, f"not byte-identical between identical runs: {differ}"
+    assert _hashes(work / "results" / "other") == other  # the other config's results: untouched by all this
     assert not list(work.rglob(".tmp-*"))
+
+
+@pytest.mark.slow  # a complete run: minutes on a loaded machine
+def test_rate_from_timestamps_reaches_the_bound_and_kalibr(tmp_path):
+    """Two records whose sheet rows give no rate_hz (the phone log with five fills, the MCAP bag named by its
+    topic) run to the bound, the filters and the Kalibr file, whose update_rate is the rate the timestamps
+    gave (10 Hz) and whose topic is the sheet's."""
+    work = copy_checkout(tmp_path / "checkout")
+    data = work / "data_faults"
+    data.mkdir()
+    phone = _table(8)
+    phone[:, 0] = _jittered_stamps(N, RATE_HZ, 18)
+    _csv(data / "drops.csv", np.delete(phone, DROPS, axis=0))
+    bag = _bag(data, N_BAG, 12)
+    nothing = {k: None for k in ("rate_hz", "gyro_unit", "accel_unit", "time_column", *CHANNELS)}
+    rows = [_row("phone", "data_faults/drops.csv", rate_hz=None, gap_policy="fill", fill_max_samples=1),
+            _row("bag", f"data_faults/{bag.relative_to(data)}", topic="/imu", **nothing)]
+    config = _config(work, "norate", _sheet(work, rows))
+    snakemake(work, config=config, snakefile=work / "Snakefile", timeout=1800)
+    res = work / "results" / "norate"
+    for sensor in ("gyro", "accel"):
+        ident = yaml.safe_load((res / "identify" / f"{sensor}.yaml").read_text())
+        assert set(ident["rate_hz"].values()) == {RATE_HZ}
+        assert (res / "bound" / "stim300" / f"{sensor}.yaml").is_file()
+        assert (res / "kf" / "stim300" / f"{sensor}.yaml").is_file()
+    kalibr = yaml.safe_load((res / "kf" / "stim300" / "kalibr_imu.yaml").read_text())
+    assert not kalibr.get("refused"), kalibr  # white-noise records (seeded): no line, one rate
+    assert kalibr["update_rate"] == RATE_HZ and kalibr["rostopic"] == "/imu"
+    assert (res / "summary.md").is_file()

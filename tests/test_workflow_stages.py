@@ -302,3 +302,70 @@ class TestDominatingModel:
         env = dominating_model([m])
         assert env.white == m.white and env.random_walk == m.random_walk
         assert np.allclose(env.gauss_markov, m.gauss_markov, rtol=1e-12, atol=0)
+
+
+class TestPerAxisExport:
+    def test_contract_and_kf_give_each_axis_its_own_model_only_when_its_contract_holds(self, tmp_path):
+        """The contract and kf scripts on a bound file with per-axis models (two datasets, gyro x of white
+        density 1e-4 and z of 2e-4 rad/s/sqrt(Hz), bounded per axis by imupipe.bound.bound_by_axis and verified
+        by imupipe.verify.verification_stage): x's own contract holds, so the KF file's per_axis x carries x's
+        own white noise; z's Allan total check is given a shortfall (ratio 0.6 at tau = 0.02 s), so z's contract
+        names it and the KF file gives z the global model. The global contract stays bounded (the global model
+        covers both axes)."""
+        from imupipe.bound import bound_by_axis, bound_psd
+        from imupipe.io import plain
+        from imupipe.specsheet import load_spec
+        from imupipe.spectra import psd
+        from imupipe.verify import verification_stage
+
+        rng = np.random.default_rng(5)
+        spec_path = ROOT / "config" / "specs" / "stim300.yaml"
+        spec = load_spec(spec_path).models["gyro"]
+        curves = {}
+        for d in ("d1", "d2"):
+            for ax, N in (("x", 1e-4), ("z", 2e-4)):
+                ds = psd(N * rng.standard_normal(7200), 1.0, window_s=3600.0, step_s=3600.0)
+                f, curves[f"{d}/{ax}"] = ds.frequency.values, ds.psd.values
+        kw = dict(dt=1.0, keep=("white",), horizon_s=180.0)
+        glob = bound_psd(f, np.array(list(curves.values())), spec, **kw)
+        per = bound_by_axis(f, curves, spec, **kw)
+        ok_allan = {"components": {}, "total": {"passed": True}, "passed": True}
+        short = {"components": {}, "passed": False,
+                 "total": {"passed": False, "worst_ratio": 0.6, "curve": "d1/z", "tau_s": 0.02,
+                           "shortfalls": [{"curve": "d1/z", "tau_s": 0.02, "ratio": 0.6}], "tau_band_s": [0.01, 180.0]}}
+
+        def bound_doc(res, allan):
+            b = res.to_dict(sensor="gyro")
+            b["psd_bounded"] = b.pop("bounded")
+            return {**b, "spec_name": "STIM-300", "n_curves": 4, "allan_check": allan,
+                    "allan_check_passed": allan["passed"]}
+
+        def ver(res):
+            return verification_stage(res.model, "gyro", spec=spec, fix_s=60.0, horizon_s=120.0, reduce=False)[0]
+
+        bound = {**bound_doc(glob, ok_allan), "per_axis_models": {
+            "x": {**bound_doc(per["x"][1], ok_allan), "curves": per["x"][0], "upper_envelope": None},
+            "z": {**bound_doc(per["z"][1], short), "curves": per["z"][0], "upper_envelope": None}}}
+        verify = {**ver(glob), "per_axis_models": {ax: ver(per[ax][1]) for ax in ("x", "z")}}
+        paths = {k: tmp_path / f"{k}.yaml" for k in ("bound", "verify", "contract", "kf")}
+        paths["bound"].write_text(yaml.safe_dump(plain(bound)))
+        paths["verify"].write_text(yaml.safe_dump(plain(verify)))
+        _script("contract").contract(str(paths["bound"]), str(paths["verify"]), str(spec_path), str(paths["kf"]),
+                                     "fail", str(paths["contract"]), "gyro")
+        con = yaml.safe_load(paths["contract"].read_text())
+        assert con["bounded"] is True and con["failed_checks"] == []
+        px, pz = con["per_axis_models"]["x"], con["per_axis_models"]["z"]
+        assert px["bounded"] and px["exported_in_kf"] and px["curves"] == ["d1/x", "d2/x"]
+        assert not pz["bounded"] and not pz["exported_in_kf"]
+        assert [(c["check"], c["curve"], c["tau_s"], c["worst_ratio"]) for c in pz["failed_checks"]] == \
+            [("allan_total", "d1/z", 0.02, 0.6)]
+        _script("kf").main(str(paths["bound"]), str(paths["verify"]), str(paths["contract"]), 1.0, 120.0,
+                           str(paths["kf"]), "gyro")
+        kf = yaml.safe_load(paths["kf"].read_text())
+        assert kf["per_axis"]["x"]["model"] == "own" and kf["per_axis"]["z"]["model"] == "global"
+        assert kf["per_axis"]["x"]["parameters"]["white"] == pytest.approx(per["x"][1].model.white, rel=1e-12)
+        assert kf["per_axis"]["z"]["parameters"]["white"] == pytest.approx(glob.model.white, rel=1e-12)
+        # the axes differ: x's own white noise is below the global one (set by z, density twice x's). Each bound N^2
+        # is the largest of 3600 two-window Welch ordinates (Gamma(2, 1/2) in units of the PSD): between 4.3 and 9.05
+        # except with probability 1e-3 each, so N_x/N_global <= sqrt(9.05 / (4 x 4.3)) = 0.725
+        assert per["x"][1].model.white < 0.75 * glob.model.white

@@ -30,7 +30,12 @@ DISK_FULL_BYTES = 1 << 20
 
 
 class DiskFullError(OSError):
-    """An output could not be written because its file system is full; the message names the output."""
+    """An output could not be written because its file system is full; the message names the output.
+
+    ``errno`` is ENOSPC; ``str()`` is the message alone (no ``[Errno 28]`` prefix), as the user reads it."""
+
+    def __str__(self) -> str:
+        return self.strerror or super().__str__()
 
 
 def _free_bytes(directory) -> int | None:
@@ -119,7 +124,7 @@ def _raise_if_disk_full(exc: BaseException, path: Path) -> None:
     if getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT) or (free is not None and free < DISK_FULL_BYTES):
         raise DiskFullError(
             errno.ENOSPC,
-            f"no space left on the device writing {path} ({free if free is not None else '?'} bytes free; "
+            f"disk full: no space left on the device writing {path} ({free if free is not None else '?'} bytes free; "
             f"the writer said: {exc}); free some space and run again",
         ) from exc
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 from imupipe.models import NoiseModel
 
-__all__ = ["KALIBR_UNITS", "KalibrIMU", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound", "read_kalibr",
+__all__ = ["KALIBR_UNITS", "KalibrIMU", "dataset_rates", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound", "read_kalibr",
            "rostopic_of", "write_kalibr"]
 
 #: Unit of every Kalibr field (SI, continuous time).
@@ -112,6 +112,34 @@ def _k_eff(m: NoiseModel, name: str) -> float:
         raise ValueError(f"{name}: the model has {len(lines)} narrowband line(s); Kalibr's two-term model cannot "
                          "bound them (use the full Kalman-filter export instead)")
     return math.sqrt(m.random_walk**2 + sum(2.0 * s**2 / T for s, T in m.gauss_markov if T > 0))
+
+
+def dataset_rates(sheet_rates: Mapping[str, float | None], curve_rates: Mapping[str, float]) -> dict:
+    """Dataset -> sample rate (Hz) for :func:`imu_rate`: the dataset sheet's ``rate_hz`` where the sheet gives
+    one, else the rate the record's timestamps gave, as the identify file states it per curve.
+
+    Parameters
+    ----------
+    sheet_rates : mapping of str to float or None
+        Dataset name -> the sheet's ``rate_hz`` (Hz), None where the cell is empty.
+    curve_rates : mapping of str to float
+        Curve label ``"<dataset>/<axis>"`` -> rate of its record (Hz): the ``rate_hz`` map of an identify file.
+
+    Raises
+    ------
+    ValueError
+        A dataset without a sheet rate and without a curve (named).
+    """
+    out = {}
+    for name, rate in sheet_rates.items():
+        if rate is None:
+            found = [float(v) for k, v in curve_rates.items() if str(k).rsplit("/", 1)[0] == name]
+            if not found:
+                raise ValueError(f"update_rate: dataset {name!r} has no rate_hz in the sheet and no curve in the "
+                                 f"identify file (curves: {', '.join(map(str, curve_rates)) or 'none'})")
+            rate = found[0]  # the curves of one record share its rate
+        out[name] = rate
+    return out
 
 
 def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 __all__ = ["Stacked"]
 
-_PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used")
+_PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "n_filled", "filled_rows")
 _RATE_ATTRS = {"long_name": "sampling rate of the curve's record", "units": "Hz"}
 _INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
 _LABEL_ATTRS = {"dataset": {"long_name": "dataset"}, "axis": {"long_name": "sensor axis"}}

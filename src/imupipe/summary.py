@@ -143,6 +143,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             "bound component below its identified counterpart in the Allan domain"
                             + (f" (margin {_num(v.get('margin'))})" if v.get("margin") is not None else "")
                             + (f": {v['reason']}" if v.get("reason") else ""), "fail"))
+    for ax, pa in (bound.get("per_axis_models") or {}).items():
+        if isinstance(pa, Mapping) and pa.get("exported_in_kf") is False:
+            out.append(Flag(sensor, "per-axis model", str(ax),
+                            f"not exported: {pa.get('kf', 'its own contract failed')}"))
     for ax in bound.get("per_axis") or []:
         if isinstance(ax, Mapping) and ax.get("bounded") is False:
             out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),
@@ -269,6 +273,20 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += ["", "| parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|"]
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
+            lines.append("")
+        band = bound.get("allan_tau_band_s")
+        if band:
+            lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "
+                         f"{_num(band[1])} s")
+        per = bound.get("per_axis_models") or {}
+        if per:
+            lines += ["", "Per-axis models (the pooling test says the axes differ; the KF file's per_axis):", "",
+                      "| axis | N bound/spec | own model in the KF file | why |", "|---|---|---|---|"]
+            for ax, pa in per.items():
+                if isinstance(pa, Mapping):
+                    lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
+                                 f"{'yes' if pa.get('exported_in_kf') else 'no (global model)'} | "
+                                 f"{pa.get('kf', '-')} |")
             lines.append("")
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")

@@ -530,7 +530,8 @@ def integrity_contract(bound, allan=None, verification=None) -> dict:
         tot = allan.get("total", {})
         if tot.get("passed") is False:
             failed.append({"check": "allan_total", "worst_ratio": tot["worst_ratio"], "curve": tot["curve"],
-                           "tau_s": tot["tau_s"], "n_shortfalls": len(tot.get("shortfalls", []))})
+                           "tau_s": tot["tau_s"], "n_shortfalls": len(tot.get("shortfalls", [])),
+                           **({"tau_band_s": tot["tau_band_s"]} if tot.get("tau_band_s") else {})})
     verified = False
     if verification:
         run.append("verification")

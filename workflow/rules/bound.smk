@@ -58,6 +58,7 @@ rule bound:
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
         horizon_s=bound_horizon_s(),
+        application_rate_hz=config["application"]["rate_hz"],
         lines=lines_params(),
     threads: 1
     resources:

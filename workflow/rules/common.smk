@@ -461,7 +461,7 @@ def on_start():
                         removed.append(f)
         for root in (RESULTS, LOGS):  # folders left empty
             for folder, subdirs, names in sorted(os.walk(root), key=lambda t: -len(t[0])):
-                if folder != root and not os.listdir(folder):
+                if folder != root and not os.listdir(folder) and not os.path.ismount(folder):
                     os.rmdir(folder)
     for f in sorted(removed):
         logger.info(f"imupipe: removed {f} (stale: not produced by this run's config, or re-made by this run)")

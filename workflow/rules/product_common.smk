@@ -8,8 +8,9 @@ REPORT_FRONT = f"{RESULTS}/report/workflow.rst"
 
 
 def kalibr_rates():
-    """Dataset -> IMU sample rate (Hz): the dataset sheet's rate_hz, or simulation.rate_hz."""
-    return {name: float(row["rate_hz"]) for name, row in DATASETS.items()}
+    """Dataset -> IMU sample rate (Hz): the dataset sheet's rate_hz, or simulation.rate_hz; None where the sheet
+    leaves it empty (the kalibr job then takes the rate the timestamps gave from the identify files)."""
+    return {name: (float(row["rate_hz"]) if row.get("rate_hz") is not None else None) for name, row in DATASETS.items()}
 
 
 def kalibr_topics():

@@ -8,7 +8,8 @@ from imupipe.io import read_series, run_job
 
 def main(path_series: str, taus, confidence: float, path_allan: str) -> None:
     x, rate, attrs = read_series(path_series, pad_front=1)  # x = buffer[1:], overwritten by its integral
-    labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
+    # the gap fill of the record travels with its AV (docs/inputs.md, "Timestamps and gaps": its effect on the AV)
+    labels = {k: attrs[k] for k in ("dataset", "sensor", "axis", "n_filled", "filled_rows") if k in attrs}
     av = allan_variance_labelled(x, rate, taus=taus, confidence=confidence, units=attrs["units"],
                                  theta_buffer=x.base)
     av.attrs.update(labels)

@@ -2,7 +2,9 @@
 dataset and axis, the spec sheet and, over all frequencies (down to 0.01 / horizon), the identified model's
 upper confidence envelope; the sensor's spectral lines through its line policy; the Allan-domain check of the
 kept components against the sample AVs' lower limits; a summary of the per-axis bounds (rule bound_axis); the
-paper's hand inflation for comparison. Not the verdict: `psd_bounded` says only that the model's PSD is above
+paper's hand inflation for comparison; when the identification's pooling test says the axes differ, a bounding
+model per axis (imupipe.bound.bound_by_axis: each axis's curves of every dataset, the same LP and all-frequency
+rules, that axis's identified envelope) with its own Allan check, for the KF export. Not the verdict: `psd_bounded` says only that the model's PSD is above
 its targets; the verdict (`bounded`) is the contract file's (rule contract)."""
 
 import logging
@@ -17,13 +19,17 @@ PSDs two-sided; the model is compared as the PSD of its dt-block-averaged sample
 bound_spec_units: the same in the spec sheet's units. inflation: bound/spec per parameter.
 margin: min over curves and frequencies of S_model/S_sample (>= 1 when psd_bounded), margin_curve: where.
 all_frequency_margin: min of S_model/max(S_spec, S_upper) below the lowest bin (frequency 0: K asymptote, inf: N).
-upper_envelope: the identified model at its upper confidence limits (SI), imposed below the lowest bin."""
+upper_envelope: the identified model at its upper confidence limits (SI), imposed at every frequency.
+allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.rate_hz, horizon] s.
+per_axis_models: present when the pooling test rejected one model for all axes: per axis, the bound of that axis's
+curves (same fields as the global bound, SI), its envelope and Allan check; null when the axes are pooled."""
 
 
 def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, axis_bounds: list, mode: str,
          n_gm: int, confidence: float, bands_per_decade: int, compare_paper: bool, horizon_s: float, lines: list,
-         lines_params: dict, path_out: str, sensor: str) -> None:
-    from imupipe.bound import bound_psd, check_allan, looseness, paper_inflation, upper_envelope_from_identification
+         lines_params: dict, path_out: str, sensor: str, application_rate_hz: float = 1.0) -> None:
+    from imupipe.bound import (bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
+                               upper_envelope_from_identification)
     from imupipe.merge import Stacked
     from imupipe.models import NoiseModel
     from imupipe.specsheet import display_units, load_spec
@@ -40,6 +46,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     for d, a in sp.curves(included_only=True):
         curves[f"{d}/{a}"] = sp.at("psd", d, a)
         edf.append(np.broadcast_to(sp.at("edf", d, a), f.shape))
+    edf_of = dict(zip(curves, edf))
     identified = read_yaml(path_identified)
     kept = identified["selection"]["kept"]
     upper = upper_envelope_from_identification(identified)
@@ -67,10 +74,49 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
         labels.append(f"{d}/{a}")
         avars.append(al.at("avar", d, a))
         edfs.append(al.at("edf", d, a))
+    tau_min_s = 1.0 / float(application_rate_hz)
     allan = check_allan(result.model, NoiseModel.from_dict(identified["model"]), al["tau"], kept=kept,
-                        sample_avar=np.array(avars), sample_edf=np.array(edfs), labels=labels, horizon_s=horizon_s)
+                        sample_avar=np.array(avars), sample_edf=np.array(edfs), labels=labels, horizon_s=horizon_s,
+                        tau_min_s=tau_min_s)
     out["allan_check"] = plain(allan)
     out["allan_check_passed"] = bool(allan["passed"])
+    # per-axis models where the pooling test says the axes differ (docs/method.md, "Per-axis models")
+    pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
+    axes_fit = identified.get("per_axis") or {}
+    out["per_axis_models"] = None
+    if not pooled and axes_fit:
+        uppers = {ax: NoiseModel.from_dict(v["upper_envelope_model"]) for ax, v in axes_fit.items()
+                  if v.get("upper_envelope_model")}
+        line_kw = {}
+        for ax in axes_fit:
+            mine = {path: read_yaml(path) for path in lines if path.rsplit("/", 1)[-1] == f"{ax}.yaml"}
+            p_ax = line_policy_from_files(mine, dt, f, lines_params["policy"][sensor],
+                                          lines_params["application_band_hz"])
+            line_kw[ax] = (p_ax.bound_kwargs() if p_ax is not None else {}, p_ax)
+        per = bound_by_axis(f, curves, spec_model, upper_models=uppers, edf=edf_of,
+                            line_kwargs={ax: kw for ax, (kw, _) in line_kw.items()}, dt=dt, mode=mode, n_gm=n_gm,
+                            confidence=confidence, bands_per_decade=bands_per_decade, keep=kept,
+                            taper=sp.attrs.get("taper", "hann"), horizon_s=horizon_s)
+        out["per_axis_models"] = {}
+        for ax, (labs, res) in per.items():
+            if ax not in axes_fit:
+                continue  # an axis without its own fit keeps the global model
+            b_ax = res.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)
+            b_ax["psd_bounded"] = b_ax.pop("bounded")
+            b_ax.pop("solve_time_s", None)
+            b_ax.pop("details", None)
+            sel = [labels.index(lab) for lab in labs if lab in labels]
+            al_ax = check_allan(res.model, NoiseModel.from_dict(axes_fit[ax]["model"]), al["tau"], kept=kept,
+                                sample_avar=np.array(avars)[sel], sample_edf=np.array(edfs)[sel],
+                                labels=[labels[j] for j in sel], horizon_s=horizon_s, tau_min_s=tau_min_s)
+            pol_ax = line_kw.get(ax, ({}, None))[1]
+            out["per_axis_models"][ax] = {
+                "axis": ax, "curves": labs, **b_ax,
+                "upper_envelope": uppers[ax].to_dict() if ax in uppers else None,
+                "lines": pol_ax.to_dict() if pol_ax is not None else None,
+                "allan_check": plain(al_ax), "allan_check_passed": bool(al_ax["passed"])}
+            logging.info("per-axis bound %s: %s, margin %.4g, all-frequency margin %.4g", ax, res.model, res.margin,
+                         res.allf_margin)
     out["per_axis"] = [{"curve": ax["curve"], "psd_bounded": ax["psd_bounded"], "margin": ax["margin"],
                         "all_frequency_margin": ax.get("all_frequency_margin"), "inflation": ax["inflation"]}
                        for ax in per_axis]
@@ -101,4 +147,4 @@ if __name__ == "__main__":
             path_spec=i.spec, mode=p.mode, n_gm=p.n_gm, confidence=p.confidence, bands_per_decade=p.bands_per_decade,
             compare_paper=p.compare_paper, horizon_s=p.horizon_s, lines=list(i.get("lines", [])),
             lines_params=p.lines, axis_bounds=list(i.axis_bounds), path_out=o.bound,
-            sensor=snakemake.wildcards.sensor)
+            sensor=snakemake.wildcards.sensor, application_rate_hz=p.application_rate_hz)

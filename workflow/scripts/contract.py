@@ -5,7 +5,10 @@ contract: `bounded` is true only when every check passed AND the verification ra
 bins, the spec sheet over all frequencies, the Allan-domain check of the kept components, the reference-filter
 verification of the exported model (imupipe.verify.integrity_contract). A failing model is still written, marked.
 integrity: with verify.on_failure = fail, a contract that is not bounded fails this job (the last of the run,
-after the figures, tables and summary are written), naming the failed checks; with warn, it logs a warning."""
+after the figures, tables and summary are written), naming the failed checks; with warn, it logs a warning.
+per-axis models (bound and verify files, when the axes differ): each gets the same contract; the KF file gives an
+axis its own model only when that contract is bounded, else the global model (the reason is in both files). They
+never change `bounded`, which is the global model's: the global model covers every axis."""
 
 import logging
 import sys
@@ -17,7 +20,9 @@ HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must me
 bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
-u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter."""
+u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter.
+per_axis_models: null when the axes are pooled; else per axis its own contract (bounded, verified, failed_checks) and
+exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one)."""
 
 
 def _bound_view(b: dict):
@@ -63,6 +68,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "spec_margin": bound.get("spec_margin"), "all_frequency_margin": bound.get("all_frequency_margin"),
         "all_frequency_margin_frequency_hz": bound.get("all_frequency_margin_frequency_hz"),
         "allan_check_passed": bound.get("allan_check_passed"),
+        "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
         "per_axis": bound.get("per_axis"),
         **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
         "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_t_s", "worst_ratio",
@@ -73,9 +79,44 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
     }
     if note:
         out["unit_note"] = note
+    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor)
     if not c["bounded"]:
         logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
     write_yaml_atomic(out, path_out, header=HEADER)
+
+
+def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str):
+    """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
+    and whether the KF file exports it (bounded) or gives that axis the global model."""
+    from imupipe.bound import _to_spec_units
+    from imupipe.models import NoiseModel
+    from imupipe.specsheet import display_units
+    from imupipe.verify import integrity_contract
+
+    axes = bound.get("per_axis_models")
+    if not axes:
+        return None
+    vers = ver.get("per_axis_models") or {}
+    out = {}
+    for ax, pa in axes.items():
+        v = vers.get(ax)
+        exported = v["exported"] if v else None
+        verification = ({f"{sensor} reference filter": exported["verification"]}
+                        if exported and exported["verification"].get("checks") else None)
+        c = integrity_contract(_bound_view(pa), pa.get("allan_check"), verification)
+        model = NoiseModel.from_dict(exported["model"]) if exported else None
+        entry = {"curves": pa.get("curves"), "bounded": c["bounded"], "verified": c["verified"],
+                 "failed_checks": c["failed_checks"], "exported_in_kf": bool(c["bounded"]),
+                 "model": exported["model"] if exported else None,
+                 "model_spec_units": _to_spec_units(model, display_units(spec, sensor), sensor)[0] if model else None,
+                 "model_reduced": bool(exported["reduced"]) if exported else None,
+                 "inflation": pa.get("inflation"), "margin": pa.get("margin"),
+                 "all_frequency_margin": pa.get("all_frequency_margin"),
+                 "allan_check_passed": pa.get("allan_check_passed")}
+        entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
+                       f"axis {ax}: the global model (its own failed: {failed_names(entry)})")
+        out[ax] = entry
+    return out
 
 
 def failed_names(doc: dict) -> str:

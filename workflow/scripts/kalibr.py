@@ -1,7 +1,8 @@
 """Kalibr imu.yaml from the gyro and accel bounds (rule kalibr), imupipe.kalibr.
 
 update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, else refused with
-each dataset's rate), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities the
+each dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the
+identify files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities the
 bounding continuous-time values with Gauss-Markov terms folded into the random walk, and the comment block the
 inflation factor against the identified model.
 
@@ -47,17 +48,19 @@ def refused_text(lines: dict, imu, source: str) -> str:
 
 def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str, rates: dict, topics: dict,
          path_out: str, spec: str) -> None:
-    from imupipe.kalibr import imu_rate, kalibr_imu, model_of_bound, rostopic_of, write_kalibr
+    from imupipe.kalibr import dataset_rates, imu_rate, kalibr_imu, model_of_bound, rostopic_of, write_kalibr
     from imupipe.models import NoiseModel
 
     bounds = {"gyro": read_yaml(path_gyro), "accel": read_yaml(path_accel)}
     # the identified model the inflation factors compare with: the selected model refitted (kept components)
     ident = {}
+    curve_rates = {}  # "dataset/axis" -> Hz: the rate of each record (its timestamps' where the sheet gives none)
     for s, p in (("gyro", path_id_gyro), ("accel", path_id_accel)):
         doc = read_yaml(p)
         ident[s] = NoiseModel.from_dict(doc.get("model_selected") or doc["model"])
+        curve_rates.update(doc.get("rate_hz") or {})
     try:
-        rate = imu_rate(rates)
+        rate = imu_rate(dataset_rates(rates, curve_rates))
     except ValueError as exc:  # one Kalibr file holds one IMU rate: refused, and said so, without failing the run
         logging.warning("Kalibr export refused: %s", exc)
         write_text_atomic("# Kalibr IMU noise model NOT WRITTEN by imupipe: the datasets differ in sample rate, and\n"

@@ -1,7 +1,9 @@
 """Kalman-filter matrices of the exported model, one axis, SI (rule kf): continuous F, G, Qc of paper eq. 17 (or
 eq. 19 without the random-walk state), narrowband states of the model's lines, exact discrete Phi, Qd by Van
 Loan, and P0. The model is the bound's (all of it: white, GM, random walk, narrowband), or its reduction by
-integrity when the verification accepted one; the contract's verdict marks the file."""
+integrity when the verification accepted one; the contract's verdict marks the file. When the axes differ (pooling
+test rejected), `per_axis` gives each axis the matrices of its own bounding model when that model passed its own
+contract, else those of the global model, with the reason."""
 
 from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
@@ -27,7 +29,20 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
                          "refused": red["refused"] if red else []},
            "p0_random_walk_rule": "K^2 * application.horizon_s" if p0_rw else None,
            **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw)}
+    out["per_axis"] = None
+    if con.get("per_axis_models"):
+        out["per_axis"] = {}
+        for ax, c in con["per_axis_models"].items():
+            own = bool(c["exported_in_kf"])
+            m = NoiseModel.from_dict(c["model"]) if own else model
+            p0 = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+            out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
+                                   "bounded": bool(c["bounded"]) if own else bool(con["bounded"]),
+                                   **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0)}
     head = f"{sensor}: Kalman-filter model of the bound (SI), one axis"
+    if out["per_axis"]:
+        head += ("; per_axis: the model of each axis (its own bound where that passed its contract, else the "
+                 "global one above)")
     if not con["bounded"]:
         head = f"NOT BOUNDED (see the contract file): {head}"
     write_yaml_atomic(out, path_out, header=head)

@@ -35,13 +35,17 @@ below it a record says nothing, yet a random walk (:math:`1/f^2`) or a long-T GM
 error over a long outage there. So the LP also holds, with continuous PSDs,
 
 * :math:`S_m(f) \ge \max(S_{spec}(f), S_{up}(f))` on a log grid (10 per decade) from the floor
-  :math:`f_{floor}` up to :math:`f_1`, and :math:`S_m \ge S_{up}` on up to the Nyquist frequency
-  (``upper_band="all"``, the default; ``"below"`` only below :math:`f_1`). :math:`S_{up}` is the
-  identified model's upper confidence envelope (:func:`upper_envelope`: kept components at their upper
-  limits, the random walk at its upper limit even when model selection dropped it);
+  :math:`f_{floor}` up to :math:`f_1`, :math:`S_m \ge S_{up}` on up to the Nyquist frequency of the sampled
+  band, and :math:`S_m \ge \max(S_{spec}, S_{up})` above it, up to three decades above the larger of that
+  frequency and the highest GM corner :math:`1/(2\pi T)` of both (``upper_band="all"``, the default;
+  ``"below"`` only below :math:`f_1`): the exported model is continuous-time and a filter integrates its
+  PSD at every frequency, where the decimated bins say nothing. :math:`S_{up}` is the identified model's
+  upper confidence envelope (:func:`upper_envelope`: kept components at their upper limits, the random walk
+  at its upper limit even when model selection dropped it);
 * :math:`f \to 0`: :math:`K_m \ge \max(K_{spec}, K_{up})` (a random walk the spec gives or the data
   cannot exclude is never dropped: the component is added, ``decisions`` says so);
-* :math:`f \to \infty`: :math:`N_m \ge N_{spec}` (only white noise remains there).
+* :math:`f \to \infty`: :math:`N_m \ge \max(N_{spec}, N_{up})` (only white noise remains there; :math:`N_{up}`
+  with ``upper_band="all"``).
 
 The floor is :math:`f_{floor} = 0.01/H` for the horizon :math:`H` (``horizon_s``: fix period plus
 outage; without it :math:`f_1/100`, and never above :math:`f_1/10`). Why it is enough: over a window of
@@ -137,6 +141,11 @@ from imupipe.bound.engine import (  # noqa: F401
 from imupipe.bound.paper import (  # noqa: F401
     paper_inflation,
 )
+from imupipe.bound.axes import (  # noqa: F401
+    axis_of,
+    bound_by_axis,
+    curves_by_axis,
+)
 from imupipe.bound.allan_check import (  # noqa: F401
     check_allan,
     check_allan_components,
@@ -161,4 +170,7 @@ __all__ = [
     "upper_envelope",
     "check_allan",
     "upper_envelope_from_identification",
+    "bound_by_axis",
+    "curves_by_axis",
+    "axis_of",
 ]

@@ -272,7 +272,7 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
 
 
 def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None, sample_edf=None, labels=None,
-                horizon_s: float | None = None, confidence: float = 0.95) -> dict:
+                horizon_s: float | None = None, confidence: float = 0.95, tau_min_s: float | None = None) -> dict:
     r"""Allan-domain check that distinguishes a real shortfall from a component without counterpart.
 
     1. Component against component, **kept components only** (`kept`, e.g. the ``select_components``
@@ -286,15 +286,20 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
        identified component that the bound represents by another one.
     2. Total AV against every sample AV: the bound's total AV :math:`\sigma^2_b(\tau)` must reach the
        lower confidence limit of each sample AV, :math:`\hat\sigma^2 \nu/\chi^2_\nu(1-\alpha/M)` (level
-       `confidence`, Bonferroni over the M curves x taus compared), for :math:`\tau \le` `horizon_s`.
+       `confidence`, Bonferroni over the M curves x taus compared), over the application band
+       `tau_min_s` :math:`\le \tau \le` `horizon_s` (`tau_min_s` = 1/application.rate_hz: the filter never
+       averages over less than one step, and a model is not claimed for what it does not use).
        A sample AV below the bound's by chance is not a shortfall; one whose lower limit is above it is.
+       Ratios outside the band are reported (``outside_band``: the worst one, with its curve and tau) but
+       fail nothing; a shortfall inside the band always fails the check.
 
     Returns
     -------
     dict
         ``components``: name -> {status: ``ok`` | ``shortfall`` | ``no counterpart`` | ``not a state``,
         margin, tau_s, reason}; ``total``: {passed, worst_ratio, curve, tau_s, n_compared, shortfalls:
-        [{curve, tau_s, ratio}]}; ``passed``: no shortfall anywhere.
+        [{curve, tau_s, ratio}], tau_band_s: [lo, hi], outside_band: {n_compared, worst_ratio, curve, tau_s}};
+        ``passed``: no shortfall anywhere in the band.
     """
     from imupipe.models import FLICKER_AV
 
@@ -365,7 +370,12 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         if getattr(i, c, 0.0) > 0:
             comps[c] = {"status": "not a state", "margin": None, "tau_s": None,
                         "reason": f"{c} is not a Kalman-filter state; its AV is covered by the total check"}
-    total = {"passed": None, "worst_ratio": None, "curve": None, "tau_s": None, "n_compared": 0, "shortfalls": []}
+    t_lo = float(tau_min_s) if tau_min_s is not None else 0.0
+    t_hi = float(horizon_s) if horizon_s is not None else math.inf
+    if not (t_lo >= 0 and t_hi > t_lo):
+        raise ValueError(f"check_allan: the tau band needs 0 <= tau_min_s < horizon_s, got [{tau_min_s}, {horizon_s}] s")
+    total = {"passed": None, "worst_ratio": None, "curve": None, "tau_s": None, "n_compared": 0, "shortfalls": [],
+             "tau_band_s": [t_lo, t_hi], "outside_band": None}
     if sample_avar is not None:
         from scipy.stats import chi2
 
@@ -373,21 +383,33 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         nu = np.broadcast_to(np.asarray(2.0 if sample_edf is None else sample_edf, dtype=np.float64),
                              np.atleast_2d(np.asarray(sample_avar)).shape)[:, good]
         lab = labels if labels is not None else [f"curve {j}" for j in range(av.shape[0])]
-        band = t <= (horizon_s if horizon_s is not None else np.inf)
-        ok = np.isfinite(av) & (av > 0) & np.isfinite(nu) & (nu > 0) & band[None, :]
+        band = (t >= t_lo * (1 - 1e-12)) & (t <= t_hi)  # 1e-12: a tau of exactly one filter step is in the band
+        valid = np.isfinite(av) & (av > 0) & np.isfinite(nu) & (nu > 0)
+        ok = valid & band[None, :]
         M = int(ok.sum())
         total["n_compared"] = M
-        if M:
-            alpha = (1.0 - confidence) / M
-            lower = np.where(ok, av * nu / chi2.ppf(1.0 - alpha, np.where(ok, nu, 1.0)), 0.0)
-            mb = np.asarray(b.avar(t), dtype=np.float64)
+        mb = np.asarray(b.avar(t), dtype=np.float64)
+
+        def ratios(sel, m):
+            alpha = (1.0 - confidence) / m
+            lower = np.where(sel, av * nu / chi2.ppf(1.0 - alpha, np.where(sel, nu, 1.0)), 0.0)
             with np.errstate(divide="ignore", invalid="ignore"):
-                r = np.where(ok & (lower > 0), mb[None, :] / lower, np.inf)
+                return np.where(sel & (lower > 0), mb[None, :] / lower, np.inf)
+
+        if M:
+            r = ratios(ok, M)
             c, k = np.unravel_index(int(np.argmin(r)), r.shape)
             total.update(worst_ratio=float(r[c, k]), curve=str(lab[c]), tau_s=float(t[k]),
                          passed=bool(r[c, k] >= 1 - _EPS_BOUND))
             for cc, kk in zip(*np.nonzero(r < 1 - _EPS_BOUND)):
                 total["shortfalls"].append({"curve": str(lab[cc]), "tau_s": float(t[kk]), "ratio": float(r[cc, kk])})
+        out_sel = valid & ~band[None, :]
+        if out_sel.any():  # reported, never failed: outside what the application uses
+            r = ratios(out_sel, int(out_sel.sum()))
+            c, k = np.unravel_index(int(np.argmin(r)), r.shape)
+            total["outside_band"] = {"n_compared": int(out_sel.sum()), "worst_ratio": float(r[c, k]),
+                                     "curve": str(lab[c]), "tau_s": float(t[k]),
+                                     "note": "taus outside the application band: reported, not a failure"}
     passed = all(v["status"] != "shortfall" for v in comps.values()) and total["passed"] is not False
     return {"components": comps, "total": total, "passed": bool(passed), "confidence": float(confidence),
             "units": "tau s; ratios of Allan variances (dimensionless)"}

@@ -671,22 +671,38 @@ def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, p
     lo_f = np.logspace(math.log10(f_floor_hz), math.log10(f_min), n)[:-1]
     with np.errstate(divide="ignore", invalid="ignore"):
         lo_t = np.maximum(_upper_psd(spec_model, lo_f), _upper_psd(upper_model, lo_f))
+    f_above = None
     if upper_model is not None and upper_band == "all":  # the envelope on the sampled band too (continuous PSDs)
         f_max = float(prob.f.max())
         n_in = max(2, int(math.ceil(math.log10(f_max / f_min) * per_decade)) + 1)
         in_f = np.logspace(math.log10(f_min), math.log10(f_max), n_in)
-        lo_f = np.concatenate([lo_f, in_f])
-        lo_t = np.concatenate([lo_t, _upper_psd(upper_model, in_f)])
+        # ... and above the sampled band: the exported model is a continuous-time one, and a filter integrates
+        # its PSD at every frequency (a block mean over dt weights f > 1/(2 dt) by sinc^2, not by zero); the
+        # envelope (fitted to the full-rate Allan variance) and the spec sheet say what is there, the decimated
+        # bins do not. Up to three decades above the highest corner 1/(2 pi T) of their GM terms and the band
+        # top, then the asymptote N_m >= max(N_spec, N_up) (docs/method.md, "Bound over all frequencies").
+        corners = [1.0 / (2 * math.pi * T) for m in (spec_model, upper_model) if m is not None
+                   for s, T in m.gauss_markov if s > 0 and T > 0]
+        f_above = 1e3 * max([f_max] + corners)
+        n_up = max(2, int(math.ceil(math.log10(f_above / f_max) * per_decade)) + 1)
+        up_f = np.logspace(math.log10(f_max), math.log10(f_above), n_up)[1:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            up_t = np.maximum(_upper_psd(spec_model, up_f), _upper_psd(upper_model, up_f))
+        lo_f = np.concatenate([lo_f, in_f, up_f])
+        lo_t = np.concatenate([lo_t, _upper_psd(upper_model, in_f), up_t])
     elif upper_band not in ("all", "below"):
         raise ValueError(f"upper_band must be 'all' or 'below', got {upper_band!r}")
     prob.lo_f, prob.lo_t = lo_f, np.where(np.isfinite(lo_t), lo_t, 0.0)
     k_spec = spec_model.random_walk if spec_model is not None else 0.0
     k_up = upper_model.random_walk if upper_model is not None else 0.0
     prob.k2_req = max(k_spec, k_up) ** 2
-    prob.n2_req = (spec_model.white if spec_model is not None else 0.0) ** 2
+    n_spec = spec_model.white if spec_model is not None else 0.0
+    n_up = upper_model.white if (upper_model is not None and upper_band == "all") else 0.0
+    prob.n2_req = max(n_spec, n_up) ** 2
     return {"f_floor_hz": float(f_floor_hz), "n_grid": int(lo_f.size), "f_top_hz": f_min,
-            "K_required": math.sqrt(prob.k2_req), "K_spec": float(k_spec), "K_upper": float(k_up),
-            "N_required": math.sqrt(prob.n2_req), "upper_band": upper_band,
+            "f_above_hz": f_above, "K_required": math.sqrt(prob.k2_req), "K_spec": float(k_spec),
+            "K_upper": float(k_up), "N_required": math.sqrt(prob.n2_req), "N_spec": float(n_spec),
+            "N_upper": float(n_up), "upper_band": upper_band,
             "flicker": "a spec or identified flicker is bounded down to f_floor_hz (no K is forced by it)",
             "units": "Hz; K u/sqrt(s); N u/sqrt(Hz)"}
 
@@ -918,7 +934,8 @@ def bound_psd(
                                         f"{allf['K_upper']:.6g})")
             comps = [c for c in BOUND_COMPONENTS if c in comps or c == "random_walk"]
         if prob.n2_req > 0 and "white" not in comps:
-            decisions["white"] = "required by the all-frequency bound (spec white noise, f -> inf)"
+            decisions["white"] = ("required by the all-frequency bound (f -> inf: N >= max of the spec white noise "
+                                  "and the identified upper envelope's)")
             comps = [c for c in BOUND_COMPONENTS if c in comps or c == "white"]
         return comps
 

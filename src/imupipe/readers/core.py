@@ -277,18 +277,27 @@ def read_dataset(
             if sheet_units.get(key) is not None and sheet_units[key] != FROM_FILE:
                 _unit_factor(sheet_units[key], key[0], f"{where}: {key[0]}_unit")
 
-    if fmt == "csv":
-        raw = _load_text(path, specs, delimiter, time_column, time_unit, where)
-    elif fmt == "npy":
-        raw = _load_npy(path, specs, time_column, time_unit, where)
-    elif fmt == "npz":
-        raw = _load_npz(path, specs, variable, time_column, time_unit, where)
-    elif fmt == "netcdf":
-        raw = _load_netcdf(path, specs, variable, time_column, time_unit, where)
-    elif fmt == "rdata":
-        raw = _load_rdata(path, specs, variable, time_column, time_unit, where)
-    else:
-        raw = _load_rosbag(path, specs, topic, time_column, where)
+    try:
+        if fmt == "csv":
+            raw = _load_text(path, specs, delimiter, time_column, time_unit, where)
+        elif fmt == "npy":
+            raw = _load_npy(path, specs, time_column, time_unit, where)
+        elif fmt == "npz":
+            raw = _load_npz(path, specs, variable, time_column, time_unit, where)
+        elif fmt == "netcdf":
+            raw = _load_netcdf(path, specs, variable, time_column, time_unit, where)
+        elif fmt == "rdata":
+            raw = _load_rdata(path, specs, variable, time_column, time_unit, where)
+        else:
+            raw = _load_rosbag(path, specs, topic, time_column, where)
+    except DataError as exc:
+        # a file rewritten during the read ends in a torn row or a short table: say that it changed (the
+        # parse error that followed is chained), not that its row N is malformed
+        try:
+            check_unchanged(path, before)
+        except DataError as changed:
+            raise changed from exc
+        raise
     check_unchanged(path, before)
     row_map = None  # filled record row -> file row (-1: inserted), after gap filling
 
