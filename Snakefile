@@ -16,7 +16,7 @@
 #   figures/..., tables/{spec}/inflation.{md,csv,html}                              (figures, tables)
 #   summary.md, summary.html, report/...       run summary, report's first page     (summary, report_file)
 #   benchmarks/{rule}/...tsv                   Snakemake's per-job wall time and peak memory
-# Only bound_axis, bound, figures and tables read config/specs/{spec}.yaml.
+# Only bound_axis, bound, verify, contract, figures and tables read config/specs/{spec}.yaml.
 
 from snakemake.utils import min_version
 

@@ -270,3 +270,18 @@ def test_clean_outputs_keeps_the_simulated_recordings(dag_module, tmp_path):
     dag_module.clean_outputs(tmp_path)
     assert (sim / "sim01.nc").read_text() == "data"
     assert not (tmp_path / "results" / "paper" / "psd").exists() and not (tmp_path / "logs").exists()
+
+
+def test_axis_memory_table():
+    """benchmarks/axis_memory.py's table: per rule the two peaks (MB) and the larger over one axis."""
+    sys.path.insert(0, str(BENCH))
+    try:
+        import axis_memory
+    finally:
+        sys.path.remove(str(BENCH))
+    rows = {rule: {"bench": 50.0, "hwm": 72.0} for rule in axis_memory.RULES}
+    rows["psd"] = {"bench": None, "hwm": 18.0}
+    text = axis_memory.table({10.0: {"axis_mb": 36.0, **rows}})
+    assert "| ingest | 50 / 72 | 2.00 |" in text
+    assert "| psd | n/a / 18 | 0.50 |" in text
+    assert axis_memory.targets("m")[0] == "results/m/allan/sim01/gyro/x.nc"

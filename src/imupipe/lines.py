@@ -297,14 +297,27 @@ def detection_threshold(alpha: float, n_tested: int, n_segments: int = 1, floor_
     return float(math.exp(0.5 * (a + b)))
 
 
+#: Samples transformed per batch in :func:`_spectrum` (whole segments, at least one): the memory the spectrum
+#: needs beyond the series is a few times 8 x this many bytes, whatever the record's length.
+SPECTRUM_BATCH = 1 << 18
+
+
 def _spectrum(x: np.ndarray, rate: float, nperseg: int):
-    """One-sided density (u^2/Hz) averaged over non-overlapping mean-removed Hann segments, and K."""
+    """One-sided density (u^2/Hz) averaged over non-overlapping mean-removed Hann segments, and K.
+
+    The K periodograms are summed a batch of segments at a time (:data:`SPECTRUM_BATCH` samples), then divided
+    by K: the same average as transforming all segments at once, without K segments' worth of copies."""
     K = x.size // nperseg
-    seg = x[: K * nperseg].reshape(K, nperseg)
-    seg = seg - seg.mean(axis=1, keepdims=True)
     w = np.hanning(nperseg + 1)[:-1]  # periodic Hann (exact main-lobe/ENBW figures)
-    X = np.fft.rfft(seg * w, axis=1)
-    p = (X.real**2 + X.imag**2).mean(axis=0) * (2.0 / (rate * np.sum(w * w)))
+    step = max(1, SPECTRUM_BATCH // nperseg)
+    total = np.zeros(nperseg // 2 + 1)
+    for k0 in range(0, K, step):
+        seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
+        seg = seg - seg.mean(axis=1, keepdims=True)
+        seg *= w
+        X = np.fft.rfft(seg, axis=1)
+        total += (X.real**2 + X.imag**2).sum(axis=0)
+    p = total * (2.0 / (K * rate * np.sum(w * w)))
     p[0] /= 2.0
     if nperseg % 2 == 0:
         p[-1] /= 2.0

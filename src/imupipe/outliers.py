@@ -64,6 +64,56 @@ def _blocks(n: int, window: int) -> np.ndarray:
     return np.arange(nb) * window
 
 
+#: Samples per pass of the rule in :func:`_hampel_blocks` (whole blocks, at least one): the memory the rule
+#: needs beyond the series is a few times 8 x this many bytes, whatever the record's length.
+HAMPEL_BATCH = 1 << 18
+
+
+def _hampel_blocks(x: np.ndarray, window: int, k: float):
+    """The rule of :func:`hampel` without sample-length work arrays: (outlier indices, block medians, block
+    robust sds, samples per block, block length used). Blocks are processed :data:`HAMPEL_BATCH` samples at a
+    time; every number equals what whole-array arithmetic gives (each block and each sample is computed alone)."""
+    window = int(window)
+    if window < 5:
+        raise ValueError(f"outlier window must be >= 5 samples, got {window}")
+    if not k > 0:
+        raise ValueError(f"outlier threshold k must be > 0, got {k!r}")
+    n = x.size
+    if n < window:
+        window = n
+    starts = _blocks(n, window)
+    nb = starts.size
+    med, mad = np.empty(nb), np.empty(nb)
+    step = max(1, HAMPEL_BATCH // window)
+    for b0 in range(0, nb, step):
+        b1 = min(nb, b0 + step)
+        part = x[b0 * window : b1 * window].reshape(b1 - b0, window)
+        med[b0:b1] = np.median(part, axis=1)
+        mad[b0:b1] = np.median(np.abs(part - med[b0:b1, None]), axis=1)
+    tail = x[nb * window :]
+    if tail.size:  # the partial block joins the last one
+        last = x[(nb - 1) * window :]
+        med[-1] = np.median(last)
+        mad[-1] = np.median(np.abs(last - med[-1]))
+    scale = MAD_TO_SIGMA * mad
+    zero = scale == 0
+    if np.any(zero):
+        for b in np.flatnonzero(zero):
+            seg = x[starts[b] : (starts[b] + window if b < nb - 1 else n)]
+            scale[b] = math.sqrt(math.pi / 2.0) * float(np.mean(np.abs(seg - med[b])))
+    scale = np.where(scale > 0, scale, np.inf)
+    counts = np.full(nb, window)
+    counts[-1] += tail.size
+    found = []
+    for b0 in range(0, nb, step):
+        b1 = min(nb, b0 + step)
+        lo, hi = b0 * window, (b1 * window if b1 < nb else n)
+        center = np.repeat(med[b0:b1], counts[b0:b1])
+        sc = np.repeat(scale[b0:b1], counts[b0:b1])
+        found.append(lo + np.flatnonzero(np.abs(x[lo:hi] - center) > k * sc))
+    return np.concatenate(found), med, scale, counts, window
+
+
 def hampel(x, window: int = 100, k: float = 7.0):
     """Block-wise Hampel rule (module docstring).
 
@@ -86,37 +136,10 @@ def hampel(x, window: int = 100, k: float = 7.0):
         Robust standard deviation (1.4826 MAD) at every sample, u.
     """
     x = np.asarray(x, dtype=np.float64).ravel()
-    window = int(window)
-    if window < 5:
-        raise ValueError(f"outlier window must be >= 5 samples, got {window}")
-    if not k > 0:
-        raise ValueError(f"outlier threshold k must be > 0, got {k!r}")
-    n = x.size
-    if n < window:
-        window = n
-    starts = _blocks(n, window)
-    nb = starts.size
-    main = x[: nb * window].reshape(nb, window)
-    med = np.median(main, axis=1)
-    mad = np.median(np.abs(main - med[:, None]), axis=1)
-    tail = x[nb * window :]
-    if tail.size:  # the partial block joins the last one
-        last = np.concatenate([main[-1], tail])
-        med[-1] = np.median(last)
-        mad[-1] = np.median(np.abs(last - med[-1]))
-    scale = MAD_TO_SIGMA * mad
-    zero = scale == 0
-    if np.any(zero):
-        for b in np.flatnonzero(zero):
-            seg = x[starts[b] : (starts[b] + window if b < nb - 1 else n)]
-            scale[b] = math.sqrt(math.pi / 2.0) * float(np.mean(np.abs(seg - med[b])))
-    scale = np.where(scale > 0, scale, np.inf)
-    counts = np.full(nb, window)
-    counts[-1] += tail.size
-    center = np.repeat(med, counts)
-    sc = np.repeat(scale, counts)
-    mask = np.abs(x - center) > k * sc
-    return mask, center, sc
+    idx, med, scale, counts, _ = _hampel_blocks(x, window, k)
+    mask = np.zeros(x.size, dtype=bool)
+    mask[idx] = True
+    return mask, np.repeat(med, counts), np.repeat(scale, counts)
 
 
 def expected_false_count(n: int, k: float = 7.0, window: int = 100) -> float:
@@ -197,9 +220,9 @@ def screen_outliers(x, policy: str = "warn", k: float = 7.0, window: int = 100, 
     if policy not in POLICIES:
         raise ValueError(f"outlier policy must be one of {POLICIES}, got {policy!r}")
     x = np.asarray(x, dtype=np.float64).ravel()
-    mask, center, scale = hampel(x, window=window, k=k)
-    idx = np.flatnonzero(mask)
-    dev = float(np.max(np.abs(x[idx] - center[idx]))) if idx.size else 0.0
+    idx, med, _, _, used = _hampel_blocks(x, window, k)  # no sample-length arrays: memory about the series
+    center_idx = med[np.minimum(idx // used, med.size - 1)]  # the partial last block belongs to the one before
+    dev = float(np.max(np.abs(x[idx] - center_idx))) if idx.size else 0.0
     report = OutlierReport(
         label=label, n_samples=x.size, n_outliers=int(idx.size), k=float(k), window=int(window), policy=policy,
         expected_false=expected_false_count(x.size, k, window), indices=idx, max_abs_deviation=dev, units=units,
@@ -220,7 +243,7 @@ def screen_outliers(x, policy: str = "warn", k: float = 7.0, window: int = 100, 
         )
     if policy == "remove" and idx.size:
         x = x.copy()
-        x[idx] = center[idx]
+        x[idx] = center_idx
     return x, report
 
 
@@ -250,8 +273,17 @@ def removal_effect(x, x_clean, rate_hz: float) -> dict:
     x_clean = np.asarray(x_clean, dtype=np.float64).ravel()
     if x.size != x_clean.size or x.size < 2:
         raise ValueError(f"removal_effect: series of {x.size} and {x_clean.size} samples (expected equal, >= 2)")
-    before = 0.5 * float(np.mean(np.diff(x) ** 2))
-    after = 0.5 * float(np.mean(np.diff(x_clean) ** 2))
+    before = 0.5 * _mean_square_step(x)
+    after = 0.5 * _mean_square_step(x_clean)
     ratio = after / before if before > 0 else 1.0
     return {"tau0_s": 1.0 / float(rate_hz), "avar_tau0_before": before, "avar_tau0_after": after,
             "avar_ratio": ratio, "white_noise_ratio": math.sqrt(ratio)}
+
+
+def _mean_square_step(x: np.ndarray) -> float:
+    """mean((x[i+1] - x[i])^2) over the series, :data:`HAMPEL_BATCH` differences at a time (no copy of x)."""
+    total = 0.0
+    for i in range(0, x.size - 1, HAMPEL_BATCH):
+        d = np.diff(x[i : i + HAMPEL_BATCH + 1])
+        total += float(np.dot(d, d))
+    return total / (x.size - 1)

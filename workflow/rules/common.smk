@@ -335,11 +335,13 @@ def final_outputs():
 # 5 x 10 h at 125 Hz, one axis = 36 MB of float64 samples, 2 loaded cores; python benchmarks/dag.py):
 # ingest 275 MB (a 216 MB recording), allan 115, decimate 95, psd 82, stationarity 187, stationarity_summary 26,
 # stack 73, identify 114, bound_axis 119, bound 128, kf 69, kalibr 44, figures 141, inflation_effect 91,
-# tables 44; longest job 14 s. At 40 h (one dataset, one axis = 144 MB): simulate 1843 MB, ingest 913 (whole
-# record; per channel since, ingest_mem_mb: 507), allan 207,
-# stationarity 353 (its calibrated null grows with the record), psd 77. The jobs that hold full-rate samples get a fixed overhead plus a multiple of
-# their input's size (ingest: the recording; allan, decimate: one axis); the others about twice the measured
-# peak. Wall time: 10 min, plus 1 min per 20 MB of full-rate input, far above the measured times.
+# tables 44; longest job 14 s. Per-axis and per-dataset jobs at 10 h / 40 h (one dataset, one axis = 36 / 144
+# MB; python benchmarks/axis_memory.py, the larger of max_rss and the sampled VmHWM): ingest 109 / 217 MB,
+# allan 124 / 231, decimate 101 / 210, psd 89 / 90, stationarity 177 / 299 (its calibrated null grows with the
+# record), lines 130 / 244, outliers 130 / 240, simulate 573 / 2085. The jobs that hold full-rate samples get a
+# fixed overhead plus a multiple of their input's size (ingest: per channel written; allan, decimate, lines,
+# outliers: one axis); the others about twice the measured peak. Wall time: 10 min, plus 1 min per 20 MB of
+# full-rate input, far above the measured times.
 MEM_MB = {
     "psd": 200,
     "stationarity": 800,
@@ -382,17 +384,17 @@ def simulate_mem_mb(wildcards):
 
 
 def ingest_mem_mb(wildcards, input):
-    """Text, R and bag records are read whole (the readers parse every channel at once): 100 MB + 1.5 x the
-    file size. netCDF and npy/npz records are read one channel at a time (ingest.py): 100 MB + 3.5 x the
-    file size per channel written (the read channel, the range check's temporaries and the write; measured
-    peak at 125 Hz: 171 MB at 10 h, 507 MB at 40 h = 3.2 x one axis's 144 MB; an over-estimate when the file
-    holds more variables than the dataset writes)."""
+    """netCDF and npy/npz records are read one channel at a time (ingest.py, readers.read_channel): 100 MB + 3.5
+    x the file size per channel written (measured peak at 125 Hz without a time column: 109 MB at 10 h, 217 MB
+    at 40 h = 73 MB + one axis; a time column adds its samples and intervals, ~3.2 x one axis in all; an
+    over-estimate when the file holds more variables than the dataset writes). Text records are parsed once
+    per channel, R and bag records whole: 100 MB + 2 x the file size."""
     size = input.size_mb
     fmt = str(DATASETS[wildcards.dataset].get("format", "auto")).lower()
     suffix = Path(DATASETS[wildcards.dataset]["path"]).suffix.lower()
     if SIMULATION or fmt in ("netcdf", "nc", "npy", "npz") or (fmt == "auto" and suffix in (".nc", ".nc4", ".cdf", ".npy", ".npz")):
         return int(100 + 3.5 * size / max(1, len(channels_of(wildcards.dataset))))
-    return int(100 + 1.5 * size)
+    return int(100 + 2 * size)
 
 
 def axis_mem_mb(wildcards, input):

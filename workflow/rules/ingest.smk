@@ -28,9 +28,10 @@ rule simulate:
 # One ingest rule per set of channels: a dataset's sheet row may name one, two or three axes of a sensor
 # (AXES_OF, common.smk), and a rule's outputs cannot depend on the dataset. The rule of the datasets with
 # every axis of every configured sensor is `ingest`; the others are `ingest_<channels>` (e.g.
-# `ingest_gyro_x`), each constrained to its datasets. netCDF and npy/npz records are read one channel at a
-# time (readers.read_channel: peak memory about one channel); text, R and bag records are parsed whole once
-# (their layout has no per-channel access), then written one channel after the other.
+# `ingest_gyro_x`), each constrained to its datasets. netCDF, npy/npz and text records are read one channel
+# at a time (readers.read_channel: peak memory one channel plus a fixed overhead; a text file is parsed once
+# per channel); R and bag records are parsed whole once (their layout has no per-channel access), then
+# written one channel after the other.
 INGEST_RULES = ingest_rule_groups()
 
 for _rule_name, (_chans, _names) in INGEST_RULES.items():

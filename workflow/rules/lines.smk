@@ -3,8 +3,9 @@
 # files with lines.policy (per sensor) and lines.application_band_hz.
 
 
-# memory: the axis and its segments' spectra: 80 MB + 4 x the axis file's size
-MEM_MB["lines"] = lambda wildcards, input: int(80 + 4 * input.size_mb)
+# memory: the axis and one batch of its segments' spectra (imupipe.lines.SPECTRUM_BATCH); measured at 125 Hz:
+# 130 MB at 10 h, 244 MB at 40 h (100 MB + one axis): axis_mem_mb, 80 MB + 2 x the axis file's size
+MEM_MB["lines"] = axis_mem_mb
 RUNTIME_MIN["lines"] = full_rate_runtime
 
 

@@ -1,7 +1,8 @@
 """Read one recording (any supported format), convert to SI, validate, write one file per channel (rule ingest).
 
-Memory: netCDF and npy/npz records are read one channel at a time (readers.read_channel: one variable, or one
-memory-mapped column), so the peak is about one channel; text, R and bag records have no per-channel access
+Memory: netCDF, npy/npz and text records are read one channel at a time (readers.read_channel: one variable,
+one column streamed in blocks of rows, one named array; a text file is parsed once per channel, keeping only
+that column), so the peak is one channel plus a fixed overhead; R and bag records have no per-channel access
 and are parsed whole once (readers.read_dataset_row), then written one channel after the other. Only the
 channels the dataset sheet names (or all three axes of a sensor naming none) are read and written.
 
@@ -14,11 +15,10 @@ import logging
 from pathlib import Path
 
 from imupipe.io import run_job, write_series
-from imupipe.readers import read_channel, read_dataset_row, sheet_row_to_kwargs
-from imupipe.readers.core import _format_of
+from imupipe.readers import format_of, read_channel, read_dataset_row, sheet_row_to_kwargs
 from imupipe.units import SI_UNITS
 
-PER_CHANNEL_FORMATS = ("netcdf", "npy", "npz")
+PER_CHANNEL_FORMATS = ("netcdf", "npy", "npz", "csv")
 
 
 def _log_record(rec, dataset: str) -> None:
@@ -39,7 +39,7 @@ def channels(row: dict, keys: list, dataset: str):
     """(sensor, axis, samples in SI, attributes) of each channel `keys` ("gyro_x", ...), one at a time."""
     kwargs = sheet_row_to_kwargs(row, base_dir=None)  # recording paths are relative to the working directory
     pairs = [tuple(k.split("_", 1)) for k in keys]
-    fmt = _format_of(Path(kwargs["path"]), kwargs["format"])
+    fmt = format_of(Path(kwargs["path"]), kwargs["format"])
     if fmt in PER_CHANNEL_FORMATS:
         path, kwargs["format"] = kwargs.pop("path"), fmt
         for i, key in enumerate(pairs):
@@ -67,6 +67,7 @@ def write_channel(path: str, x, sensor: str, axis: str, dataset: str, meta: dict
 def main(row: dict, keys: list, outputs: dict, dataset: str) -> None:
     for sensor, axis, x, meta in channels(row, keys, dataset):
         write_channel(outputs[f"{sensor}_{axis}"], x, sensor, axis, dataset, meta)
+        del x  # else this channel stays alive while the next one is read: two channels in memory
 
 
 if __name__ == "__main__":

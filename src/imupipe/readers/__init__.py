@@ -55,6 +55,7 @@ __all__ = [
     "check_values",
     "missing_channel_columns",
     "parse_axis_map",
+    "format_of",
     "probe",
     "probe_row",
     "read_dataset",
@@ -72,6 +73,6 @@ from imupipe.readers.checks import (  # noqa: F401
     validate_dataset_name,
 )
 from imupipe.readers.core import (  # noqa: F401
-    FROM_FILE, FilledGap, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
+    FROM_FILE, FilledGap, format_of, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
 )
 from imupipe.readers.probe import Probe, probe, probe_row  # noqa: F401

@@ -187,6 +187,13 @@ def check_values(x: np.ndarray, sensor: str, column: str, where: str, row_text=N
     DataError
     """
     row_text = row_text or (lambda r: f"row {r} (0-based)")
+    # min and max need no temporary array (a NaN propagates into both, an infinity into one of them); the
+    # element-wise arrays that name the culprit are built only when a check fails
+    lo, hi = (float(x.min()), float(x.max())) if x.size else (0.0, 0.0)
+    if math.isfinite(lo) and math.isfinite(hi):
+        top = max(-lo, hi)
+        if top <= PLAUSIBLE_SI[sensor] and not 0.0 < top < SQUARE_SAFE_MIN:
+            return
     a = np.abs(x)
     finite = np.isfinite(a)
     if not finite.all():

@@ -320,6 +320,8 @@ def read_dataset(
     if n == 0:
         raise DataError(f"{where}: no samples")
     for key, x in raw.data.items():
+        if np.isfinite(x.min()) and np.isfinite(x.max()):  # NaN propagates: no temporary array when all is well
+            continue
         finite = np.isfinite(x)
         if not finite.all():
             row = int(np.argmin(finite))
@@ -467,6 +469,13 @@ def read_dataset(
     )
 
 
+def format_of(path: str | Path, format: str | None = "auto") -> str:
+    """The reader format (a value of :data:`FORMATS`: csv, netcdf, npy, npz, rdata, rosbag) of `path` given as
+    `format`; ``"auto"`` (or blank) picks by the extension, a directory is a ROS 2 bag. Raises
+    :class:`DataError` for an unknown format or extension."""
+    return _format_of(Path(path), format)
+
+
 def _format_of(path: Path, format: str | None) -> str:
     key = "auto" if _blank(format) else str(format).strip().lower()
     if key not in FORMATS:
@@ -488,7 +497,7 @@ def _find_gaps(dt: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
     return np.flatnonzero(dt > gap_factor * nominal)
 
 
-def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
+def _nominal_rate(t: np.ndarray, rate, gap_factor: float, dt: np.ndarray | None = None) -> tuple[float, float]:
     """(rate in Hz used to find gaps, mean rate in Hz over the intervals that are not gaps).
 
     The mean interval over the record (gap-free intervals only) is the rate's estimate: jitter and a
@@ -496,13 +505,13 @@ def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]
     would report the clock's quantum (1/0.003 s = 333.3 Hz for 300 Hz stamped in ms). Gaps are found
     against `rate` when known, else against the median interval, then the mean is taken without them.
     """
-    dt = np.diff(t)
+    dt = np.diff(t) if dt is None else dt  # the caller's intervals when it has them: no second copy
     guess = rate if rate is not None else 1.0 / float(np.median(dt))
     ok = dt <= gap_factor / guess
-    mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else guess
+    mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
     if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
         ok = dt <= gap_factor / mean_rate
-        mean_rate = float(np.count_nonzero(ok) / dt[ok].sum()) if ok.any() else mean_rate
+        mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else mean_rate
     return (rate if rate is not None else mean_rate), mean_rate
 
 
@@ -541,7 +550,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
     dt = np.diff(t)
     _check_increasing(t, dt, tname, where, row_text)
-    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
+    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor, dt)
     if rate_hz is not None and abs(mean_rate - rate_hz) > rtol * rate_hz:
         raise DataError(
             f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
@@ -632,7 +641,7 @@ def _fill_gaps(raw: _Raw, rate, gap_factor, max_missing, where, row_text):
     t = raw.time
     dt = np.diff(t)
     _check_increasing(t, dt, raw.time_name, where, row_text)
-    nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
+    nominal_rate, _ = _nominal_rate(t, rate, gap_factor, dt)
     gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
     missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
     fill = missing <= max_missing

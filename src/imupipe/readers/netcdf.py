@@ -27,8 +27,8 @@ def _load_netcdf(path, specs, variable, time_column, time_unit, where) -> _Raw:
         ds.set_auto_maskandscale(True)
         available = list(ds.variables)
 
-        def read(name: str) -> np.ndarray:
-            return np.ma.filled(np.ma.asarray(ds.variables[name][...], dtype=np.float64), np.nan)
+        def read(name: str, column: int | None = None) -> np.ndarray:
+            return _read_float64(ds.variables[name], column)
 
         data, names, file_units = {}, {}, {}
         if not _blank(variable):
@@ -49,10 +49,9 @@ def _load_netcdf(path, specs, variable, time_column, time_unit, where) -> _Raw:
                 if labels is None:
                     raise DataError(f"{where}: channels must be 0-based indices into variable {variable!r}")
                 specs = _default_specs(labels, where)
-            matrix = read(variable)
             for key, spec in specs.items():
                 i = _resolve(spec, labels, var.shape[1], _chname(key), f"{where} variable {variable!r}")
-                data[key] = np.ascontiguousarray(matrix[:, i])
+                data[key] = read(variable, i)
                 names[key] = f"{variable}[:, {i}]"
                 if getattr(var, "units", None):
                     file_units[key] = str(var.units)
@@ -95,3 +94,23 @@ def _load_netcdf(path, specs, variable, time_column, time_unit, where) -> _Raw:
     )
 
 
+#: Samples per read of :func:`_read_float64` (2 MB of float64): the memory a read needs beyond its result.
+READ_CHUNK = 1 << 18
+
+
+def _read_float64(var, column: int | None = None) -> np.ndarray:
+    """Samples of a netCDF variable as float64, masked (fill) values as NaN, packed values unpacked.
+
+    A 1-D variable, or column `column` of a 2-D one, is read in slabs of :data:`READ_CHUNK` samples into
+    one float64 buffer, so reading a channel of n samples needs 8 n bytes plus one slab (netCDF4 returns
+    a masked array per read and unmasking it whole would add a second copy). Other shapes are read whole.
+    """
+    if var.ndim == 1 and column is None or var.ndim == 2 and column is not None:
+        n = var.shape[0]
+        out = np.empty(n, dtype=np.float64)
+        for i in range(0, n, READ_CHUNK):
+            part = var[i : i + READ_CHUNK] if column is None else var[i : i + READ_CHUNK, column]
+            out[i : i + READ_CHUNK] = np.ma.filled(np.ma.asarray(part, dtype=np.float64), np.nan)
+        return out
+    data = np.ma.filled(np.ma.asarray(var[...], dtype=np.float64), np.nan)
+    return data if column is None else np.ascontiguousarray(data[:, column])

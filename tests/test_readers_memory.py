@@ -1,0 +1,192 @@
+"""Readers stream one channel: the values equal the whole-array reading at every block boundary, and reading
+one channel of a wide record raises the process's peak memory by about one channel, not the record.
+
+The block sizes are patched small (a few rows) so that a few hundred samples cross many block boundaries,
+Fortran-ordered and structured arrays included. The memory test runs each read in a fresh interpreter and
+compares its peak resident set (``VmHWM``, Linux) before and after the read; the allowance over the one
+channel (8 n bytes) is derived from the block sizes (see ALLOWANCE_MB)."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import imupipe.readers.arrays as arrays
+import imupipe.readers.netcdf as ncmod
+import imupipe.readers.text as text
+from imupipe.readers import read_channel, read_dataset
+
+RATE = 100.0  # Hz
+N = 301  # samples: not a multiple of any patched block size
+KEYS = [("gyro", "x"), ("gyro", "y"), ("accel", "z")]
+UNITS = {"gyro": "rad/s", "accel": "m/s^2"}
+
+
+@pytest.fixture
+def table(rng):
+    """Time (s) and three channels in SI, columns t, gyro_x, gyro_y, accel_z."""
+    t = np.arange(N) / RATE
+    return np.column_stack([t, rng.normal(0, 1e-3, N), rng.normal(0, 1e-3, N), rng.normal(-9.8, 1e-2, N)])
+
+
+@pytest.fixture(autouse=True)
+def small_blocks(monkeypatch):
+    monkeypatch.setattr(arrays, "READ_ROWS", 7)
+    monkeypatch.setattr(ncmod, "READ_CHUNK", 11)
+    monkeypatch.setattr(text, "READ_LINES", 13)
+
+
+def _check(rec, table, with_time=True):
+    for i, key in enumerate(KEYS, start=1):
+        np.testing.assert_array_equal(rec[key], table[:, i])
+    assert rec.rate_hz == RATE
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_npy_streamed_columns(tmp_path, table, order):
+    path = tmp_path / "imu.npy"
+    np.save(path, np.asarray(table, order=order))
+    assert np.load(path, mmap_mode="r").flags.f_contiguous == (order == "F")
+    channels = {k: i for i, k in enumerate(KEYS, start=1)}
+    _check(read_dataset(path, "npy", RATE, channels, UNITS, time_column=0), table)
+    one = read_channel(("gyro", "y"), path, "npy", rate_hz=RATE, channels=channels, units=UNITS, time_column=0)
+    np.testing.assert_array_equal(one["gyro", "y"], table[:, 2])
+
+
+def test_npy_structured_streamed(tmp_path, table):
+    arr = np.zeros(N, dtype=[("t", "<f8"), ("wx", ">f4"), ("wy", "<f8"), ("az", "<f8")])
+    for i, name in enumerate(arr.dtype.names):
+        arr[name] = table[:, i]
+    path = tmp_path / "imu.npy"
+    np.save(path, arr)
+    rec = read_dataset(path, "npy", RATE, dict(zip(KEYS, ["wx", "wy", "az"])), UNITS, time_column="t")
+    expected = table.copy()
+    expected[:, 1] = table[:, 1].astype(">f4")  # the file holds float32: the reader widens it exactly
+    _check(rec, expected)
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_npz_matrix_streamed(tmp_path, table, order):
+    path = tmp_path / "imu.npz"
+    np.savez_compressed(path, imu=np.asarray(table, order=order), other=np.ones(3))
+    channels = {k: i for i, k in enumerate(KEYS, start=1)}
+    _check(read_dataset(path, "npz", RATE, channels, UNITS, variable="imu", time_column=0), table)
+
+
+def test_netcdf_streamed_with_fill_values_and_matrix(tmp_path, table):
+    import netCDF4
+
+    path = tmp_path / "imu.nc"
+    with netCDF4.Dataset(path, "w") as ds:
+        ds.createDimension("sample", N)
+        ds.createDimension("col", 4)
+        for i, name in enumerate(["t", "wx", "wy", "az"]):
+            v = ds.createVariable(name, "f8", ("sample",), fill_value=-999.0)
+            v[:] = table[:, i]
+        m = ds.createVariable("imu", "f8", ("sample", "col"))
+        m[:] = table
+    names = dict(zip(KEYS, ["wx", "wy", "az"]))
+    _check(read_dataset(path, "netcdf", RATE, names, UNITS, time_column="t", time_unit="s"), table)
+    channels = {k: i for i, k in enumerate(KEYS, start=1)}
+    _check(read_dataset(path, "netcdf", RATE, channels, UNITS, variable="imu"), table)
+    with netCDF4.Dataset(path, "a") as ds:  # a masked sample in the last, partial block becomes NaN
+        ds.variables["wy"][N - 2] = np.ma.masked
+    assert np.isnan(ncmod._read_float64(netCDF4.Dataset(path).variables["wy"]))[N - 2]
+    with pytest.raises(Exception, match=r"gyro_y .* non-finite sample \(nan\) at row 299"):
+        read_dataset(path, "netcdf", RATE, names, UNITS)
+
+
+def test_csv_streamed_with_comments_and_blank_lines(tmp_path, table):
+    lines = ["# a comment line", "t,wx,wy,az"]
+    for i, row in enumerate(table):
+        lines.append(",".join(repr(float(v)) for v in row) + ("  # note" if i % 17 == 0 else ""))
+        if i % 29 == 0:
+            lines += ["", "# another comment"]
+    path = tmp_path / "imu.csv"
+    path.write_text("\n".join(lines))  # no newline after the last row
+    names = dict(zip(KEYS, ["wx", "wy", "az"]))
+    _check(read_dataset(path, "csv", RATE, names, UNITS, time_column="t"), table)
+    one = read_channel("accel_z", path, "csv", rate_hz=RATE, channels=names, units=UNITS)
+    np.testing.assert_array_equal(one["accel", "z"], table[:, 3])
+
+
+def test_csv_bad_row_in_a_later_block_is_named(tmp_path, table):
+    rows = [",".join(repr(float(v)) for v in row) for row in table]
+    rows[200] += ",1.0"  # one field too many, far past the first block
+    path = tmp_path / "imu.csv"
+    path.write_text("t,wx,wy,az\n" + "\n".join(rows) + "\n")
+    with pytest.raises(Exception, match=r"line 202 has too many fields \(5, expected 4\)"):
+        read_dataset(path, "csv", RATE, dict(zip(KEYS, ["wx", "wy", "az"])), UNITS, time_column="t")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# peak memory of reading one channel of a wide record
+# ---------------------------------------------------------------------------------------------------------
+N_BIG = 1 << 22  # rows: one float64 channel = 33.5 MB
+N_TEXT = 1 << 19  # text rows (writing text is slow): one channel = 4.2 MB
+#: Allowed peak beyond the channel's 8 n bytes (MB). Binary: one block of 2**16 rows x 4 columns of float64
+#: (2.1 MB) read as bytes and as the column being copied, zlib's buffers for npz, netCDF-4's slab of 2**18
+#: samples with its mask and unmasked copy (~4.5 MB); text: one block of 2**14 lines (~270 B per line as
+#: Python strings, parser buffers and the parsed floats: ~4.5 MB); plus ~4 MB for the allocator's arenas and
+#: page rounding: 10 MB. Reading the whole record instead (what the readers did) costs 4 x 8 n bytes (npy:
+#: the mapped file's pages; npz, text: the table), or 2 x 8 n for netCDF-4: over the bound with these n.
+ALLOWANCE_MB = {"npy": 10.0, "npz": 10.0, "netcdf": 10.0, "csv": 10.0}
+
+_PROBE = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    from imupipe.readers import read_channel
+    def status(key):
+        for line in open("/proc/self/status"):
+            if line.startswith(key):
+                return int(line.split()[1]) * 1024
+    path, small, fmt = sys.argv[1:4]
+    kw = dict(rate_hz=100.0, channels={"gyro_x": sys.argv[4]}, units={"gyro": "rad/s"})
+    if len(sys.argv) > 5:
+        kw["variable"] = sys.argv[5]
+    read_channel("gyro_x", small, fmt, **kw)  # imports and first-call costs paid before the baseline
+    before = status("VmRSS")
+    assert status("VmHWM") - before < 64 << 20
+    x = read_channel("gyro_x", path, fmt, **kw)["gyro", "x"]
+    print(status("VmHWM") - max(before, 0), x.size)
+    """
+)
+
+
+def _write(path, data, fmt):
+    if fmt == "npy":
+        np.save(path, data)
+        return "1", None
+    if fmt == "npz":
+        np.savez(path, imu=data)
+        return "1", "imu"
+    if fmt == "netcdf":
+        import netCDF4
+
+        with netCDF4.Dataset(path, "w") as ds:
+            ds.createDimension("sample", len(data))
+            for i in range(data.shape[1]):
+                ds.createVariable(f"c{i}", "f8", ("sample",))[:] = data[:, i]
+        return "c1", None
+    np.savetxt(path, data, delimiter=",", header="c0,c1,c2,c3", comments="", fmt="%.6g")
+    return "c1", None
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs Linux /proc/self/status (VmHWM)")
+@pytest.mark.parametrize("fmt,suffix", [("npy", ".npy"), ("npz", ".npz"), ("netcdf", ".nc"), ("csv", ".csv")])
+def test_one_channel_costs_one_channel(tmp_path, rng, fmt, suffix):
+    n = N_TEXT if fmt == "csv" else N_BIG
+    data = rng.normal(0.0, 1e-3, (n, 4))
+    path, small = tmp_path / f"big{suffix}", tmp_path / f"small{suffix}"
+    col, variable = _write(path, data, fmt)
+    _write(small, data[:1000], fmt)
+    del data
+    args = [sys.executable, "-c", _PROBE, str(path), str(small), fmt, col] + ([variable] if variable else [])
+    out = subprocess.run(args, capture_output=True, text=True, check=True, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    rise, size = map(int, out.stdout.split())
+    assert size == n
+    assert rise <= 8 * n + ALLOWANCE_MB[fmt] * 2**20, f"{fmt}: peak rose {rise / 2**20:.1f} MB for a {8 * n / 2**20:.1f} MB channel"
