@@ -136,6 +136,53 @@ def test_random_walk_profile_limit_brackets_its_threshold():
     assert fit.to_dict()["random_walk_profile"]["upper"] == prof["upper"]
 
 
+def test_gm_T_profile_limits_bracket_their_threshold():
+    # T's interval: the hull of the percentile interval and {T : Delta(T) = chi2(T held) - chi2(free) <= the
+    # bootstrap threshold}; each profile end is the outside end of a 2 % bisection bracket, so Delta crosses the
+    # threshold inside it
+    from imupipe.identify import _check_components, _solve_fixed
+
+    truth = TRUTHS["white+gm+rw"]
+    tau, avar, edf = curves(truth, 10.0, 1, seed=5)  # 10 h: T = 300 s bounded on both sides
+    n = int(10.0 * 3600 * RATE)
+    comps = ("white", "gauss_markov", "random_walk")
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    prof = fit.gm_T_profile
+    T_hat = fit.params["gm_T_1"]
+    assert prof["threshold"] > 0 and prof["lower"] < T_hat < prof["upper"]
+    assert fit.intervals["gm_T_1"] == (min(prof["lower"], prof["percentile_lower"]),
+                                       max(prof["upper"], prof["percentile_upper"]))
+    t, y, e = tau[0], avar[0], edf[0]
+    full = _check_components(comps, 1)
+
+    def delta(T):
+        return _solve_fixed(t, y, e, full, (T,)).chi2 - fit.chi2
+
+    assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] / 1.02)
+    assert delta(prof["lower"]) > prof["threshold"] >= delta(prof["lower"] * 1.02)
+    assert fit.to_dict()["gm_T_profile"]["upper"] == prof["upper"]
+
+
+def test_gm_T_profile_open_end_is_one_sided(monkeypatch):
+    # a profile set that reaches the end of the T search leaves that end unbounded (0 or inf) and flags it; the
+    # other end is bisected on Delta (here a known function of T: Delta = (ln(T / 10 s))^2, threshold 1, so the
+    # lower end is 10 / e s, returned as the outside end of a 2 % bracket)
+    from types import SimpleNamespace
+
+    def solve(t, y, e, comps, T, m0=None):
+        d = np.log(T[0] / 10.0) ** 2
+        return SimpleNamespace(chi2=d if T[0] <= 10.0 else min(d, 0.9))
+
+    monkeypatch.setattr(identify, "_solve_fixed", solve)
+    grid = np.array([1.0, 10.0, 100.0, 1000.0])
+    chis = np.array([np.log(0.1) ** 2, 0.0, 0.9, 0.9])
+    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, chis, 0.0, 1.0)
+    assert hi == np.inf and hi_open and not lo_open
+    assert 10.0 / np.e / 1.02 <= lo < 10.0 / np.e
+    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, np.full(4, 0.5), 0.0, 1.0)
+    assert (lo, hi, lo_open, hi_open) == (0.0, np.inf, True, True)
+
+
 # ---------------------------------------------------------------------------------------------
 # the compiled re-weighted NNLS against scipy.optimize.nnls, and its optimality conditions
 # ---------------------------------------------------------------------------------------------
