@@ -2,8 +2,9 @@
 selection and the selected refit (:func:`imupipe.identify.fit_allan`, :func:`~imupipe.identify.select_components`,
 :func:`~imupipe.identify.refit_selected`), as workflow/scripts/identify.py makes them with the default
 config (n_boot 100, confidence 0.95, one GM), on three simulated 10 h records at 10 Hz of a tactical gyro (white
-+ GM + random walk) pooled. Median wall time of `--repeats` runs, OLD and NEW source trees alternating in
-fresh interpreters (relative numbers only on a loaded machine).
++ GM + random walk) pooled. Median over `--repeats` runs of the calls' wall time and their CPU time (the process's
+user + system time: the calls are single-threaded with OPENBLAS_NUM_THREADS=1, so on a shared machine the CPU time
+is the steadier measure), OLD and NEW source trees alternating in fresh interpreters.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/identify_cost.py [--old SRC] [--repeats 5]
 
@@ -36,20 +37,20 @@ rng = np.random.default_rng(12345)
 avs = [allan_variance(simulate(truth, n, rate, rng), rate, taus="octave") for _ in range(3)]
 t, y, e = [a.tau.values for a in avs], [a.avar.values for a in avs], [a.edf.values for a in avs]
 kw = dict(n_boot=100, confidence=0.95, dt=1.0 / rate, rate=[rate] * 3, n_samples=[n] * 3)
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 fit = fit_allan(t, y, e, components=("white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"),
                 n_gm=1, rng=20211, **kw)
 sel = select_components(fit, t, y, e, rate_hz=1.0, horizon_s=3600.0)
 rep = refit_selected(fit, sel, t, y, e, rng=20211, **kw)
-print(time.perf_counter() - t0, sel["kept"], rep.intervals.get("gm_T_1"))
+print(time.perf_counter() - t0, time.process_time() - c0, sel["kept"], rep.intervals.get("gm_T_1"))
 """
 
 
-def once(src: str) -> tuple[float, str]:
+def once(src: str) -> tuple[float, float, str]:
     env = dict(os.environ, PYTHONPATH=src, OPENBLAS_NUM_THREADS="1")
     out = subprocess.run([sys.executable, "-c", CALL], env=env, capture_output=True, text=True, check=True).stdout
-    seconds, rest = out.strip().split(" ", 1)
-    return float(seconds), rest
+    wall, cpu, rest = out.strip().split(" ", 2)
+    return float(wall), float(cpu), rest
 
 
 def main() -> None:
@@ -60,15 +61,17 @@ def main() -> None:
     trees = {"new": str(ROOT / "src")}
     if args.old:
         trees = {"old": args.old, **trees}
-    times = {k: [] for k in trees}
+    wall, cpu = {k: [] for k in trees}, {k: [] for k in trees}
     last = {}
     for _ in range(args.repeats):
         for name, src in trees.items():
-            s, last[name] = once(src)
-            times[name].append(s)
+            w, c, last[name] = once(src)
+            wall[name].append(w)
+            cpu[name].append(c)
     for name in trees:
-        print(f"{name}: median {statistics.median(times[name]):.2f} s of {args.repeats} "
-              f"({', '.join(f'{s:.2f}' for s in times[name])}); kept, T interval (s): {last[name]}")
+        print(f"{name}: median of {args.repeats}: wall {statistics.median(wall[name]):.2f} s "
+              f"({', '.join(f'{s:.2f}' for s in wall[name])}), CPU {statistics.median(cpu[name]):.2f} s "
+              f"({', '.join(f'{s:.2f}' for s in cpu[name])}); kept, T interval (s): {last[name]}")
 
 
 if __name__ == "__main__":
