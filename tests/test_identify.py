@@ -487,6 +487,30 @@ class TestSelectedRefit:
         # N of the refit within 1.5 % (two 2 h curves, ~0.25 % each; module docstring)
         assert ref.params["white"] == pytest.approx(truth.white, rel=0.015)
 
+    def test_dropped_random_walk_gm_intervals_from_the_fit_with_it(self):
+        # the selection drops the random walk (the truth has none): the GM intervals must allow for it, T of the
+        # single GM from the fit with the random walk (its profile interval), sigma the hull of both fits'
+        from imupipe.identify import COMPONENTS, refit_selected
+
+        truth = TRUTHS["white+gm"]
+        tau, avar, edf = curves(truth, 2.0, 1, seed=83)
+        n = int(2.0 * 3600 * RATE)
+        fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov", "random_walk"), n_boot=0)
+        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        assert "random_walk" not in sel["kept"] and "gauss_markov" in sel["kept"]
+        kw = dict(n_boot=30, rate=RATE, n_samples=n, rng=6, confidence=0.9)
+        ref = refit_selected(fit, sel, tau, avar, edf, **kw)
+        kept = tuple(c for c in COMPONENTS if c in sel["kept"])
+        # the same calls refit_selected makes (an integer rng: every fit draws the same replicates)
+        alone = fit_allan(tau, avar, edf, components=kept, T_grid=fit.T_grid, **kw)
+        with_rw = fit_allan(tau, avar, edf, components=kept + ("random_walk",), T_grid=fit.T_grid, **kw)
+        assert with_rw.gm_T_profile and ref.intervals["gm_T_1"] == with_rw.intervals["gm_T_1"]
+        assert ref.gm_T_profile == with_rw.gm_T_profile
+        (a0, a1), (w0, w1) = alone.intervals["gm_sigma_1"], with_rw.intervals["gm_sigma_1"]
+        assert ref.intervals["gm_sigma_1"] == (min(a0, w0), max(a1, w1))
+        assert ref.params["gm_sigma_1"] == alone.params["gm_sigma_1"]  # the estimate stays the refit's
+        assert any("given the dropped random walk" in note for note in ref.notes)
+
     def test_two_gm_never_drops_the_white_noise(self):
         # n_gm = 2 let quantization and a GM at the shortest T carry the white noise; the white test's null may
         # not use either, so white noise shown by the data stays in the selection
