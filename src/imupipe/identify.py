@@ -721,12 +721,10 @@ def fit_allan(
     Coverage of the ``"correlated"`` intervals on simulated 10 h and 50 h records (tests, nominal
     90 %): N, GM sigma and T, and the random walk, present or absent in the truth, within binomial
     limits. Of the reported (selected, refitted: :func:`refit_selected`) intervals, 200 records of 10 h at
-    10 Hz per unseen truth (tests/test_coverage.py): white + GM N 0.92, GM sigma 0.89, T 0.885; tactical
-    white + GM + random walk N 0.89, K 0.88, GM sigma 0.89, but GM T 0.82 (below the binomial range
-    [0.855, 0.94]: T is confounded with K at 10 h and its percentile interval is too narrow; use the
-    conservative end of sigma for bounding); MEMS white + two GMs + random walk N 0.89, GM sigma and T
-    0.89/0.885 and 0.915/0.895, K 0.99 (the random walk is dropped by the selection in 99 % of the records
-    and reported as an upper limit: conservative).
+    10 Hz per truth on a seed not used in development (tests/test_coverage.py; docs/performance.md,
+    2026-12-01; binomial range [0.855, 0.94]): tactical white + GM + random walk N 0.91, K 0.895, GM sigma
+    0.86, T 0.91 (0.82 with the percentile interval of T alone); white + GM N 0.855, GM sigma 0.925, T 0.91,
+    K 0.985 (truth 0: upper limits).
 
     With one 10 h record GM and rate random walk are confounded (docs/method.md, section "Identification"): K is often
     fitted as 0 and the GM parameters have 50-200 % spread, while white noise is recovered to < 1 %.
