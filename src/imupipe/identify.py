@@ -413,7 +413,9 @@ def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=No
     """
     g = np.asarray(grid, dtype=np.float64)
     inside = np.flatnonzero(np.asarray(chis) - chi2_free <= threshold)
-    if inside.size == 0 or g.size < 2:  # the optimum lies between grid points: the neighbours bracket it
+    if inside.size == 0 or g.size < 2:
+        # no grid point within the threshold (an optimum narrower than the grid step): no profile interval, the
+        # percentile interval alone is reported
         return float("nan"), float("nan"), False, False
 
     def delta(T):
