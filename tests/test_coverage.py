@@ -11,7 +11,7 @@ has no such component (K = 0); a one-sided interval (on a search boundary) cover
 
 Truths here were not used to tune the identification (the module's own tests use other values and seeds).
 
-Run as a script for the numbers: ``python tests/test_coverage.py CASE R [hours]``.
+Run as a script for the numbers: ``python tests/test_coverage.py CASE R [hours] [seed]`` (default seed: SEED).
 """
 
 import sys
@@ -27,6 +27,9 @@ from imupipe.simulate import simulate
 
 RATE = 10.0  # Hz
 LEVEL = 0.9
+# The profile interval of T and the GM intervals given a dropped random walk were developed on DEV_SEED; the slow
+# test runs on SEED, which was not used in their development (docs/performance.md gives both and a third).
+DEV_SEED, SEED = 2026, 31337
 
 CASES = {
     # tactical gyro (rad/s): white 0.1 deg/sqrt(h), GM 1 deg/h at T = 200 s, K 0.03 (deg/h)/sqrt(s)
@@ -73,27 +76,29 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
         rep = refit_selected(full, sel, t, y, e, n_boot=n_boot, confidence=LEVEL, rng=rng, rate=RATE, n_samples=n)
         for k, v in true.items():
             hits[k] += covered(rep, k, v)
-            one_sided[k] += bool(rep.on_boundary.get(k, True))
+            one_sided[k] += bool(rep.on_boundary.get(k, True)
+                                 or rep.interval_kind.get(k, "").startswith("one-sided"))
     coverage.one_sided = one_sided
     return hits, n_records
 
 
-# Measured (python tests/test_coverage.py CASE 200): white_gm N 0.92, K 0.985 (truth 0), GM sigma 0.89, T 0.885;
-# tactical N 0.89, K 0.88, GM sigma 0.89, T 0.82 -- T below the binomial range [0.855, 0.94] (GM/random-walk
-# confounding at 10 h: the percentile interval of T is too narrow); mems (before the dropped random walk got
-# its upper limit) N 0.865, GM 0.89/0.90/0.925/0.885, K 0.01; after: N 0.89, GM sigma/T 0.89/0.885 and
-# 0.915/0.895, K 0.99 (upper limits of a random walk the data do not show: conservative).
-SHORTFALL = {"tactical_white_gm_rw": "GM T covers 0.82 over 200 records at nominal 0.90 (confounded with K)"}
+# Measured (python tests/test_coverage.py CASE 200 10 SEED; all numbers and both rules in docs/performance.md,
+# 2026-12-01), binomial 95 % range of 200 intervals at 0.9: [0.855, 0.94]. On SEED (not used in development):
+# tactical N 0.91, K 0.895 (21 records one-sided: the upper end is not asserted), GM sigma 0.86, T 0.91; white + GM
+# N 0.855, K 0.985 (truth 0), GM sigma 0.925, T 0.91. The two-GM MEMS case on seed 9001: N 0.85, GM 2 sigma 0.98
+# and T 0.965 (the hull with the random-walk fit over-covers), outside the range; not measured on SEED.
+SHORTFALL = {"mems_white_2gm_rw": "seed 9001: N 0.85 < 0.855, GM 2 sigma 0.98 and T 0.965 > 0.94 (hull with the "
+                                  "random-walk fit); not measured on SEED"}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(reason=SHORTFALL[c], strict=True))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(reason=SHORTFALL[c], strict=False))
                                   if c in SHORTFALL else c for c in CASES])
 def test_coverage_200_records(case):
     from scipy.stats import binom
 
     R = 200
-    hits, _ = coverage(case, R, hours=10.0, seed=2026)
+    hits, _ = coverage(case, R, hours=10.0, seed=SEED)
     lo, hi = binom.ppf(0.025, R, LEVEL), binom.ppf(0.975, R, LEVEL)
     true = truth_params(CASES[case][0])
     # a truth on the parameter's boundary (K = 0) is covered by every interval reaching 0, and an upper limit
@@ -119,5 +124,7 @@ def test_coverage_fast():
 if __name__ == "__main__":
     case, R = sys.argv[1], int(sys.argv[2])
     hours = float(sys.argv[3]) if len(sys.argv) > 3 else 10.0
-    h, n = coverage(case, R, hours=hours, seed=2026)
-    print(case, R, hours, {k: round(v / n, 3) for k, v in h.items()})
+    seed = int(sys.argv[4]) if len(sys.argv) > 4 else SEED
+    h, n = coverage(case, R, hours=hours, seed=seed)
+    print(case, R, hours, "seed", seed, {k: round(v / n, 3) for k, v in h.items()},
+          "one-sided", coverage.one_sided)

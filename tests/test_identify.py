@@ -136,6 +136,53 @@ def test_random_walk_profile_limit_brackets_its_threshold():
     assert fit.to_dict()["random_walk_profile"]["upper"] == prof["upper"]
 
 
+def test_gm_T_profile_limits_bracket_their_threshold():
+    # T's interval: the hull of the percentile interval and {T : Delta(T) = chi2(T held) - chi2(free) <= the
+    # bootstrap threshold}; each profile end is the outside end of a 2 % bisection bracket, so Delta crosses the
+    # threshold inside it
+    from imupipe.identify import _check_components, _solve_fixed
+
+    truth = TRUTHS["white+gm+rw"]
+    tau, avar, edf = curves(truth, 10.0, 1, seed=5)  # 10 h: T = 300 s bounded on both sides
+    n = int(10.0 * 3600 * RATE)
+    comps = ("white", "gauss_markov", "random_walk")
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    prof = fit.gm_T_profile
+    T_hat = fit.params["gm_T_1"]
+    assert prof["threshold"] > 0 and prof["lower"] < T_hat < prof["upper"]
+    assert fit.intervals["gm_T_1"] == (min(prof["lower"], prof["percentile_lower"]),
+                                       max(prof["upper"], prof["percentile_upper"]))
+    t, y, e = tau[0], avar[0], edf[0]
+    full = _check_components(comps, 1)
+
+    def delta(T):
+        return _solve_fixed(t, y, e, full, (T,)).chi2 - fit.chi2
+
+    assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] / 1.02)
+    assert delta(prof["lower"]) > prof["threshold"] >= delta(prof["lower"] * 1.02)
+    assert fit.to_dict()["gm_T_profile"]["upper"] == prof["upper"]
+
+
+def test_gm_T_profile_open_end_is_one_sided(monkeypatch):
+    # a profile set that reaches the end of the T search leaves that end unbounded (0 or inf) and flags it; the
+    # other end is bisected on Delta (here a known function of T: Delta = (ln(T / 10 s))^2, threshold 1, so the
+    # lower end is 10 / e s, returned as the outside end of a 2 % bracket)
+    from types import SimpleNamespace
+
+    def solve(t, y, e, comps, T, m0=None):
+        d = np.log(T[0] / 10.0) ** 2
+        return SimpleNamespace(chi2=d if T[0] <= 10.0 else min(d, 0.9))
+
+    monkeypatch.setattr(identify, "_solve_fixed", solve)
+    grid = np.array([1.0, 10.0, 100.0, 1000.0])
+    chis = np.array([np.log(0.1) ** 2, 0.0, 0.9, 0.9])
+    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, chis, 0.0, 1.0)
+    assert hi == np.inf and hi_open and not lo_open
+    assert 10.0 / np.e / 1.02 <= lo < 10.0 / np.e
+    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, np.full(4, 0.5), 0.0, 1.0)
+    assert (lo, hi, lo_open, hi_open) == (0.0, np.inf, True, True)
+
+
 # ---------------------------------------------------------------------------------------------
 # the compiled re-weighted NNLS against scipy.optimize.nnls, and its optimality conditions
 # ---------------------------------------------------------------------------------------------
@@ -439,6 +486,30 @@ class TestSelectedRefit:
         assert "selected" in fit.to_dict() and fit.to_dict()["selected"]["components"] == list(ref.components)
         # N of the refit within 1.5 % (two 2 h curves, ~0.25 % each; module docstring)
         assert ref.params["white"] == pytest.approx(truth.white, rel=0.015)
+
+    def test_dropped_random_walk_gm_intervals_from_the_fit_with_it(self):
+        # the selection drops the random walk (the truth has none): the GM intervals must allow for it, T of the
+        # single GM from the fit with the random walk (its profile interval), sigma the hull of both fits'
+        from imupipe.identify import COMPONENTS, refit_selected
+
+        truth = TRUTHS["white+gm"]
+        tau, avar, edf = curves(truth, 2.0, 1, seed=83)
+        n = int(2.0 * 3600 * RATE)
+        fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov", "random_walk"), n_boot=0)
+        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        assert "random_walk" not in sel["kept"] and "gauss_markov" in sel["kept"]
+        kw = dict(n_boot=30, rate=RATE, n_samples=n, rng=6, confidence=0.9)
+        ref = refit_selected(fit, sel, tau, avar, edf, **kw)
+        kept = tuple(c for c in COMPONENTS if c in sel["kept"])
+        # the same calls refit_selected makes (an integer rng: every fit draws the same replicates)
+        alone = fit_allan(tau, avar, edf, components=kept, T_grid=fit.T_grid, **kw)
+        with_rw = fit_allan(tau, avar, edf, components=kept + ("random_walk",), T_grid=fit.T_grid, **kw)
+        assert with_rw.gm_T_profile and ref.intervals["gm_T_1"] == with_rw.intervals["gm_T_1"]
+        assert ref.gm_T_profile == with_rw.gm_T_profile
+        (a0, a1), (w0, w1) = alone.intervals["gm_sigma_1"], with_rw.intervals["gm_sigma_1"]
+        assert ref.intervals["gm_sigma_1"] == (min(a0, w0), max(a1, w1))
+        assert ref.params["gm_sigma_1"] == alone.params["gm_sigma_1"]  # the estimate stays the refit's
+        assert any("given the dropped random walk" in note for note in ref.notes)
 
     def test_two_gm_never_drops_the_white_noise(self):
         # n_gm = 2 let quantization and a GM at the shortest T carry the white noise; the white test's null may
