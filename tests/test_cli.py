@@ -96,6 +96,36 @@ def test_check_with_dry_run_and_run_dry(tmp_path):
     assert not (tmp_path / "results").exists()  # a dry run writes no result
 
 
+def test_check_takes_a_partial_config_on_top_of_the_defaults(tmp_path):
+    # the README: "A config may be partial: keys it leaves out take the defaults of config/config.yaml"
+    partial = tmp_path / "partial.yaml"
+    partial.write_text("name: partial\npsd:\n  window_s: 3600.0\n")
+    lines = check_config(partial)
+    assert "the others from config/config.yaml" in lines[0]
+    assert any("spec sheet stim300.yaml" in ln for ln in lines)
+
+
+def test_check_names_a_misspelt_config_key(tmp_path):
+    # the schema's verdict names the key; it stands above a long schema dump that a tail alone would cut off
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\npsd:\n  windw_s: 100\n")
+    proc = subprocess.run([sys.executable, "-m", "imupipe", "check", str(bad), "--directory", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    assert "'windw_s' was unexpected" in proc.stderr
+
+
+def test_run_keep_going_reaches_snakemake(monkeypatch, tmp_path):
+    import imupipe.cli as cli
+
+    calls = []
+    monkeypatch.setattr(cli.subprocess, "call", lambda cmd, env=None: calls.append(cmd) or 0)
+    assert main(["run", str(TINY), "--keep-going", "--directory", str(tmp_path)]) == 0
+    assert "--keep-going" in calls[0]
+    assert main(["run", str(TINY), "--directory", str(tmp_path)]) == 0
+    assert "--keep-going" not in calls[1]
+
+
 def test_version_and_help():
     proc = subprocess.run([sys.executable, "-m", "imupipe", "--version"], capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stdout.startswith("imupipe ")

@@ -22,6 +22,7 @@ snakemake status for ``run``.
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 import sys
@@ -87,20 +88,23 @@ def check_config(config: str | Path) -> list[str]:
     """
     import csv
 
-    from imupipe.io import read_yaml
+    from imupipe.io import merged_with_defaults, read_yaml
     from imupipe.specsheet import load_spec
 
     config = Path(config)
     if not config.is_file():
         raise ValueError(f"{config}: config file not found")
-    cfg = read_yaml(config)
-    if not isinstance(cfg, dict):
+    given = read_yaml(config)
+    if not isinstance(given, dict):
         raise ValueError(f"{config}: expected a YAML mapping of config keys")
     try:
         root = checkout_root()
     except FileNotFoundError:
         root = Path.cwd()
-    done = [f"config {config}: YAML mapping with {len(cfg)} keys"]
+    defaults = root / "config" / "config.yaml"
+    cfg = merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given
+    done = [f"config {config}: YAML mapping with {len(given)} keys"
+            + (" (the others from config/config.yaml)" if cfg is not given else "")]
     sensors = cfg.get("sensors") or ["gyro", "accel"]
     spec_dir = root / str(cfg.get("spec_dir", "config/specs"))
     specs = cfg.get("specs") or []
@@ -239,10 +243,19 @@ def _cmd_check(args) -> int:
                              ["--dry-run", "--quiet", "all"])
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-15:]
-            raise ValueError("Snakemake dry run failed:\n" + "\n".join(tail))
+            raise ValueError("Snakemake dry run failed:\n" + _dry_run_error(proc.stderr or proc.stdout))
         print("ok  snakemake dry run: the workflow's DAG builds")
     return 0
+
+
+def _dry_run_error(text: str, n_tail: int = 15) -> str:
+    """The lines of a failed Snakemake dry run a user needs: every line that states an error (a config
+    validation error names the key, e.g. "'windw_s' was unexpected", above a long schema dump), then the
+    last `n_tail` lines."""
+    lines = text.strip().splitlines()
+    stated = [ln for ln in lines if re.search(r"Error\b|error:|was unexpected|is a required property", ln)]
+    tail = [ln for ln in lines[-n_tail:] if ln not in stated]
+    return "\n".join(stated + (["..."] if stated and tail else []) + tail)
 
 
 def _cmd_summary(args) -> int:
@@ -271,6 +284,8 @@ def _cmd_run(args) -> int:
     extra = list(args.snakemake_args or [])
     if args.dry_run:
         extra.append("--dry-run")
+    if args.keep_going:
+        extra.append("--keep-going")
     if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
         extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
     cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
@@ -306,6 +321,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--cores", type=int, default=2, help="cores for Snakemake (default 2)")
     r.add_argument("--directory", help="working directory for results/ and logs/ (default: the checkout)")
     r.add_argument("--dry-run", action="store_true", help="list the jobs without running them")
+    r.add_argument("--keep-going", action="store_true", help="when a dataset fails, go on with the jobs that do "
+                   "not need it (the other datasets' results are kept; the run still exits non-zero)")
     r.add_argument("--verbose", action="store_true", help="Snakemake's full job output (default: progress only, "
                    "details in logs/)")
     r.set_defaults(func=_cmd_run)

@@ -274,3 +274,22 @@ def plain(obj, *, nonfinite_to_none: bool = True):
         v = float(obj)
         return v if math.isfinite(v) or not nonfinite_to_none else None
     return obj
+
+
+def merged_with_defaults(defaults: dict, given: dict) -> dict:
+    """A partial configuration on top of the defaults, key by key inside each section.
+
+    ``given``'s keys replace ``defaults``' ones; where both values are mappings the merge recurses, so a
+    partial config keeps the default of every key it does not name. A sheet of recordings (``datasets``)
+    given without ``simulation`` switches the default simulation off. Used by the workflow (``--configfile``
+    on top of ``config/config.yaml``) and by ``imupipe check``, so both see the same configuration.
+    """
+    out = dict(defaults)
+    for key, value in given.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merged_with_defaults(out[key], value)
+        else:
+            out[key] = value
+    if given.get("datasets") and "simulation" not in given:
+        out["simulation"] = None
+    return out

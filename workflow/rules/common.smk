@@ -19,24 +19,11 @@ AXES = ["x", "y", "z"]
 DEFAULT_CONFIG = ROOT / "config" / "config.yaml"
 
 
-def merged_with_defaults(defaults, given):
-    """`given` on top of `defaults`, key by key inside each section (a partial --configfile keeps the
-    default of every key it does not name). A sheet of recordings (`datasets`) given without
-    `simulation` switches the default simulation off."""
-    out = dict(defaults)
-    for key, value in given.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merged_with_defaults(out[key], value)
-        else:
-            out[key] = value
-    if given.get("datasets") and "simulation" not in given:
-        out["simulation"] = None
-    return out
-
-
 def _apply_defaults():
     """Snakemake reads --configfile instead of the Snakefile's configfile: put the given keys on top of
     config/config.yaml, then validate."""
+    from imupipe.io import merged_with_defaults
+
     with open(DEFAULT_CONFIG) as fh:
         merged = merged_with_defaults(yaml.safe_load(fh), dict(config))
     config.clear()
