@@ -305,6 +305,40 @@ class TestGapFill:
         with pytest.raises(DataError, match=r"dataset 'phone': fill_max_samples = 1\.5 is not an integer number of samples"):
             read_dataset_row(row | {"fill_max_samples": 1.5})
 
+    @pytest.mark.parametrize("policy", ["fill", "fail", "split"])
+    def test_sheet_rate_twice_the_timestamps_is_refused_not_filled(self, tmp_path, table, policy):
+        # issue 19: a 100 Hz record stated as 200 Hz had every interval a "gap"; fill inserted a sample in
+        # each (50 % of the record made up), fail spoke only of gaps. Now the sheet's rate is checked against
+        # the timestamps' mean rate (found as when rate_hz is empty) before any gap handling.
+        path = write_csv(tmp_path / "imu.csv", table)
+        row = {"dataset": "imu", "path": str(path), "rate_hz": 200, "time_column": "t", "gap_policy": policy,
+               **CHANNELS, "gyro_unit": "deg/s", "accel_unit": "g"}
+        with pytest.raises(DataError) as info:
+            read_dataset_row(row)
+        msg = str(info.value)
+        assert str(path) in msg and "rate_hz = 200 Hz" in msg and "mean rate of 100 Hz" in msg
+        assert "correct rate_hz, or leave it empty" in msg and "timestamp gap" not in msg
+        # the rate left empty: inferred from the same timestamps, nothing filled
+        rec = read_dataset_row(row | {"rate_hz": None})
+        assert rec.rate_hz == 100.0 and rec.n_filled == 0 and rec.n_samples == N
+
+    def test_fill_may_make_up_at_most_fill_max_fraction(self, tmp_path, table):
+        # 10 single-sample drops leave 590 file samples: filling inserts 10 / 590 = 1.69 % > 1 % (default)
+        drops = list(range(30, 600, 57))
+        assert len(drops) == 10
+        path, _ = self.phone_log(tmp_path, table, drops)
+        row = {"dataset": "phone", "path": str(path), "rate_hz": 100, "time_column": "t", "gap_policy": "fill",
+               **CHANNELS, "gyro_unit": "deg/s", "accel_unit": "g"}
+        with pytest.raises(DataError) as info:
+            read_dataset_row(row)
+        msg = str(info.value)
+        assert str(path) in msg and "fill_max_fraction = 0.01" in msg and "insert 10 samples in 10 gap(s)" in msg
+        assert read_dataset_row(row | {"fill_max_fraction": 0.02}).n_filled == 10  # 1.69 % <= 2 %
+        with pytest.raises(DataError, match=r"phone\.csv: fill_max_fraction = 1\.5; expected a fraction"):
+            read_dataset_row(row | {"fill_max_fraction": 1.5})
+        with pytest.raises(DataError, match=r"dataset 'phone': fill_max_fraction = 'some' is not a number"):
+            read_dataset_row(row | {"fill_max_fraction": "some"})
+
 
 # ---------------------------------------------------------------------------------------------
 # start-up checks: names, probe, config

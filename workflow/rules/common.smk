@@ -104,7 +104,8 @@ def _read_sheet(path):
         except DataError as exc:
             raise ValueError(str(exc)) from None
         for key, kind, what in (("rate_hz", float, "a number (Hz)"), ("fill_max_samples", int, "an integer (samples)"),
-                                ("fill_max_s", float, "a number (s)")):
+                                ("fill_max_s", float, "a number (s)"),
+                                ("fill_max_fraction", float, "a number (fraction of the record)")):
             if key in cells:
                 try:
                     cells[key] = kind(cells[key])
