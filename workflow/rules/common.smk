@@ -148,6 +148,8 @@ if SIMULATION:
             "rate_hz": float(SIMULATION["rate_hz"]),
             "gyro_unit": "rad/s",
             "accel_unit": "m/s^2",
+            # a simulation without gravity (gravity_axis: null) has none to check
+            **({"gravity_removed": "yes"} if SIMULATION.get("gravity_axis", "z") is None else {}),
             **{f"{s}_{a}": f"{s}_{a}" for s in ("gyro", "accel") for a in AXES},
         }
         for i in range(SIMULATION["n_datasets"])
