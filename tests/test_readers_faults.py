@@ -11,12 +11,15 @@ import numpy as np
 import pytest
 
 from imupipe.readers import (
+    GRAVITY_WINDOW,
     PLAUSIBLE_SI,
     ConfigError,
     DataError,
     GapWarning,
     check_against_config,
+    check_gravity,
     check_sheet_header,
+    gravity_removed,
     probe,
     probe_row,
     read_channel,
@@ -304,6 +307,91 @@ class TestGapFill:
         assert read_dataset_row(row).n_filled == 1
         with pytest.raises(DataError, match=r"dataset 'phone': fill_max_samples = 1\.5 is not an integer number of samples"):
             read_dataset_row(row | {"fill_max_samples": 1.5})
+
+    @pytest.mark.parametrize("policy", ["fill", "fail", "split"])
+    def test_sheet_rate_twice_the_timestamps_is_refused_not_filled(self, tmp_path, table, policy):
+        # issue 19: a 100 Hz record stated as 200 Hz had every interval a "gap"; fill inserted a sample in
+        # each (50 % of the record made up), fail spoke only of gaps. Now the sheet's rate is checked against
+        # the timestamps' mean rate (found as when rate_hz is empty) before any gap handling.
+        path = write_csv(tmp_path / "imu.csv", table)
+        row = {"dataset": "imu", "path": str(path), "rate_hz": 200, "time_column": "t", "gap_policy": policy,
+               **CHANNELS, "gyro_unit": "deg/s", "accel_unit": "g"}
+        with pytest.raises(DataError) as info:
+            read_dataset_row(row)
+        msg = str(info.value)
+        assert str(path) in msg and "rate_hz = 200 Hz" in msg and "mean rate of 100 Hz" in msg
+        assert "correct rate_hz, or leave it empty" in msg and "timestamp gap" not in msg
+        # the rate left empty: inferred from the same timestamps, nothing filled
+        rec = read_dataset_row(row | {"rate_hz": None})
+        assert rec.rate_hz == 100.0 and rec.n_filled == 0 and rec.n_samples == N
+
+    def test_fill_may_make_up_at_most_fill_max_fraction(self, tmp_path, table):
+        # 10 single-sample drops leave 590 file samples: filling inserts 10 / 590 = 1.69 % > 1 % (default)
+        drops = list(range(30, 600, 57))
+        assert len(drops) == 10
+        path, _ = self.phone_log(tmp_path, table, drops)
+        row = {"dataset": "phone", "path": str(path), "rate_hz": 100, "time_column": "t", "gap_policy": "fill",
+               **CHANNELS, "gyro_unit": "deg/s", "accel_unit": "g"}
+        with pytest.raises(DataError) as info:
+            read_dataset_row(row)
+        msg = str(info.value)
+        assert str(path) in msg and "fill_max_fraction = 0.01" in msg and "insert 10 samples in 10 gap(s)" in msg
+        assert read_dataset_row(row | {"fill_max_fraction": 0.02}).n_filled == 10  # 1.69 % <= 2 %
+        with pytest.raises(DataError, match=r"phone\.csv: fill_max_fraction = 1\.5; expected a fraction"):
+            read_dataset_row(row | {"fill_max_fraction": 1.5})
+        with pytest.raises(DataError, match=r"dataset 'phone': fill_max_fraction = 'some' is not a number"):
+            read_dataset_row(row | {"fill_max_fraction": "some"})
+
+
+class TestGravity:
+    """Issue 19: accel declared m/s^2 for data in g passed every check and made everything 9.8x too small."""
+
+    def test_tilted_static_imu_passes_at_any_attitude(self, rng):
+        # |g| on Earth 9.780 .. 9.832 m/s^2 (equator, poles) at any tilt: |f| = |g| whatever the rotation
+        for g in (9.780, 9.832):
+            for _ in range(20):
+                u = rng.normal(size=3)
+                assert check_gravity(g * u / np.linalg.norm(u), "m/s^2", "imu.csv") == pytest.approx(g, rel=1e-12)
+
+    def test_window_edges(self):
+        lo, hi = GRAVITY_WINDOW
+        for ratio, ok in ((lo * (1 + 1e-9), True), (hi * (1 - 1e-9), True), (lo * (1 - 1e-6), False),
+                          (hi * (1 + 1e-6), False)):
+            f = [0.0, 0.0, -ratio * G0]
+            if ok:
+                check_gravity(f, "g", "imu.csv")
+            else:
+                with pytest.raises(DataError, match="accel_unit"):
+                    check_gravity(f, "g", "imu.csv")
+        # every confusion of two accepted accel units (ratio >= 9.80665) lands outside the window
+        assert hi * (1 / lo) < 9.80665 / 1.0 and 1 / 9.80665 < lo
+
+    def test_g_data_declared_si_names_file_key_magnitudes_and_the_unit(self, tmp_path, table):
+        # the table is in g (accel z = -1 + noise): read as m/s^2, the mean specific force is ~1 m/s^2
+        path = write_csv(tmp_path / "imu.csv", table)
+        rec = read_dataset(path, "csv", 100.0, CHANNELS, {"gyro": "deg/s", "accel": "m/s^2"}, time_column="t")
+        means = [float(np.mean(rec["accel", a])) for a in "xyz"]
+        magnitude = float(np.linalg.norm(means))
+        with pytest.raises(DataError) as info:
+            check_gravity(means, "m/s^2", f"{path} (dataset 'imu')")
+        msg = str(info.value)
+        assert msg.startswith(f"{path} (dataset 'imu'): accel_unit = 'm/s^2'")
+        assert f"magnitude of {magnitude:.4g} m/s^2 = {magnitude / G0:.4g} g" in msg
+        assert "accel_unit = 'g' would make it" in msg and "gravity_removed: yes" in msg
+        # declared g, the same file passes
+        rec = read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t")
+        check_gravity([float(np.mean(rec["accel", a])) for a in "xyz"], "g", str(path))
+
+    def test_mg_data_declared_g_proposes_mg(self):
+        with pytest.raises(DataError, match=r"magnitude 1000 g: accel_unit = 'mg' would make it 1 g"):
+            check_gravity([0.0, 0.0, -1000.0 * G0], "g", "imu.csv")
+
+    def test_gravity_removed_cell(self):
+        assert gravity_removed("yes") and gravity_removed("True") and gravity_removed(1)
+        assert not gravity_removed(None) and not gravity_removed("") and not gravity_removed("no")
+        assert not gravity_removed(float("nan"))
+        with pytest.raises(DataError, match=r"dataset 'x': gravity_removed = 'maybe'; expected yes or no"):
+            gravity_removed("maybe", where="dataset 'x'")
 
 
 # ---------------------------------------------------------------------------------------------

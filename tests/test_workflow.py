@@ -216,8 +216,9 @@ class TestBadInput:
         xb[100, 2] = np.nan
         np.savetxt(bad, xb, delimiter=",", header=header, comments="")
         sheet = tmp_path / "datasets.tsv"
-        head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", *cols]
-        rows = [[name, str(p), "2", "rad/s", "m/s^2", *cols] for name, p in
+        # white noise only, no gravity in the accel channels: the sheet says so (gravity_removed)
+        head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", "gravity_removed", *cols]
+        rows = [[name, str(p), "2", "rad/s", "m/s^2", "yes", *cols] for name, p in
                 (("good", good), ("nanrow", bad), ("missing", tmp_path / "nowhere.csv"))]
         sheet.write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
         config = tiny_config(tmp_path, datasets=str(sheet), simulation=None,
@@ -382,11 +383,11 @@ def _bad_input_files(folder, rng):
         "unit": ("good.csv", {"gyro_unit": "furlong/s"}, ["gyro_unit", "furlong"]),
         "column": ("good.csv", {"gyro_y": "gyro_q"}, ["gyro_q", "not found"]),
     }
-    head = ["dataset", "path", "rate_hz", "time_column", "gyro_unit", "accel_unit", *cols]
+    head = ["dataset", "path", "rate_hz", "time_column", "gyro_unit", "accel_unit", "gravity_removed", *cols]
     rows = []
-    for name, (path, over, _) in cases.items():
+    for name, (path, over, _) in cases.items():  # white noise only: no gravity in the accel channels
         cells = {"dataset": name, "path": str(folder / path), "rate_hz": "2", "time_column": "time",
-                 "gyro_unit": "rad/s", "accel_unit": "m/s^2", **{c: c for c in cols}, **over}
+                 "gyro_unit": "rad/s", "accel_unit": "m/s^2", "gravity_removed": "yes", **{c: c for c in cols}, **over}
         rows.append([cells[h] for h in head])
     (folder / "datasets.tsv").write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
     return cases

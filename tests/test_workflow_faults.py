@@ -148,6 +148,12 @@ def _truncated(data, t):
     return path.name, {}
 
 
+def _accel_in_g(data, t):  # issue 19: accel stored in g, the sheet says m/s^2 (valid, but 9.8x too small)
+    t = t.copy()
+    t[:, 4:7] /= 9.80665
+    return _csv(data / "accel_g.csv", t).name, {}
+
+
 # dataset, maker, message regex (the file and its column/row or line, what was expected)
 BAD = [
     ("gyro_huge", _bad_csv_value(1e300, 2, 17),
@@ -161,6 +167,10 @@ BAD = [
     ("gzipped", _gzip, r"packed\.csv: is gzip-compressed, not a text file"),
     ("absent", _missing, r"absent\.csv"),
     ("truncated", _truncated, r"truncated\.csv.*line 102"),
+    # |mean| = 1 m/s^2 (gravity 9.80665 m/s^2 stored in g) +- the mean of the 1e-2 m/s^2 / g0 noise: 4 digits
+    ("accel_in_g", _accel_in_g,
+     r"accel_g\.csv \(dataset 'accel_in_g'\): accel_unit = 'm/s\^2' gives the mean specific force of the three "
+     r"accel axes a magnitude of 1 m/s\^2 = 0\.102 g; .*accel_unit = 'g' would make it 1 g\..*gravity_removed: yes"),
 ]
 
 

@@ -198,9 +198,10 @@ def mixed_run(tmp_path_factory):
             data[:, 1] = data[:, 2] = data[:, 0]  # the same record on gyro x, y and z
         path = work / f"{name}.csv"
         np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="")
-        rows.append([name, str(path), f"{rate:g}", "rad/s", "m/s^2", *cols])
+        rows.append([name, str(path), f"{rate:g}", "rad/s", "m/s^2", "yes", *cols])
     sheet = work / "datasets.tsv"
-    head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", *cols]
+    # simulated noise only, no gravity in the accel channels: the sheet says so (gravity_removed)
+    head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", "gravity_removed", *cols]
     sheet.write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
     config = tiny_config(work, datasets=str(sheet), simulation=None,
                          psd={"window_s": 900.0, "step_s": 450.0, "taper": "hann", "detrend": "constant",

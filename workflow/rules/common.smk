@@ -91,7 +91,8 @@ def _read_sheet(path):
         except DataError as exc:
             raise ValueError(str(exc)) from None
         for key, kind, what in (("rate_hz", float, "a number (Hz)"), ("fill_max_samples", int, "an integer (samples)"),
-                                ("fill_max_s", float, "a number (s)")):
+                                ("fill_max_s", float, "a number (s)"),
+                                ("fill_max_fraction", float, "a number (fraction of the record)")):
             if key in cells:
                 try:
                     cells[key] = kind(cells[key])
@@ -134,6 +135,8 @@ if SIMULATION:
             "rate_hz": float(SIMULATION["rate_hz"]),
             "gyro_unit": "rad/s",
             "accel_unit": "m/s^2",
+            # a simulation without gravity (gravity_axis: null) has none to check
+            **({"gravity_removed": "yes"} if SIMULATION.get("gravity_axis", "z") is None else {}),
             **{f"{s}_{a}": f"{s}_{a}" for s in ("gyro", "accel") for a in AXES},
         }
         for i in range(SIMULATION["n_datasets"])

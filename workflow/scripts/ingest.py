@@ -9,14 +9,22 @@ channels the dataset sheet names (or all three axes of a sensor naming none) are
 Each output carries the gap fill of its record (attrs ``n_filled``: gaps filled, ``filled_rows``: the 0-based
 file rows before each filled gap, comma separated; docs/inputs.md, "Timestamps and gaps"). The record length
 against psd.window_s is checked once, at start-up (common.smk): ingest takes no analysis setting, so a change
-of another section does not re-run it."""
+of another section does not re-run it.
+
+A dataset with all three accel axes is checked for gravity after its channels are written
+(readers.check_gravity: |mean specific force| within 0.9 .. 1.1 g0, else the job fails and Snakemake removes
+its outputs; a wrong but valid accel_unit is caught here); the sheet column ``gravity_removed: yes`` skips it."""
 
 import logging
 from pathlib import Path
 
+import numpy as np
+
 from imupipe.io import run_job, write_series
-from imupipe.readers import format_of, read_channel, read_dataset_row, sheet_row_to_kwargs
-from imupipe.units import SI_UNITS
+from imupipe.readers import (
+    check_gravity, format_of, gravity_removed, read_channel, read_dataset_row, sheet_row_to_kwargs,
+)
+from imupipe.units import SI_UNITS, STANDARD_GRAVITY
 
 PER_CHANNEL_FORMATS = ("netcdf", "npy", "npz", "csv")
 
@@ -65,9 +73,21 @@ def write_channel(path: str, x, sensor: str, axis: str, dataset: str, meta: dict
 
 
 def main(row: dict, keys: list, outputs: dict, dataset: str) -> None:
+    skip = gravity_removed(row.get("gravity_removed"), where=f"dataset {dataset!r}")
+    accel_means, accel_units = {}, set()
     for sensor, axis, x, meta in channels(row, keys, dataset):
         write_channel(outputs[f"{sensor}_{axis}"], x, sensor, axis, dataset, meta)
+        if sensor == "accel":
+            accel_means[axis] = float(np.mean(x))  # m/s^2
+            accel_units.add(meta["file_units"])
         del x  # else this channel stays alive while the next one is read: two channels in memory
+    if skip or len(accel_means) < 3:
+        return
+    unit = accel_units.pop() if len(accel_units) == 1 else str(row.get("accel_unit"))
+    magnitude = check_gravity([accel_means[a] for a in ("x", "y", "z")], unit,
+                              where=f"{row['path']} (dataset {dataset!r})")
+    logging.info("%s: gravity check: |mean specific force| = %.6g m/s^2 (%.4f g0)", dataset, magnitude,
+                 magnitude / STANDARD_GRAVITY)
 
 
 if __name__ == "__main__":

@@ -48,14 +48,17 @@ __all__ = [
     "GapWarning",
     "Recording",
     "Segment",
+    "GRAVITY_WINDOW",
     "check_against_config",
     "check_file",
+    "check_gravity",
     "check_sheet_header",
     "check_unchanged",
     "check_values",
     "missing_channel_columns",
     "parse_axis_map",
     "format_of",
+    "gravity_removed",
     "probe",
     "probe_row",
     "read_dataset",
@@ -69,8 +72,8 @@ from imupipe.readers._common import (  # noqa: F401
     AXES, FORMATS, GAP_POLICIES, SENSORS, SHEET_COLUMNS, DataError, GapWarning, Recording, Segment, parse_axis_map,
 )
 from imupipe.readers.checks import (  # noqa: F401
-    PLAUSIBLE_SI, ConfigError, check_against_config, check_file, check_sheet_header, check_unchanged, check_values,
-    validate_dataset_name,
+    GRAVITY_WINDOW, PLAUSIBLE_SI, ConfigError, check_against_config, check_file, check_gravity, check_sheet_header,
+    check_unchanged, check_values, gravity_removed, validate_dataset_name,
 )
 from imupipe.readers.core import (  # noqa: F401
     FROM_FILE, FilledGap, format_of, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,

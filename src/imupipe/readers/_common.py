@@ -92,6 +92,8 @@ SHEET_COLUMNS = {
     "gap_policy": "fail (default), split (keep the longest contiguous segment, warn) or fill (interpolate short gaps)",
     "fill_max_samples": "gap_policy fill: longest gap filled, in missing samples (default 10)",
     "fill_max_s": "gap_policy fill: longest gap filled, in s (instead of fill_max_samples)",
+    "fill_max_fraction": "gap_policy fill: most samples inserted in all, as a fraction of the file's samples (default 0.01)",
+    "gravity_removed": "yes when gravity was removed from the accel record (no gravity check); default no",
     "long_gap_policy": "gap_policy fill: fail (default) or split for longer gaps",
 }
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from imupipe.readers._common import DataError
-from imupipe.units import SI_UNITS
+from imupipe.units import SI_UNITS, STANDARD_GRAVITY, UnitError, rate_factor
 
 __all__ = [
     "PLAUSIBLE_SI",
@@ -29,6 +29,9 @@ __all__ = [
     "check_values",
     "validate_dataset_name",
     "check_against_config",
+    "GRAVITY_WINDOW",
+    "check_gravity",
+    "gravity_removed",
 ]
 
 #: Largest plausible magnitude of a sample in SI (gyro rad/s, accel m/s^2). Generous on purpose: the
@@ -40,6 +43,22 @@ PLAUSIBLE_SI = {"gyro": 1.0e3, "accel": 1.0e4}
 #: sqrt(2.2e-308) ~ 1.5e-154; below it x**2 underflows and the Allan variance and PSD become 0 or
 #: subnormal garbage. 1e-150 keeps a margin of 1e-8 (sums of 1e8 samples remain normal).
 SQUARE_SAFE_MIN = 1.0e-150
+
+#: Window of |mean specific force| / g0 (g0 = 9.80665 m/s^2, dimensionless) a static accelerometer record
+#: with gravity in it must show. Derivation: a static IMU measures f = -g + b whatever its tilt, so
+#: |f| = |g| + b.u to first order (u the unit vector along f, b the bias). |g| on Earth is 9.780 m/s^2
+#: (equator) .. 9.832 m/s^2 (poles) at sea level, -3.1e-6 m/s^2 per m of height: within 0.5 % of g0 for
+#: any site below ~5 km. The bias along gravity plus the scale-factor error of a MEMS accelerometer stay
+#: below ~0.09 g0 (consumer parts: zero-g offset <= 80 mg, scale error <= 3 %; the ADIS16405: 50 mg).
+#: Hence 0.9 .. 1.1 g0. A wrong but valid unit shifts |f| by the ratio of two accepted accel units, at
+#: least 9.81 (m/s^2 for g), else 100 (cm/s^2 for m/s^2) or 1000 (mg for g): far outside the window.
+GRAVITY_WINDOW = (0.9, 1.1)
+
+#: Accel units the gravity check proposes when the measured magnitude is outside GRAVITY_WINDOW.
+_GRAVITY_UNITS = ("m/s^2", "g", "mg", "ug", "cm/s^2", "mm/s^2")
+
+_TRUE = ("yes", "true", "1")
+_FALSE = ("no", "false", "0")
 
 _MAGIC = {  # leading bytes -> what the file really is
     b"\x1f\x8b": "gzip-compressed",
@@ -382,3 +401,71 @@ def check_sheet_header(path: str | Path, delimiter: str = "\t") -> list[str]:
     if empty:
         raise DataError(f"dataset sheet {str(path)!r}, line {number}: column(s) {empty} have an empty header")
     return names
+
+
+def gravity_removed(value: Any, where: str = "dataset sheet") -> bool:
+    """The sheet cell ``gravity_removed``: yes/true/1 (gravity was removed from the accel record: no
+    gravity check), no/false/0 or empty (default: the record holds gravity and is checked)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)) or str(value).strip() == "":
+        return False
+    text = str(value).strip().lower()
+    if text in _TRUE or value is True:
+        return True
+    if text in _FALSE or value is False:
+        return False
+    raise DataError(f"{where}: gravity_removed = {value!r}; expected yes or no (empty: no)")
+
+
+def check_gravity(mean_si: Any, unit: str, where: str, window: tuple[float, float] = GRAVITY_WINDOW) -> float:
+    """Check that the mean specific force of a static accelerometer record is gravity; return |mean| (m/s^2).
+
+    Formula: ``|f| = sqrt(fx^2 + fy^2 + fz^2)`` of the three axes' means (m/s^2, after the unit
+    conversion of the sheet's ``accel_unit``) must satisfy ``window[0] <= |f| / g0 <= window[1]``,
+    g0 = 9.80665 m/s^2 (:data:`GRAVITY_WINDOW`: 0.9 .. 1.1, derived there). Outside it, the stored unit
+    is wrong (a record in g declared m/s^2 shows 0.102 g) or gravity was removed from the record.
+
+    Parameters
+    ----------
+    mean_si : sequence of 3 floats
+        Means of accel x, y, z (m/s^2).
+    unit : str
+        The unit the record is stored in (the sheet's ``accel_unit`` or the file's), as spelled there.
+    where : str
+        The file (and dataset), first in the message.
+    window : (float, float), optional
+        Accepted |f| / g0. Defaults to :data:`GRAVITY_WINDOW`.
+
+    Returns
+    -------
+    float
+        |f| in m/s^2.
+
+    Raises
+    ------
+    DataError
+        Naming `where`, ``accel_unit``, |f| in m/s^2 and in g, the unit that would make it about 1 g
+        and the opt-out (``gravity_removed``).
+    """
+    f = np.asarray(mean_si, dtype=np.float64)
+    if f.shape != (3,) or not np.isfinite(f).all():
+        raise DataError(f"{where}: the gravity check needs three finite accel means (m/s^2), got {f.tolist()}")
+    magnitude = float(math.sqrt(float(f @ f)))
+    ratio = magnitude / STANDARD_GRAVITY
+    lo, hi = window
+    if lo <= ratio <= hi:
+        return magnitude
+    hint = ""
+    try:
+        stored = magnitude / rate_factor(str(unit), "accel")  # |f| in the unit the file is stored in
+    except UnitError:
+        stored = None
+    if stored is not None and stored > 0:
+        fits = [u for u in _GRAVITY_UNITS if lo <= stored * rate_factor(u, "accel") / STANDARD_GRAVITY <= hi]
+        if fits:
+            hint = f" The stored values have magnitude {stored:.4g} {unit}: accel_unit = {fits[0]!r} would make it {stored * rate_factor(fits[0], 'accel') / STANDARD_GRAVITY:.3g} g."
+    raise DataError(
+        f"{where}: accel_unit = {unit!r} gives the mean specific force of the three accel axes a magnitude of "
+        f"{magnitude:.4g} m/s^2 = {ratio:.4g} g; a static record on Earth shows {lo:g} .. {hi:g} g "
+        f"(gravity, 9.78 .. 9.83 m/s^2, plus the accelerometer's bias).{hint} Correct accel_unit; if gravity "
+        "was removed from this record, set gravity_removed: yes in its sheet row"
+    )

@@ -29,6 +29,10 @@ from imupipe.readers.checks import check_file, check_unchanged, check_values
 FROM_FILE = "from_file"
 #: Longest gap ``gap_policy="fill"`` fills when neither fill_max_samples nor fill_max_s is given.
 DEFAULT_FILL_MAX_SAMPLES = 10
+#: Largest share of the record ``gap_policy="fill"`` may insert in all (inserted samples over the file's
+#: samples) when ``fill_max_fraction`` is not given: 1 %. By the estimate in docs/inputs.md (relative
+#: change of the Allan variance of order 2 n_filled / N) this bounds the filling's effect to a few % at worst.
+DEFAULT_FILL_MAX_FRACTION = 0.01
 
 
 def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = None) -> dict[str, Any]:
@@ -73,7 +77,11 @@ def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = No
     for key in ("time_column", "time_unit", "delimiter", "variable", "topic", "axis_map", "gap_policy"):
         if r.get(key) is not None:
             kwargs[key] = r[key]
-    for key, kind in (("fill_max_samples", int), ("fill_max_s", float)):
+    for key, kind, what in (
+        ("fill_max_samples", int, "an integer number of samples"),
+        ("fill_max_s", float, "a number of s"),
+        ("fill_max_fraction", float, "a number (fraction of the record, dimensionless)"),
+    ):
         if r.get(key) is not None:
             try:
                 value = kind(r[key])
@@ -81,7 +89,7 @@ def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = No
                     raise ValueError
             except (TypeError, ValueError):
                 raise DataError(
-                    f"dataset {name!r}: {key} = {r[key]!r} is not {'an integer number of samples' if kind is int else 'a number of s'}"
+                    f"dataset {name!r}: {key} = {r[key]!r} is not {what}"
                 ) from None
             kwargs[key] = value
     if r.get("long_gap_policy") is not None:
@@ -140,6 +148,7 @@ def read_dataset(
     fill_max_samples: int | None = None,
     fill_max_s: float | None = None,
     long_gap_policy: str = "fail",
+    fill_max_fraction: float = DEFAULT_FILL_MAX_FRACTION,
     min_duration_key: str = "min_duration_s",
 ) -> Recording:
     r"""Read, convert to SI and validate one static IMU record.
@@ -220,6 +229,10 @@ def read_dataset(
         rounded down). Defaults to None.
     long_gap_policy : {"fail", "split"}, optional
         ``gap_policy="fill"``: what a longer gap does. Defaults to ``"fail"``.
+    fill_max_fraction : float, optional
+        ``gap_policy="fill"``: most samples filling may insert in all, as a fraction of the file's
+        samples (dimensionless, in [0, 1]); more is an error naming ``fill_max_fraction``. Defaults to
+        :data:`DEFAULT_FILL_MAX_FRACTION` (0.01).
     min_duration_key : str, optional
         Name of the setting ``min_duration_s`` comes from, quoted in the error (the workflow passes
         ``"psd.window_s"``). Defaults to ``"min_duration_s"``.
@@ -253,6 +266,10 @@ def read_dataset(
     for name, value in (("fill_max_samples", fill_max_samples), ("fill_max_s", fill_max_s)):
         if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise DataError(f"{where}: {name} = {value!r}; expected a non-negative number")
+    if not (isinstance(fill_max_fraction, (int, float)) and 0 <= fill_max_fraction <= 1):
+        raise DataError(
+            f"{where}: fill_max_fraction = {fill_max_fraction!r}; expected a fraction of the record in [0, 1]"
+        )
     if rate_hz is not None and not (np.isfinite(rate_hz) and rate_hz > 0):
         raise DataError(f"{where}: rate_hz = {rate_hz!r}; expected a positive number of Hz")
     if min_duration_s is not None and not (min_duration_s >= 0):
@@ -353,7 +370,9 @@ def read_dataset(
                 else int(math.floor(fill_max_s * guess)) if fill_max_s is not None
                 else DEFAULT_FILL_MAX_SAMPLES
             )
-            filled, row_map = _fill_gaps(raw, rate, gap_factor, max_missing, where, row_text)
+            filled, row_map = _fill_gaps(
+                raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text
+            )
             n = len(raw.time)
             if not filled:
                 row_map = None
@@ -550,13 +569,9 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
     dt = np.diff(t)
     _check_increasing(t, dt, tname, where, row_text)
+    if rate_hz is not None:
+        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where)
     nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor, dt)
-    if rate_hz is not None and abs(mean_rate - rate_hz) > rtol * rate_hz:
-        raise DataError(
-            f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
-            f"(mean interval {1.0 / mean_rate:.6g} s over the gap-free intervals); expected agreement within "
-            f"{rtol:g} relative (rate_rtol)"
-        )
     if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
         raise DataError(
             f"{where}: the file says {rate:g} Hz ({raw.file_rate_from}) but the timestamps ({tname}) "
@@ -595,6 +610,24 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     return segments, rate
 
 
+def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
+    """The sheet's `rate_hz` (Hz) must agree within `rtol` (relative) with the timestamps' mean rate.
+
+    The mean rate is found as when ``rate_hz`` is empty (:func:`_nominal_rate` without a rate: gaps
+    against the median interval, then the mean over the gap-free intervals), not against the sheet's
+    rate: a 100 Hz record stated as 200 Hz would otherwise have every interval a gap (and
+    ``gap_policy="fill"`` would insert a sample in each).
+    """
+    _, mean_rate = _nominal_rate(t, None, gap_factor, dt)
+    if abs(mean_rate - rate_hz) > rtol * rate_hz:
+        raise DataError(
+            f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
+            f"(mean interval {1.0 / mean_rate:.6g} s over the gap-free intervals, the rule used when rate_hz is "
+            f"empty); expected agreement within {rtol:g} relative (rate_rtol). The sheet's rate and the timestamps "
+            "disagree: correct rate_hz, or leave it empty to take the rate from the timestamps"
+        )
+
+
 def _check_increasing(t, dt, tname, where, row_text) -> None:
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
@@ -630,8 +663,12 @@ class FilledGap:
     dt_s: float
 
 
-def _fill_gaps(raw: _Raw, rate, gap_factor, max_missing, where, row_text):
+def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text):
     """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map).
+
+    The sheet's `rate_hz` (when given) is first checked against the timestamps (:func:`_check_sheet_rate`),
+    and the samples inserted in all may be at most `max_fraction` of the file's samples
+    (``fill_max_fraction``), else :class:`DataError`.
 
     Method: the k missing samples of a gap between rows i and i+1 are placed at t_i + j dt/(k+1),
     j = 1..k, with values on the straight line between samples i and i+1 (every channel). Longer gaps
@@ -641,11 +678,20 @@ def _fill_gaps(raw: _Raw, rate, gap_factor, max_missing, where, row_text):
     t = raw.time
     dt = np.diff(t)
     _check_increasing(t, dt, raw.time_name, where, row_text)
+    if rate_hz is not None:
+        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, raw.time_name, where)
     nominal_rate, _ = _nominal_rate(t, rate, gap_factor, dt)
     gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
     missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
     fill = missing <= max_missing
     gaps, missing = gaps[fill], np.maximum(missing[fill], 1)
+    inserted = int(missing.sum())
+    if inserted > max_fraction * len(t):
+        raise DataError(
+            f"{where}: gap_policy fill would insert {inserted} samples in {gaps.size} gap(s), "
+            f"{inserted / len(t):.3g} of the file's {len(t)} samples; at most fill_max_fraction = {max_fraction:g} "
+            f"may be made up. Check the timestamps and rate_hz, or raise fill_max_fraction (sheet column) knowingly"
+        )
     rows = np.arange(len(t))
     if not gaps.size:
         return (), rows
