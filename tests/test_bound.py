@@ -540,6 +540,25 @@ class TestCheckAllan:
         with pytest.raises(ValueError, match="tau band"):
             check_allan(bound, ident, tau, sample_avar=av[None, :], horizon_s=1.0, tau_min_s=2.0)
 
+    def test_component_check_restricted_to_the_application_band(self):
+        """Component against component over the same band as the total check. A GM's AV is about
+        2 sigma^2 tau / (3 T) for tau << T and 2 sigma^2 T / tau for tau >> T, so a bound GM with the identified
+        sigma but T = 100 s against the identified T = 1000 s has an AV ratio near 10 at short tau and near
+        0.1 at long tau, crossing 1 at a few hundred s. Horizon 50 s: the shortfall lies outside the band,
+        reported and not failed; horizon 5000 s: inside, it fails and is named with its tau."""
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=1e-4, gauss_markov=((1e-4, 1000.0),))
+        bound = NoiseModel(white=1e-4, gauss_markov=((1e-4, 100.0),))
+        tau = np.logspace(-1, 4, 26)
+        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], horizon_s=50.0, tau_min_s=1.0)
+        gm = rep["components"]["gauss_markov"]
+        assert gm["status"] == "ok" and rep["passed"]
+        assert gm["outside_band"]["margin"] < 1 and gm["outside_band"]["tau_s"] > 50.0
+        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], horizon_s=5000.0, tau_min_s=1.0)
+        gm = rep["components"]["gauss_markov"]
+        assert gm["status"] == "shortfall" and not rep["passed"] and 50.0 < gm["tau_s"] <= 5000.0
+
 
 class TestPerAxis:
     def test_per_axis_models_differ_where_the_axes_differ_and_bound_their_own_curves(self):
