@@ -46,6 +46,18 @@ def _apply_defaults():
 _apply_defaults()
 validate(config, schema="../schemas/config.schema.yaml", set_default=False)
 
+# The KF export runs at application.rate_hz; the verification (and so any reduction it accepted) ran its reference
+# filter at verify.filter_rate_hz. A reduction verified at another rate is not verified for the exported filter:
+# said at start-up here, and in the KF file, the contract and the run summary (rate_mismatch).
+if abs(float(config["verify"]["filter_rate_hz"]) - float(config["application"]["rate_hz"])) > 1e-9 * float(
+        config["application"]["rate_hz"]):
+    import sys as _sys
+
+    print(f"imupipe warning: verify.filter_rate_hz = {config['verify']['filter_rate_hz']} Hz differs from "
+          f"application.rate_hz = {config['application']['rate_hz']} Hz (the KF export's rate): the verification "
+          "and any state reduction it accepts hold at the verification rate, not at the exported filter's; set "
+          "verify.filter_rate_hz to application.rate_hz to verify the exported filter itself", file=_sys.stderr)
+
 NAME = config["name"]
 RESULTS = f"results/{NAME}"
 LOGS = f"logs/{NAME}"
