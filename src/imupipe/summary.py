@@ -152,7 +152,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         out.append(Flag(sensor, "export rate", "KF file",
                         f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported "
                         f"at {_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not "
-                        "cover the exported rate (set verify.filter_rate_hz to application.rate_hz)"))
+                        "cover the exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide "
+                        "decimate.rate_hz)"))
     for ax in bound.get("per_axis") or []:
         if isinstance(ax, Mapping) and ax.get("bounded") is False:
             out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),

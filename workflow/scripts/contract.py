@@ -20,7 +20,10 @@ HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must me
 bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
-u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter.
+u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter. export: the
+states the verified reduction dropped (dropped_by_reduction; the model then holds for horizon_s s of outage only), the
+reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
+narrowband line states (line_states) and one statement of all this.
 per_axis_models: null when the axes are pooled; else per axis its own contract (bounded, verified, failed_checks) and
 exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one)."""
 
