@@ -117,3 +117,84 @@ def test_dataset_rates_take_the_timestamps_rate_where_the_sheet_gives_none():
     assert dataset_rates({"a": 125.0, "b+1.v2": None}, curves) == {"a": 125.0, "b+1.v2": 300.0}
     with pytest.raises(ValueError, match=r"dataset 'c' has no rate_hz in the sheet and no curve .*\(curves: a/x"):
         dataset_rates({"c": None}, curves)
+
+
+def _kalibr_script():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "kalibr.py"
+    spec = importlib.util.spec_from_file_location("stage_kalibr", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _stage_files(tmp_path, accel_bound: NoiseModel, accel_kf: NoiseModel, accel_dropped: list):
+    """Synthetic bound, identify and KF files of both sensors as the kf rule writes them (imupipe.kf.export_kf and
+    export_scope on a verification report whose reduction dropped `accel_dropped`)."""
+    from imupipe.kf import export_kf, export_scope
+
+    paths = {}
+    for sensor, bound, kfm, dropped in (("gyro", GYRO, GYRO, []), ("accel", accel_bound, accel_kf, accel_dropped)):
+        exported = {"reduced": bool(dropped), "model": kfm.to_dict(),
+                    "verification": {"scenario": {"rate_hz": 100.0, "fix_s": 600.0, "horizon_s": 600.0}}}
+        kf = {"sensor": sensor, "bounded": True, "dt_s": 0.01,
+              "export": export_scope(exported, {"accepted": dropped}, 100.0, 600.0),
+              **export_kf(kfm, 0.01, sensor=sensor, p0_random_walk=kfm.random_walk**2 * 600.0 or None)}
+        for kind, doc in (("bound", {"spec_name": "X", "mode": "raw", "bound": bound.to_dict()}),
+                          ("identify", {"model": (GYRO_ID if sensor == "gyro" else ACCEL_ID).to_dict()}),
+                          ("kf", kf)):
+            paths[f"{kind}_{sensor}"] = tmp_path / f"{kind}_{sensor}.yaml"
+            paths[f"{kind}_{sensor}"].write_text(yaml.safe_dump(doc))
+    return {k: str(v) for k, v in paths.items()}
+
+
+def _run_kalibr(tmp_path, paths):
+    out = tmp_path / "kalibr_imu.yaml"
+    _kalibr_script().main(paths["bound_gyro"], paths["bound_accel"], paths["identify_gyro"], paths["identify_accel"],
+                          {"a": 100.0}, {"a": None}, str(out), "x", path_kf_gyro=paths["kf_gyro"],
+                          path_kf_accel=paths["kf_accel"])
+    return out
+
+
+def test_kalibr_follows_the_kf_export_that_dropped_every_line(tmp_path):
+    """The bound has a line, the verified reduction dropped it (and the random walk) from the KF export: the Kalibr
+    file is written from the exported model, not refused, and says what was dropped and for which horizon."""
+    from dataclasses import replace
+
+    bound = replace(ACCEL, narrowband=((6.6e-3, 0.564, 1.8e-3),))
+    kfm = replace(ACCEL, random_walk=0.0)
+    paths = _stage_files(tmp_path, bound, kfm, ["random_walk", "narrowband f0=0.564 Hz"])
+    out = _run_kalibr(tmp_path, paths)
+    k = read_kalibr(out)  # all Kalibr fields present: not refused
+    text = out.read_text()
+    assert "refused" not in yaml.safe_load(text)
+    # the exported model's values: K_eff of the KF model (no random walk: the GM alone), not the bound's
+    assert k["accelerometer_noise_density"] == pytest.approx(kfm.white, rel=1e-6)
+    assert k["accelerometer_random_walk"] == pytest.approx(_k_eff(kfm), rel=1e-6)
+    assert _k_eff(kfm) < _k_eff(ACCEL) * (1 - 1e-3)  # the two differ: the check can tell which was used
+    assert "dropped random_walk, narrowband f0=0.564 Hz" in text and "horizon only (600 s of outage" in text
+
+
+def test_kalibr_refuses_only_for_line_states_of_the_kf_export_with_nonzero_sigma(tmp_path):
+    from dataclasses import replace
+
+    kfm = replace(ACCEL, narrowband=((0.0, 0.463, 2e-3), (6.6e-3, 0.564, 1.8e-3)))
+    paths = _stage_files(tmp_path, kfm, kfm, [])
+    out = _run_kalibr(tmp_path, paths)
+    data = yaml.safe_load(out.read_text())
+    assert data["refused"] is True and "exported accel KF model" in data["reason"]
+    text = out.read_text()
+    assert "f0 0.564 Hz" in text and "0.463" not in text  # the sigma-0 term is no state and no reason
+    with pytest.raises(ValueError, match="accelerometer_noise_density"):
+        read_kalibr(out)
+
+
+def test_k_eff_ignores_a_sigma_zero_line():
+    from dataclasses import replace
+
+    from imupipe import kalibr
+
+    m = replace(ACCEL, narrowband=((0.0, 0.463, 2e-3),))
+    assert kalibr._k_eff(m, "accel") == pytest.approx(_k_eff(ACCEL), rel=1e-12)

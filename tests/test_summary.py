@@ -66,7 +66,7 @@ def test_flagged_and_failed_checks_appear_with_where():
     assert "FAIL covariance [curve=sim1/x]: detail=P_f < MSE at step 40" in text
     assert "FLAG stationarity [sim2/gyro/z]: non-stationary (p = 0.003, calibrated); kept in the bound" in text
     assert "FLAG fit adequacy" in text and "chi2/dof = 4.2" in text
-    assert "FLAG lines [f0_hz=12.5]" in text
+    assert "FLAG lines [-]: 12.5 Hz, sigma 1e-05 (unit not stated)" in text
     assert "FLAG outliers [curve=sim1/x, index=1203, time_s=9.6]" in text
     assert "FLAG gaps [dataset=sim2, start_s=100, stop_s=100.5]" in text
     assert "**Verdict:** gyro: NOT BOUNDED; accel: BOUNDED. 4 failed" in text
@@ -148,3 +148,74 @@ def test_per_axis_models_table_band_and_a_refused_axis_flagged():
     assert "- Allan total check over the application band: tau from 0.01 to 1.2e+03 s" in text
     plain = render_summary({"gyro": {"bound": _bound()}})
     assert "Per-axis models" not in plain and "per-axis model" not in plain
+
+
+def _scope(dropped, vrate=1.0, kf_rate=1.0, horizon=600.0):
+    from imupipe.kf import export_scope
+
+    exported = {"reduced": bool(dropped), "model": {"white": 1e-4},
+                "verification": {"scenario": {"rate_hz": vrate, "fix_s": 600.0, "horizon_s": horizon}}}
+    return export_scope(exported, {"accepted": dropped}, kf_rate)
+
+
+def test_the_exported_filter_model_and_its_reduction_are_stated_per_sensor_and_per_axis():
+    """The inflation table shows the bound's K; the KF export dropped it: the summary says so, with the horizon
+    (s) the reduced export holds for, for the sensor and for an axis with its own model."""
+    per = {"x": {"inflation": {"N": 2.66}, "exported_in_kf": True, "kf": "axis x: its own model",
+                 "export": _scope(["gauss_markov T=200 s"], horizon=600.0)},
+           "y": {"inflation": {"N": 1.2}, "exported_in_kf": False, "kf": "axis y: the global model"}}
+    bound = _bound(export=_scope(["random_walk", "narrowband f0=0.564 Hz"]), per_axis_models=per)
+    text = render_summary({"gyro": {"bound": bound, "identify": IDENTIFY}})
+    assert ("- exported filter model (KF file): reduced model: the verified reduction dropped random_walk, "
+            "narrowband f0=0.564 Hz; the export is then valid for the configured horizon only (600 s of outage "
+            "after 600 s of fixes), not beyond it") in text
+    assert "| x | 2.66 | yes | axis x: its own model | reduced model: the verified reduction dropped gauss_markov" in text
+    assert "| y | 1.2 | no (global model) | axis y: the global model | global: reduced model: the verified" in text
+    # the bound exported whole: said so, no horizon restriction claimed
+    whole = render_summary({"gyro": {"bound": _bound(export=_scope([]))}})
+    assert "- exported filter model (KF file): the bound's model, no state dropped" in whole
+    assert "horizon only" not in whole
+    assert "exported filter model" not in render_summary({"gyro": {"bound": _bound()}})  # no contract: no claim
+
+
+def test_a_verification_at_another_rate_than_the_export_is_flagged():
+    bound = _bound(export=_scope(["random_walk"], vrate=1.0, kf_rate=100.0))
+    text = render_summary({"accel": {"bound": bound}})
+    assert "verified with a reference filter at 1 Hz, exported at 100 Hz" in text
+    assert "- FLAG export rate [KF file]: verified with a reference filter at 1 Hz, exported at 100 Hz" in text
+    assert "0 failed, 1 flagged" in text
+    same = render_summary({"accel": {"bound": _bound(export=_scope(["random_walk"], vrate=100.0, kf_rate=100.0))}})
+    assert "export rate" not in same and "exported at" not in same
+
+
+def test_a_random_walk_resting_on_the_spec_sheet_alone_is_stated():
+    # IDENTIFY dropped the random walk; the bound and the spec sheet have one (_bound: 1e-7 and 9.7e-8 SI)
+    text = render_summary({"gyro": {"bound": _bound(export=_scope(["random_walk"])), "identify": IDENTIFY}})
+    assert ("- random walk: the data showed none (identification dropped it); the bound's K rests on the spec sheet "
+            "alone; the exported filter drops it (reduction above)") in text
+    kept = {**IDENTIFY, "selection": {**IDENTIFY["selection"], "kept": ["white", "gauss_markov", "random_walk"]}}
+    assert "rests on the spec sheet" not in render_summary({"gyro": {"bound": _bound(), "identify": kept}})
+    no_spec_k = _bound(spec={"white": 4.4e-5, "random_walk": 0.0})
+    assert "rests on the spec sheet" not in render_summary({"gyro": {"bound": no_spec_k, "identify": IDENTIFY}})
+
+
+def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_ratio():
+    """A lines file (one dataset/sensor/axis, units under `units`) merged by the summary script: each FLAG names
+    where the line is, its frequency in Hz, its amplitude in the sensor's unit and its peak over the floor."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "stage_summary", Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "summary.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    entry = {}
+    lines_file = {"dataset": "adis_imu2", "sensor": "accel", "axis": "z",
+                  "lines": [{"frequency_hz": 0.5669195, "power": 2.4e-05, "amplitude": 0.0069233,
+                             "sigma": 0.0048955, "peak_ratio": 78.573}],
+                  "units": {"frequency_hz": "Hz", "amplitude": "m/s^2", "sigma": "m/s^2", "peak_ratio": "1"}}
+    mod._merge_checks(entry, lines_file)
+    mod._merge_checks(entry, {**lines_file, "axis": "x"})
+    text = render_summary({"accel": {"bound": entry}})
+    assert "- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2, peak PSD 78.6x the floor" in text
+    assert "- FLAG lines [adis_imu2/accel/x]: 0.5669 Hz" in text

@@ -370,3 +370,26 @@ class TestPerAxisExport:
         # is the largest of 3600 two-window Welch ordinates (Gamma(2, 1/2) in units of the PSD): between 4.3 and 9.05
         # except with probability 1e-3 each, so N_x/N_global <= sqrt(9.05 / (4 x 4.3)) = 0.725
         assert per["x"][1].model.white < 0.75 * glob.model.white
+
+
+def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_replay_cannot_run(tiny_run):
+    """verify.filter_rate_hz differing from application.rate_hz (the KF export's): a warning on the terminal at
+    start-up (the run goes on); a filter rate that does not divide decimate.rate_hz: refused before any job, naming
+    both keys (the verify job would otherwise stop mid-run on the replay)."""
+    work, config = tiny_run
+    cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())  # the defaults the tiny config keeps
+    for key, value in yaml.safe_load(config.read_text()).items():
+        cfg[key] = {**cfg[key], **value} if isinstance(value, dict) and isinstance(cfg.get(key), dict) else value
+    base = cfg["application"]["rate_hz"]
+    assert cfg["verify"]["filter_rate_hz"] == base == cfg["decimate"]["rate_hz"]  # the tiny run's rates agree
+    same = snakemake(work, "-n", config=config)
+    assert "verify.filter_rate_hz" not in same.stderr
+    slower = _changed(work, config, "slow_verify", verify={"filter_rate_hz": base / 2})
+    proc = snakemake(work, "-n", config=slower)
+    assert (f"imupipe warning: verify.filter_rate_hz = {base / 2} Hz differs from application.rate_hz = {base} Hz"
+            in proc.stderr)
+    faster = _changed(work, config, "fast_verify", verify={"filter_rate_hz": base * 3})
+    proc = snakemake(work, "-n", config=faster, check=False)
+    assert proc.returncode != 0
+    assert (f"verify.filter_rate_hz = {base * 3} Hz must divide decimate.rate_hz = {cfg['decimate']['rate_hz']} Hz"
+            in proc.stdout + proc.stderr)

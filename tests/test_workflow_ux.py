@@ -67,7 +67,7 @@ def test_report_front_page_and_html_carry_the_verdict(tiny_run):
     assert "<table>" in (work / RES / "tables" / "stim300" / "inflation.html").read_text()
 
 
-def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_bound(tiny_run):
+def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_exported_kf_model(tiny_run):
     from imupipe.kalibr import KALIBR_UNITS, read_kalibr
 
     work, config = tiny_run
@@ -79,9 +79,10 @@ def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_bound(tiny_run):
     assert k["update_rate"] == cfg["simulation"]["rate_hz"] != cfg["application"]["rate_hz"]
     assert k["rostopic"] == "/imu0"  # simulated data name no topic: Kalibr's default
     for prefix, sensor in (("gyroscope", "gyro"), ("accelerometer", "accel")):
-        b = _read(work, f"{RES}/bound/stim300/{sensor}.yaml")["bound"]
-        # continuous-time densities: the noise density is the bound's two-sided white density N (SI), the random
-        # walk K_eff = sqrt(K^2 + sum 2 sigma^2/T) (GM folded in); written with 7 significant digits
+        b = _read(work, f"{RES}/kf/stim300/{sensor}.yaml")["parameters"]
+        # continuous-time densities of the exported KF model (the bound after the verified reduction): the noise
+        # density is its two-sided white density N (SI), the random walk K_eff = sqrt(K^2 + sum 2 sigma^2/T) (GM
+        # folded in); written with 7 significant digits
         k_eff = math.sqrt((b["random_walk"] or 0.0) ** 2 + sum(2 * g["sigma"] ** 2 / g["T"] for g in b["gauss_markov"]))
         assert k[f"{prefix}_noise_density"] == pytest.approx(b["white"], rel=1e-6)
         assert k[f"{prefix}_random_walk"] == pytest.approx(k_eff, rel=1e-6)
@@ -110,21 +111,22 @@ def test_figures_section_reruns_only_the_figures(tiny_run):
         assert set(jobs) <= {"figures", "inflation_effect", "integrity", "all"} and "figures" in jobs, (change, jobs)
 
 
-def test_kalibr_refuses_a_bound_with_a_line(tiny_run, tmp_path):
-    """A narrowband term cannot be carried by Kalibr's two terms: the file gets no Kalibr field (so Kalibr fails
-    on it), says why, and the summary flags it."""
+def test_kalibr_refuses_a_kf_export_with_a_line(tiny_run, tmp_path):
+    """A narrowband state of the exported KF model cannot be carried by Kalibr's two terms: the file gets no Kalibr
+    field (so Kalibr fails on it), says why, and the summary flags it."""
     from imupipe.kalibr import read_kalibr
 
     work, _ = tiny_run
     kalibr = _script("kalibr")
-    bound = _read(work, f"{RES}/bound/stim300/accel.yaml")
-    bound["bound"]["narrowband"] = [{"sigma": 1e-3, "f0_hz": 0.47, "zeta": 0.01}]
+    kf = _read(work, f"{RES}/kf/stim300/accel.yaml")
+    kf["parameters"]["narrowband"] = [{"sigma": 1e-3, "f0_hz": 0.47, "zeta": 0.01}]
     with_line = tmp_path / "accel.yaml"
-    with_line.write_text(yaml.safe_dump(bound))
+    with_line.write_text(yaml.safe_dump(kf))
     out = tmp_path / "kalibr_imu.yaml"
-    kalibr.main(str(work / RES / "bound/stim300/gyro.yaml"), str(with_line), str(work / RES / "identify/gyro.yaml"),
-                str(work / RES / "identify/accel.yaml"), {"a": 20.0, "b": 20.0}, {"a": None, "b": ""}, str(out),
-                "stim300")
+    kalibr.main(str(work / RES / "bound/stim300/gyro.yaml"), str(work / RES / "bound/stim300/accel.yaml"),
+                str(work / RES / "identify/gyro.yaml"), str(work / RES / "identify/accel.yaml"),
+                {"a": 20.0, "b": 20.0}, {"a": None, "b": ""}, str(out), "stim300",
+                path_kf_gyro=str(work / RES / "kf/stim300/gyro.yaml"), path_kf_accel=str(with_line))
     data = yaml.safe_load(out.read_text())
     assert data["refused"] is True and "narrowband" in data["reason"]
     assert "f0 0.47 Hz" in out.read_text()
@@ -140,7 +142,9 @@ def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):
     # refused in the file, naming each rate (the run goes on: one Kalibr file holds one IMU rate)
     kalibr.main(*(str(work / RES / p) for p in ("bound/stim300/gyro.yaml", "bound/stim300/accel.yaml",
                                                  "identify/gyro.yaml", "identify/accel.yaml")),
-                {"a": 20.0, "b": 100.0}, {}, str(tmp_path / "k.yaml"), "stim300")
+                {"a": 20.0, "b": 100.0}, {}, str(tmp_path / "k.yaml"), "stim300",
+                path_kf_gyro=str(work / RES / "kf/stim300/gyro.yaml"),
+                path_kf_accel=str(work / RES / "kf/stim300/accel.yaml"))
     data = yaml.safe_load((tmp_path / "k.yaml").read_text())
     assert data["refused"] is True and "differ in sample rate (a: 20 Hz, b: 100 Hz)" in data["reason"]
     assert "accelerometer_noise_density" not in data

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 from imupipe.models import NoiseModel
 
-__all__ = ["KALIBR_UNITS", "KalibrIMU", "dataset_rates", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound", "read_kalibr",
-           "rostopic_of", "write_kalibr"]
+__all__ = ["KALIBR_UNITS", "KalibrIMU", "dataset_rates", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound",
+           "model_of_kf", "read_kalibr", "rostopic_of", "write_kalibr"]
 
 #: Unit of every Kalibr field (SI, continuous time).
 KALIBR_UNITS = {
@@ -107,7 +107,7 @@ def _model(m, name: str) -> NoiseModel:
 
 def _k_eff(m: NoiseModel, name: str) -> float:
     """Random walk that bounds m's random walk plus its GM terms in PSD (u/sqrt(s))."""
-    lines = getattr(m, "narrowband", ()) or ()
+    lines = [t for t in getattr(m, "narrowband", ()) or () if t[0] > 0]  # a sigma-0 term is no line (no KF state)
     if lines:
         raise ValueError(f"{name}: the model has {len(lines)} narrowband line(s); Kalibr's two-term model cannot "
                          "bound them (use the full Kalman-filter export instead)")
@@ -249,7 +249,7 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", i
     return KalibrIMU(update_rate=rate, rostopic=rostopic.strip(), inflation=inflation, **vals)
 
 
-def kalibr_text(imu: KalibrIMU, *, source: str = "") -> str:
+def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
     """The ``imu.yaml`` text: a comment block (bounding values, units, inflation) and the six fields.
 
     Parameters
@@ -257,6 +257,8 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "") -> str:
     imu : KalibrIMU
     source : str, optional
         One line naming where the values come from (spec sheet, run), written in the comment block.
+    notes : sequence of str, optional
+        Further comment lines (e.g. the exported filter model's reduction and the horizon it holds for).
     """
     lines = [
         "# Kalibr IMU noise model (imu.yaml) written by imupipe.",
@@ -268,6 +270,7 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "") -> str:
     ]
     if source:
         lines.append(f"# Source: {source}")
+    lines += [f"# {n}" for n in notes]
     known = {k: v for k, v in imu.inflation.items() if v is not None}
     if known:
         lines.append("# Inflation against the values identified from the Allan variance (written / identified):")
@@ -284,11 +287,11 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "") -> str:
     return "\n".join(lines + body) + "\n"
 
 
-def write_kalibr(imu: KalibrIMU, path, *, source: str = "") -> None:
+def write_kalibr(imu: KalibrIMU, path, *, source: str = "", notes=()) -> None:
     """Write :func:`kalibr_text` to `path` atomically."""
     from imupipe.io import write_text_atomic
 
-    write_text_atomic(kalibr_text(imu, source=source), path)
+    write_text_atomic(kalibr_text(imu, source=source, notes=notes), path)
 
 
 def read_kalibr(path) -> dict:
@@ -325,3 +328,19 @@ def model_of_bound(bound_yaml: Mapping) -> NoiseModel:
     except (KeyError, TypeError):
         raise ValueError("bound YAML: no 'bound' section (expected the per-sensor bound contract)") from None
     return NoiseModel.from_dict(b)
+
+
+def model_of_kf(kf_yaml: Mapping, path: str = "KF file") -> NoiseModel:
+    """The exported filter model of a KF file (``results/.../kf/{spec}/{sensor}.yaml``), SI: its ``parameters``
+    (white u/sqrt(Hz), GM sigma u and T s, random_walk u/sqrt(s), narrowband sigma u, f0_hz Hz, zeta) as a
+    :class:`NoiseModel`. This is the bound's model after the verified reduction, the model Kalibr's file must follow.
+
+    Raises
+    ------
+    ValueError
+        Naming `path` when the file has no ``parameters`` mapping.
+    """
+    params = kf_yaml.get("parameters") if isinstance(kf_yaml, Mapping) else None
+    if not isinstance(params, Mapping):
+        raise ValueError(f"{path}: no 'parameters' section (expected the KF export of imupipe's kf rule)")
+    return NoiseModel.from_dict({k: v for k, v in params.items() if k != "units"})

@@ -51,6 +51,7 @@ from imupipe.units import SI_UNITS
 
 __all__ = [
     "ContinuousModel",
+    "export_scope",
     "continuous_model",
     "discretize",
     "initial_covariance",
@@ -463,3 +464,59 @@ def kalibr_yaml(gyro_model, accel_model, rate_hz: float, rostopic: str = "/imu0"
         "gyroscope_noise_density": float(gyro_model.white),
         "gyroscope_random_walk": k_eff(gyro_model, "gyroscope"),
     }
+
+
+def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, horizon_s: float | None = None) -> dict:
+    """What the exported filter model is and where its verification holds (no numerics: a statement).
+
+    Parameters
+    ----------
+    exported : dict
+        The ``exported`` section of a verification report (imupipe.verify.verification_stage): ``reduced``,
+        ``reason``, ``model`` (SI) and ``verification`` (its ``scenario``: ``rate_hz`` of the reference filter in
+        Hz, ``fix_s`` and ``horizon_s`` in s).
+    reduction : dict or None
+        The report's ``reduction`` (``accepted``: the drops, e.g. ``random_walk``, ``narrowband f0=0.56 Hz``).
+    kf_rate_hz : float
+        Rate of the exported filter, Hz (1 / the KF file's dt_s; config ``application.rate_hz``).
+    horizon_s : float, optional
+        The configured outage horizon, s (config ``application.horizon_s``); default: the verification
+        scenario's (the same number: the verify rule passes it).
+
+    Returns
+    -------
+    dict
+        ``dropped_by_reduction`` (list of str; empty when the bound is exported whole), ``horizon_s`` (s),
+        ``fix_s`` (s), ``verified_filter_rate_hz`` and ``kf_rate_hz`` (Hz), ``rate_mismatch`` (bool: the
+        reference filter ran at another rate than the exported filter's), ``line_states`` (narrowband terms of
+        the exported model with sigma > 0: sigma in the sensor's SI unit, f0_hz in Hz) and ``statement`` (one
+        sentence for the summary and the files).
+    """
+    scen = (exported.get("verification") or {}).get("scenario") or {}
+    horizon_s = scen.get("horizon_s") if horizon_s is None else horizon_s
+    dropped = list((reduction or {}).get("accepted") or []) if exported.get("reduced") else []
+    vrate = scen.get("rate_hz")
+    mismatch = vrate is not None and abs(float(vrate) - float(kf_rate_hz)) > 1e-9 * float(kf_rate_hz)
+    nb = [t for t in (exported.get("model") or {}).get("narrowband") or []
+          if (t["sigma"] if isinstance(t, dict) else t[0]) > 0]
+    line_states = [{"sigma": float(t["sigma"]), "f0_hz": float(t["f0_hz"]), "zeta": float(t["zeta"])}
+                   if isinstance(t, dict) else {"sigma": float(t[0]), "f0_hz": float(t[1]), "zeta": float(t[2])}
+                   for t in nb]
+    if dropped:
+        text = (f"reduced model: the verified reduction dropped {', '.join(dropped)}; the export is then valid for "
+                f"the configured horizon only ({_num_s(horizon_s)} s of outage"
+                + (f" after {float(scen['fix_s']):g} s of fixes" if scen.get("fix_s") is not None else "")
+                + "), not beyond it")
+    else:
+        text = "the bound's model, no state dropped"
+    if mismatch:
+        text += (f"; verified with a reference filter at {float(vrate):g} Hz, exported at {float(kf_rate_hz):g} Hz: "
+                 "the verification (and any reduction) is not verified at the exported rate")
+    return {"dropped_by_reduction": dropped, "horizon_s": None if horizon_s is None else float(horizon_s),
+            "fix_s": None if scen.get("fix_s") is None else float(scen["fix_s"]),
+            "verified_filter_rate_hz": None if vrate is None else float(vrate), "kf_rate_hz": float(kf_rate_hz),
+            "rate_mismatch": bool(mismatch), "line_states": line_states, "statement": text}
+
+
+def _num_s(v) -> str:
+    return "-" if v is None else f"{float(v):g}"

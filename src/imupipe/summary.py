@@ -147,6 +147,13 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         if isinstance(pa, Mapping) and pa.get("exported_in_kf") is False:
             out.append(Flag(sensor, "per-axis model", str(ax),
                             f"not exported: {pa.get('kf', 'its own contract failed')}"))
+    exp = bound.get("export") if isinstance(bound.get("export"), Mapping) else {}
+    if exp.get("rate_mismatch"):
+        out.append(Flag(sensor, "export rate", "KF file",
+                        f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported "
+                        f"at {_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not "
+                        "cover the exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide "
+                        "decimate.rate_hz)"))
     for ax in bound.get("per_axis") or []:
         if isinstance(ax, Mapping) and ax.get("bounded") is False:
             out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),
@@ -174,7 +181,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         for src in (identify, stationarity, bound):
             for it in _items(src.get(key)):
                 if isinstance(it, Mapping):
-                    out.append(Flag(sensor, "lines", _where_of(it), _detail_of(it) or "narrowband line"))
+                    out.append(_line_flag(sensor, it))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
             for it in _items(src.get(key)):
@@ -183,6 +190,47 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 else:
                     out.append(Flag(sensor, key, "-", str(it)))
     return out
+
+
+def _export_lines(bound: Mapping, kept) -> list[str]:
+    """Summary bullets on the exported filter model (the contract's ``export``, imupipe.kf.export_scope): the states
+    the verified reduction dropped and the horizon (s) the export then holds for, the verification rate against the
+    export's; and, when identification kept no random walk while the bound has one, that the bound's random walk
+    rests on the spec sheet alone."""
+    out = []
+    exp = bound.get("export")
+    if isinstance(exp, Mapping) and exp.get("statement"):
+        out.append(f"- exported filter model (KF file): {exp['statement']}")
+    def k_of(section):
+        try:
+            return float(_g(bound, section, "random_walk", default=0.0))
+        except (TypeError, ValueError):
+            return 0.0
+
+    if kept is not None and "random_walk" not in kept and k_of("bound") > 0 and k_of("spec") > 0:
+        dropped = isinstance(exp, Mapping) and "random_walk" in (exp.get("dropped_by_reduction") or [])
+        out.append("- random walk: the data showed none (identification dropped it); the bound's K rests on the spec "
+                   "sheet alone" + ("; the exported filter drops it (reduction above)" if dropped else ""))
+    return out
+
+
+def _line_flag(sensor: str, it: Mapping) -> Flag:
+    """The FLAG of one narrowband line: where (dataset/sensor/axis), its frequency (Hz), its sinusoid amplitude
+    :math:`A = \\sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``), and its peak PSD over the
+    running-median floor (``peak_ratio``, dimensionless; imupipe.lines)."""
+    units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
+    where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
+    if not where:
+        where = str(it.get("curve", "-"))
+    f = it.get("frequency_hz", it.get("f0_hz"))
+    parts = [f"{_num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
+    if it.get("amplitude") is not None:
+        parts.append(f"amplitude {_num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
+    elif it.get("sigma") is not None:
+        parts.append(f"sigma {_num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
+    if it.get("peak_ratio") is not None:
+        parts.append(f"peak PSD {_num(it['peak_ratio'])}x the floor")
+    return Flag(sensor, "lines", where, ", ".join(parts))
 
 
 def _inflation_rows(bound: Mapping) -> list[tuple]:
@@ -281,15 +329,20 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         per = bound.get("per_axis_models") or {}
         if per:
             lines += ["", "Per-axis models (the pooling test says the axes differ; the KF file's per_axis):", "",
-                      "| axis | N bound/spec | own model in the KF file | why |", "|---|---|---|---|"]
+                      "| axis | N bound/spec | own model in the KF file | why | exported filter model |",
+                      "|---|---|---|---|---|"]
+            glob = (bound.get("export") or {}).get("statement") if isinstance(bound.get("export"), Mapping) else None
             for ax, pa in per.items():
                 if isinstance(pa, Mapping):
+                    own = pa.get("exported_in_kf")
+                    scope = _g(pa, "export", "statement") if own else (f"global: {glob}" if glob else "global")
                     lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
-                                 f"{'yes' if pa.get('exported_in_kf') else 'no (global model)'} | "
-                                 f"{pa.get('kf', '-')} |")
+                                 f"{'yes' if own else 'no (global model)'} | "
+                                 f"{pa.get('kf', '-')} | {scope or '-'} |")
             lines.append("")
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
+        lines += _export_lines(bound, kept)
         if kept is not None:
             lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
             reasons = sel.get("reasons") or {}

@@ -33,6 +33,27 @@ def _apply_defaults():
 _apply_defaults()
 validate(config, schema="../schemas/config.schema.yaml", set_default=False)
 
+# The KF export runs at application.rate_hz; the verification (and so any reduction it accepted) ran its reference
+# filter at verify.filter_rate_hz. A reduction verified at another rate is not verified for the exported filter:
+# said at start-up here, and in the KF file, the contract and the run summary (rate_mismatch).
+if abs(float(config["verify"]["filter_rate_hz"]) - float(config["application"]["rate_hz"])) > 1e-9 * float(
+        config["application"]["rate_hz"]):
+    import sys as _sys
+
+    print(f"imupipe warning: verify.filter_rate_hz = {config['verify']['filter_rate_hz']} Hz differs from "
+          f"application.rate_hz = {config['application']['rate_hz']} Hz (the KF export's rate): the verification "
+          "and any state reduction it accepts hold at the verification rate, not at the exported filter's; set "
+          "verify.filter_rate_hz to application.rate_hz (it must also divide decimate.rate_hz) to verify the exported "
+          "filter itself", file=_sys.stderr)
+
+# The replay check of the verification runs the reference filter on the decimated records: its rate must divide
+# decimate.rate_hz (block averaging to it), else the verify job would stop mid-run; refused here, naming both keys.
+_ratio = float(config["decimate"]["rate_hz"]) / float(config["verify"]["filter_rate_hz"])
+if _ratio < 1.0 - 1e-9 or abs(_ratio - round(_ratio)) > 1e-9 * _ratio:
+    raise ValueError(f"config: verify.filter_rate_hz = {config['verify']['filter_rate_hz']} Hz must divide "
+                     f"decimate.rate_hz = {config['decimate']['rate_hz']} Hz (the verification replays the decimated "
+                     "records at the reference filter's rate); lower verify.filter_rate_hz or raise decimate.rate_hz")
+
 NAME = config["name"]
 RESULTS = f"results/{NAME}"
 LOGS = f"logs/{NAME}"

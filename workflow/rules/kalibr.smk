@@ -1,6 +1,7 @@
 # Kalibr imu.yaml of both sensor types of one spec sheet: the bounding continuous-time densities, the IMU's
 # sample rate as update_rate (one rate for every dataset, else the job refuses, naming each) and the topic of the
-# dataset sheet. A bound with a narrowband line is refused (no Kalibr fields written, the reason in the file and in
+# dataset sheet. The values follow the exported KF model (kf rule: the bound after the verified reduction). An
+# exported model with a narrowband line state is refused (no Kalibr fields written, the reason in the file and in
 # the run summary): Kalibr's two terms cannot carry the line, and values without it would not bound.
 
 
@@ -10,6 +11,8 @@ rule kalibr:
         accel=f"{RESULTS}/bound/{{spec}}/accel.yaml",
         identified_gyro=f"{RESULTS}/identify/gyro.yaml",
         identified_accel=f"{RESULTS}/identify/accel.yaml",
+        kf_gyro=f"{RESULTS}/kf/{{spec}}/gyro.yaml",
+        kf_accel=f"{RESULTS}/kf/{{spec}}/accel.yaml",
     output:
         kalibr=report(
             f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml",

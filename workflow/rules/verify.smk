@@ -56,6 +56,7 @@ rule contract:
         contract=f"{RESULTS}/contract/{{spec}}/{{sensor}}.yaml",
     params:
         kf_file=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
+        kf_rate_hz=config["application"]["rate_hz"],
         on_failure=config["verify"]["on_failure"],
     threads: 1
     resources:

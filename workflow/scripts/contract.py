@@ -20,7 +20,10 @@ HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must me
 bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
-u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter.
+u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter. export: the
+states the verified reduction dropped (dropped_by_reduction; the model then holds for horizon_s s of outage only), the
+reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
+narrowband line states (line_states) and one statement of all this.
 per_axis_models: null when the axes are pooled; else per axis its own contract (bounded, verified, failed_checks) and
 exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one)."""
 
@@ -39,8 +42,9 @@ def _bound_view(b: dict):
 
 
 def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
-             sensor: str) -> None:
+             sensor: str, kf_rate_hz: float | None = None) -> None:
     from imupipe.bound import _to_spec_units
+    from imupipe.kf import export_scope
     from imupipe.models import NoiseModel
     from imupipe.specsheet import display_units, load_spec
     from imupipe.verify import integrity_contract
@@ -62,6 +66,9 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "model_reduced": bool(exported["reduced"]), "model_reason": exported["reason"],
         "inflation": bound.get("inflation"),
         "kf_file": kf_file,
+        # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
+        # the reference filter's rate against the export's (imupipe.kf.export_scope)
+        "export": None if kf_rate_hz is None else export_scope(exported, ver.get("reduction"), float(kf_rate_hz)),
         # the bound's numbers the run summary reads beside the verdict
         "psd_bounded": bound.get("psd_bounded"), "margin": bound.get("margin"),
         "margin_curve": bound.get("margin_curve"), "margin_frequency_hz": bound.get("margin_frequency_hz"),
@@ -79,16 +86,17 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
     }
     if note:
         out["unit_note"] = note
-    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor)
+    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor, kf_rate_hz)
     if not c["bounded"]:
         logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
     write_yaml_atomic(out, path_out, header=HEADER)
 
 
-def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str):
+def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None):
     """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
     and whether the KF file exports it (bounded) or gives that axis the global model."""
     from imupipe.bound import _to_spec_units
+    from imupipe.kf import export_scope
     from imupipe.models import NoiseModel
     from imupipe.specsheet import display_units
     from imupipe.verify import integrity_contract
@@ -112,7 +120,9 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str):
                  "model_reduced": bool(exported["reduced"]) if exported else None,
                  "inflation": pa.get("inflation"), "margin": pa.get("margin"),
                  "all_frequency_margin": pa.get("all_frequency_margin"),
-                 "allan_check_passed": pa.get("allan_check_passed")}
+                 "allan_check_passed": pa.get("allan_check_passed"),
+                 "export": export_scope(exported, v.get("reduction"), float(kf_rate_hz))
+                 if exported and kf_rate_hz is not None else None}
         entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
                        f"axis {ax}: the global model (its own failed: {failed_names(entry)})")
         out[ax] = entry
@@ -156,4 +166,5 @@ if __name__ == "__main__":
         run_job(verdict, snakemake.log[0], contracts=list(i.contracts), on_failure=p.on_failure, path_out=o.verdict)
     else:
         run_job(contract, snakemake.log[0], path_bound=i.bound, path_verify=i.verify, path_spec=i.spec,
-                kf_file=p.kf_file, on_failure=p.on_failure, path_out=o.contract, sensor=snakemake.wildcards.sensor)
+                kf_file=p.kf_file, kf_rate_hz=getattr(p, "kf_rate_hz", None), on_failure=p.on_failure,
+                path_out=o.contract, sensor=snakemake.wildcards.sensor)

@@ -6,10 +6,13 @@ identify files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topi
 bounding continuous-time values with Gauss-Markov terms folded into the random walk, and the comment block the
 inflation factor against the identified model.
 
-A bound holding a narrowband line is refused: the file then holds no Kalibr field (Kalibr fails on it rather than
-using values that do not bound near the line), only `refused: true`, the reason and the lines, and the two-term
-values without the line as commented-out lines for a user who accepts the under-statement knowingly. The run
-summary flags it."""
+The values follow the exported Kalman-filter model (kf/{spec}/{sensor}.yaml: the bound after the verified
+reduction), so the two files never disagree: when the KF export keeps no line state (none in the bound, or the
+verified reduction dropped every one), the two-term values are derived from the exported model, with its reduction
+and the horizon it holds for in the comment block. An exported model holding a narrowband line state (sigma > 0) is
+refused: the file then holds no Kalibr field (Kalibr fails on it rather than using values that do not bound near the
+line), only `refused: true`, the reason and those lines, and the two-term values without the line as commented-out
+lines for a user who accepts the under-statement knowingly. The run summary flags it."""
 
 import logging
 from dataclasses import replace
@@ -19,22 +22,35 @@ from imupipe.io import read_yaml, run_job, write_text_atomic
 REFUSED = "refused"
 
 
-def lines_of(bound: dict) -> list:
-    """The narrowband terms of a bound contract (SI: sigma in u, f0 in Hz, zeta)."""
-    return list((bound.get("bound") or {}).get("narrowband") or [])
+def lines_of(kf: dict) -> list:
+    """The narrowband line states of an exported KF model (SI: sigma in u, f0 in Hz, zeta), sigma > 0 only (a
+    sigma-0 term has no state)."""
+    return [t for t in ((kf.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
 
 
-def refused_text(lines: dict, imu, source: str) -> str:
+def export_notes(kfs: dict) -> list:
+    """Comment lines stating, per sensor, what exported KF model the values come from (imupipe.kf.export_scope)."""
+    out = []
+    for sensor, kf in kfs.items():
+        scope = kf.get("export") or {}
+        out.append(f"{sensor}: from the exported KF model ({scope.get('statement', 'the bound model')})")
+        if not kf.get("bounded", True):
+            out.append(f"{sensor}: NOT BOUNDED: the KF model failed its integrity contract; for diagnosis only")
+    return out
+
+
+def refused_text(lines: dict, imu, source: str, notes=()) -> str:
     """The comment block and `refused` key of a refused export (see the module docstring)."""
     from imupipe.kalibr import kalibr_text
 
     out = [
-        "# Kalibr IMU noise model NOT WRITTEN by imupipe: the bound has narrowband line(s) that Kalibr's model",
-        "# (white noise + bias random walk) cannot carry. Densities without the line(s) would under-state the noise",
-        "# near the line frequencies, so they are not given as Kalibr fields: use the Kalman-filter export",
-        "# kf/<spec>/<sensor>.yaml, whose narrowband states carry the line(s).",
+        "# Kalibr IMU noise model NOT WRITTEN by imupipe: the exported KF model has narrowband line state(s) that",
+        "# Kalibr's model (white noise + bias random walk) cannot carry. Densities without the line(s) would",
+        "# under-state the noise near the line frequencies, so they are not given as Kalibr fields: use the",
+        "# Kalman-filter export kf/<spec>/<sensor>.yaml, whose narrowband states carry the line(s) listed below.",
         f"# Source: {source}",
-        "# Lines of the bound (sigma in the sensor's SI unit, f0 in Hz):",
+        *[f"# {n}" for n in notes],
+        "# Line states of the exported KF model (sigma in the sensor's SI unit, f0 in Hz):",
     ]
     for sensor, terms in lines.items():
         for t in terms:
@@ -42,16 +58,18 @@ def refused_text(lines: dict, imu, source: str) -> str:
     out.append("# The two-term values WITHOUT the line(s) (NOT bounding), for a user who accepts that knowingly:")
     out += ["#   " + ln for ln in kalibr_text(imu).splitlines() if not ln.startswith("#")]
     out += [f"{REFUSED}: true",
-            f"reason: narrowband line(s) in the {', '.join(lines)} bound; Kalibr's model cannot bound them"]
+            f"reason: narrowband line state(s) in the exported {', '.join(lines)} KF model; Kalibr's model cannot "
+            "bound them"]
     return "\n".join(out) + "\n"
 
 
 def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str, rates: dict, topics: dict,
-         path_out: str, spec: str) -> None:
-    from imupipe.kalibr import dataset_rates, imu_rate, kalibr_imu, model_of_bound, rostopic_of, write_kalibr
+         path_out: str, spec: str, path_kf_gyro: str, path_kf_accel: str) -> None:
+    from imupipe.kalibr import dataset_rates, imu_rate, kalibr_imu, model_of_kf, rostopic_of, write_kalibr
     from imupipe.models import NoiseModel
 
     bounds = {"gyro": read_yaml(path_gyro), "accel": read_yaml(path_accel)}
+    kfs = {"gyro": read_yaml(path_kf_gyro), "accel": read_yaml(path_kf_accel)}
     # the identified model the inflation factors compare with: the selected model refitted (kept components)
     ident = {}
     curve_rates = {}  # "dataset/axis" -> Hz: the rate of each record (its timestamps' where the sheet gives none)
@@ -71,17 +89,20 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     topic = rostopic_of(topics)
     source = (f"spec sheet {bounds['gyro'].get('spec_name', spec)} ({spec}), {bounds['gyro'].get('mode', '-')}-mode "
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
-    lines = {s: lines_of(b) for s, b in bounds.items() if lines_of(b)}
-    # the two-term model of each bound (white, GM folded into the random walk); a line cannot be folded in, so
-    # the two-term values are computed without it and, where a bound has one, only written as comments
-    models = {s: replace(model_of_bound(b), narrowband=()) for s, b in bounds.items()}
+    lines = {s: lines_of(k) for s, k in kfs.items() if lines_of(k)}
+    notes = export_notes(kfs)
+    # the two-term model of each exported KF model (white, GM folded into the random walk); a line cannot be folded
+    # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
+    models = {s: replace(model_of_kf(k, p), narrowband=())
+              for (s, k), p in zip(kfs.items(), (path_kf_gyro, path_kf_accel), strict=True)}
     imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, rostopic=topic,
                      identified_gyro=ident["gyro"], identified_accel=ident["accel"])
     if lines:
-        logging.warning("Kalibr export refused: narrowband line(s) in the %s bound", ", ".join(lines))
-        write_text_atomic(refused_text(lines, imu, source), path_out)
+        logging.warning("Kalibr export refused: narrowband line state(s) in the exported %s KF model",
+                        ", ".join(lines))
+        write_text_atomic(refused_text(lines, imu, source, notes), path_out)
         return
-    write_kalibr(imu, path_out, source=source)
+    write_kalibr(imu, path_out, source=source, notes=notes)
     logging.info("Kalibr imu.yaml: update_rate %g Hz, rostopic %s, inflation %s", rate, topic, imu.inflation)
 
 
@@ -89,4 +110,5 @@ if __name__ == "__main__":
     i = snakemake.input
     run_job(main, snakemake.log[0], path_gyro=i.gyro, path_accel=i.accel, path_id_gyro=i.identified_gyro,
             path_id_accel=i.identified_accel, rates=dict(snakemake.params.rates), topics=dict(snakemake.params.topics),
-            path_out=snakemake.output.kalibr, spec=snakemake.wildcards.spec)
+            path_out=snakemake.output.kalibr, spec=snakemake.wildcards.spec, path_kf_gyro=i.kf_gyro,
+            path_kf_accel=i.kf_accel)

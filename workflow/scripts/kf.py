@@ -10,7 +10,7 @@ from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, horizon_s: float, path_out: str,
          sensor: str) -> None:
-    from imupipe.kf import export_kf
+    from imupipe.kf import export_kf, export_scope
     from imupipe.models import NoiseModel
 
     bound, ver, con = read_yaml(path_bound), read_yaml(path_verify), read_yaml(path_contract)
@@ -27,6 +27,9 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
            "reduction": {"exported_reduced": bool(ver["exported"]["reduced"]), "reason": ver["exported"]["reason"],
                          "tried": red["tried"] if red else [], "accepted": red["accepted"] if red else [],
                          "refused": red["refused"] if red else []},
+           # which states the verified reduction dropped, the horizon the export then holds for, and the
+           # verification's filter rate against this file's (imupipe.kf.export_scope)
+           "export": export_scope(ver["exported"], red, 1.0 / dt_s, horizon_s),
            "p0_random_walk_rule": "K^2 * application.horizon_s" if p0_rw else None,
            **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw)}
     out["per_axis"] = None
@@ -36,13 +39,16 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
             own = bool(c["exported_in_kf"])
             m = NoiseModel.from_dict(c["model"]) if own else model
             p0 = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+            rep = (ver.get("per_axis_models") or {}).get(ax) if own else None
+            scope = export_scope(rep["exported"], rep.get("reduction"), 1.0 / dt_s, horizon_s) if rep else out["export"]
             out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
-                                   "bounded": bool(c["bounded"]) if own else bool(con["bounded"]),
+                                   "bounded": bool(c["bounded"]) if own else bool(con["bounded"]), "export": scope,
                                    **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0)}
     head = f"{sensor}: Kalman-filter model of the bound (SI), one axis"
     if out["per_axis"]:
         head += ("; per_axis: the model of each axis (its own bound where that passed its contract, else the "
                  "global one above)")
+    head += f"; {out['export']['statement']}"
     if not con["bounded"]:
         head = f"NOT BOUNDED (see the contract file): {head}"
     write_yaml_atomic(out, path_out, header=head)

@@ -31,6 +31,13 @@ def _merge_checks(target: dict, data: dict) -> None:
             continue
         if key == "verified":
             target["verified"] = bool(target.get("verified", True)) and bool(data["verified"])
+        elif key == "lines" and isinstance(data[key], list):
+            # a lines file holds one dataset/sensor/axis and the units of its keys: each line carries them, so its
+            # FLAG names where it is and what unit its amplitude has
+            tag = {k: data[k] for k in ("dataset", "sensor", "axis") if data.get(k) is not None}
+            units = data.get("units") if isinstance(data.get("units"), dict) else {}
+            items = [{**tag, **it, "units": units} if isinstance(it, dict) else it for it in data[key]]
+            target[key] = (target[key] if isinstance(target.get(key), list) else []) + items
         elif isinstance(data[key], list) and isinstance(target.get(key), list):
             target[key] = target[key] + data[key]
         else:
