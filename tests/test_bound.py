@@ -559,6 +559,27 @@ class TestCheckAllan:
         gm = rep["components"]["gauss_markov"]
         assert gm["status"] == "shortfall" and not rep["passed"] and 50.0 < gm["tau_s"] <= 5000.0
 
+    def test_long_gm_represented_by_the_random_walk(self):
+        """An identified GM of T = 1e5 s, far beyond the band (1 .. 3600 s), rises like a random walk with
+        K^2 = 2 sigma^2 / T there. A bound whose GM is short (T = 10 s) but whose random walk has exactly that
+        K covers it in the AV through GM + white + random walk (2 sigma^2 tau / (3 T) <= K^2 tau / 3): ok,
+        and the reason says which representation. Without the random walk, or with half that K^2, the same
+        bound falls short (a real shortfall, named)."""
+        from imupipe.bound import check_allan
+
+        sigma, T = 1e-4, 1e5
+        k = np.sqrt(2 * sigma**2 / T)
+        ident = NoiseModel(white=1e-5, gauss_markov=((sigma, T),))
+        tau = np.logspace(0, np.log10(3600.0), 20)
+        kw = dict(kept=["white", "gauss_markov"], horizon_s=3600.0, tau_min_s=1.0)
+        short = ((1e-6, 10.0),)
+        rep = check_allan(NoiseModel(white=1e-5, gauss_markov=short, random_walk=k), ident, tau, **kw)
+        gm = rep["components"]["gauss_markov"]
+        assert gm["status"] == "ok" and "random walk" in gm["reason"] and rep["passed"]
+        for rw in (0.0, k / np.sqrt(2.0) * 0.99):
+            rep = check_allan(NoiseModel(white=1e-5, gauss_markov=short, random_walk=rw), ident, tau, **kw)
+            assert rep["components"]["gauss_markov"]["status"] == "shortfall" and not rep["passed"]
+
 
 class TestPerAxis:
     def test_per_axis_models_differ_where_the_axes_differ_and_bound_their_own_curves(self):

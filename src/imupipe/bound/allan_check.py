@@ -280,7 +280,8 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
        against random walk, the identified GM terms against the bound's GM terms, and the identified
        flicker against the bound's GM terms **plus** its white noise (the bound represents flicker
        that way; GM + white + random walk when GM + white alone falls short and the bound has a random
-       walk, which then carries the long-tau end of the plateau) over the taus where flicker is the
+       walk, which then carries the long-tau end of the plateau; likewise an identified GM against the bound's
+       GM, then GM + white, then GM + white + random walk) over the taus where flicker is the
        largest identified term; over the application band of item 2 (a ratio outside it is reported
        under the component's ``outside_band`` and fails nothing). A bound component with
        no kept identified counterpart is reported as ``no counterpart`` (not a failure), and so is an
@@ -364,6 +365,16 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
                 alt["reason"] += (" (the bound's GM alone falls short at short tau, where the identified GM "
                                   "acts as white noise and the bound's white noise represents it)")
                 comps["gauss_markov"] = alt
+            elif b.random_walk > 0:
+                # a long-T identified GM rises like a random walk for tau < T: a random walk with
+                # K^2 >= 2 sigma^2 / T dominates that GM's PSD at every frequency (docs/method.md, section
+                # "Allan-domain check"), so the bound may carry it by its random walk
+                alt = compare(gm_av(b) + b.white**2 / t + b.random_walk**2 * t / 3, gm_av(i),
+                              "GM + white + random walk vs GM")
+                if alt["status"] == "ok":
+                    alt["reason"] += (" (the bound's GM alone falls short where the identified GM's AV still "
+                                      "rises like a random walk, and the bound's random walk represents it)")
+                    comps["gauss_markov"] = alt
     if "flicker" in kept:
         fl = np.full_like(t, FLICKER_AV * i.flicker**2)
         others = [np.full_like(t, i.white**2) / t, i.random_walk**2 * t / 3, gm_av(i)]
