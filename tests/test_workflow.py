@@ -122,7 +122,8 @@ class TestCaching:
     AFTER_IDENTIFY = {"identify"} | AFTER_BOUND
     AFTER_VERDICTS = {"stationarity_summary", "stack"} | AFTER_IDENTIFY
     SECTIONS = {
-        "decimate": ({"rate_hz": 0.5}, {"decimate", "psd", "stationarity"} | AFTER_VERDICTS),
+        # 2 Hz: an integer ratio to the tiny records' 20 Hz, and a multiple of verify.filter_rate_hz (1 Hz)
+        "decimate": ({"rate_hz": 2.0}, {"decimate", "psd", "stationarity"} | AFTER_VERDICTS),
         "psd": ({"window_s": 1200.0}, {"psd", "stack"} | AFTER_BOUND),
         "allan": ({"confidence": 0.9}, {"allan", "stationarity"} | AFTER_VERDICTS),
         "stationarity": ({"n_sim": 19}, {"stationarity"} | AFTER_VERDICTS),
@@ -130,7 +131,9 @@ class TestCaching:
         "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
         "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
-        "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "integrity", "summary", "report_file", "all"}),
+        # the Kalibr file follows the exported (verified, possibly reduced) KF model
+        "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "kalibr", "integrity", "summary", "report_file",
+                                       "all"}),
         # warn: a report, which the run summary reads (and the run verdict, the last job)
         "outliers": ({"k": 6.0}, {"outliers", "summary", "integrity", "all"}),
         "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor

@@ -487,7 +487,7 @@ def _startup(work, name, sheet_text=None, rows=None, **cfg_changes):
         cfg = yaml.safe_load(config.read_text())
         for key, value in cfg_changes.items():
             section, _, sub = key.partition("__")
-            cfg[section][sub] = value
+            cfg.setdefault(section, {})[sub] = value  # a section the config leaves out takes the defaults
         config.write_text(yaml.safe_dump(cfg))
     proc = snakemake(work, config=config, snakefile=work / "Snakefile", check=False, timeout=300)
     return proc, proc.stdout + proc.stderr
@@ -527,7 +527,7 @@ def test_decimation_ratio_and_segments_name_their_keys(startup_work):
     # 700 s decimated to 0.1 Hz: 70 samples, fewer than 3 per segment for 100 segments (the schema's maximum)
     _csv(startup_work / "data_faults" / "s700.csv", _table(7)[:7000])
     proc, out = _startup(startup_work, "segs", rows=[_row("s700", "data_faults/s700.csv")], stationarity__n_segments=100,
-                         decimate__rate_hz=0.1)
+                         decimate__rate_hz=0.1, verify__filter_rate_hz=0.1)
     assert proc.returncode == 1
     assert "dataset 's700': 70 decimated samples" in out
     assert "for config key stationarity.n_segments = 100 (need >= 3 per segment" in out
