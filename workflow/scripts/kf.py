@@ -15,9 +15,13 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
 
     bound, ver, con = read_yaml(path_bound), read_yaml(path_verify), read_yaml(path_contract)
     model = NoiseModel.from_dict(ver["exported"]["model"])
-    # The random walk has no steady state: start it with what it accumulates over the application horizon,
-    # K^2 * horizon (u^2); replace by the turn-on bias repeatability squared when the spec sheet gives it.
-    p0_rw = model.random_walk**2 * horizon_s if model.random_walk > 0 else None
+
+    def p0_random_walk(m):
+        # The random walk has no steady state: start it with what it accumulates over the application horizon,
+        # K^2 * horizon (u^2); replace by the turn-on bias repeatability squared when the spec sheet gives it.
+        return m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+
+    p0_rw = p0_random_walk(model)
     red = ver.get("reduction")
     out = {"sensor": sensor, "spec_name": bound["spec_name"], "dt_s": dt_s,
            "bounded": bool(con["bounded"]), "verified": bool(con["verified"]),
@@ -38,7 +42,7 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
         for ax, c in con["per_axis_models"].items():
             own = bool(c["exported_in_kf"])
             m = NoiseModel.from_dict(c["model"]) if own else model
-            p0 = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+            p0 = p0_random_walk(m)
             rep = (ver.get("per_axis_models") or {}).get(ax) if own else None
             scope = export_scope(rep["exported"], rep.get("reduction"), 1.0 / dt_s, horizon_s) if rep else out["export"]
             out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
