@@ -43,10 +43,9 @@ def _bound_view(b: dict):
 
 def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
              sensor: str, kf_rate_hz: float | None = None) -> None:
-    from imupipe.bound import _to_spec_units
     from imupipe.kf import export_scope
     from imupipe.models import NoiseModel
-    from imupipe.specsheet import display_units, load_spec
+    from imupipe.specsheet import display_units, load_spec, model_in_units
     from imupipe.verify import integrity_contract
 
     bound, ver = read_yaml(path_bound), read_yaml(path_verify)
@@ -56,7 +55,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
     c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification)
     spec = load_spec(path_spec)
     model = NoiseModel.from_dict(exported["model"])
-    in_spec_units, note = _to_spec_units(model, display_units(spec, sensor), sensor)
+    in_spec_units, note = model_in_units(model, display_units(spec, sensor), sensor)
     out = {
         "sensor": sensor, "spec_name": bound["spec_name"],
         "bounded": c["bounded"], "verified": c["verified"], "failed_checks": c["failed_checks"],
@@ -95,10 +94,9 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
 def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None):
     """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
     and whether the KF file exports it (bounded) or gives that axis the global model."""
-    from imupipe.bound import _to_spec_units
     from imupipe.kf import export_scope
     from imupipe.models import NoiseModel
-    from imupipe.specsheet import display_units
+    from imupipe.specsheet import display_units, model_in_units
     from imupipe.verify import integrity_contract
 
     axes = bound.get("per_axis_models")
@@ -116,7 +114,7 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: fl
         entry = {"curves": pa.get("curves"), "bounded": c["bounded"], "verified": c["verified"],
                  "failed_checks": c["failed_checks"], "exported_in_kf": bool(c["bounded"]),
                  "model": exported["model"] if exported else None,
-                 "model_spec_units": _to_spec_units(model, display_units(spec, sensor), sensor)[0] if model else None,
+                 "model_spec_units": model_in_units(model, display_units(spec, sensor), sensor)[0] if model else None,
                  "model_reduced": bool(exported["reduced"]) if exported else None,
                  "inflation": pa.get("inflation"), "margin": pa.get("margin"),
                  "all_frequency_margin": pa.get("all_frequency_margin"),

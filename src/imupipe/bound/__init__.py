@@ -101,7 +101,6 @@ from imupipe.bound.report import (  # noqa: F401
     BoundResult,
     _inflation,
     _plain,
-    _to_spec_units,
 )
 from imupipe.bound.engine import (  # noqa: F401
     BOUND_COMPONENTS,
