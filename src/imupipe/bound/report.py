@@ -158,7 +158,7 @@ class BoundResult:
             "decisions": dict(self.decisions),
             "n_lp": int(self.n_lp),
             "solve_time_s": fl(self.solve_time_s),
-            "details": _plain(self.details),
+            "details": plain(self.details),
         }
         if spec_units:
             out["bound_spec_units"], note = model_in_units(self.model, spec_units, sensor)
@@ -167,8 +167,3 @@ class BoundResult:
             if note:
                 out["unit_note"] = note
         return out
-
-
-def _plain(obj):
-    """numpy scalars/arrays -> Python floats/lists (YAML-safe): :func:`imupipe.io.plain`."""
-    return plain(obj)
