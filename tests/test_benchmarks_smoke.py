@@ -285,3 +285,21 @@ def test_axis_memory_table():
     assert "| ingest | 50 / 72 | 2.00 |" in text
     assert "| psd | n/a / 18 | 0.50 |" in text
     assert axis_memory.targets("m")[0] == "results/m/allan/sim01/gyro/x.nc"
+
+
+def test_axis_memory_csv_mode(tmp_path):
+    """benchmarks/axis_memory.py --csv: the CSV it writes reads back at its rate with its row count (a 40 s
+    record at 25 Hz: 1000 rows), and its table gives the peak rise over one axis."""
+    sys.path.insert(0, str(BENCH))
+    try:
+        import axis_memory
+    finally:
+        sys.path.remove(str(BENCH))
+    from imupipe.readers import read_channel
+
+    n = axis_memory.write_csv(tmp_path / "imu.csv", 40.0 / 3600.0, 25.0)
+    rec = read_channel(("gyro", "x"), tmp_path / "imu.csv", time_column="time", rate_hz=25.0,
+                       units={"gyro": "rad/s", "accel": "m/s^2"})
+    assert n == 1000 and rec["gyro", "x"].size == n and rec.rate_hz == 25.0
+    text = axis_memory.csv_table({10.0: {"axis_mb": 36.0, "rise_mb": 123.0}})
+    assert "| 10 h | 36 | 123 | 3.42 |" in text

@@ -147,6 +147,20 @@ class TestBoundPsdRaw:
         assert d["bound"]["gauss_markov"][0]["T"] > 0
         assert set(d["inflation"]) >= {"N", "K", "sigma", "T"}
 
+    def test_to_dict_in_spec_units(self, gyro_bound):
+        # N in deg/sqrt(h): N_SI / (pi/180/60); GM sigma in deg/h: sigma_SI / (pi/180/3600). The factor here and
+        # the one imupipe.units builds each carry at most 4 roundings of 2^-53, the division one more: < 2^-49
+        units = {"white": "deg/sqrt(h)", "gm_sigma": "deg/h", "time": "s", "random_walk": "(deg/h)/sqrt(s)"}
+        d = gyro_bound.to_dict(spec_units=units, sensor="gyro")
+        deg = math.pi / 180.0
+        b = d["bound_spec_units"]
+        assert b["white"] == {"value": pytest.approx(gyro_bound.model.white / (deg / 60.0), rel=2.0**-49),
+                              "unit": "deg/sqrt(h)"}
+        s, T = gyro_bound.model.gauss_markov[0]
+        assert b["gauss_markov"][0]["sigma"]["value"] == pytest.approx(s / (deg / 3600.0), rel=2.0**-49)
+        assert b["gauss_markov"][0]["T"] == {"value": T, "unit": "s"}
+        assert d["spec_spec_units"]["white"]["unit"] == "deg/sqrt(h)" and "unit_note" not in d
+
     def test_labels_from_dict(self, gyro_curves):
         f, curves, _ = gyro_curves
         named = {f"d{i // 3 + 1}/{'xyz'[i % 3]}": c for i, c in enumerate(curves)}

@@ -68,6 +68,7 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
     rng = np.random.default_rng([seed, zlib.crc32(case.encode())])
     hits = dict.fromkeys(true, 0)
     one_sided = dict.fromkeys(true, 0)  # records where the reported interval was one-sided / upper-limit only
+    confounded = dict.fromkeys(true, 0)  # records where it was widened for GM/random-walk confounding (a hull)
     for _ in range(n_records):
         av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
         t, y, e = av.tau.values, av.avar.values, av.edf.values
@@ -78,7 +79,8 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
             hits[k] += covered(rep, k, v)
             one_sided[k] += bool(rep.on_boundary.get(k, True)
                                  or rep.interval_kind.get(k, "").startswith("one-sided"))
-    coverage.one_sided = one_sided
+            confounded[k] += "confounding" in rep.interval_kind.get(k, "")
+    coverage.one_sided, coverage.confounded = one_sided, confounded
     return hits, n_records
 
 
@@ -127,4 +129,4 @@ if __name__ == "__main__":
     seed = int(sys.argv[4]) if len(sys.argv) > 4 else SEED
     h, n = coverage(case, R, hours=hours, seed=seed)
     print(case, R, hours, "seed", seed, {k: round(v / n, 3) for k, v in h.items()},
-          "one-sided", coverage.one_sided)
+          "one-sided", coverage.one_sided, "confounded", coverage.confounded)

@@ -2,6 +2,11 @@
 imports only modules of its own layer or below ("no upward import"), and no chain of imports comes back to
 where it started (no cycle). Imports inside functions count as well: a deferred import is still a dependency.
 
+Private names (a leading underscore, dunders aside) stay inside their top-level module: the workflow (scripts and
+Snakemake rule files) uses the public API only, and a library module does not reach into another's private names
+(the compiled kernels `_kernels` excepted: a private module of the whole library, with a NumPy fallback beside
+each use).
+
 Layers, bottom up: files, units and containers; estimators and the noise model; what builds on the model;
 identification and stationarity; bounding and the Kalman filter; figures.
 """
@@ -9,11 +14,17 @@ identification and stationarity; bounding and the Kalman filter; figures.
 from __future__ import annotations
 
 import ast
+import re
+import textwrap
 from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "src" / "imupipe"
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "src" / "imupipe"
+WORKFLOW = ROOT / "workflow"
+#: private modules any library module may import (see the module docstring)
+SHARED_PRIVATE = {"_kernels"}
 
 LAYERS = [
     {"__init__", "_kernels", "units", "io", "labelled", "search"},
@@ -136,3 +147,113 @@ def test_imports_of_resolves_inside_a_package(tmp_path, source, expected):
 def test_packages_are_nodes():
     g = graph()
     assert {"bound", "readers"} <= set(g) and "units" in g["readers"] and "models" in g["bound"]
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_uses(tree: ast.AST, package: tuple[str, ...] = ()) -> list[tuple[str, str, int]]:
+    """(top-level imupipe module, dotted private name, line) of every private imupipe name the code in `tree`
+    imports or reads as an attribute of an imported imupipe module: ``from imupipe.x import _y``,
+    ``from imupipe.x._m import y``, ``import imupipe._m``, ``m._y`` after ``from imupipe import m`` or
+    ``import imupipe.m as m``. `package` as in :func:`imports_of` (relative imports)."""
+    here = ("imupipe", *package)
+    found, modules_bound = [], {}  # local name -> dotted imupipe module it stands for
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                if parts[0] != "imupipe":
+                    continue
+                if any(_private(p) for p in parts[1:]):
+                    found.append((parts[1], alias.name, node.lineno))
+                modules_bound[alias.asname or "imupipe"] = alias.name if alias.asname else "imupipe"
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                parts = list(here[:len(here) - node.level + 1]) + (node.module.split(".") if node.module else [])
+            elif node.module and node.module.split(".")[0] == "imupipe":
+                parts = node.module.split(".")
+            else:
+                continue
+            for alias in node.names:
+                full = [*parts, alias.name]
+                top = full[1] if len(full) > 1 else alias.name
+                if any(_private(p) for p in full[1:]):
+                    found.append((top, ".".join(full), node.lineno))
+                modules_bound[alias.asname or alias.name] = ".".join(full)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            root = node.value
+            while isinstance(root, ast.Attribute):
+                root = root.value
+            if isinstance(root, ast.Name) and root.id in modules_bound:
+                dotted = f"{modules_bound[root.id]}.{ast.unparse(node)[len(root.id) + 1:]}"
+                found.append((dotted.split(".")[1], dotted, node.lineno))
+    return found
+
+
+_SMK_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+imupipe[\w.]*[ \t]+import[ \t]+(?:\([^)]*\)|[^\n]*)"
+                         r"|import[ \t]+imupipe[^\n]*)", re.M)
+
+
+def workflow_private_uses() -> list[str]:
+    """Every private imupipe name used by a workflow script (parsed whole) or a rule file (its imupipe import
+    statements: a .smk file is not Python)."""
+    out = []
+    for path in sorted(WORKFLOW.rglob("*.py")):
+        out += [f"{path.relative_to(ROOT)}:{line}: {name}" for _, name, line in
+                private_uses(ast.parse(path.read_text(), filename=str(path)))]
+    for path in sorted([*WORKFLOW.rglob("*.smk"), ROOT / "Snakefile"]):
+        text = path.read_text()
+        for m in _SMK_IMPORT.finditer(text):
+            line = text.count("\n", 0, m.start()) + 1
+            tree = ast.parse(textwrap.dedent(m.group(0)).strip())
+            out += [f"{path.relative_to(ROOT)}:{line}: {name}" for _, name, _ in private_uses(tree)]
+    return out
+
+
+def test_workflow_uses_public_names_only():
+    used = workflow_private_uses()
+    assert not used, "the workflow imports private imupipe names (make them public in their home):\n" + \
+        "\n".join(used)
+
+
+def test_workflow_check_reads_the_workflow():
+    # the scan sees the workflow's known public imports (guards against a check that passes by reading nothing)
+    scripts = list((WORKFLOW / "scripts").glob("*.py"))
+    assert len(scripts) >= 10
+    assert any(m for p in WORKFLOW.rglob("*.smk") for m in _SMK_IMPORT.findall(p.read_text()))
+
+
+def test_no_private_import_across_modules():
+    crossing = []
+    for name, paths in modules().items():
+        for path in paths:
+            if path.suffix != ".py":
+                continue
+            pkg = path.relative_to(PACKAGE).parent.parts
+            for top, dotted, line in private_uses(ast.parse(path.read_text(), filename=str(path)), pkg):
+                if top != name and top not in SHARED_PRIVATE:
+                    crossing.append(f"{path.relative_to(ROOT)}:{line}: {dotted}")
+    assert not crossing, "private names used outside their module:\n" + "\n".join(crossing)
+
+
+@pytest.mark.parametrize("source, expected", [
+    ("from imupipe.bound import _to_spec_units\n", ["imupipe.bound._to_spec_units"]),
+    ("def f():\n    from imupipe.readers._common import Key\n", ["imupipe.readers._common.Key"]),
+    ("import imupipe._kernels\n", ["imupipe._kernels"]),
+    ("from imupipe import bound\nbound._plain(1)\n", ["imupipe.bound._plain"]),
+    ("import imupipe.bound as b\nb.report._x\n", ["imupipe.bound.report._x"]),
+    ("import imupipe\nimupipe.io._y\n", ["imupipe.io._y"]),
+    ("from ..models import _expm1x\n", ["imupipe.models._expm1x"]),
+    ("from imupipe import __version__\nfrom imupipe.io import plain\nimport numpy as np\nnp._x\n", []),
+])
+def test_private_uses_reads_every_form(source, expected):
+    assert [d for _, d, _ in private_uses(ast.parse(source), ("bound",))] == expected
+
+
+def test_smk_scan_reads_a_rule_file_import():
+    text = "rule a:\n    run:\n        from imupipe.io import (\n            plain,\n            _hidden)\n"
+    stmts = [textwrap.dedent(m).strip() for m in _SMK_IMPORT.findall(text)]
+    assert [d for s in stmts for _, d, _ in private_uses(ast.parse(s))] == ["imupipe.io._hidden"]

@@ -220,3 +220,18 @@ def test_zero_narrowband_terms_have_no_state():
     assert cm.states == ["x", "v", "nb"] + ["nb_dot"] and cm.noises == ["nu_s", "nu_nb"]
     P0 = initial_covariance(m, cm.states)
     assert P0[2, 2] == 4e-6
+
+
+@pytest.mark.parametrize("narrowband", [
+    [{"sigma": 2e-3, "f0_hz": 0.5, "zeta": 0.01}, {"sigma": 0.0, "f0_hz": 3.0, "zeta": 0.02}],
+    [[2e-3, 0.5, 0.01], [0.0, 3.0, 0.02]],  # the same terms as (sigma, f0_hz, zeta) lists
+])
+def test_export_scope_line_states_read_either_form(narrowband):
+    """Line states: the narrowband terms of the exported model with sigma > 0, in either YAML form."""
+    from imupipe.kf import export_scope
+
+    exported = {"reduced": False, "model": {"white": 1e-4, "narrowband": narrowband},
+                "verification": {"scenario": {"rate_hz": 1.0, "fix_s": 600.0, "horizon_s": 600.0}}}
+    scope = export_scope(exported, None, 1.0)
+    assert scope["line_states"] == [{"sigma": 2e-3, "f0_hz": 0.5, "zeta": 0.01}]
+    assert scope["dropped_by_reduction"] == [] and scope["rate_mismatch"] is False

@@ -113,6 +113,36 @@ def test_csv_streamed_with_comments_and_blank_lines(tmp_path, table):
     np.testing.assert_array_equal(one["accel", "z"], table[:, 3])
 
 
+def test_csv_time_scaled_in_place_and_a_shared_column_kept(tmp_path, table):
+    """The time column is scaled to s in place, unless a channel reads the same column (that stays in its own
+    unit): time in ms also read as a channel."""
+    ms = table[:100].copy()  # 0 .. 990 ms: within the gyro's plausible range when read as a channel
+    ms[:, 0] = np.arange(100) * 10.0  # ms at 100 Hz
+    path = tmp_path / "imu.csv"
+    np.savetxt(path, ms, delimiter=",", header="t,wx,wy,az", comments="", fmt="%.17g")
+    rec = read_dataset(path, "csv", RATE, {("gyro", "x"): "t", ("gyro", "y"): "wy"}, UNITS, time_column="t",
+                       time_unit="ms")
+    np.testing.assert_array_equal(rec["gyro", "x"], ms[:, 0])  # the column as read, not scaled by 1e-3
+    assert rec.rate_hz == RATE
+    alone = read_dataset(path, "csv", RATE, {("gyro", "y"): "wy"}, UNITS, time_column="t", time_unit="ms")
+    np.testing.assert_array_equal(alone["gyro", "y"], ms[:, 2])
+    assert alone.rate_hz == RATE
+
+
+def test_nominal_rate_leaves_the_intervals_as_np_diff_gives_them(rng):
+    """The median partitions the intervals in place (no copy of a record's length); the caller's array is
+    then what np.diff returns, bit for bit, and the rates are those of an untouched copy."""
+    from imupipe.readers.core import _nominal_rate
+
+    t = np.cumsum(rng.uniform(0.9, 1.1, 10_001) / 128.0)  # jittered 128 Hz clock
+    t[5000:] += 0.05  # one gap of ~7 samples
+    dt = np.diff(t)
+    expected = _nominal_rate(t, None, 1.5, np.diff(t).copy())
+    assert _nominal_rate(t, None, 1.5, dt) == expected
+    np.testing.assert_array_equal(dt, np.diff(t))
+    assert _nominal_rate(t, None, 1.5) == expected
+
+
 def test_csv_bad_row_in_a_later_block_is_named(tmp_path, table):
     rows = [",".join(repr(float(v)) for v in row) for row in table]
     rows[200] += ",1.0"  # one field too many, far past the first block

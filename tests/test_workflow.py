@@ -34,6 +34,26 @@ from workflow_helpers import (  # noqa: E402
 )
 
 
+def lint(snakefile: Path, *config: str) -> tuple[int, str]:
+    """`snakemake --lint` on SNAKEFILE (from its folder): exit status and everything it printed."""
+    cmd = [sys.executable, "-m", "snakemake", "--snakefile", str(snakefile), "--cores", "1", *config, "--lint"]
+    proc = subprocess.run(cmd, cwd=snakefile.parent, capture_output=True, text=True, env=ENV, timeout=300)
+    return proc.returncode, proc.stdout + proc.stderr
+
+
+def test_snakemake_lint_reports_nothing():
+    """`make lint` (Makefile): the workflow has no lint; the linter exits 1 and prints "Lints for rule ..." when
+    it finds any (guarded below on a rule with no log and no conda environment)."""
+    rc, out = lint(ROOT / "Snakefile", "--configfile", str(ROOT / "config" / "config.yaml"))
+    assert rc == 0 and "Lints for" not in out, out[-5000:]
+
+
+def test_lint_check_sees_a_lint(tmp_path):
+    (tmp_path / "Snakefile").write_text('rule a:\n    output: "x.txt"\n    shell: "touch {output}"\n')
+    rc, out = lint(tmp_path / "Snakefile")
+    assert rc != 0 and "Lints for rule a" in out
+
+
 class TestContract:
     def test_spectra_file(self, tiny_run):
         work, _ = tiny_run

@@ -61,7 +61,7 @@ import math
 
 import numpy as np
 
-from imupipe.models import _expm1x
+from imupipe.models import expm1x
 
 __all__ = ["phase_gencov", "avar_covariance", "correlated_replicates"]
 
@@ -98,7 +98,7 @@ def phase_gencov(model, h) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             g += model.flicker**2 / (2.0 * math.pi) * np.where(a > 0, a * a * np.log(np.where(a > 0, a, 1.0)), 0.0)
     for sigma, T in model.gauss_markov:
-        g -= sigma**2 * T**2 * _expm1x(a / T)
+        g -= sigma**2 * T**2 * expm1x(a / T)
     return g
 
 

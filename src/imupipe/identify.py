@@ -1181,6 +1181,17 @@ def _present(model):
     return out
 
 
+#: Components select_components decides on the data alone, whatever their share of the band: (reason kept, reason
+#: dropped). White noise is a state-free part of every filter model; without a random walk the reduced model
+#: (Gallon et al. 2021, eq. 19) is allowed.
+_DATA_ONLY = {
+    "white": ("kept: the data show a white noise (a -1/2 slope no other kept component gives)",
+              "dropped: not significant against the AV confidence"),
+    "random_walk": ("kept: the data show a random walk (eq. 17 with the p state)",
+                    "dropped: no random walk in the data, reduced model (eq. 19) allowed"),
+}
+
+
 def select_components(
     fit: AllanFit,
     tau,
@@ -1341,32 +1352,16 @@ def select_components(
             + (f", refit without it: delta chi2 = {d_chi2:.3g}" if d_chi2 is not None else "")
             + (f", band share {share:.3g}" if share is not None else "")
         )
-        if c == "white":
-            # white noise is a state-free part of every filter model: kept whenever the data show it
-            if data:
-                kept.append(c)
-                reasons[c] = "kept: the data show a white noise (a -1/2 slope no other kept component gives); " + why
-            else:
-                dropped.append(c)
-                reasons[c] = "dropped: not significant against the AV confidence; " + why
-            continue
-        if c == "random_walk":
-            if data:
-                kept.append(c)
-                reasons[c] = "kept: the data show a random walk (eq. 17 with the p state); " + why
-            else:
-                dropped.append(c)
-                reasons[c] = "dropped: no random walk in the data, reduced model (eq. 19) allowed; " + why
-            continue
-        if data and relevant:
-            kept.append(c)
-            reasons[c] = "kept: significant in the AV and relevant in the band; " + why
+        if c in _DATA_ONLY:
+            keep, reason = data, _DATA_ONLY[c][0 if data else 1]
+        elif data and relevant:
+            keep, reason = True, "kept: significant in the AV and relevant in the band"
         elif not data:
-            dropped.append(c)
-            reasons[c] = "dropped: not significant against the AV confidence; " + why
+            keep, reason = False, "dropped: not significant against the AV confidence"
         else:
-            dropped.append(c)
-            reasons[c] = f"dropped: below {relevance:g} of the model AV inside the band; " + why
+            keep, reason = False, f"dropped: below {relevance:g} of the model AV inside the band"
+        (kept if keep else dropped).append(c)
+        reasons[c] = f"{reason}; {why}"
     if "flicker" in kept:
         reasons["flicker"] += " (not a Kalman-filter state: represented by a GM in the bound)"
     return {

@@ -492,16 +492,16 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
         the exported model with sigma > 0: sigma in the sensor's SI unit, f0_hz in Hz) and ``statement`` (one
         sentence for the summary and the files).
     """
+    from imupipe.models import NoiseModel
+
     scen = (exported.get("verification") or {}).get("scenario") or {}
     horizon_s = scen.get("horizon_s") if horizon_s is None else horizon_s
     dropped = list((reduction or {}).get("accepted") or []) if exported.get("reduced") else []
     vrate = scen.get("rate_hz")
     mismatch = vrate is not None and abs(float(vrate) - float(kf_rate_hz)) > 1e-9 * float(kf_rate_hz)
-    nb = [t for t in (exported.get("model") or {}).get("narrowband") or []
-          if (t["sigma"] if isinstance(t, dict) else t[0]) > 0]
-    line_states = [{"sigma": float(t["sigma"]), "f0_hz": float(t["f0_hz"]), "zeta": float(t["zeta"])}
-                   if isinstance(t, dict) else {"sigma": float(t[0]), "f0_hz": float(t[1]), "zeta": float(t[2])}
-                   for t in nb]
+    # NoiseModel.from_dict reads the narrowband terms in either form (dicts or (sigma, f0_hz, zeta) lists)
+    nb = NoiseModel.from_dict(exported.get("model") or {}).narrowband
+    line_states = [{"sigma": float(s), "f0_hz": float(f0), "zeta": float(z)} for s, f0, z in nb if s > 0]
     if dropped:
         text = (f"reduced model: the verified reduction dropped {', '.join(dropped)}; the export is then valid for "
                 f"the configured horizon only ({_num_s(horizon_s)} s of outage"

@@ -148,6 +148,16 @@ class Line:
         return (self.sigma, self.frequency_hz, self.zeta)
 
 
+def _line(f0, power, width_hz, peak_ratio, f_lo_hz, f_hi_hz, resolution_hz) -> Line:
+    """A :class:`Line` from its centre f0 (Hz), power P1 (u^2) and half-power width Gamma (Hz): amplitude
+    sqrt(2 P1) (u), sigma sqrt(P1) (u), damping ratio zeta = min(Gamma / (2 f0), 1/2); the other fields as given
+    (peak ratio dimensionless, interval and resolution Hz)."""
+    power = float(power)
+    return Line(frequency_hz=float(f0), power=power, amplitude=math.sqrt(2.0 * power), sigma=math.sqrt(power),
+                width_hz=float(width_hz), zeta=float(min(width_hz / (2.0 * f0), 0.5)), peak_ratio=float(peak_ratio),
+                f_lo_hz=float(f_lo_hz), f_hi_hz=float(f_hi_hz), resolution_hz=float(resolution_hz))
+
+
 _LINE_UNITS = {
     "frequency_hz": "Hz",
     "power": "u^2",
@@ -404,21 +414,7 @@ def find_lines(
             f0 = float(np.sum(fk * ep) / np.sum(ep))
             enbw = power / float(ep.max())
             gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
-            zeta = min(gamma_w / (2.0 * f0), 0.5)
-            lines.append(
-                Line(
-                    frequency_hz=f0,
-                    power=power,
-                    amplitude=math.sqrt(2.0 * power),
-                    sigma=math.sqrt(power),
-                    width_hz=float(gamma_w),
-                    zeta=float(zeta),
-                    peak_ratio=float(ratio[g].max()),
-                    f_lo_hz=float(f[a]),
-                    f_hi_hz=float(f[b]),
-                    resolution_hz=float(df),
-                )
-            )
+            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df))
     return LineSearch(
         lines=tuple(lines),
         rate_hz=rate,
@@ -519,21 +515,8 @@ def merge_lines(lines) -> list:
         fr = np.array([m.frequency_hz for m in g])
         f0 = float(np.sum(w * fr) / np.sum(w))
         width = max(max(m.width_hz for m in g), float(fr.max() - fr.min()))
-        power = float(w.max())
-        out.append(
-            Line(
-                frequency_hz=f0,
-                power=power,
-                amplitude=math.sqrt(2.0 * power),
-                sigma=math.sqrt(power),
-                width_hz=width,
-                zeta=min(width / (2.0 * f0), 0.5),
-                peak_ratio=max(m.peak_ratio for m in g),
-                f_lo_hz=min(m.f_lo_hz for m in g),
-                f_hi_hz=max(m.f_hi_hz for m in g),
-                resolution_hz=max(m.resolution_hz for m in g),
-            )
-        )
+        out.append(_line(f0, float(w.max()), width, max(m.peak_ratio for m in g), min(m.f_lo_hz for m in g),
+                         max(m.f_hi_hz for m in g), max(m.resolution_hz for m in g)))
     return sorted(out, key=lambda ln: ln.frequency_hz)
 
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["NoiseModel", "gm_avar", "narrowband_avar", "narrowband_psd", "FLICKER_AV", "COMPONENTS"]
+__all__ = ["NoiseModel", "gm_avar", "narrowband_avar", "narrowband_psd", "expm1x", "FLICKER_AV", "COMPONENTS"]
 
 #: Allan variance of flicker noise of coefficient B is FLICKER_AV * B^2 (ADEV = 0.664 B).
 FLICKER_AV = 2.0 * math.log(2.0) / math.pi
@@ -104,8 +104,14 @@ def gm_avar(tau, sigma: float, T: float) -> np.ndarray:
     return sigma**2 * out
 
 
-def _expm1x(x):
-    """exp(-x) - 1 + x without cancellation (x >= 0)."""
+def expm1x(x):
+    """:math:`e^{-x} - 1 + x` for :math:`x \\ge 0` (dimensionless) without cancellation near 0.
+
+    ``expm1(-x) + x``, with the Taylor series :math:`x^2/2 - x^3/6 + x^4/24 - x^5/120` below x = 1e-3 (its
+    first omitted term, :math:`x^6/720`, is below 3e-15 of :math:`x^2/2` there). Used by the sampled
+    Gauss-Markov PSD (:meth:`NoiseModel.psd_sampled`, x = dt/T) and the GM term of the phase's generalised
+    covariance (:func:`imupipe.avcov.phase_gencov`, x = lag/T).
+    """
     x = np.asarray(x, dtype=np.float64)
     out = np.expm1(-x) + x
     small = x < 1e-3
@@ -384,7 +390,7 @@ class NoiseModel:
             x = dt / T
             a = math.exp(-x)
             r = (T / dt) ** 2
-            c0 = 2.0 * sigma**2 * r * float(_expm1x(np.array([x]))[0])
+            c0 = 2.0 * sigma**2 * r * float(expm1x(np.array([x]))[0])
             b = sigma**2 * r * (-math.expm1(-x)) ** 2
             s = s + dt * (c0 + 2.0 * b * (cw - a) / (1.0 - 2.0 * a * cw + a * a))
         with np.errstate(divide="ignore"):

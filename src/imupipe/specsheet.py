@@ -32,7 +32,8 @@ from pathlib import Path
 from imupipe.models import NoiseModel
 from imupipe.units import UnitError, from_si, to_si
 
-__all__ = ["SpecError", "SpecSheet", "load_spec", "parse_spec", "display_units", "inflation_rows", "SENSOR_KEYS"]
+__all__ = ["SpecError", "SpecSheet", "load_spec", "parse_spec", "display_units", "model_in_units", "inflation_rows",
+           "SENSOR_KEYS"]
 
 #: Keys allowed under a sensor, with the imupipe.units quantity of their value.
 SENSOR_KEYS = {
@@ -227,6 +228,43 @@ def display_units(spec: SpecSheet, sensor: str) -> dict:
     if "gm_sigma" not in spec.units.get(sensor, {}) and "flicker" in units:
         units["gm_sigma"] = units["flicker"]
     return units
+
+
+def model_in_units(model: NoiseModel, units: dict, sensor: str) -> tuple[dict | None, str | None]:
+    """A model's filter parameters in report units (e.g. :func:`display_units`), each value beside its unit.
+
+    ``value_unit = value_SI / factor(unit)`` (:func:`imupipe.units.from_si`) for white noise N (key ``white``),
+    random walk K (``random_walk``) and each Gauss-Markov term's sigma (``gm_sigma``) and correlation time T
+    (``time``); a quantity whose key `units` lacks is left out (flicker, quantization and ramp are not filter
+    states and are not converted).
+
+    Parameters
+    ----------
+    model : NoiseModel
+        Parameters in SI (u = rad/s gyro, m/s^2 accel: N u/sqrt(Hz), sigma u, T s, K u/sqrt(s)).
+    units : dict
+        Unit string per quantity key (``white``, ``random_walk``, ``gm_sigma``, ``time``).
+    sensor : str
+        ``gyro`` or ``accel`` (the unit's dimension is checked against it).
+
+    Returns
+    -------
+    (dict or None, str or None)
+        ``{"white": {"value", "unit"}, "random_walk": {...}, "gauss_markov": [{"sigma": {...}, "T": {...}}, ...]}``
+        and None; or None and a note saying why the conversion failed (a unit of the wrong dimension), in
+        which case a report keeps SI only.
+    """
+    def conv(v, q):
+        return {"value": float(from_si(v, units[q], q, sensor, q)), "unit": units[q]}
+
+    try:
+        out = {q: conv(getattr(model, q), q) for q in ("white", "random_walk") if q in units}
+        out["gauss_markov"] = [{k: conv(v, q) for k, v, q in (("sigma", s, "gm_sigma"), ("T", T, "time"))
+                                if q in units}
+                               for s, T in model.gauss_markov]
+    except UnitError as exc:
+        return None, f"unit conversion failed ({exc}); values in SI only"
+    return out, None
 
 
 def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> list[dict]:

@@ -41,22 +41,35 @@ def _bound_view(b: dict):
                            allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
 
 
-def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
-             sensor: str, kf_rate_hz: float | None = None) -> None:
-    from imupipe.bound import _to_spec_units
+def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, sensor: str,
+            kf_rate_hz: float | None):
+    """The steps of every contract, the global model's and each per-axis model's: (the checks of
+    imupipe.verify.integrity_contract on the bound entry `bound` and the verification of `exported`, the exported
+    model in the spec sheet's units (imupipe.specsheet.model_in_units), its unit note, the export's scope
+    (imupipe.kf.export_scope)). Without an exported model (an axis that was not verified) the last three are None."""
     from imupipe.kf import export_scope
     from imupipe.models import NoiseModel
-    from imupipe.specsheet import display_units, load_spec
+    from imupipe.specsheet import display_units, model_in_units
     from imupipe.verify import integrity_contract
+
+    verification = ({f"{sensor} reference filter": exported["verification"]}
+                    if exported and exported["verification"].get("checks") else None)
+    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification)
+    if not exported:
+        return c, None, None, None
+    in_units, note = model_in_units(NoiseModel.from_dict(exported["model"]), display_units(spec, sensor), sensor)
+    scope = None if kf_rate_hz is None else export_scope(exported, reduction, float(kf_rate_hz))
+    return c, in_units, note, scope
+
+
+def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
+             sensor: str, kf_rate_hz: float | None = None) -> None:
+    from imupipe.specsheet import load_spec
 
     bound, ver = read_yaml(path_bound), read_yaml(path_verify)
     exported = ver["exported"]
-    filt = f"{sensor} reference filter"
-    verification = {filt: exported["verification"]} if exported["verification"].get("checks") else None
-    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification)
     spec = load_spec(path_spec)
-    model = NoiseModel.from_dict(exported["model"])
-    in_spec_units, note = _to_spec_units(model, display_units(spec, sensor), sensor)
+    c, in_spec_units, note, scope = _checks(bound, exported, ver.get("reduction"), spec, sensor, kf_rate_hz)
     out = {
         "sensor": sensor, "spec_name": bound["spec_name"],
         "bounded": c["bounded"], "verified": c["verified"], "failed_checks": c["failed_checks"],
@@ -68,7 +81,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "kf_file": kf_file,
         # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
         # the reference filter's rate against the export's (imupipe.kf.export_scope)
-        "export": None if kf_rate_hz is None else export_scope(exported, ver.get("reduction"), float(kf_rate_hz)),
+        "export": scope,
         # the bound's numbers the run summary reads beside the verdict
         "psd_bounded": bound.get("psd_bounded"), "margin": bound.get("margin"),
         "margin_curve": bound.get("margin_curve"), "margin_frequency_hz": bound.get("margin_frequency_hz"),
@@ -95,12 +108,6 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
 def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None):
     """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
     and whether the KF file exports it (bounded) or gives that axis the global model."""
-    from imupipe.bound import _to_spec_units
-    from imupipe.kf import export_scope
-    from imupipe.models import NoiseModel
-    from imupipe.specsheet import display_units
-    from imupipe.verify import integrity_contract
-
     axes = bound.get("per_axis_models")
     if not axes:
         return None
@@ -109,20 +116,17 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: fl
     for ax, pa in axes.items():
         v = vers.get(ax)
         exported = v["exported"] if v else None
-        verification = ({f"{sensor} reference filter": exported["verification"]}
-                        if exported and exported["verification"].get("checks") else None)
-        c = integrity_contract(_bound_view(pa), pa.get("allan_check"), verification)
-        model = NoiseModel.from_dict(exported["model"]) if exported else None
+        c, in_spec_units, _, scope = _checks(pa, exported, v.get("reduction") if v else None, spec, sensor,
+                                             kf_rate_hz)
         entry = {"curves": pa.get("curves"), "bounded": c["bounded"], "verified": c["verified"],
                  "failed_checks": c["failed_checks"], "exported_in_kf": bool(c["bounded"]),
                  "model": exported["model"] if exported else None,
-                 "model_spec_units": _to_spec_units(model, display_units(spec, sensor), sensor)[0] if model else None,
+                 "model_spec_units": in_spec_units,
                  "model_reduced": bool(exported["reduced"]) if exported else None,
                  "inflation": pa.get("inflation"), "margin": pa.get("margin"),
                  "all_frequency_margin": pa.get("all_frequency_margin"),
                  "allan_check_passed": pa.get("allan_check_passed"),
-                 "export": export_scope(exported, v.get("reduction"), float(kf_rate_hz))
-                 if exported and kf_rate_hz is not None else None}
+                 "export": scope}
         entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
                        f"axis {ax}: the global model (its own failed: {failed_names(entry)})")
         out[ax] = entry

@@ -101,8 +101,6 @@ inflation), :mod:`~imupipe.bound.allan_check` (Allan-domain checks, upper envelo
 from imupipe.bound.report import (  # noqa: F401
     BoundResult,
     _inflation,
-    _plain,
-    _to_spec_units,
 )
 from imupipe.bound.engine import (  # noqa: F401
     BOUND_COMPONENTS,

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from imupipe.io import plain
+from imupipe.specsheet import model_in_units
 
 
 
@@ -112,7 +113,7 @@ class BoundResult:
             Unit per quantity as written in the spec sheet, keys among ``white``, ``gm_sigma``,
             ``time``, ``random_walk`` (e.g. ``{"white": "deg/sqrt(h)", "gm_sigma": "deg/h",
             "time": "s", "random_walk": "(deg/h)/sqrt(s)"}``). Converted with
-            :func:`imupipe.units.from_si`; without it only SI is written.
+            :func:`imupipe.specsheet.model_in_units`; without it only SI is written.
         sensor : str, optional
             ``gyro`` or ``accel`` (passed to the unit conversion).
         """
@@ -157,48 +158,12 @@ class BoundResult:
             "decisions": dict(self.decisions),
             "n_lp": int(self.n_lp),
             "solve_time_s": fl(self.solve_time_s),
-            "details": _plain(self.details),
+            "details": plain(self.details),
         }
         if spec_units:
-            out["bound_spec_units"], note = _to_spec_units(self.model, spec_units, sensor)
+            out["bound_spec_units"], note = model_in_units(self.model, spec_units, sensor)
             if self.spec is not None:
-                out["spec_spec_units"], _ = _to_spec_units(self.spec, spec_units, sensor)
+                out["spec_spec_units"], _ = model_in_units(self.spec, spec_units, sensor)
             if note:
                 out["unit_note"] = note
         return out
-
-
-def _plain(obj):
-    """numpy scalars/arrays -> Python floats/lists (YAML-safe): :func:`imupipe.io.plain`."""
-    return plain(obj)
-
-
-def _to_spec_units(model, spec_units, sensor):
-    """Model parameters in the spec's units via imupipe.units.from_si."""
-    from imupipe.units import from_si
-
-    out = {}
-    try:
-        if "white" in spec_units:
-            out["white"] = {"value": float(from_si(model.white, spec_units["white"], "white", sensor, "white")),
-                            "unit": spec_units["white"]}
-        if "random_walk" in spec_units:
-            out["random_walk"] = {
-                "value": float(from_si(model.random_walk, spec_units["random_walk"], "random_walk", sensor,
-                                       "random_walk")),
-                "unit": spec_units["random_walk"],
-            }
-        gms = []
-        for s, T in model.gauss_markov:
-            d = {}
-            if "gm_sigma" in spec_units:
-                d["sigma"] = {"value": float(from_si(s, spec_units["gm_sigma"], "gm_sigma", sensor, "gm_sigma")),
-                              "unit": spec_units["gm_sigma"]}
-            if "time" in spec_units:
-                d["T"] = {"value": float(from_si(T, spec_units["time"], "time", sensor, "time")),
-                          "unit": spec_units["time"]}
-            gms.append(d)
-        out["gauss_markov"] = gms
-    except Exception as exc:  # unit helper with another signature: keep SI, say why
-        return None, f"unit conversion failed ({exc}); values in SI only"
-    return out, None

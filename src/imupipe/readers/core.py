@@ -525,7 +525,14 @@ def _nominal_rate(t: np.ndarray, rate, gap_factor: float, dt: np.ndarray | None 
     against `rate` when known, else against the median interval, then the mean is taken without them.
     """
     dt = np.diff(t) if dt is None else dt  # the caller's intervals when it has them: no second copy
-    guess = rate if rate is not None else 1.0 / float(np.median(dt))
+    if rate is None:
+        # the median partitions dt in place (np.median copies its input otherwise: one more record's length);
+        # the intervals are then recomputed as np.diff computes them, bit for bit and in order (the sums below
+        # and the caller's later uses see the same array as before)
+        guess = 1.0 / float(np.median(dt, overwrite_input=True))
+        np.subtract(t[1:], t[:-1], out=dt)
+    else:
+        guess = rate
     ok = dt <= gap_factor / guess
     mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
     if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
@@ -664,7 +671,8 @@ class FilledGap:
 
 
 def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text):
-    """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map).
+    """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map), the
+    row map None when no gap is filled.
 
     The sheet's `rate_hz` (when given) is first checked against the timestamps (:func:`_check_sheet_rate`),
     and the samples inserted in all may be at most `max_fraction` of the file's samples
@@ -692,9 +700,8 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
             f"{inserted / len(t):.3g} of the file's {len(t)} samples; at most fill_max_fraction = {max_fraction:g} "
             f"may be made up. Check the timestamps and rate_hz, or raise fill_max_fraction (sheet column) knowingly"
         )
-    rows = np.arange(len(t))
     if not gaps.size:
-        return (), rows
+        return (), None
     filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(dt[i])) for i, k in zip(gaps, missing))
     # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
     pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]

@@ -121,7 +121,11 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
     label = (lambda i: repr(names[i])) if names is not None else (lambda i: f"#{i}")
     time = None
     if tcol is not None:
-        time = values[tcol] * _time_factor(time_unit, where)  # a new array: a channel may share the column
+        time = values[tcol]
+        if tcol in cols.values():
+            time = time * _time_factor(time_unit, where)  # a new array: a channel shares the column
+        else:
+            time *= _time_factor(time_unit, where)  # in place: no second record-length array while parsed
     return _Raw(
         data={k: values[i] for k, i in cols.items()},
         names={k: label(i) for k, i in cols.items()},
