@@ -83,7 +83,7 @@ def main(argv=None):
         fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=a.n_boot, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
                         n_samples=ns)
         sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-        up = upper_envelope(fit, sel)
+        up = upper_envelope(fit, sel, horizon_s=1200.0)
         print(f"{sensor}: lines per curve {n_lines}: "
               + ", ".join(f"{ln.frequency_hz:.4f} Hz (amp {ln.amplitude:.3g}, zeta {ln.zeta:.3g})"
                           for ln in lines[:6]) + (" ..." if len(lines) > 6 else ""))

@@ -93,7 +93,7 @@ def workflow(records, tmp_path_factory):
     psds = {f"{d}/{a}": sp.at("psd", d, a) for d, a in sp.curves(included_only=True)}
     edf = np.array([np.broadcast_to(sp.at("edf", d, a), f.shape) for d, a in sp.curves(included_only=True)])
     spec = load_spec(SPEC)
-    upper = upper_envelope(selected, selection)
+    upper = upper_envelope(selected, selection, horizon_s=600.0 + 600.0)
     result = bound_psd(f, psds, spec.models["gyro"], dt=1.0 / float(sp.attrs["rate_hz"]), mode="raw", n_gm=1,
                        confidence=0.95, bands_per_decade=10, edf=edf, keep=identify["selection"]["kept"],
                        taper=sp.attrs.get("taper", "hann"), horizon_s=600.0 + 600.0, upper_model=upper)

@@ -735,3 +735,108 @@ class TestRandomWalkCap:
         assert upper_envelope(fit, ["white", "random_walk"]).random_walk == 5.0
         assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-4).random_walk == 1e-4
         assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-6).random_walk == 2e-5
+
+
+class TestUpperEnvelopeOpenInterval:
+    """imupipe.bound.upper_envelope where the data leave a GM time constant's interval open (one-sided): the
+    envelope must dominate, in two-sided PSD, every GM of the box sigma <= sigma_up, T in the interval, not the
+    estimate's GM (docs/method.md, section "The upper envelope")."""
+
+    @staticmethod
+    def shortfall(env, s, T, f, white=0.0):
+        """Smallest ratio envelope PSD / (white^2 + GM PSD) over the (T, f) grid: the envelope must cover the
+        identified white noise at its upper end and, on top of it, any GM of the box (two-sided:
+        2 s^2 T / (1 + (2 pi f T)^2))."""
+        w = 2.0 * np.pi * np.asarray(f)[None, :]
+        Tc = np.asarray(T)[:, None]
+        gm = 2.0 * s * s * Tc / (1.0 + (w * Tc) ** 2)
+        return float(np.min(np.asarray(env.psd(f))[None, :] / (white**2 + gm)))
+
+    def test_open_upper_end_dominated_from_one_over_horizon(self):
+        from types import SimpleNamespace
+
+        from imupipe.bound import upper_envelope
+
+        H, s = 3600.0, 3e-4
+        fit = SimpleNamespace(params={"white": 1e-3, "gm_sigma_1": 2e-4, "gm_T_1": 50.0},
+                              intervals={"white": (0.9e-3, 1.1e-3), "gm_sigma_1": (1e-4, s),
+                                         "gm_T_1": (20.0, math.inf)},
+                              T_grid=np.logspace(-2, 2, 33))
+        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H)
+        # closed at c = max(100 s searched, H / (2 pi) = 573 s): T_m = sqrt(20 c), sigma_m = s (c / 20)^(1/4)
+        c = H / (2.0 * np.pi)
+        ((s_m, T_m),) = env.gauss_markov
+        assert T_m == pytest.approx(math.sqrt(20.0 * c), rel=1e-14)
+        assert s_m == pytest.approx(s * (c / 20.0) ** 0.25, rel=1e-14)
+        f = np.logspace(math.log10(1.0 / H), 3, 400)
+        T = np.logspace(math.log10(20.0), math.log10(1e3 * H), 400)
+        # dominance is exact (monotonicity in T beyond c); 1e-12: float rounding of the PSDs
+        assert self.shortfall(env, s, T, f, white=1.1e-3) >= 1 - 1e-12
+        # the old rule (the box closed at the estimate, T <= 50 s) misses the long-T GMs
+        old = NoiseModel(white=1.1e-3, gauss_markov=((s * (50.0 / 20.0) ** 0.25, math.sqrt(20.0 * 50.0)),))
+        assert self.shortfall(old, s, T, f, white=1.1e-3) < 0.5
+        # c = H / (2 pi) is the least that reaches down to 1 / H: at f = 0.5 / H the GM with T = 1/(2 pi f) = 2 c
+        # has PSD s^2/(2 pi f) = 2 s^2 c, above the box's 2 s^2 c / (1 + (2 pi f)^2 20 c)
+        assert self.shortfall(env, s, T, np.array([0.5 / H]), white=1.1e-3) < 1.0
+        # without a horizon: c = the longest T searched, dominated from 1/(2 pi 100 s) on only
+        env0 = upper_envelope(fit, ["white", "gauss_markov"])
+        assert env0.gauss_markov[0][1] == pytest.approx(math.sqrt(20.0 * 100.0), rel=1e-14)
+        f0 = np.logspace(math.log10(1 / (2 * np.pi * 100.0)), 3, 200)
+        assert self.shortfall(env0, s, T, f0, white=1.1e-3) >= 1 - 1e-12
+        assert self.shortfall(env0, s, T, f, white=1.1e-3) < 1.0
+
+    def test_open_lower_end_covered_by_white_noise(self):
+        from types import SimpleNamespace
+
+        from imupipe.bound import SHORT_T_WHITE_FACTOR, upper_envelope
+
+        # the ADIS16405 accelerometer's shape: T at the shortest T searched (0.01 s), interval (0, 0.0133] s
+        s, a, N_up = 0.0224, 0.01, 3.45e-3
+        fit = SimpleNamespace(params={"white": 3.1e-3, "gm_sigma_1": 0.0223, "gm_T_1": a},
+                              intervals={"white": (3.09e-3, N_up), "gm_sigma_1": (0.0221, s),
+                                         "gm_T_1": (0.0, 0.0133)},
+                              T_grid=np.logspace(-2, 2.8, 40))
+        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=1200.0)
+        ((s_m, T_m),) = env.gauss_markov
+        assert T_m == pytest.approx(math.sqrt(a * 0.0133), rel=1e-14)
+        assert env.white**2 - N_up**2 == pytest.approx(SHORT_T_WHITE_FACTOR * s * s * a, rel=1e-9)
+        f = np.logspace(-4, 6, 600)
+        T = np.logspace(-9, math.log10(0.0133), 500)
+        assert self.shortfall(env, s, T, f, white=N_up) >= 1 - 1e-12
+        # the old rule (no white addition, the box [0.01, 0.0133]) misses the shorter T above 1/(2 pi a) = 16 Hz
+        old = NoiseModel(white=N_up, gauss_markov=env.gauss_markov)
+        assert self.shortfall(old, s, T, f, white=N_up) < 1.0
+        # kappa is the least white addition for the interval (0, a]: 0.99 kappa falls short
+        env1 = upper_envelope(SimpleNamespace(params={"gm_sigma_1": s, "gm_T_1": a}, intervals={"gm_T_1": (0.0, a)},
+                                              T_grid=np.array([a, 1.0])), ["gauss_markov"])
+        assert env1.white**2 == pytest.approx(SHORT_T_WHITE_FACTOR * s * s * a, rel=1e-12)
+        T1, f1 = np.logspace(-9, math.log10(a), 500), np.logspace(0, 4, 4001)
+        assert self.shortfall(env1, s, T1, f1) >= 1 - 1e-12
+        short = NoiseModel(white=math.sqrt(0.99) * env1.white, gauss_markov=env1.gauss_markov)
+        assert self.shortfall(short, s, T1, f1) < 1.0
+
+    def test_short_t_white_factor_closed_form(self):
+        from imupipe.bound import SHORT_T_WHITE_FACTOR
+
+        u = np.logspace(0, 4, 400001)
+        assert SHORT_T_WHITE_FACTOR == pytest.approx(np.max(1 / u - 2 / (1 + u * u)), rel=1e-9)
+        assert 1 / 8 < SHORT_T_WHITE_FACTOR < 1 / 4  # between the large-u asymptote and the cruder bound
+
+    def test_rebuilt_from_an_identify_file_with_an_open_end(self):
+        from types import SimpleNamespace
+
+        from imupipe.bound import upper_envelope, upper_envelope_from_identification
+
+        sel = {"params": {"white": 1e-3, "gm_sigma_1": 2e-4, "gm_T_1": 50.0},
+               "intervals": {"white": [0.9e-3, 1.1e-3], "gm_sigma_1": [1e-4, 3e-4], "gm_T_1": [20.0, None]},
+               "T_search_s": [0.01, 100.0]}
+        ident = {"fit": {"params": {"white": 5.0}, "selected": sel}, "selection": {"kept": ["white", "gauss_markov"]},
+                 "upper_envelope_horizon_s": 1200.0}
+        view = SimpleNamespace(params=sel["params"], intervals={"white": (0.9e-3, 1.1e-3), "gm_sigma_1": (1e-4, 3e-4),
+                                                                "gm_T_1": (20.0, math.inf)},
+                               T_grid=np.array([0.01, 100.0]))
+        # the selected refit's, its open upper end (null in YAML) read as inf, the file's horizon
+        assert upper_envelope_from_identification(ident) == upper_envelope(view, ["white", "gauss_markov"],
+                                                                           horizon_s=1200.0)
+        assert upper_envelope_from_identification(ident).gauss_markov[0][1] == pytest.approx(
+            math.sqrt(20.0 * 1200.0 / (2 * np.pi)), rel=1e-14)

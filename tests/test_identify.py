@@ -510,6 +510,16 @@ class TestSelectedRefit:
         assert ref.intervals["gm_sigma_1"] == (min(a0, w0), max(a1, w1))
         assert ref.params["gm_sigma_1"] == alone.params["gm_sigma_1"]  # the estimate stays the refit's
         assert any("given the dropped random walk" in note for note in ref.notes)
+        # the statistical intervals (before any widening), which the upper envelope reads, carry the same rule:
+        # the dropped random walk's upper limit and the GM intervals of the fit with it, so the envelope keeps K
+        from imupipe.bound import upper_envelope
+
+        (ws0, ws1), (as0, as1) = with_rw.intervals_statistical["gm_sigma_1"], alone.intervals_statistical["gm_sigma_1"]
+        assert ref.intervals_statistical["gm_sigma_1"] == (min(as0, ws0), max(as1, ws1))
+        assert ref.intervals_statistical["gm_T_1"] == with_rw.intervals_statistical["gm_T_1"]
+        k_up = with_rw.intervals_statistical["random_walk"][1]
+        assert ref.intervals_statistical["random_walk"] == (0.0, k_up) and k_up > 0
+        assert upper_envelope(ref, sel).random_walk == k_up
 
     def test_two_gm_never_drops_the_white_noise(self):
         # n_gm = 2 let quantization and a GM at the shortest T carry the white noise; the white test's null may

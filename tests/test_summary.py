@@ -197,6 +197,13 @@ def test_a_random_walk_resting_on_the_spec_sheet_alone_is_stated():
     assert "rests on the spec sheet" not in render_summary({"gyro": {"bound": _bound(), "identify": kept}})
     no_spec_k = _bound(spec={"white": 4.4e-5, "random_walk": 0.0})
     assert "rests on the spec sheet" not in render_summary({"gyro": {"bound": no_spec_k, "identify": IDENTIFY}})
+    # the envelope carries the dropped random walk's upper limit: the bound's K covers it, not the spec sheet alone
+    env_k = _bound(export=_scope(["random_walk"]), upper_envelope={"white": 4.6e-5, "random_walk": 5.55e-8})
+    text = render_summary({"gyro": {"bound": env_k, "identify": IDENTIFY}})
+    assert "rests on the spec sheet" not in text
+    assert ("- random walk: the data showed none (identification dropped it) but do not exclude one up to K = 5.55e-08 "
+            "(SI, the identified envelope); the bound's K covers that limit and the spec sheet's; the exported filter "
+            "drops it (reduction above)") in text
 
 
 def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_ratio():

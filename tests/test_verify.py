@@ -149,7 +149,7 @@ def pipeline(truth, spec, n_data, seed, hours=10.0, rate=10.0, n_boot=50, mode="
     fit = fit_allan(taus, avs, edfs, n_gm=n_gm, n_boot=n_boot, confidence=0.9, rng=seed, dt=1 / rate, rate=rate,
                     n_samples=ns)
     sel = select_components(fit, taus, avs, edfs, rate_hz=1.0, horizon_s=3600.0)
-    up = upper_envelope(fit, sel)
+    up = upper_envelope(fit, sel, horizon_s=4200.0)
     b = bound_psd(f, np.array(curves), spec, dt=1.0, mode=mode, keep=sel, horizon_s=4200.0, upper_model=up,
                   edf=edf, n_gm=n_gm)
     return fit, sel, up, b, (taus, avs, edfs)

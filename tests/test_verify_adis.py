@@ -46,7 +46,7 @@ def test_adis16405_bound_verifies_and_the_spec_sheet_fails_on_replay(shared_data
     fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
                     n_samples=ns)
     sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-    up = upper_envelope(fit, sel)
+    up = upper_envelope(fit, sel, horizon_s=1200.0)
     b = bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, horizon_s=1200.0, upper_model=up, edf=edf)
     assert b.model.white >= max(up.white, spec.white) * (1 - 1e-9)
     g = np.logspace(-1, 3, 200)  # 0.1 Hz .. 1 kHz, across and above the decimated band
@@ -105,7 +105,7 @@ def test_adis16405_accel_line_modelled_removes_the_inflation_and_verifies(shared
     fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
                     n_samples=[x.size for x in series])
     sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-    up = upper_envelope(fit, sel)
+    up = upper_envelope(fit, sel, horizon_s=1200.0)
 
     def bound(policy):
         pol = line_policy(lines, 1.0, (0.0, 0.1), policy, frequency=f)

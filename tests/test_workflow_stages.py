@@ -270,8 +270,45 @@ class TestRecordsOfDifferentLengthAndRate:
             relevance=idn["relevance"], adequacy_level=idn.get("adequacy_level", 0.01),
             pooling_level=idn.get("pooling_level", 0.01), pooling_n_boot=idn.get("pooling_n_boot", 99),
             rate_hz=cfg["application"]["rate_hz"], horizon_s=cfg["application"]["horizon_s"], truth=None,
+            envelope_horizon_s=float(cfg["verify"]["fix_s"]) + float(cfg["application"]["horizon_s"]),
             path_out=str(again), sensor="gyro")
         assert again.read_bytes() == (res / "identify/gyro.yaml").read_bytes()
+
+
+class TestPerAxisIdentification:
+    """The identify script's per-axis rule (`_selected_and_envelope`, also the pooled path's): the selection's
+    kept components refitted with imupipe.identify.refit_selected, so a random walk the selection dropped keeps
+    its upper limit in the axis's envelope (the per-axis bounds read it)."""
+
+    def test_dropped_random_walk_keeps_its_upper_limit_per_axis(self):
+        from imupipe.allan import allan_variance
+        from imupipe.identify import fit_allan
+
+        mod = _script("identify")
+        rate, n = 10.0, 72000  # 2 h at 10 Hz: white 1e-3 u/sqrt(Hz) plus a GM (sigma 5e-4 u, T 20 s), no random walk
+        rng = np.random.default_rng(7)
+        phi = math.exp(-1.0 / (rate * 20.0))
+        e = 5e-4 * math.sqrt(1 - phi * phi) * rng.standard_normal(n)
+        g = np.empty(n)
+        g[0] = 5e-4 * rng.standard_normal()
+        for k in range(1, n):
+            g[k] = phi * g[k - 1] + e[k]
+        x = 1e-3 * math.sqrt(rate) * rng.standard_normal(n) + g
+        av = allan_variance(x, rate, taus="octave", units="rad/s")
+        ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+        tau, avar, edf = av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok]
+        curves = [("d/x", tau, avar, edf, n, rate, "x")]
+        kw = dict(n_boot=20, confidence=0.95, dt=1.0 / rate, rate=[rate], n_samples=[n])
+        full = fit_allan([tau], [avar], [edf], components=("white", "gauss_markov", "random_walk"), n_gm=1,
+                         rng=1, **{**kw, "n_boot": 0})
+        selection = {"kept": ["white", "gauss_markov"], "dropped": ["random_walk"]}
+        sel, env = mod._selected_and_envelope(full, selection, curves, kw, 0.95, 1200.0)
+        assert sel.params["random_walk"] == 0.0 and sel.intervals["random_walk"][1] > 0
+        assert env.random_walk > 0
+        assert "random walk" in sel.interval_kind["random_walk"]
+        # the former per-axis rule (a fit of the kept components only) had no random walk at all in the envelope
+        only_kept = fit_allan([tau], [avar], [edf], components=("white", "gauss_markov"), n_gm=1, rng=1, **kw)
+        assert mod._envelope(only_kept, selection["kept"], curves, 0.95, 1200.0).random_walk == 0.0
 
 
 class TestDominatingModel:

@@ -299,7 +299,7 @@ def noise_model(
                                   significance=significance, relevance=relevance)
     kept = selection["kept"]
     selected = refit_selected(fit, selection, taus_l, avars, edfs, **fit_kw)
-    upper = upper_envelope(selected, selection)
+    upper = upper_envelope(selected, selection, horizon_s=fix_s + horizon_s)
 
     first = next(iter(spectra.values()))
     f = first["frequency"].values

@@ -627,7 +627,8 @@ class AllanFit:
             "units": "SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, "
             "quantization u*s, ramp u/s, gm_sigma u, gm_T s; random_walk_profile: threshold 1 (a chi2 "
             "difference), upper and percentile_upper u/sqrt(s); gm_T_profile: threshold 1 (a chi2 difference), "
-            "lower, upper, percentile_lower, percentile_upper s (null: infinite, one-sided)",
+            "lower, upper, percentile_lower, percentile_upper s (null: infinite, one-sided); T_search_s: shortest "
+            "and longest time constant searched, s",
             "params": {k: fl(v) for k, v in self.params.items()},
             "intervals": {k: [fl(a), fl(b)] for k, (a, b) in self.intervals.items()},
             "p_zero": {k: fl(v) for k, v in self.p_zero.items()},
@@ -645,6 +646,8 @@ class AllanFit:
                          for k, v in self.adequacy.items()},
             "on_boundary": {k: bool(v) for k, v in self.on_boundary.items()},
             "interval_kind": dict(self.interval_kind),
+            # the time constants searched (s): where a one-sided T interval stops being data
+            **({"T_search_s": [float(np.min(self.T_grid)), float(np.max(self.T_grid))]} if self.T_grid.size else {}),
             "conservative": {k: fl(v) for k, v in self.conservative().items()},
             **({"intervals_statistical": {k: [fl(a), fl(b)] for k, (a, b) in self.intervals_statistical.items()}}
                if self.intervals_statistical and self.intervals_statistical != self.intervals else {}),
@@ -1427,6 +1430,9 @@ def refit_selected(fit: AllanFit, selection: dict, tau, avar, edf, **fit_kwargs)
         if np.isfinite(up) or up == np.inf:
             sel.params["random_walk"] = 0.0
             sel.intervals["random_walk"] = (0.0, float(up))
+            # and before any over-dispersion widening: the limit the upper envelope reads (imupipe.bound)
+            up_stat = (with_rw.intervals_statistical or with_rw.intervals).get("random_walk", (np.nan, up))[1]
+            sel.intervals_statistical["random_walk"] = (0.0, float(up_stat))
             sel.on_boundary["random_walk"] = True
             sel.interval_kind["random_walk"] = ("dropped by the selection (not shown by the data): upper limit "
                                                 "from the fit with a random walk, for bounding")
@@ -1454,22 +1460,33 @@ def _hull_gm_intervals(sel: AllanFit, with_rw: AllanFit) -> None:
       (measured: GM sigma covered 0.85 of 100 white + GM records without a random walk, 0.90 for the refit's
       own), the refit's on one pushed high when it has one.
     """
-    for name in list(sel.intervals):
-        if not name.startswith(("gm_sigma_", "gm_T_")) or name not in with_rw.intervals:
-            continue
-        lo_s, hi_s = sel.intervals[name]
-        lo_w, hi_w = with_rw.intervals[name]
+    def hull(dst, src, name):
+        """`dst[name]` replaced by the rule above from `src`; True when it changed."""
+        if name not in src or name not in dst:
+            return False
+        lo_s, hi_s = dst[name]
+        lo_w, hi_w = src[name]
         if not (np.isfinite(hi_w) or hi_w == np.inf) or not (np.isfinite(lo_w) or lo_w == 0.0):
-            continue  # the term vanished in the fit with the random walk: nothing to take from it
-        profiled = name == "gm_T_1" and bool(with_rw.gm_T_profile)
-        if profiled:
+            return False  # the term vanished in the fit with the random walk: nothing to take from it
+        if name == "gm_T_1" and bool(with_rw.gm_T_profile):
             lo, hi = lo_w, hi_w
         else:
             lo = lo_w if not np.isfinite(lo_s) else min(lo_s, lo_w)
             hi = hi_w if not (np.isfinite(hi_s) or hi_s == np.inf) else max(hi_s, hi_w)
         if (lo, hi) == (lo_s, hi_s):
+            return False
+        dst[name] = (float(lo), float(hi))
+        return True
+
+    for name in list(sel.intervals):
+        if not name.startswith(("gm_sigma_", "gm_T_")):
             continue
-        sel.intervals[name] = (float(lo), float(hi))
+        # the statistical intervals (before any over-dispersion widening, what the upper envelope reads) too
+        if sel.intervals_statistical:
+            hull(sel.intervals_statistical, with_rw.intervals_statistical or with_rw.intervals, name)
+        if not hull(sel.intervals, with_rw.intervals, name):
+            continue
+        profiled = name == "gm_T_1" and bool(with_rw.gm_T_profile)
         kind = with_rw.interval_kind.get(name, "two-sided")
         if kind.startswith("one-sided"):
             sel.interval_kind[name] = kind + " (from the fit with the random walk)"

@@ -195,8 +195,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
 def _export_lines(bound: Mapping, kept) -> list[str]:
     """Summary bullets on the exported filter model (the contract's ``export``, imupipe.kf.export_scope): the states
     the verified reduction dropped and the horizon (s) the export then holds for, the verification rate against the
-    export's; and, when identification kept no random walk while the bound has one, that the bound's random walk
-    rests on the spec sheet alone."""
+    export's; and, when identification kept no random walk while the bound has one, what the bound's random walk
+    rests on: the upper limit the data leave for the dropped random walk (the identified envelope's K, SI) where
+    there is one, else the spec sheet alone."""
     out = []
     exp = bound.get("export")
     if isinstance(exp, Mapping) and exp.get("statement"):
@@ -207,10 +208,16 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
         except (TypeError, ValueError):
             return 0.0
 
-    if kept is not None and "random_walk" not in kept and k_of("bound") > 0 and k_of("spec") > 0:
+    k_env = k_of("upper_envelope")
+    if kept is not None and "random_walk" not in kept and k_of("bound") > 0 and (k_of("spec") > 0 or k_env > 0):
         dropped = isinstance(exp, Mapping) and "random_walk" in (exp.get("dropped_by_reduction") or [])
-        out.append("- random walk: the data showed none (identification dropped it); the bound's K rests on the spec "
-                   "sheet alone" + ("; the exported filter drops it (reduction above)" if dropped else ""))
+        if k_env > 0:
+            head = ("- random walk: the data showed none (identification dropped it) but do not exclude one up to "
+                    f"K = {k_env:.3g} (SI, the identified envelope); the bound's K covers that limit"
+                    + (" and the spec sheet's" if k_of("spec") > 0 else ""))
+        else:
+            head = "- random walk: the data showed none (identification dropped it); the bound's K rests on the spec sheet alone"
+        out.append(head + ("; the exported filter drops it (reduction above)" if dropped else ""))
     return out
 
 

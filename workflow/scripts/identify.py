@@ -26,13 +26,25 @@ def curves_of(av):
     return out
 
 
-def _envelope(fit, kept, curves, confidence):
-    """The upper confidence envelope of the kept components of `fit` (imupipe.bound.upper_envelope), its random
-    walk at most what the curves' Allan variances allow (imupipe.bound.random_walk_cap)."""
+def _envelope(fit, kept, curves, confidence, horizon_s):
+    """The upper confidence envelope of the kept components of `fit` (imupipe.bound.upper_envelope; a GM time
+    constant the data leave open covered for f >= 1/horizon_s), its random walk at most what the curves' Allan
+    variances allow (imupipe.bound.random_walk_cap)."""
     from imupipe.bound import random_walk_cap, upper_envelope
 
     cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
-    return upper_envelope(fit, kept, random_walk_cap=cap)
+    return upper_envelope(fit, kept, random_walk_cap=cap, horizon_s=horizon_s)
+
+
+def _selected_and_envelope(fit, selection, curves, fit_kw, confidence, horizon_s):
+    """The selected refit of `fit` on `curves` (imupipe.identify.refit_selected: a random walk the selection
+    dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its upper
+    envelope (:func:`_envelope`); the one rule of the pooled and the per-axis identification."""
+    from imupipe.identify import refit_selected
+
+    taus, avars, edfs = ([c[i] for c in curves] for i in (1, 2, 3))
+    selected = refit_selected(fit, selection, taus, avars, edfs, rng=SEED_FIT, **fit_kw)
+    return selected, _envelope(selected, list(selection["kept"]), curves, confidence, horizon_s)
 
 
 def _envelope_ratio(envelope: dict, model) -> dict:
@@ -49,8 +61,11 @@ def _envelope_ratio(envelope: dict, model) -> dict:
 
 def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: float, significance: float,
          relevance: float, rate_hz: float, horizon_s: float, truth, path_out: str, sensor: str,
-         adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99) -> None:
-    from imupipe.identify import dominating_model, fit_allan, pooling_test, refit_selected, select_components, slope_line
+         adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
+         envelope_horizon_s: float | None = None) -> None:
+    """`envelope_horizon_s`: the window the bound must hold over, s (verify.fix_s + application.horizon_s; default
+    `horizon_s`): the upper envelope covers a GM whose T the data leave open above for f >= 1/envelope_horizon_s."""
+    from imupipe.identify import dominating_model, fit_allan, pooling_test, select_components, slope_line
     from imupipe.merge import Stacked
 
     av = Stacked(path_allan)
@@ -67,11 +82,11 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
                                   significance=significance, relevance=relevance)
     kept = list(selection["kept"])
     logging.info("kept %s; dropped %s", kept, selection["dropped"])
-    selected = refit_selected(fit, selection, taus, avars, edfs, rng=SEED_FIT, **fit_kw)
+    env_h = float(envelope_horizon_s if envelope_horizon_s is not None else horizon_s)
+    selected, envelope = _selected_and_envelope(fit, selection, curves, fit_kw, confidence, env_h)
     pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, rate=rates, n_samples=ns,
                            labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
     logging.info("pooling: %s", pooling["note"])
-    envelope = _envelope(selected, kept, curves, confidence)
 
     out = {
         "sensor": sensor,
@@ -89,24 +104,34 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
         "conservative": selected.to_dict()["conservative"],
         "pooling": pooling,
         "upper_envelope_model": envelope.to_dict(),
+        "upper_envelope_horizon_s": env_h,
         "slope_line": {},
     }
     out["selection"]["band_hz"] = [float(v) for v in out["selection"]["band_hz"]] if out["selection"]["band_hz"] else None
     if not pooling["consistent"]:
-        # one identification per axis (its datasets pooled; one dataset: one curve), same kept components
+        # one identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
+        # axis's fit with every allowed component (no bootstrap: it only sets the components and the T search),
+        # then the pooled selection refitted on the axis (a dropped random walk keeps its upper limit, the GM
+        # intervals their hull with the fit with a random walk); the per-axis bounds use the pooled kept list
         per_axis = {}
         for axis in sorted({c[6] for c in curves}):
             idx = [i for i, c in enumerate(curves) if c[6] == axis]
+            ax_curves = [curves[i] for i in idx]
             kw = {**fit_kw, "rate": [rates[i] for i in idx], "n_samples": [ns[i] for i in idx],
                   "dt": 1.0 / rates[idx[0]]}
-            fa = fit_allan([taus[i] for i in idx], [avars[i] for i in idx], [edfs[i] for i in idx],
-                           components=tuple(kept), n_gm=n_gm if "gauss_markov" in kept else 0, rng=SEED_FIT, **kw)
+            full = fit_allan([taus[i] for i in idx], [avars[i] for i in idx], [edfs[i] for i in idx],
+                             components=components, n_gm=n_gm, rng=SEED_FIT, **{**kw, "n_boot": 0})
+            fa, env_a = _selected_and_envelope(full, selection, ax_curves, kw, confidence, env_h)
             d = fa.to_dict()
             per_axis[axis] = {"curves": [labels[i] for i in idx], "model": fa.model.to_dict(),
                               "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
-                              "on_boundary": d["on_boundary"], "conservative": d["conservative"],
-                              "upper_envelope_model": _envelope(fa, kept, [curves[i] for i in idx],
-                                                                confidence).to_dict(), "notes": d["notes"]}
+                              "on_boundary": d["on_boundary"], "interval_kind": d["interval_kind"],
+                              "conservative": d["conservative"],
+                              **({"intervals_statistical": d["intervals_statistical"]}
+                                 if "intervals_statistical" in d else {}),
+                              **({"T_search_s": d["T_search_s"]} if "T_search_s" in d else {}),
+                              "random_walk_profile": d["random_walk_profile"],
+                              "upper_envelope_model": env_a.to_dict(), "notes": d["notes"]}
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         from imupipe.models import NoiseModel
@@ -128,8 +153,9 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     out["upper_envelope"] = ("kept components at the upper ends of the selected refit's statistical intervals (before any "
                              "over-dispersion widening), each GM as the "
                              "tightest single GM over its interval box, the random walk at its upper limit even when "
-                             "dropped, capped by what the recorded Allan variances allow (imupipe.bound.upper_envelope, "
-                             "random_walk_cap); SI")
+                             "dropped, capped by what the recorded Allan variances allow, a GM time constant the data "
+                             "leave open covered for f >= 1/upper_envelope_horizon_s (imupipe.bound.upper_envelope, "
+                             "random_walk_cap); SI; upper_envelope_horizon_s s")
     for label, t, y, *_ in curves:
         sl = slope_line(t, np.sqrt(y))
         out["slope_line"][label] = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in sl.items()}
@@ -150,5 +176,6 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_allan=snakemake.input.allan, components=list(p.components), n_gm=p.n_gm,
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
-            rate_hz=p.rate_hz, horizon_s=p.horizon_s, truth=snakemake.input.truth or None,
+            rate_hz=p.rate_hz, horizon_s=p.horizon_s, envelope_horizon_s=p.envelope_horizon_s,
+            truth=snakemake.input.truth or None,
             path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)

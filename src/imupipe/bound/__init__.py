@@ -40,7 +40,8 @@ error over a long outage there. So the LP also holds, with continuous PSDs,
   frequency and the highest GM corner :math:`1/(2\pi T)` of both (``upper_band="all"``, the default;
   ``"below"`` only below :math:`f_1`): the exported model is continuous-time and a filter integrates its
   PSD at every frequency, where the decimated bins say nothing. :math:`S_{up}` is the identified model's
-  upper confidence envelope (:func:`upper_envelope`: kept components at their upper limits, the random walk
+  upper confidence envelope (:func:`upper_envelope`: kept components at their upper limits, a GM over its
+  whole T interval, an interval the data leave open included (:func:`gm_box_envelope`), the random walk
   at its upper limit even when model selection dropped it);
 * :math:`f \to 0`: :math:`K_m \ge \max(K_{spec}, K_{up})` (a random walk the spec gives or the data
   cannot exclude is never dropped: the component is added, ``decisions`` says so);
@@ -145,9 +146,11 @@ from imupipe.bound.axes import (  # noqa: F401
     curves_by_axis,
 )
 from imupipe.bound.allan_check import (  # noqa: F401
+    SHORT_T_WHITE_FACTOR,
     check_allan,
     check_allan_components,
     gm_bounds_gm,
+    gm_box_envelope,
     random_walk_cap,
     upper_envelope,
     upper_envelope_from_identification,
@@ -164,6 +167,8 @@ __all__ = [
     "looseness",
     "check_allan_components",
     "gm_bounds_gm",
+    "gm_box_envelope",
+    "SHORT_T_WHITE_FACTOR",
     "random_walk_cap",
     "upper_envelope",
     "check_allan",
