@@ -183,6 +183,44 @@ def test_gm_T_profile_open_end_is_one_sided(monkeypatch):
     assert (lo, hi, lo_open, hi_open) == (0.0, np.inf, True, True)
 
 
+
+def test_white_profile_interval_brackets_its_threshold():
+    # N's interval: the hull of the percentile interval and {n : Delta(n) <= the bootstrap threshold}, Delta(n) =
+    # chi2(N held at n, the GM time constants held at the free fit's) - chi2(free); each end is the outside end of
+    # a bisection bracket of 1e-4 N, so Delta crosses the threshold inside it
+    from imupipe.identify import _check_components, _solve_fixed
+
+    truth = TRUTHS["white+gm"]
+    tau, avar, edf = curves(truth, 10.0, 1, seed=8)
+    n = int(10.0 * 3600 * RATE)
+    comps = ("white", "gauss_markov")
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=4, confidence=0.9, rate=RATE, n_samples=n)
+    prof, N = fit.white_profile, fit.params["white"]
+    assert prof["threshold"] > 0 and prof["lower"] < N < prof["upper"]
+    assert fit.intervals["white"] == (min(prof["lower"], prof["percentile_lower"]),
+                                      max(prof["upper"], prof["percentile_upper"]))
+    t, y, e = tau[0], avar[0], edf[0]
+    rest = _check_components(("gauss_markov",), 1)
+
+    def delta(x):
+        return _solve_fixed(t, y, e, rest, (fit.params["gm_T_1"],), offset=x * x / t).chi2 - fit.chi2
+
+    tol = 1e-4 * N
+    assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] - tol)
+    assert delta(prof["lower"]) > prof["threshold"] >= delta(prof["lower"] + tol)
+    assert fit.to_dict()["white_profile"]["upper"] == prof["upper"]
+
+
+def test_profile_interval_of_a_known_statistic():
+    # Delta(x) = ((x - 5) / 0.5)^2, threshold 4: the set is [4, 6]; each end is returned as the outside end of a
+    # bracket of at most rtol * x_hat = 5e-4; a set reaching 0 gives the lower end 0, one that never closes inf
+    from imupipe.identify import _profile_interval
+
+    lo, hi = _profile_interval(lambda x: ((x - 5.0) / 0.5) ** 2, 5.0, 4.0, step=0.01)
+    assert 4.0 - 5e-4 <= lo < 4.0 and 6.0 < hi <= 6.0 + 5e-4
+    assert _profile_interval(lambda x: ((x - 5.0) / 5.0) ** 2, 5.0, 4.0, step=0.01)[0] == 0.0
+    assert _profile_interval(lambda x: 0.0 if x >= 5.0 else 9.0, 5.0, 4.0, step=0.01)[1] == np.inf
+
 # ---------------------------------------------------------------------------------------------
 # the compiled re-weighted NNLS against scipy.optimize.nnls, and its optimality conditions
 # ---------------------------------------------------------------------------------------------
