@@ -105,6 +105,14 @@ class TestReductionAndContract:
         assert not c["bounded"] and not c["verified"]
         (fc,) = c["failed_checks"]
         assert fc["check"] == "verification" and fc["worst_ratio"] > 1
+        # a KF file exported at another rate than the verified reference filter's is not the verified filter
+        same = {"verified_filter_rate_hz": 1.0, "kf_rate_hz": 1.0, "rate_mismatch": False}
+        c = integrity_contract(b, verification=ok, export=same)
+        assert c["bounded"] and "export_rate" in c["checks_run"]
+        c = integrity_contract(b, verification=ok, export={**same, "kf_rate_hz": 100.0, "rate_mismatch": True})
+        assert not c["bounded"] and not c["verified"]
+        (fc,) = c["failed_checks"]
+        assert fc["check"] == "export_rate" and fc["kf_rate_hz"] == 100.0 and fc["verified_filter_rate_hz"] == 1.0
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -488,7 +488,7 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     return current, tried
 
 
-def integrity_contract(bound, allan=None, verification=None) -> dict:
+def integrity_contract(bound, allan=None, verification=None, export=None) -> dict:
     """The contract dict: ``bounded`` means verified.
 
     Parameters
@@ -499,6 +499,11 @@ def integrity_contract(bound, allan=None, verification=None) -> dict:
         :func:`imupipe.bound.check_allan` result.
     verification : dict, optional
         Reference filter name -> :func:`verify_model` result.
+    export : dict, optional
+        :func:`imupipe.kf.export_scope` of the exported KF file: when its rate differs from the reference
+        filter's (``rate_mismatch``), the KF file is not the filter that was verified (its discretisation, and
+        any state the reduction dropped, were checked at another rate): the check ``export_rate`` fails and
+        the model is not verified.
 
     Returns
     -------
@@ -543,6 +548,14 @@ def integrity_contract(bound, allan=None, verification=None) -> dict:
                     failed.append({"check": "verification", "filter": filt, "against": check,
                                    "worst_ratio": c["worst_ratio"], "worst_t_s": c["worst_t_s"],
                                    "first_exceed_s": c["first_exceed_s"], "tolerance": c["tolerance"]})
+    if export is not None:
+        run.append("export_rate")
+        if export.get("rate_mismatch"):
+            verified = False
+            failed.append({"check": "export_rate", "verified_filter_rate_hz": export.get("verified_filter_rate_hz"),
+                           "kf_rate_hz": export.get("kf_rate_hz"),
+                           "note": "the KF file's filter rate is not the verified reference filter's: set "
+                                   "verify.filter_rate_hz to application.rate_hz"})
     return {"bounded": bool(verified and not failed), "verified": bool(verified), "failed_checks": failed,
             "checks_run": run,
             "note": "bounded: true means every check above passed, the verification included"}

@@ -44,7 +44,7 @@ if abs(float(config["verify"]["filter_rate_hz"]) - float(config["application"]["
           f"application.rate_hz = {config['application']['rate_hz']} Hz (the KF export's rate): the verification "
           "and any state reduction it accepts hold at the verification rate, not at the exported filter's; set "
           "verify.filter_rate_hz to application.rate_hz (it must also divide decimate.rate_hz) to verify the exported "
-          "filter itself", file=_sys.stderr)
+          "filter itself; until then the contract fails its export_rate check (not verified)", file=_sys.stderr)
 
 # The replay check of the verification runs the reference filter on the decimated records: its rate must divide
 # decimate.rate_hz (block averaging to it), else the verify job would stop mid-run; refused here, naming both keys.

@@ -54,11 +54,11 @@ def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, se
 
     verification = ({f"{sensor} reference filter": exported["verification"]}
                     if exported and exported["verification"].get("checks") else None)
-    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification)
+    scope = None if (kf_rate_hz is None or not exported) else export_scope(exported, reduction, float(kf_rate_hz))
+    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification, export=scope)
     if not exported:
         return c, None, None, None
     in_units, note = model_in_units(NoiseModel.from_dict(exported["model"]), display_units(spec, sensor), sensor)
-    scope = None if kf_rate_hz is None else export_scope(exported, reduction, float(kf_rate_hz))
     return c, in_units, note, scope
 
 
@@ -141,7 +141,8 @@ def failed_names(doc: dict) -> str:
         where = f.get("against") or f.get("component") or f.get("curve") or ""
         parts.append(f"{f['check']}{' ' + str(where) if where else ''}"
                      f"{'' if num is None else f' ({num:.4g})'}")
-    if not doc.get("verified") and not any(f["check"] == "verification" for f in doc.get("failed_checks") or ()):
+    if not doc.get("verified") and not any(f["check"] in ("verification", "export_rate")
+                                           for f in doc.get("failed_checks") or ()):
         parts.append("verification did not run")
     return "; ".join(parts) or "none"
 
