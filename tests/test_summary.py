@@ -72,6 +72,17 @@ def test_flagged_and_failed_checks_appear_with_where():
     assert "**Verdict:** gyro: NOT BOUNDED; accel: BOUNDED. 4 failed" in text
 
 
+def test_data_far_below_the_spec_sheet_are_flagged():
+    # a margin >= FAR_BELOW_SPEC_MARGIN: every sample bin far below the bound (the spec sheet's), as a record in
+    # deg/s declared as mrad/s gives (an outside tester's run: margin 63); a margin of 5 is a normal spec sheet
+    from imupipe.summary import FAR_BELOW_SPEC_MARGIN
+
+    far = [f for f in flags_of("gyro", bound=_bound(margin=63.06)) if f.check == "data far below the spec sheet"]
+    assert len(far) == 1 and "63.1x below the bound" in far[0].detail and "unit" in far[0].detail
+    assert not [f for f in flags_of("gyro", bound=_bound(margin=5.0)) if f.check.startswith("data far")]
+    assert [f for f in flags_of("gyro", bound=_bound(margin=FAR_BELOW_SPEC_MARGIN)) if f.check.startswith("data far")]
+
+
 def test_missing_keys_are_tolerated_and_nothing_is_invented():
     assert flags_of("gyro") == []
     text = render_summary({"accel": {}})

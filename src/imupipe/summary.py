@@ -21,6 +21,13 @@ __all__ = ["Flag", "discover_run", "flags_of", "load_sensor_files", "markdown_to
            "sensors_from_paths", "summarise_run", "write_summary"]
 
 
+#: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
+#: spec sheet. The largest of n periodogram ordinates of a PSD S is about S ln(n) (n = 1e3-1e4 bins: 7-9 S), so a
+#: margin of 25 puts the data's mean PSD at least ~200x (14x in amplitude) below the bound at every frequency:
+#: no sensor beats its data sheet by that much; a unit error (deg/s declared as mrad/s: 17.5x) does.
+FAR_BELOW_SPEC_MARGIN = 25.0
+
+
 @dataclass(frozen=True)
 class Flag:
     """One failed or flagged check.
@@ -147,6 +154,14 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         if isinstance(pa, Mapping) and pa.get("exported_in_kf") is False:
             out.append(Flag(sensor, "per-axis model", str(ax),
                             f"not exported: {pa.get('kf', 'its own contract failed')}"))
+    margin = bound.get("margin")
+    if margin is not None and float(margin) >= FAR_BELOW_SPEC_MARGIN:
+        out.append(Flag(sensor, "data far below the spec sheet", f"{bound.get('margin_curve', '-')} at "
+                        f"{_num(bound.get('margin_frequency_hz'))} Hz",
+                        f"every sample PSD bin is at least {_num(margin, '{:.3g}')}x below the bound (min "
+                        "S_bound/S_sample); the bound is the spec sheet's, the data are not what it describes: check "
+                        "the data's unit in the dataset sheet (a record in a smaller unit than declared, e.g. deg/s "
+                        "declared as mrad/s, looks like this) and that the spec sheet is this sensor's"))
     exp = bound.get("export") if isinstance(bound.get("export"), Mapping) else {}
     if exp.get("rate_mismatch"):
         out.append(Flag(sensor, "export rate", "KF file",
