@@ -91,7 +91,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
         "per_axis": bound.get("per_axis"),
         **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
-        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_t_s", "worst_ratio",
+        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio",
                                                        "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
                          for name, ch in exported["verification"].get("checks", {}).items()},
         "reduction": None if ver.get("reduction") is None else
