@@ -242,7 +242,8 @@ def _line_flag(sensor: str, it: Mapping) -> Flag:
 
 def _inflation_rows(bound: Mapping) -> list[tuple]:
     """(parameter, unit, spec, bound, ratio) rows from bound_spec_units / spec_spec_units (spec-sheet units),
-    falling back to SI."""
+    falling back to SI. A component the spec sheet (or the bound) does not give, value 0 or absent, is None
+    (shown "-", ratio None), as in the tables of :func:`imupipe.specsheet.inflation_rows`."""
     b, s = bound.get("bound_spec_units"), bound.get("spec_spec_units")
     rows = []
     if isinstance(b, Mapping):
@@ -272,8 +273,15 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
             sg = sg[i] if i < len(sg) else {}
             rows.append((f"GM sigma {i + 1} (SI)", "u", sg.get("sigma"), g.get("sigma")))
             rows.append((f"GM T {i + 1}", "s", sg.get("T"), g.get("T")))
+    def given(v):
+        try:
+            return v if float(v) != 0.0 else None
+        except (TypeError, ValueError):
+            return v
+
     out = []
     for name, unit, sv, bv in rows:
+        sv, bv = given(sv), given(bv)
         try:
             ratio = float(bv) / float(sv) if sv else None
         except (TypeError, ValueError):
