@@ -337,6 +337,10 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
+            scope = bound.get("inflation_scope")
+            if isinstance(scope, Mapping) and scope.get("dropped_from_exported_model") and scope.get("statement"):
+                # the table is the bound's; the exported model lacks these states (imupipe.kf.inflation_scope)
+                lines += [f"- the table above: {scope['statement']}", ""]
         band = bound.get("allan_tau_band_s")
         if band:
             lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "
