@@ -611,3 +611,35 @@ def test_adis16405_gyro_adequacy_and_pooling(shared_data):
     assert not pt["consistent"]
     N = {c["label"]: c["params"]["white"] for c in pt["per_curve"]}
     assert N["z"] > 1.3 * max(N["x"], N["y"])
+
+
+def test_selection_reason_names_the_test_that_showed_the_component_and_both_critical_values():
+    """The exact AV of white noise + a weak GM (T = 100 s), pooled R times (identical curves): z does not depend on
+    R (the same m, m_null and AV spread at every point), the refit's delta chi2 is R times one curve's. One curve:
+    neither test shows the GM (max z 0.8 against 2.87, delta chi2 3.2 against 7.38) and it is dropped; 40 curves:
+    z stays 0.8 (critical 3.88) while delta chi2 reaches ~126, so the GM is kept on the chi-squared test alone and the
+    reason must say so and print that test's critical value chi2_d(1 - alpha/J), d = 2 (sigma, T), J = 2."""
+    from scipy.stats import chi2
+
+    tau = 2.0 ** np.arange(0, 12)
+    truth = NoiseModel(white=1e-3, gauss_markov=((4e-5, 100.0),))
+    y, e = np.asarray(truth.avar(tau)), np.full(tau.size, 50.0)
+    crit = chi2.isf(0.05 / 2, 2)
+    out = {}
+    for R in (1, 40):
+        fit = fit_allan([tau] * R, [y] * R, [e] * R, components=("white", "gauss_markov"), n_boot=0)
+        out[R] = select_components(fit, [tau] * R, [y] * R, [e] * R, significance=0.05)
+    one, many = out[1], out[40]
+    d1, d40 = one["details"]["gauss_markov"], many["details"]["gauss_markov"]
+    assert d1["z"] == pytest.approx(d40["z"], rel=1e-6) and d40["z"] < d40["z_crit"]
+    assert d1["delta_chi2_crit"] == d40["delta_chi2_crit"] == pytest.approx(crit, rel=1e-12)
+    assert d1["delta_chi2"] < crit < d40["delta_chi2"]
+    assert "gauss_markov" in one["dropped"] and "gauss_markov" in many["kept"]
+    assert not d40["shown_by_z"] and d40["shown_by_chi2"]
+    why = many["reasons"]["gauss_markov"]
+    assert "shown by the chi-squared test of the refit, not by the z test" in why
+    assert f"delta chi2 = {d40['delta_chi2']:.3g} (critical {crit:.3g})" in why
+    assert f"(critical {d40['z_crit']:.3g})" in why
+    assert "shown by neither the z test nor the chi-squared test of the refit" in one["reasons"]["gauss_markov"]
+    # the white noise, shown by both
+    assert "shown by the z test and by the chi-squared test of the refit" in many["reasons"]["white"]

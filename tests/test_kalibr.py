@@ -198,3 +198,23 @@ def test_k_eff_ignores_a_sigma_zero_line():
 
     m = replace(ACCEL, narrowband=((0.0, 0.463, 2e-3),))
     assert kalibr._k_eff(m, "accel") == pytest.approx(_k_eff(ACCEL), rel=1e-12)
+
+
+def test_a_ratio_below_one_is_not_called_an_inflation():
+    """An identified accel model that absorbed a narrowband line into a very short GM (sigma 5e-3 m/s^2, T = 0.01 s):
+    its folded random walk sqrt(K^2 + 2 sigma^2/T) squared is 2e-5^2 + 5e-3 (m/s^2)^2/s, the GM's share rounding to 100 %, far above the
+    bound's 9.2e-5 m/s^2/sqrt(s). The ratio (1.3e-3) is printed as below the identified value, with the GM's T and
+    the frequency 1/(2 pi T) = 15.9 Hz below which that fold overstates the GM, never as an inflation; ratios above
+    1 stay plain factors."""
+    ident = NoiseModel(white=1.0e-3, gauss_markov=((5.0e-3, 0.01),), random_walk=2.0e-5)
+    imu = kalibr_imu(GYRO, ACCEL, update_rate_hz=125.0, identified_gyro=GYRO_ID, identified_accel=ident)
+    r = imu.inflation["accelerometer_random_walk"]
+    assert r == pytest.approx(_k_eff(ACCEL) / _k_eff(ident), rel=1e-12) and r < 1
+    text = kalibr_text(imu)
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("#   accelerometer_random_walk:")]
+    assert line.startswith(f"#   accelerometer_random_walk: x{r:.3g}, BELOW the identified value, not an inflation: ")
+    assert "100% of the identified value (squared) is its GM with T = 0.01 s" in line
+    assert f"1/(2 pi T) = {1 / (2 * math.pi * 0.01):.3g} Hz" in line
+    assert "#   accelerometer_noise_density: x2.5\n" in text and "#   gyroscope_noise_density: x2.6\n" in text
+    assert set(imu.below) == {"accelerometer_random_walk"}
+    assert "written / identified; above 1 an inflation" in text

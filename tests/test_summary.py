@@ -237,3 +237,33 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
     text = render_summary({"accel": {"bound": entry}})
     assert "- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2, peak PSD 78.6x the floor" in text
     assert "- FLAG lines [adis_imu2/accel/x]: 0.5669 Hz" in text
+
+
+def test_inflation_table_shows_a_component_the_spec_sheet_does_not_give_as_in_the_tables():
+    """The ADIS16405 sheet gives no random walk and no GM (only N and flicker): summary.md's table shows such a spec
+    cell "-" with no ratio, as tables/<spec>/inflation.md does (imupipe.specsheet.inflation_rows), not "0"; every
+    cell the two tables share agrees (both print 4 significant digits)."""
+    from pathlib import Path
+
+    from imupipe.models import NoiseModel
+    from imupipe.specsheet import display_units, inflation_rows, load_spec, model_in_units
+
+    spec = load_spec(Path(__file__).resolve().parents[1] / "config" / "specs" / "adis16405.yaml")
+    assert spec.models["gyro"].random_walk == 0 and not spec.models["gyro"].gauss_markov
+    bound_model = NoiseModel(white=2e-3, gauss_markov=((3e-4, 50.0),), random_walk=4e-6)  # rad/s
+    units = display_units(spec, "gyro")
+    bound = {**_bound(), "bound_spec_units": model_in_units(bound_model, units, "gyro")[0],
+             "spec_spec_units": model_in_units(spec.models["gyro"], units, "gyro")[0]}
+    text = render_summary({"gyro": {"bound": bound}})
+
+    def fmt(v):
+        return "-" if v is None else f"{v:.4g}"
+
+    tables = {r["parameter"]: r for r in inflation_rows(spec, "gyro", bound_model)}
+    k = tables["random walk K"]
+    assert k["spec"] is None and k["ratio"] is None
+    assert f"| random walk K | {k['unit']} | - | {fmt(k['bound'])} | - |" in text
+    for name in ("white noise N", "GM sigma", "GM T"):
+        r = tables[name]
+        assert f"| {name} | {r['unit']} | {fmt(r['spec'])} | {fmt(r['bound'])} |" in text
+    assert "| 0 |" not in text

@@ -210,6 +210,20 @@ def test_plot_verification_draws_P_and_each_rms(tmp_path):
     assert len(lines) == 4  # sqrt(P), two RMS curves, the outage marker
     np.testing.assert_allclose(lines[0].get_ydata(), np.sqrt(res["truth"].P))
     assert "FAIL" in lines[1].get_label() and "pass" in lines[2].get_label()
+    # the legend gives the worst ratio over the OUTAGE and its time, read off the plotted series (not the value at
+    # t = 1 s of the fix period, which the whole-run worst of a filter matched during the fixes can be)
+    for line, v in zip(lines[1:3], res.values()):
+        sc = reference_scenario("accel")
+        j = sc.n_fix + int(np.argmax(v.ratio[sc.n_fix:]))
+        assert v.worst_outage_ratio == v.ratio[j] and v.worst_outage_t_s == v.t_s[j] > sc.fix_s
+        assert f"worst MSE/P over the outage {v.ratio[j]:.3g} at t = {v.t_s[j]:.0f} s" in line.get_label()
+        assert v.to_dict()["worst_outage_t_s"] == v.t_s[j]
+    assert lines[1].get_label() != lines[2].get_label()
+    # the y axis names the quantity and its unit
+    assert fig.axes[0].get_ylabel() == "position / angle error: RMS and filter sqrt(P) [m]"
+    fig_g = plot_verification(res, unit="deg", scale=math.degrees(1.0), quantity="angle error")
+    assert fig_g.axes[0].get_ylabel() == "angle error: RMS and filter sqrt(P) [deg]"
+    np.testing.assert_allclose(fig_g.axes[0].get_lines()[0].get_ydata(), np.sqrt(res["truth"].P) * math.degrees(1.0))
     save_figure(fig, tmp_path / "v.png")
     assert (tmp_path / "v.png").stat().st_size > 0
 

@@ -394,6 +394,7 @@ class TestPerAxisExport:
         assert con["bounded"] is True and con["failed_checks"] == []
         px, pz = con["per_axis_models"]["x"], con["per_axis_models"]["z"]
         assert px["bounded"] and px["exported_in_kf"] and px["curves"] == ["d1/x", "d2/x"]
+        assert px["inflation_scope"]["dropped_from_exported_model"] == []  # reduce=False: the bound is exported
         assert not pz["bounded"] and not pz["exported_in_kf"]
         assert [(c["check"], c["curve"], c["tau_s"], c["worst_ratio"]) for c in pz["failed_checks"]] == \
             [("allan_total", "d1/z", 0.02, 0.6)]
@@ -430,3 +431,45 @@ def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_re
     assert proc.returncode != 0
     assert (f"verify.filter_rate_hz = {base * 3} Hz must divide decimate.rate_hz = {cfg['decimate']['rate_hz']} Hz"
             in proc.stdout + proc.stderr)
+
+
+def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_dropped(tmp_path):
+    """The contract's `inflation` is bound/spec of the bound's model; when the verified reduction drops a state (here
+    a GM of sigma 1e-9 rad/s, T = 5 s, which no check needs) the exported `model` lacks it. The contract keeps the
+    `inflation` key and adds `inflation_scope` (the dropped states and a statement), its header says so, and the run
+    summary states it under the inflation table. Without a reduction the scope says the exported model is the
+    bound's."""
+    from imupipe.io import plain
+    from imupipe.models import NoiseModel
+    from imupipe.summary import render_summary
+    from imupipe.verify import verification_stage
+
+    spec_path = ROOT / "config" / "specs" / "stim300.yaml"
+    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 300.0),), random_walk=1e-6)
+    big = NoiseModel(white=1.2e-4, gauss_markov=((6e-5, 300.0), (1e-9, 5.0)), random_walk=1.2e-6)
+    bound = {"spec_name": "STIM-300", "mode": "raw", "n_curves": 1, "psd_bounded": True, "margin": 1.2,
+             "spec_margin": 1.1, "all_frequency_margin": 1.1, "allan_check_passed": True,
+             "allan_check": {"components": {}, "total": {"passed": True}, "passed": True},
+             "bound": big.to_dict(), "inflation": {"N": 1.2, "sigma_1": 1.2, "T_1": 1.0, "sigma_2": None, "T_2": None,
+                                                    "K": 1.2}}
+    docs = {}
+    for reduce in (True, False):
+        ver = verification_stage(big, "gyro", spec=truth, upper=truth, fix_s=300.0, horizon_s=900.0, reduce=reduce)[0]
+        paths = {k: tmp_path / f"{k}_{reduce}.yaml" for k in ("bound", "verify", "contract")}
+        paths["bound"].write_text(yaml.safe_dump(plain(bound)))
+        paths["verify"].write_text(yaml.safe_dump(plain(ver)))
+        _script("contract").contract(str(paths["bound"]), str(paths["verify"]), str(spec_path), "kf.yaml", "fail",
+                                     str(paths["contract"]), "gyro")
+        docs[reduce] = (yaml.safe_load(paths["contract"].read_text()), paths["contract"].read_text())
+    (con, text), (whole, _) = docs[True], docs[False]
+    assert con["model_reduced"] and len(con["model"]["gauss_markov"]) == 1  # the T = 5 s GM is not exported
+    assert con["inflation"] == bound["inflation"]  # the key its readers read is unchanged
+    scope = con["inflation_scope"]
+    assert scope["of"] == "bound" and scope["dropped_from_exported_model"] == ["gauss_markov T=5 s"]
+    assert "BEFORE the verified reduction" in scope["statement"] and "gauss_markov T=5 s" in scope["statement"]
+    assert "inflation: bound/spec per parameter of the BOUND's" in text.replace("\n# ", " ")
+    assert not whole["model_reduced"] and whole["inflation_scope"]["dropped_from_exported_model"] == []
+    assert "which is the exported model (no state dropped)" in whole["inflation_scope"]["statement"]
+    summary = render_summary({"gyro": {"bound": con}})
+    assert f"- the table above: {scope['statement']}" in summary
+    assert "- the table above" not in render_summary({"gyro": {"bound": whole}})

@@ -1270,6 +1270,17 @@ _DATA_ONLY = {
 }
 
 
+def _shown_by(z_shows: bool, chi2_shows: bool, chi2_ran: bool) -> str:
+    """Which data test of :func:`select_components` showed a component, as the reason sentence says it."""
+    if z_shows and chi2_shows:
+        return "shown by the z test and by the chi-squared test of the refit"
+    if z_shows:
+        return "shown by the z test" + (", not by the chi-squared test of the refit" if chi2_ran else "")
+    if chi2_shows:
+        return "shown by the chi-squared test of the refit, not by the z test"
+    return "shown by neither the z test nor the chi-squared test of the refit" if chi2_ran else "not shown by the z test"
+
+
 def select_components(
     fit: AllanFit,
     tau,
@@ -1344,7 +1355,9 @@ def select_components(
     -------
     dict
         ``kept`` (list of component names), ``dropped``, ``reasons`` (name -> sentence),
-        ``details`` (name -> z, tau at max z, delta chi2, band share), ``reduced_model``
+        ``details`` (name -> z and its critical value ``z_crit``, tau at max z, delta chi2 and its critical value
+        ``delta_chi2_crit`` :math:`\chi^2_{d}(1-\alpha/J)`, band share, ``shown_by_z``, ``shown_by_chi2``);
+        each reason names the test(s) that showed the component and prints both critical values, ``reduced_model``
         (True when eq. 19 without random walk is allowed), ``band_hz``, ``significance``,
         ``relevance``.
     """
@@ -1388,7 +1401,7 @@ def select_components(
             continue
         removed = (c,) + _SUBSTITUTES.get(c, ())
         comps = tuple(x for x in fit.components if x not in removed)
-        d_chi2 = None
+        d_chi2 = chi2_crit = None
         lr_shows = False
         if comps:
             n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
@@ -1409,7 +1422,8 @@ def select_components(
             m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
             if lr_test:
                 d_chi2 = float(alt.chi2 - fit.chi2)
-                lr_shows = bool(d_chi2 > chdtri(n_removed, significance / n_tested))
+                chi2_crit = float(chdtri(n_removed, significance / n_tested))
+                lr_shows = bool(d_chi2 > chi2_crit)
         else:
             m_null = np.zeros_like(m)
         # the part of the component the other components cannot absorb, against the AV's spread
@@ -1424,10 +1438,13 @@ def select_components(
         else:
             relevant = True
         details[c] = {"z": float(z[k]), "z_crit": zcrit, "tau_at_max_z": float(t[k]),
-                      "delta_chi2": d_chi2, "band_share": share}
+                      "delta_chi2": d_chi2, "delta_chi2_crit": chi2_crit, "band_share": share,
+                      "shown_by_z": shows, "shown_by_chi2": lr_shows}
         why = (
+            f"{_shown_by(shows, lr_shows, d_chi2 is not None)}; "
             f"max z = {z[k]:.3g} at tau = {t[k]:.3g} s (critical {zcrit:.3g})"
-            + (f", refit without it: delta chi2 = {d_chi2:.3g}" if d_chi2 is not None else "")
+            + (f", refit without it: delta chi2 = {d_chi2:.3g} (critical {chi2_crit:.3g})"
+               if d_chi2 is not None else "")
             + (f", band share {share:.3g}" if share is not None else "")
         )
         if c in _DATA_ONLY:

@@ -30,7 +30,8 @@ is refused.
 The values written are **bounding** values: they already contain the inflation the bound found necessary.
 Do not inflate them again (Kalibr's documentation suggests inflating identified values, e.g. x10; these
 are not identified values). The file's comment block states this and the factor against the identified
-values.
+values; a factor below 1 is no inflation and is said to be below, with the identified value's largest term (an
+identified short GM folded into the random walk gives a large identified value that is no random walk).
 
 References
 ----------
@@ -44,7 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from imupipe.models import NoiseModel
 
@@ -82,6 +83,9 @@ class KalibrIMU:
         Topic of the ``sensor_msgs/Imu`` messages.
     inflation : dict
         Field -> written value / the same quantity of the identified model (None where unknown or zero).
+    below : dict
+        Field -> why its ratio is below 1, where it is (then no inflation): the identified quantity's largest
+        term (:func:`_below_reason`).
     """
 
     accelerometer_noise_density: float
@@ -91,6 +95,7 @@ class KalibrIMU:
     update_rate: float
     rostopic: str
     inflation: dict
+    below: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """The Kalibr fields in Kalibr's order of its example file (no inflation, no comments)."""
@@ -112,6 +117,24 @@ def _k_eff(m: NoiseModel, name: str) -> float:
         raise ValueError(f"{name}: the model has {len(lines)} narrowband line(s); Kalibr's two-term model cannot "
                          "bound them (use the full Kalman-filter export instead)")
     return math.sqrt(m.random_walk**2 + sum(2.0 * s**2 / T for s, T in m.gauss_markov if T > 0))
+
+
+def _below_reason(im: NoiseModel, kind: str) -> str:
+    r"""Why a written value is below the identified model's (ratio < 1: no inflation), from the identified quantity's
+    largest term. For the random walk, :math:`K_{eff}^2 = K^2 + \sum_i 2\sigma_i^2/T_i`: a GM term dominating it is a
+    folded GM (its PSD asymptote :math:`2\sigma^2/T/(2\pi f)^2` exceeds the GM's own PSD at every f, by a factor
+    :math:`1 + 1/(2\pi f T)^2`, large below :math:`1/(2\pi T)`), not a random walk of the data."""
+    if kind == "noise_density":
+        return "the identified white noise N is above the written one"
+    terms = [(im.random_walk**2, None)] + [(2.0 * s**2 / T, (s, T)) for s, T in im.gauss_markov if T > 0]
+    total = sum(v for v, _ in terms)
+    v, gm = max(terms, key=lambda x: x[0])
+    share = v / total if total > 0 else 0.0
+    if gm is None:
+        return f"the identified random walk K ({share:.0%} of the identified value, squared) exceeds the written value"
+    return (f"{share:.0%} of the identified value (squared) is its GM with T = {gm[1]:.3g} s folded in, which "
+            f"overstates that GM below 1/(2 pi T) = {1.0 / (2.0 * math.pi * gm[1]):.3g} Hz; it is no random walk the data "
+            "show")
 
 
 def dataset_rates(sheet_rates: Mapping[str, float | None], curve_rates: Mapping[str, float]) -> dict:
@@ -238,7 +261,7 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", i
     for k, v in vals.items():
         if not v > 0:
             raise ValueError(f"{k}: the bound gives {v!r}; Kalibr needs a positive value")
-    inflation = {}
+    inflation, below = {}, {}
     for prefix, ident in (("gyroscope", identified_gyro), ("accelerometer", identified_accel)):
         im = _model(ident, prefix) if ident is not None else None
         for kind, ref in (("noise_density", im.white if im else None),
@@ -246,11 +269,14 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", i
                                                                              if T > 0)) if im else None)):
             key = f"{prefix}_{kind}"
             inflation[key] = (vals[key] / ref) if ref else None
-    return KalibrIMU(update_rate=rate, rostopic=rostopic.strip(), inflation=inflation, **vals)
+            if inflation[key] is not None and inflation[key] < 1.0:
+                below[key] = _below_reason(im, kind)
+    return KalibrIMU(update_rate=rate, rostopic=rostopic.strip(), inflation=inflation, below=below, **vals)
 
 
 def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
-    """The ``imu.yaml`` text: a comment block (bounding values, units, inflation) and the six fields.
+    """The ``imu.yaml`` text: a comment block (bounding values, units, the ratio to the identified values: an
+    inflation when above 1, else said to be below with :attr:`KalibrIMU.below`'s reason) and the six fields.
 
     Parameters
     ----------
@@ -273,9 +299,14 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
     lines += [f"# {n}" for n in notes]
     known = {k: v for k, v in imu.inflation.items() if v is not None}
     if known:
-        lines.append("# Inflation against the values identified from the Allan variance (written / identified):")
+        lines.append("# Against the values identified from the Allan variance (written / identified; above 1 an "
+                     "inflation):")
         for k, v in known.items():
-            lines.append(f"#   {k}: x{v:.3g}")
+            if v < 1.0:
+                why = imu.below.get(k) or "see the identify file"
+                lines.append(f"#   {k}: x{v:.3g}, BELOW the identified value, not an inflation: {why}")
+            else:
+                lines.append(f"#   {k}: x{v:.3g}")
     body = [
         f"accelerometer_noise_density: {imu.accelerometer_noise_density:.6e}  # m/s^2/sqrt(Hz)",
         f"accelerometer_random_walk: {imu.accelerometer_random_walk:.6e}  # m/s^3/sqrt(Hz)",

@@ -52,6 +52,8 @@ from imupipe.units import SI_UNITS
 __all__ = [
     "ContinuousModel",
     "export_scope",
+    "dropped_by_reduction",
+    "inflation_scope",
     "continuous_model",
     "discretize",
     "initial_covariance",
@@ -496,7 +498,7 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
 
     scen = (exported.get("verification") or {}).get("scenario") or {}
     horizon_s = scen.get("horizon_s") if horizon_s is None else horizon_s
-    dropped = list((reduction or {}).get("accepted") or []) if exported.get("reduced") else []
+    dropped = dropped_by_reduction(exported, reduction)
     vrate = scen.get("rate_hz")
     mismatch = vrate is not None and abs(float(vrate) - float(kf_rate_hz)) > 1e-9 * float(kf_rate_hz)
     # NoiseModel.from_dict reads the narrowband terms in either form (dicts or (sigma, f0_hz, zeta) lists)
@@ -516,6 +518,33 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
             "fix_s": None if scen.get("fix_s") is None else float(scen["fix_s"]),
             "verified_filter_rate_hz": None if vrate is None else float(vrate), "kf_rate_hz": float(kf_rate_hz),
             "rate_mismatch": bool(mismatch), "line_states": line_states, "statement": text}
+
+
+def dropped_by_reduction(exported: dict, reduction: dict | None) -> list:
+    """The states the verified reduction dropped from the exported model: the report's ``reduction.accepted`` (e.g.
+    ``random_walk``, ``gauss_markov T=5 s``) when the exported model is the reduced one (``exported.reduced``), else
+    none (the bound's model is exported whole)."""
+    return list((reduction or {}).get("accepted") or []) if exported.get("reduced") else []
+
+
+def inflation_scope(exported: dict, reduction: dict | None) -> dict:
+    """What a contract's ``inflation`` (bound/spec per parameter) describes: the bound's model, before the verified
+    reduction, which may have dropped some of its states from the exported model (no numerics: a statement).
+
+    Returns
+    -------
+    dict
+        ``of`` (``"bound"``), ``dropped_from_exported_model`` (list of str, :func:`dropped_by_reduction`) and
+        ``statement`` (one sentence).
+    """
+    dropped = dropped_by_reduction(exported, reduction)
+    if dropped:
+        text = ("inflation is bound/spec of the bound's model, BEFORE the verified reduction; the exported model "
+                f"(model) dropped {', '.join(dropped)}, so the inflation of those components describes no state of "
+                "the exported model")
+    else:
+        text = "inflation is bound/spec of the bound's model, which is the exported model (no state dropped)"
+    return {"of": "bound", "dropped_from_exported_model": dropped, "statement": text}
 
 
 def _num_s(v) -> str:

@@ -968,8 +968,12 @@ def save_figure(fig: "Figure", path: str | os.PathLike) -> None:
 # verification
 # ---------------------------------------------------------------------------------------------
 def plot_verification(results: dict, unit: str | None = None, scale: float = 1.0, fix_s: float | None = None,
-                      title: str | None = None):
+                      title: str | None = None, quantity: str | None = None):
     """sqrt(P) of the reference filter against the true or empirical RMS error, over fixes and outage.
+
+    The y axis is the error itself (``quantity`` in ``unit``); each RMS curve's legend gives the worst MSE/P over
+    the OUTAGE and its time (``worst_outage_ratio``, ``worst_outage_t_s``), the informative number, and the
+    check's pass/FAIL.
 
     Parameters
     ----------
@@ -982,6 +986,9 @@ def plot_verification(results: dict, unit: str | None = None, scale: float = 1.0
     fix_s : float, optional
         End of the fix period, s (a vertical line marks the outage start).
     title : str, optional
+    quantity : str, optional
+        What the filter estimates, for the y label: ``"position error"`` (accel filter, paper eq. 17) or ``"angle
+        error"`` (gyro filter). Default ``"position / angle error"``.
 
     Returns
     -------
@@ -995,13 +1002,15 @@ def plot_verification(results: dict, unit: str | None = None, scale: float = 1.0
     u = unit or "SI"
     ax.plot(first.t_s, np.sqrt(first.P) * scale, color="k", lw=1.6, label="filter sqrt(P)")
     for label, v in results.items():
+        at = "" if v.worst_outage_t_s is None else f" at t = {v.worst_outage_t_s:.0f} s"
         ax.plot(v.t_s, np.sqrt(np.maximum(v.mse, 0.0)) * scale, lw=1.0,
-                label=f"{label} RMS (worst MSE/P {v.worst_ratio:.3g}, {'pass' if v.passed else 'FAIL'})")
+                label=f"{label} RMS (worst MSE/P over the outage {v.worst_outage_ratio:.3g}{at}; "
+                      f"{'pass' if v.passed else 'FAIL'})")
     if fix_s is not None:
         ax.axvline(fix_s, color="0.5", ls=":", lw=1.0)
     ax.set_yscale("log")
     ax.set_xlabel("time since start [s]")
-    ax.set_ylabel(f"position / angle error [{u}]")
+    ax.set_ylabel(f"{quantity or 'position / angle error'}: RMS and filter sqrt(P) [{u}]")
     if title:
         ax.set_title(title)
     ax.legend(loc="upper left", fontsize="small")

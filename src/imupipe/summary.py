@@ -257,7 +257,8 @@ def _line_flag(sensor: str, it: Mapping) -> Flag:
 
 def _inflation_rows(bound: Mapping) -> list[tuple]:
     """(parameter, unit, spec, bound, ratio) rows from bound_spec_units / spec_spec_units (spec-sheet units),
-    falling back to SI."""
+    falling back to SI. A component the spec sheet (or the bound) does not give, value 0 or absent, is None
+    (shown "-", ratio None), as in the tables of :func:`imupipe.specsheet.inflation_rows`."""
     b, s = bound.get("bound_spec_units"), bound.get("spec_spec_units")
     rows = []
     if isinstance(b, Mapping):
@@ -287,8 +288,15 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
             sg = sg[i] if i < len(sg) else {}
             rows.append((f"GM sigma {i + 1} (SI)", "u", sg.get("sigma"), g.get("sigma")))
             rows.append((f"GM T {i + 1}", "s", sg.get("T"), g.get("T")))
+    def given(v):
+        try:
+            return v if float(v) != 0.0 else None
+        except (TypeError, ValueError):
+            return v
+
     out = []
     for name, unit, sv, bv in rows:
+        sv, bv = given(sv), given(bv)
         try:
             ratio = float(bv) / float(sv) if sv else None
         except (TypeError, ValueError):
@@ -344,6 +352,10 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
+            scope = bound.get("inflation_scope")
+            if isinstance(scope, Mapping) and scope.get("dropped_from_exported_model") and scope.get("statement"):
+                # the table is the bound's; the exported model lacks these states (imupipe.kf.inflation_scope)
+                lines += [f"- the table above: {scope['statement']}", ""]
         band = bound.get("allan_tau_band_s")
         if band:
             lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "

@@ -172,9 +172,10 @@ class Verification:
 
     Attributes: ``t_s`` (time since the start, s), ``mse`` (true or empirical MSE of the position/angle
     estimate, m^2 or rad^2), ``P`` (the filter's variance), ``ratio`` = mse/P, ``worst_ratio`` and
-    ``worst_t_s`` (over the whole run), ``worst_outage_ratio``, ``mean_conservatism`` (mean of P/mse over
-    the outage), ``first_exceed_s`` (first time ratio > 1 + tol, or None), ``passed``, ``tol`` (the Monte
-    Carlo allowance of the ratio, 0 for the exact analysis), ``details``.
+    ``worst_t_s`` (over the whole run), ``worst_outage_ratio`` and ``worst_outage_t_s`` (the largest ratio after
+    the fixes end and its time, s), ``mean_conservatism`` (mean of P/mse over the outage), ``first_exceed_s``
+    (first time ratio > 1 + tol, or None), ``passed``, ``tol`` (the Monte Carlo allowance of the ratio, 0 for the
+    exact analysis), ``details``.
     """
 
     t_s: np.ndarray
@@ -189,6 +190,7 @@ class Verification:
     passed: bool
     tol: float = 0.0
     details: dict = field(default_factory=dict)
+    worst_outage_t_s: float | None = None
 
     def to_dict(self) -> dict:
         """YAML-ready summary (no time series)."""
@@ -197,6 +199,7 @@ class Verification:
             "worst_ratio": float(self.worst_ratio),
             "worst_t_s": float(self.worst_t_s),
             "worst_outage_ratio": float(self.worst_outage_ratio),
+            "worst_outage_t_s": None if self.worst_outage_t_s is None else float(self.worst_outage_t_s),
             "mean_conservatism": float(self.mean_conservatism),
             "first_exceed_s": None if self.first_exceed_s is None else float(self.first_exceed_s),
             "tolerance": float(self.tol),
@@ -214,10 +217,11 @@ def _summary(sc, mse, P, tol=0.0, details=None):
     out = slice(sc.n_fix, None)
     over = np.flatnonzero(ratio > 1.0 + tol)
     worst = float(ratio[i])
-    return Verification(t, mse, P, ratio, worst, float(t[i]), float(np.max(ratio[out])),
+    j = sc.n_fix + int(np.argmax(ratio[out]))  # the outage's worst step
+    return Verification(t, mse, P, ratio, worst, float(t[i]), float(ratio[j]),
                         float(np.mean(cons[out][np.isfinite(cons[out])])) if np.any(np.isfinite(cons[out])) else
                         float("inf"), float(t[over[0]]) if over.size else None, bool(worst <= 1.0 + tol), tol,
-                        details or {})
+                        details or {}, worst_outage_t_s=float(t[j]))
 
 
 def _filter_gains(Phi_f, Qd_f, P0_f, H_f, R, sc):

@@ -20,7 +20,9 @@ HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must me
 bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
-u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter. export: the
+u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter of the BOUND's
+model, before the verified reduction (not of model when the reduction dropped a state); inflation_scope: the
+components the exported model dropped and one statement of this (imupipe.kf.inflation_scope). export: the
 states the verified reduction dropped (dropped_by_reduction; the model then holds for horizon_s s of outage only), the
 reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
 narrowband line states (line_states) and one statement of all this.
@@ -64,6 +66,7 @@ def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, se
 
 def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
              sensor: str, kf_rate_hz: float | None = None) -> None:
+    from imupipe.kf import inflation_scope
     from imupipe.specsheet import load_spec
 
     bound, ver = read_yaml(path_bound), read_yaml(path_verify)
@@ -78,6 +81,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "model": exported["model"], "model_spec_units": in_spec_units,
         "model_reduced": bool(exported["reduced"]), "model_reason": exported["reason"],
         "inflation": bound.get("inflation"),
+        "inflation_scope": inflation_scope(exported, ver.get("reduction")),
         "kf_file": kf_file,
         # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
         # the reference filter's rate against the export's (imupipe.kf.export_scope)
@@ -91,7 +95,7 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
         "per_axis": bound.get("per_axis"),
         **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
-        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_t_s", "worst_ratio",
+        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio",
                                                        "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
                          for name, ch in exported["verification"].get("checks", {}).items()},
         "reduction": None if ver.get("reduction") is None else
@@ -108,6 +112,8 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
 def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None):
     """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
     and whether the KF file exports it (bounded) or gives that axis the global model."""
+    from imupipe.kf import inflation_scope
+
     axes = bound.get("per_axis_models")
     if not axes:
         return None
@@ -123,7 +129,9 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: fl
                  "model": exported["model"] if exported else None,
                  "model_spec_units": in_spec_units,
                  "model_reduced": bool(exported["reduced"]) if exported else None,
-                 "inflation": pa.get("inflation"), "margin": pa.get("margin"),
+                 "inflation": pa.get("inflation"),
+                 "inflation_scope": inflation_scope(exported, v.get("reduction")) if exported else None,
+                 "margin": pa.get("margin"),
                  "all_frequency_margin": pa.get("all_frequency_margin"),
                  "allan_check_passed": pa.get("allan_check_passed"),
                  "export": scope}
