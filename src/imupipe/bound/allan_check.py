@@ -241,8 +241,8 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
     (:func:`_short_T_white_factor`). So white noise :math:`W = \kappa s^2 a` added to the envelope's covers the
     rest. The cruder :math:`W = 2 s^2 a` (the GM's PSD at f = 0, :math:`2 s^2 T' \le 2 s^2 a`, a white noise
     alone above every such GM) is 14.8 times larger; on the ADIS16405 accelerometer (s = 0.0224 m/s^2,
-    a = 0.01 s) it raised the envelope's N by 40 % against 3 % (docs/method.md, section "The upper
-    envelope").
+    a = 0.01 s) it raised the envelope's N by 40 % against 3 %
+    (docs/method.md, section "The upper envelope").
 
     Parameters
     ----------
