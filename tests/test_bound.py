@@ -762,7 +762,8 @@ class TestUpperEnvelopeOpenInterval:
                               intervals={"white": (0.9e-3, 1.1e-3), "gm_sigma_1": (1e-4, s),
                                          "gm_T_1": (20.0, math.inf)},
                               T_grid=np.logspace(-2, 2, 33))
-        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H)
+        # the single box GM (max_box_ratio = inf; by default a box of ratio > 10 is split, checked below)
+        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H, max_box_ratio=math.inf)
         # closed at c = max(100 s searched, H / (2 pi) = 573 s): T_m = sqrt(20 c), sigma_m = s (c / 20)^(1/4)
         c = H / (2.0 * np.pi)
         ((s_m, T_m),) = env.gauss_markov
@@ -779,7 +780,10 @@ class TestUpperEnvelopeOpenInterval:
         # has PSD s^2/(2 pi f) = 2 s^2 c, above the box's 2 s^2 c / (1 + (2 pi f)^2 20 c)
         assert self.shortfall(env, s, T, np.array([0.5 / H]), white=1.1e-3) < 1.0
         # without a horizon: c = the longest T searched, dominated from 1/(2 pi 100 s) on only
-        env0 = upper_envelope(fit, ["white", "gauss_markov"])
+        split = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H)
+        assert len(split.gauss_markov) == 2  # c / 20 s = 28.6: two sub-boxes of ratio 5.3
+        assert self.shortfall(split, s, T, f, white=1.1e-3) >= 1 - 1e-12
+        env0 = upper_envelope(fit, ["white", "gauss_markov"], max_box_ratio=math.inf)
         assert env0.gauss_markov[0][1] == pytest.approx(math.sqrt(20.0 * 100.0), rel=1e-14)
         f0 = np.logspace(math.log10(1 / (2 * np.pi * 100.0)), 3, 200)
         assert self.shortfall(env0, s, T, f0, white=1.1e-3) >= 1 - 1e-12
@@ -840,3 +844,41 @@ class TestUpperEnvelopeOpenInterval:
                                                                            horizon_s=1200.0)
         assert upper_envelope_from_identification(ident).gauss_markov[0][1] == pytest.approx(
             math.sqrt(20.0 * 1200.0 / (2 * np.pi)), rel=1e-14)
+
+
+class TestSplitGmBox:
+    """imupipe.bound.split_gm_box: a GM box of several decades in T as a sum of GM terms over sub-boxes."""
+
+    @staticmethod
+    def gm_psd(s, T, f):
+        w = 2.0 * np.pi * np.asarray(f)
+        return 2.0 * s * s * T / (1.0 + (w * T) ** 2)
+
+    def test_sum_dominates_every_gm_of_the_box_and_is_far_below_the_single_gm(self):
+        from imupipe.bound import gm_box_envelope, split_gm_box
+
+        # an outside tester's gyro: sigma <= 2.68e-6 rad/s, T open from 0.01 s to 1310 s (5.1 decades)
+        s, a, c = 2.68e-6, 0.01, 1310.0
+        s_m, T_m, W, _, _ = gm_box_envelope(s, math.sqrt(a * c), a, c)
+        terms = split_gm_box(s_m, T_m, s)
+        assert len(terms) == 6  # ceil(log10(1.31e5)) sub-boxes of ratio 1.31e5^(1/6) = 7.1
+        assert terms[0][1] > a and terms[-1][1] < c and all(t1[1] < t2[1] for t1, t2 in zip(terms, terms[1:]))
+        f = np.logspace(-7, 4, 700)
+        env = sum(self.gm_psd(sj, Tj, f) for sj, Tj in terms)
+        T = np.logspace(math.log10(a), math.log10(c), 700)[:, None]
+        # every GM of the box, exactly (closed-box rule per sub-box); 1e-12: float rounding
+        assert np.min(env[None, :] / self.gm_psd(s, T, f[None, :])) >= 1 - 1e-12
+        single = self.gm_psd(s_m, T_m, f)
+        # at most r / (r - 1) above the single GM anywhere (r = 7.1: 1.16) and far below it in between
+        r = (c / a) ** (1 / 6)
+        assert np.max(env / single) <= r / (r - 1) * (1 + 1e-12)
+        assert np.min(env / single) < 0.05
+        # the check can fail: a sub-box too few (the last dropped) leaves the longest T uncovered
+        short = sum(self.gm_psd(sj, Tj, f) for sj, Tj in terms[:-1])
+        assert np.min(short[None, :] / self.gm_psd(s, T, f[None, :])) < 1.0
+
+    def test_narrow_box_is_the_single_gm(self):
+        from imupipe.bound import gm_box_envelope, split_gm_box
+
+        s_m, T_m, *_ = gm_box_envelope(3e-4, 50.0, 20.0, 150.0)
+        assert split_gm_box(s_m, T_m, 3e-4) == ((s_m, T_m),)

@@ -146,12 +146,14 @@ from imupipe.bound.axes import (  # noqa: F401
     curves_by_axis,
 )
 from imupipe.bound.allan_check import (  # noqa: F401
+    BOX_SPLIT_RATIO,
     SHORT_T_WHITE_FACTOR,
     check_allan,
     check_allan_components,
     gm_bounds_gm,
     gm_box_envelope,
     random_walk_cap,
+    split_gm_box,
     upper_envelope,
     upper_envelope_from_identification,
 )
@@ -168,6 +170,8 @@ __all__ = [
     "check_allan_components",
     "gm_bounds_gm",
     "gm_box_envelope",
+    "split_gm_box",
+    "BOX_SPLIT_RATIO",
     "SHORT_T_WHITE_FACTOR",
     "random_walk_cap",
     "upper_envelope",

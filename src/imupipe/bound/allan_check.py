@@ -283,8 +283,42 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
     return s * (c / a) ** 0.25, math.sqrt(a * c), W, lower_open, upper_open
 
 
+#: Largest ratio T_hi/T_lo of one GM term of the upper envelope: a wider box is split into sub-boxes of at most
+#: this ratio (:func:`split_gm_box`).
+BOX_SPLIT_RATIO = 10.0
+
+
+def split_gm_box(sigma_m: float, T_m: float, sigma_up: float, max_ratio: float = BOX_SPLIT_RATIO) -> tuple:
+    r"""The single box GM :math:`(\sigma_m, T_m)` of :func:`gm_box_envelope` (the box
+    :math:`\sigma \le \sigma_{up}`, :math:`T \in [a, c]`, :math:`T_m = \sqrt{ac}`,
+    :math:`\sigma_m^2 = \sigma_{up}^2\sqrt{c/a}`) as a sum of GM terms over k sub-boxes of equal ratio
+    :math:`r = (c/a)^{1/k} \le` `max_ratio`: term j has :math:`T_j = a r^{j + 1/2}`,
+    :math:`\sigma_j^2 = \sigma_{up}^2 \sqrt r`. Each term dominates every GM of its sub-box (the closed-box rule),
+    the sub-boxes cover [a, c] and every term is >= 0, so the sum dominates every GM of the box at every
+    frequency. Where c/a is large the single GM is far above the box's supremum in between (at
+    :math:`\omega = 1/\sqrt{ac}` it is :math:`\sigma_{up}^2 c`, the supremum :math:`\sigma_{up}^2\sqrt{ac}`);
+    the sum exceeds it there by a factor of order :math:`\sqrt r`, and by at most :math:`r/(r-1)` against the
+    single GM as f -> 0 and f -> inf (1.11 for r = 10).
+
+    Returns
+    -------
+    tuple of (sigma u, T s)
+        The terms, by increasing T; the single GM itself when c/a <= `max_ratio`.
+    """
+    if not (max_ratio > 1.0):
+        raise ValueError(f"split_gm_box: max_ratio must exceed 1, got {max_ratio!r}")
+    ratio = (float(sigma_m) / float(sigma_up)) ** 4 if sigma_up > 0 else 1.0  # c / a
+    if not (ratio > max_ratio * (1.0 + 1e-12)) or not math.isfinite(ratio):
+        return ((float(sigma_m), float(T_m)),)
+    a = float(T_m) / math.sqrt(ratio)
+    k = math.ceil(math.log(ratio) / math.log(max_ratio) - 1e-12)
+    r = ratio ** (1.0 / k)
+    s_j = float(sigma_up) * r**0.25
+    return tuple((s_j, a * r ** (j + 0.5)) for j in range(k))
+
+
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
-                   horizon_s: float | None = None):
+                   horizon_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -297,7 +331,9 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
     estimate: an open upper end is closed at :math:`\max(T_{search,max}, h/(2\pi))` (h = `horizon_s`), which
     dominates every longer T for :math:`f \ge 1/h`; an open lower end is closed at the shortest T searched
     and every shorter T is covered by white noise :math:`0.1349\,\sigma_{up}^2 T_{search,min}` added to
-    :math:`N_{up}^2` (:func:`gm_box_envelope`, with the proofs).
+    :math:`N_{up}^2` (:func:`gm_box_envelope`, with the proofs). A box wider than `max_box_ratio` in T is
+    represented by a sum of GM terms over narrower sub-boxes (:func:`split_gm_box`): still above every GM of
+    the box, and far below the single GM in between.
     The random walk at its upper limit **whether or not it was kept**: a random walk the data cannot
     exclude at the stated confidence is an integrity risk below the lowest bin (the profile limit
     ``random_walk_profile["upper"]`` exists when K was fitted as zero).
@@ -325,6 +361,8 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
         The window a filter must be right over, s (the bound's horizon, fix period plus outage): a GM whose T
         interval is open above is dominated for f >= 1/horizon_s. Default: only for f >= 1/(2 pi T_max), T_max
         the longest T searched.
+    max_box_ratio : float, optional
+        Largest T_hi/T_lo of one envelope GM term (:func:`split_gm_box`). Default :data:`BOX_SPLIT_RATIO` (10).
 
     Returns
     -------
@@ -366,7 +404,9 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
                 s_m, T_m, W, _, _ = gm_box_envelope(s, T, T_lo, T_hi, T_search=T_search, horizon_s=horizon_s)
-                gm.append((s_m, T_m))
+                # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
+                # over a box of several decades is far above every GM of it in between
+                gm.extend(split_gm_box(s_m, T_m, s, max_box_ratio))
                 white_add += W
             i += 1
     k = up("random_walk")
