@@ -860,7 +860,7 @@ class TestSplitGmBox:
         # an outside tester's gyro: sigma <= 2.68e-6 rad/s, T open from 0.01 s to 1310 s (5.1 decades)
         s, a, c = 2.68e-6, 0.01, 1310.0
         s_m, T_m, W, _, _ = gm_box_envelope(s, math.sqrt(a * c), a, c)
-        terms = split_gm_box(s_m, T_m, s)
+        terms = split_gm_box(s, a, c)
         assert len(terms) == 6  # ceil(log10(1.31e5)) sub-boxes of ratio 1.31e5^(1/6) = 7.1
         assert terms[0][1] > a and terms[-1][1] < c and all(t1[1] < t2[1] for t1, t2 in zip(terms, terms[1:]))
         f = np.logspace(-7, 4, 700)
@@ -881,4 +881,4 @@ class TestSplitGmBox:
         from imupipe.bound import gm_box_envelope, split_gm_box
 
         s_m, T_m, *_ = gm_box_envelope(3e-4, 50.0, 20.0, 150.0)
-        assert split_gm_box(s_m, T_m, 3e-4) == ((s_m, T_m),)
+        assert split_gm_box(3e-4, 20.0, 150.0) == ((s_m, T_m),)

@@ -433,6 +433,13 @@ def _profile_interval(delta, x_hat, threshold, step, rtol=1e-4):
     return side(-1.0), side(1.0)
 
 
+def _hull(percentile, profile) -> tuple:
+    """The reported interval of a profiled parameter (helper of :func:`fit_allan`): the hull of its percentile
+    interval and its profile interval; a NaN percentile end (too few finite replicates) leaves the profile's."""
+    (lo_p, hi_p), (lo, hi) = percentile, profile
+    return (min(lo_p, lo) if np.isfinite(lo_p) else lo, max(hi_p, hi) if np.isfinite(hi_p) else hi)
+
+
 def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=None):
     r"""Profile interval of a single GM time constant (test inversion; helper of :func:`fit_allan`).
 
@@ -974,9 +981,7 @@ def fit_allan(
         n_lo, n_up = _profile_interval(delta_n, n_hat, threshold, step)
         white_profile = {"threshold": threshold, "lower": n_lo, "upper": n_up,
                          "percentile_lower": lo_p, "percentile_upper": hi_p}
-        # the reported interval: the hull of the percentile and the profile interval
-        intervals["white"] = (min(lo_p, n_lo) if np.isfinite(lo_p) else n_lo,
-                              max(hi_p, n_up) if np.isfinite(hi_p) else n_up)
+        intervals["white"] = _hull((lo_p, hi_p), (n_lo, n_up))
 
     gm_T_profile, T_open = {}, (False, False)
     if t_deltas is not None and np.isfinite(t_deltas).any() and profile[1].size == profile[0].size:
@@ -987,9 +992,7 @@ def fit_allan(
         if np.isfinite(T_lo) or T_lo == 0.0:
             gm_T_profile = {"threshold": threshold, "lower": T_lo, "upper": T_up,
                             "percentile_lower": lo_p, "percentile_upper": hi_p}
-            # the reported interval: the hull of the percentile and the profile interval
-            intervals["gm_T_1"] = (min(lo_p, T_lo) if np.isfinite(lo_p) else T_lo,
-                                   max(hi_p, T_up) if np.isfinite(hi_p) else T_up)
+            intervals["gm_T_1"] = _hull((lo_p, hi_p), (T_lo, T_up))
             T_open = (lo_open, up_open)
 
     notes = []

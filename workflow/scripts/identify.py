@@ -151,8 +151,8 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
             "statistical limits (not widened), so below the lowest PSD bin the bound rests on a model the data "
             "reject; the verification's replay of the records is the model-free check over the horizon")
     out["upper_envelope"] = ("kept components at the upper ends of the selected refit's statistical intervals (before any "
-                             "over-dispersion widening), each GM as the "
-                             "tightest single GM over its interval box, the random walk at its upper limit even when "
+                             "over-dispersion widening), each GM as GM terms above every GM of its interval box "
+                             "(one per sub-box of at most a decade in T), the random walk at its upper limit even when "
                              "dropped, capped by what the recorded Allan variances allow, a GM time constant the data "
                              "leave open covered for f >= 1/upper_envelope_horizon_s (imupipe.bound.upper_envelope, "
                              "random_walk_cap); SI; upper_envelope_horizon_s s")

@@ -263,7 +263,16 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
     tuple
         ``(sigma_m (u), T_m (s), W (u^2/Hz, two-sided white-noise addition), lower_open, upper_open)``.
     """
-    s, T = float(sigma_up), float(T)
+    s = float(sigma_up)
+    a, c, w, lower_open, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, horizon_s)
+    return s * (c / a) ** 0.25, math.sqrt(a * c), w * s * s, lower_open, upper_open
+
+
+def _gm_box_ends(T, T_lo, T_hi, T_search=None, horizon_s=None) -> tuple:
+    """The closed box [a, c] (s) of :func:`gm_box_envelope` (an open end closed as its docstring derives), the
+    white-noise addition per unit sigma_up^2 that covers the T below an open lower end (kappa a, s; 0 when closed)
+    and whether each end was open: ``(a, c, w, lower_open, upper_open)``."""
+    T = float(T)
     if not (T > 0 and math.isfinite(T)):
         raise ValueError(f"gm_box_envelope: T must be a positive finite time constant (s), got {T!r}")
     if horizon_s is not None and not (float(horizon_s) > 0 and math.isfinite(float(horizon_s))):
@@ -278,9 +287,7 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
         c = max(t_max, float(horizon_s) / (2.0 * math.pi) if horizon_s is not None else 0.0)
     else:
         c = max(T, float(T_hi)) if math.isfinite(T_hi) and T_hi > 0 else T
-    c = max(c, a)
-    W = SHORT_T_WHITE_FACTOR * s * s * a if lower_open else 0.0
-    return s * (c / a) ** 0.25, math.sqrt(a * c), W, lower_open, upper_open
+    return a, max(c, a), SHORT_T_WHITE_FACTOR * a if lower_open else 0.0, lower_open, upper_open
 
 
 #: Largest ratio T_hi/T_lo of one GM term of the upper envelope: a wider box is split into sub-boxes of at most
@@ -288,14 +295,14 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
 BOX_SPLIT_RATIO = 10.0
 
 
-def split_gm_box(sigma_m: float, T_m: float, sigma_up: float, max_ratio: float = BOX_SPLIT_RATIO) -> tuple:
-    r"""The single box GM :math:`(\sigma_m, T_m)` of :func:`gm_box_envelope` (the box
-    :math:`\sigma \le \sigma_{up}`, :math:`T \in [a, c]`, :math:`T_m = \sqrt{ac}`,
-    :math:`\sigma_m^2 = \sigma_{up}^2\sqrt{c/a}`) as a sum of GM terms over k sub-boxes of equal ratio
-    :math:`r = (c/a)^{1/k} \le` `max_ratio`: term j has :math:`T_j = a r^{j + 1/2}`,
-    :math:`\sigma_j^2 = \sigma_{up}^2 \sqrt r`. Each term dominates every GM of its sub-box (the closed-box rule),
-    the sub-boxes cover [a, c] and every term is >= 0, so the sum dominates every GM of the box at every
-    frequency. Where c/a is large the single GM is far above the box's supremum in between (at
+def split_gm_box(sigma_up: float, a: float, c: float, max_ratio: float = BOX_SPLIT_RATIO) -> tuple:
+    r"""GM terms whose sum dominates, in PSD, every GM of the box :math:`\sigma \le \sigma_{up}`,
+    :math:`T \in [a, c]` (s): the single box GM of :func:`gm_box_envelope` (:math:`T_m = \sqrt{ac}`,
+    :math:`\sigma_m^2 = \sigma_{up}^2\sqrt{c/a}`) when :math:`c/a \le` `max_ratio`, else one such GM per
+    sub-box of k sub-boxes of equal ratio :math:`r = (c/a)^{1/k} \le` `max_ratio`: term j has
+    :math:`T_j = a r^{j + 1/2}`, :math:`\sigma_j^2 = \sigma_{up}^2 \sqrt r`. Each term dominates every GM of its
+    sub-box (the closed-box rule), the sub-boxes cover [a, c] and every term is >= 0, so the sum dominates every GM
+    of the box at every frequency. Where c/a is large the single GM is far above the box's supremum in between (at
     :math:`\omega = 1/\sqrt{ac}` it is :math:`\sigma_{up}^2 c`, the supremum :math:`\sigma_{up}^2\sqrt{ac}`);
     the sum exceeds it there by a factor of order :math:`\sqrt r`, and by at most :math:`r/(r-1)` against the
     single GM as f -> 0 and f -> inf (1.11 for r = 10).
@@ -303,18 +310,15 @@ def split_gm_box(sigma_m: float, T_m: float, sigma_up: float, max_ratio: float =
     Returns
     -------
     tuple of (sigma u, T s)
-        The terms, by increasing T; the single GM itself when c/a <= `max_ratio`.
+        The terms, by increasing T.
     """
     if not (max_ratio > 1.0):
         raise ValueError(f"split_gm_box: max_ratio must exceed 1, got {max_ratio!r}")
-    ratio = (float(sigma_m) / float(sigma_up)) ** 4 if sigma_up > 0 else 1.0  # c / a
-    if not (ratio > max_ratio * (1.0 + 1e-12)) or not math.isfinite(ratio):
-        return ((float(sigma_m), float(T_m)),)
-    a = float(T_m) / math.sqrt(ratio)
-    k = math.ceil(math.log(ratio) / math.log(max_ratio) - 1e-12)
+    s, a, c = float(sigma_up), float(a), float(c)
+    ratio = c / a
+    k = 1 if ratio <= max_ratio * (1.0 + 1e-12) else math.ceil(math.log(ratio) / math.log(max_ratio) - 1e-12)
     r = ratio ** (1.0 / k)
-    s_j = float(sigma_up) * r**0.25
-    return tuple((s_j, a * r ** (j + 0.5)) for j in range(k))
+    return tuple((s * r**0.25, a * r ** (j + 0.5)) for j in range(k))
 
 
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
@@ -403,11 +407,11 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 T_lo, T_hi = (float(v) for v in iv.get(f"gm_T_{i}", (float("nan"), float("nan"))))
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
-                s_m, T_m, W, _, _ = gm_box_envelope(s, T, T_lo, T_hi, T_search=T_search, horizon_s=horizon_s)
+                a, c, w, _, _ = _gm_box_ends(T, T_lo, T_hi, T_search, horizon_s)
                 # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
                 # over a box of several decades is far above every GM of it in between
-                gm.extend(split_gm_box(s_m, T_m, s, max_box_ratio))
-                white_add += W
+                gm.extend(split_gm_box(s, a, c, max_box_ratio))
+                white_add += w * s * s
             i += 1
     k = up("random_walk")
     prof = getattr(fit, "random_walk_profile", {}) or {}
