@@ -35,6 +35,7 @@ rule stationarity:
 rule stationarity_summary:
     input:
         verdicts=per_axis("stationarity", "yaml"),
+        decimated=per_axis("decimated", "nc"),  # the paper's test, run here once per sensor type
     output:
         summary=f"{RESULTS}/stationarity/{{sensor}}.yaml",
     params:
