@@ -198,6 +198,15 @@ def test_a_verification_at_another_rate_than_the_export_is_flagged():
     same = render_summary({"accel": {"bound": _bound(export=_scope(["random_walk"], vrate=100.0, kf_rate=100.0))}})
     assert "export rate" not in same and "exported at" not in same
 
+    # the contract's failed export_rate check: one FAIL line in words, no second FLAG line for the same mismatch
+    failed = {**bound, "bounded": False, "verified": False, "failed_checks": [
+        {"check": "export_rate", "verified_filter_rate_hz": 1.0, "kf_rate_hz": 100.0, "note": "set ..."}]}
+    text = render_summary({"accel": {"bound": failed}})
+    assert "- FAIL export rate [KF file]: verified with a reference filter at 1 Hz, exported at 100 Hz" in text
+    assert "FLAG export rate" not in text and "export_rate" not in text
+    assert "verification failed" not in text  # the reference filter's verification passed; the rate did not
+    assert "2 failed, 0 flagged" in text  # the rate and the bound's verdict
+
 
 def test_a_random_walk_resting_on_the_spec_sheet_alone_is_stated():
     # IDENTIFY dropped the random walk; the bound and the spec sheet have one (_bound: 1e-7 and 9.7e-8 SI)

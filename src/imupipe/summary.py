@@ -109,6 +109,13 @@ def _items(obj) -> list:
     return [{"value": obj}]
 
 
+
+def _export_rate_detail(exp: Mapping) -> str:
+    """The words of a KF file exported at another rate than the verified reference filter."""
+    return (f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported at "
+            f"{_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not cover the "
+            "exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide decimate.rate_hz)")
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -135,10 +142,17 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                          if bound.get("margin") is None or float(bound.get("margin")) < 1.0 else
                          f"not bounded: the PSD margin {_num(bound.get('margin'), '{:.4g}')} holds, another check "
                          "failed (below)"), "fail"))
-    if bound.get("verified") is False:
+    failed_names = {fc.get("check") for fc in bound.get("failed_checks") or [] if isinstance(fc, Mapping)}
+    if bound.get("verified") is False and ("verification" in failed_names or "export_rate" not in failed_names):
+        # (a passed verification of a KF file exported at another rate: the export rate line below says it)
         out.append(Flag(sensor, "verification", "bound", "the bound's verification failed", "fail"))
+    exp = bound.get("export") if isinstance(bound.get("export"), Mapping) else {}
+    rate_failed = False
     for fc in bound.get("failed_checks") or []:
-        if isinstance(fc, Mapping):
+        if isinstance(fc, Mapping) and fc.get("check") == "export_rate":  # one line, in words, for a rate mismatch
+            rate_failed = True
+            out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail({**exp, **fc}), "fail"))
+        elif isinstance(fc, Mapping):
             out.append(Flag(sensor, str(fc.get("check", fc.get("name", "check"))), _where_of(fc),
                             _detail_of(fc, skip=("check", "name")) or "failed", "fail"))
         else:
@@ -162,13 +176,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         "S_bound/S_sample); the bound is the spec sheet's, the data are not what it describes: check "
                         "the data's unit in the dataset sheet (a record in a smaller unit than declared, e.g. deg/s "
                         "declared as mrad/s, looks like this) and that the spec sheet is this sensor's"))
-    exp = bound.get("export") if isinstance(bound.get("export"), Mapping) else {}
-    if exp.get("rate_mismatch"):
-        out.append(Flag(sensor, "export rate", "KF file",
-                        f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported "
-                        f"at {_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not "
-                        "cover the exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide "
-                        "decimate.rate_hz)"))
+    if exp.get("rate_mismatch") and not rate_failed:  # a contract written before the export_rate check
+        out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail(exp)))
     for ax in bound.get("per_axis") or []:
         if isinstance(ax, Mapping) and ax.get("bounded") is False:
             out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),
