@@ -83,6 +83,33 @@ def test_check_names_a_missing_dataset_file(tmp_path, capsys):
     assert "line 2" in err and "lab1" in err and "does not exist" in err
 
 
+def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
+    # two 1 h CSV records at 20 Hz; "in_g" stores accel in g but its row declares m/s^2: only reading the
+    # samples shows it (the gravity check of ingest), which check without --read does not do
+    rng = np.random.default_rng(3)
+    n = 72_000
+    for name, g in (("good", 9.80665), ("in_g", 1.0)):
+        x = np.column_stack([0.01 * rng.standard_normal((n, 5)), g + 1e-3 * rng.standard_normal(n)])
+        np.savetxt(tmp_path / f"{name}.csv", x, delimiter=",", comments="", fmt="%.6e",
+                   header="gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z")
+    sheet = tmp_path / "sheet.tsv"
+    rows = "".join(f"{d}\t{tmp_path / f'{d}.csv'}\tcsv\t20\tdeg/s\tm/s^2\n" for d in ("good", "in_g"))
+    sheet.write_text("dataset\tpath\tformat\trate_hz\tgyro_unit\taccel_unit\n" + rows)
+    cfg = tmp_path / "cfg.yaml"
+    text = TINY.read_text().replace("datasets: null", f"datasets: {sheet}")
+    cfg.write_text(text[: text.index("simulation:")] + "simulation: null\n" + text[text.index("sensors:"):])
+    assert main(["check", str(cfg), "--no-dry-run"]) == 0  # the sheet and the files are there
+    capsys.readouterr()
+    assert main(["check", str(cfg), "--no-dry-run", "--read"]) == 1
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'in_g.csv'} (dataset 'in_g')" in err and "accel_unit = 'g' would make it 1 g" in err
+    assert "read well: good: 72000 samples at 20 Hz" in err and "read well: in_g" not in err
+    sheet.write_text(sheet.read_text().replace("in_g\t", "#in_g\t"))  # a comment line is no record
+    assert main(["check", str(cfg), "--no-dry-run", "--read"]) == 0
+    out = capsys.readouterr().out
+    assert "1 rows" in out and f"ok  read good: 72000 samples at 20 Hz (1.00 h) from {tmp_path / 'good.csv'}" in out
+
+
 def test_check_with_dry_run_and_run_dry(tmp_path):
     # the snakemake command line of the checkout, in a scratch working directory (nothing is run)
     proc = subprocess.run([sys.executable, "-m", "imupipe", "check", str(TINY), "--directory", str(tmp_path)],

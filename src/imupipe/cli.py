@@ -5,14 +5,15 @@
     imupipe run CONFIG [--cores N] [--directory D] [--dry-run] [-- SNAKEMAKE_ARGS...]
     imupipe allan FILE [--format F] [--rate-hz R] [--sensor S] [--units U] [--channel K=COL ...]
                        [--time-column C] [--time-unit U] [--variable V] [--topic T] [--plot OUT] [--si]
-    imupipe check CONFIG [--directory D] [--no-dry-run]
+    imupipe check CONFIG [--directory D] [--no-dry-run] [--read]
     imupipe summary [RESULTS] [--markdown OUT] [--html OUT] [--quiet]
 
 ``run`` runs the Snakemake workflow of this checkout through the snakemake command line; ``allan`` prints
 the Allan deviation of every channel of one file, read with :func:`imupipe.readers.read_dataset` (and
 writes a figure with ``--plot``, format from the file name: .png, .svg, .pdf); ``check`` validates a
 config, its dataset sheet and its spec sheets without running anything (and, unless ``--no-dry-run``,
-asks Snakemake for a dry run of the DAG); ``summary`` prints (and writes) the run summary of a finished run
+asks Snakemake for a dry run of the DAG; with ``--read`` it also reads every record as a run would,
+:func:`read_records`); ``summary`` prints (and writes) the run summary of a finished run
 (:mod:`imupipe.summary`).
 
 Exit status: 0 on success, 1 on an input error (one line ``imupipe: error: ...`` on stderr), the
@@ -29,7 +30,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["main", "checkout_root", "check_config", "allan_table"]
+__all__ = ["main", "checkout_root", "check_config", "read_records", "allan_table"]
 
 
 def checkout_root() -> Path:
@@ -126,8 +127,8 @@ def check_config(config: str | Path) -> list[str]:
         sheet_path = root / str(sheet)
         if not sheet_path.is_file():
             raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
-        with open(sheet_path, newline="") as fh:
-            rows = list(csv.DictReader(fh, delimiter="\t"))
+        with open(sheet_path, newline="") as fh:  # comment lines (#) are skipped, as the workflow skips them
+            rows = list(csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t"))
         if not rows:
             raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
         for i, row in enumerate(rows, start=2):
@@ -235,9 +236,80 @@ def _cmd_allan(args) -> int:
     return 0
 
 
+def read_records(config: str | Path, cores: int = 2) -> list[str]:
+    """Read every record of a config's dataset sheet as a run reads it, without running the analysis.
+
+    Runs the workflow's ``ingest`` stage (``snakemake --until ingest --keep-going``) in a scratch working
+    directory that is removed afterwards: every channel the sheet names is read, converted to SI and checked
+    exactly as in a run (values, timestamps, gaps, rate, units, gravity; docs/inputs.md). The checkout's
+    ``results/`` is not touched.
+
+    Returns
+    -------
+    list of str
+        One line per record read (dataset, samples, rate, duration, from the ingest logs).
+
+    Raises
+    ------
+    ValueError
+        Naming every record that failed, each with the reader's message (file, column or key, and what was
+        expected); the records that read well are listed too.
+    """
+    import os
+    import tempfile
+
+    config = Path(config).resolve()
+    env = dict(os.environ)
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    with tempfile.TemporaryDirectory(prefix="imupipe-check-") as scratch:
+        cmd = _snakemake_cmd(config, cores, Path(scratch), ["--until", "ingest", "--keep-going", "--quiet", "all"])
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+        read = []
+        for log in sorted(Path(scratch).glob("logs/*/ingest/*.log")):
+            text = log.read_text()
+            found = re.findall(r"INFO (\S+: \d+ samples at \S+ Hz \([^)]*\) from .*)$", text, re.M)
+            if found and " done in " in text:  # run_job's last line of a job that succeeded
+                read.append(found[0])
+        # the jobs name a recording relative to their working directory (the scratch folder): name it as the
+        # sheet does
+        renamed = {os.path.relpath(full, scratch): shown for full, shown in _sheet_paths(config).items()}
+    errors = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("imupipe error:")]
+    for rel, shown in sorted(renamed.items(), key=lambda kv: -len(kv[0])):
+        errors = [e.replace(rel, shown) for e in errors]
+        read = [r.replace(rel, shown) for r in read]
+    if proc.returncode != 0:
+        raise ValueError("reading the records failed:\n  " + "\n  ".join(errors or [_dry_run_error(proc.stderr
+                         or proc.stdout)]) + ("\nread well: " + "; ".join(read) if read else ""))
+    return read
+
+
+def _sheet_paths(config: Path) -> dict[str, str]:
+    """{absolute path: the path as the dataset sheet writes it} of a config's recordings (empty without a sheet)."""
+    import csv
+
+    from imupipe.io import merged_with_defaults, read_yaml
+
+    root = checkout_root()
+    defaults = root / "config" / "config.yaml"
+    given = read_yaml(config)
+    cfg = merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given
+    if not cfg.get("datasets"):
+        return {}
+    with open(root / str(cfg["datasets"]), newline="") as fh:
+        rows = csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t")
+        return {str(root / row["path"].strip()): row["path"].strip() for row in rows if (row.get("path") or "").strip()}
+
+
 def _cmd_check(args) -> int:
-    for line in check_config(args.config):
+    lines = check_config(args.config)
+    for line in lines:
         print(f"ok  {line}")
+    if args.read:
+        if any(ln == "datasets: simulated" for ln in lines):
+            print("ok  records: simulated by the run, nothing to read")
+        else:
+            for line in read_records(args.config):
+                print(f"ok  read {line}")
     if not args.no_dry_run:
         cmd = _snakemake_cmd(Path(args.config).resolve(), 1, Path(args.directory).resolve() if args.directory else None,
                              ["--dry-run", "--quiet", "all"])
@@ -355,6 +427,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("config")
     c.add_argument("--directory", help="working directory for the dry run")
     c.add_argument("--no-dry-run", action="store_true", help="skip the Snakemake dry run")
+    c.add_argument("--read", action="store_true", help="also read every record as a run reads it (the ingest "
+                   "stage, in a scratch folder removed afterwards): values, timestamps, units and gravity checked")
     c.set_defaults(func=_cmd_check)
     return p
 
