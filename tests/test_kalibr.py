@@ -177,6 +177,26 @@ def test_kalibr_follows_the_kf_export_that_dropped_every_line(tmp_path):
     assert "dropped random_walk, narrowband f0=0.564 Hz" in text and "horizon only (600 s of outage" in text
 
 
+def test_an_export_without_bias_drift_takes_the_bounds_random_walk(tmp_path):
+    """The verified reduction dropped the GM and the random walk (a white-noise-only export for the horizon):
+    Kalibr needs a positive random walk, so the file takes the bound's drift terms and says so; the run does not
+    fail (it did: "Kalibr needs a positive value" stopped the kalibr job). A bound with no drift at all is refused
+    in the file, again without failing the run."""
+    from dataclasses import replace
+
+    kfm = replace(ACCEL, random_walk=0.0, gauss_markov=())
+    paths = _stage_files(tmp_path, ACCEL, kfm, ["random_walk", "gauss_markov"])
+    out = _run_kalibr(tmp_path, paths)
+    k = read_kalibr(out)
+    assert k["accelerometer_noise_density"] == pytest.approx(kfm.white, rel=1e-6)  # the export's white noise
+    assert k["accelerometer_random_walk"] == pytest.approx(_k_eff(ACCEL), rel=1e-6)  # the bound's drift
+    assert "accel: the exported KF model has no bias drift" in out.read_text()
+    white_only = replace(ACCEL, random_walk=0.0, gauss_markov=())
+    paths = _stage_files(tmp_path, white_only, white_only, [])
+    data = yaml.safe_load(_run_kalibr(tmp_path, paths).read_text())
+    assert data["refused"] is True and "accelerometer_random_walk" in data["reason"]
+
+
 def test_kalibr_refuses_only_for_line_states_of_the_kf_export_with_nonzero_sigma(tmp_path):
     from dataclasses import replace
 

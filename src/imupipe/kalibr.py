@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 from imupipe.models import NoiseModel
 
 __all__ = ["KALIBR_UNITS", "KalibrIMU", "dataset_rates", "imu_rate", "kalibr_imu", "kalibr_text", "model_of_bound",
-           "model_of_kf", "read_kalibr", "rostopic_of", "write_kalibr"]
+           "model_of_kf", "read_kalibr", "rostopic_of", "with_bias_drift", "write_kalibr"]
 
 #: Unit of every Kalibr field (SI, continuous time).
 KALIBR_UNITS = {
@@ -359,6 +359,32 @@ def model_of_bound(bound_yaml: Mapping) -> NoiseModel:
     except (KeyError, TypeError):
         raise ValueError("bound YAML: no 'bound' section (expected the per-sensor bound contract)") from None
     return NoiseModel.from_dict(b)
+
+
+def with_bias_drift(exported: NoiseModel, bound: NoiseModel, sensor: str) -> tuple[NoiseModel, str | None]:
+    r"""The exported model, or, when it has no bias-drift term, the same with the bound's drift terms.
+
+    Kalibr's model has two terms, white noise and a bias random walk, and needs both positive. Its random walk
+    is :math:`K_{eff} = \sqrt{K^2 + \sum_i 2\sigma_i^2/T_i}` (:func:`kalibr_imu`). When the verified reduction
+    dropped every GM and random-walk state (a white-noise-only export for the configured horizon), the exported
+    :math:`K_{eff}` is 0; the random walk and GM terms are then those of the bound before the reduction (white
+    noise stays the exported one). More process noise than the verified export: a conservative drift for
+    Kalibr, which propagates over whole calibration sequences, not one horizon.
+
+    Returns
+    -------
+    (NoiseModel, str or None)
+        The model to write and a sentence saying what was taken from the bound (None when nothing was).
+    """
+    from dataclasses import replace
+
+    drift = exported.random_walk > 0 or any(s > 0 and T > 0 for s, T in exported.gauss_markov)
+    if drift or not (bound.random_walk > 0 or any(s > 0 and T > 0 for s, T in bound.gauss_markov)):
+        return exported, None
+    note = (f"{sensor}: the exported KF model has no bias drift (the verified reduction dropped every GM and "
+            "random-walk state for the configured horizon); Kalibr needs a positive random walk: taken from the "
+            "bound before the reduction (random walk and GM terms folded in), more than the export carries")
+    return replace(exported, random_walk=bound.random_walk, gauss_markov=bound.gauss_markov), note
 
 
 def model_of_kf(kf_yaml: Mapping, path: str = "KF file") -> NoiseModel:

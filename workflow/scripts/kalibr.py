@@ -7,8 +7,10 @@ bounding continuous-time values with Gauss-Markov terms folded into the random w
 inflation factor against the identified model.
 
 The values follow the exported Kalman-filter model (kf/{spec}/{sensor}.yaml: the bound after the verified
-reduction), so the two files never disagree: when the KF export keeps no line state (none in the bound, or the
-verified reduction dropped every one), the two-term values are derived from the exported model, with its reduction
+reduction), so the two files never disagree. One exception: an export without any bias-drift state (the verified
+reduction dropped every GM and random walk) takes the bound's drift terms, as Kalibr needs a positive random walk
+(imupipe.kalibr.with_bias_drift, stated in the comment block); a bound without any is refused. When the KF export
+keeps no line state (none in the bound, or the verified reduction dropped every one), the two-term values are derived from the exported model, with its reduction
 and the horizon it holds for in the comment block. An exported model holding a narrowband line state (sigma > 0) is
 refused: the file then holds no Kalibr field (Kalibr fails on it rather than using values that do not bound near the
 line), only `refused: true`, the reason and those lines, and the two-term values without the line as commented-out
@@ -65,7 +67,9 @@ def refused_text(lines: dict, imu, source: str, notes=()) -> str:
 
 def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str, rates: dict, topics: dict,
          path_out: str, spec: str, path_kf_gyro: str, path_kf_accel: str) -> None:
-    from imupipe.kalibr import dataset_rates, imu_rate, kalibr_imu, model_of_kf, rostopic_of, write_kalibr
+    from imupipe.kalibr import (
+        dataset_rates, imu_rate, kalibr_imu, model_of_bound, model_of_kf, rostopic_of, with_bias_drift, write_kalibr,
+    )
     from imupipe.models import NoiseModel
 
     bounds = {"gyro": read_yaml(path_gyro), "accel": read_yaml(path_accel)}
@@ -95,8 +99,21 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
     models = {s: replace(model_of_kf(k, p), narrowband=())
               for (s, k), p in zip(kfs.items(), (path_kf_gyro, path_kf_accel), strict=True)}
-    imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, rostopic=topic,
-                     identified_gyro=ident["gyro"], identified_accel=ident["accel"])
+    # Kalibr needs a positive bias random walk: an export without drift states takes the bound's (said so)
+    for s in models:
+        models[s], note = with_bias_drift(models[s], model_of_bound(bounds[s]), s)
+        if note:
+            notes.append(note)
+            logging.info("Kalibr: %s", note)
+    try:
+        imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, rostopic=topic,
+                         identified_gyro=ident["gyro"], identified_accel=ident["accel"])
+    except ValueError as exc:  # no bias drift in the bound either: refused, and said so, without failing the run
+        logging.warning("Kalibr export refused: %s", exc)
+        write_text_atomic("# Kalibr IMU noise model NOT WRITTEN by imupipe: Kalibr's model needs a positive white noise\n"
+                          "# and bias random walk, and the bound has none of one of them. Use the Kalman-filter export\n"
+                          f"# kf/{spec}/<sensor>.yaml.\n{REFUSED}: true\nreason: {str(exc)!r}\n", path_out)
+        return
     if lines:
         logging.warning("Kalibr export refused: narrowband line state(s) in the exported %s KF model",
                         ", ".join(lines))
