@@ -129,18 +129,59 @@ def test_csv_time_scaled_in_place_and_a_shared_column_kept(tmp_path, table):
     assert alone.rate_hz == RATE
 
 
-def test_nominal_rate_leaves_the_intervals_as_np_diff_gives_them(rng):
-    """The median partitions the intervals in place (no copy of a record's length); the caller's array is
-    then what np.diff returns, bit for bit, and the rates are those of an untouched copy."""
+def _old_nominal_rate(t, rate, gap_factor):
+    """The whole-array rule the block-wise one replaces (np.diff, np.median, masked np.sum)."""
+    dt = np.diff(t)
+    guess = 1.0 / float(np.median(dt)) if rate is None else rate
+    ok = dt <= gap_factor / guess
+    mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
+    if rate is None:
+        ok = dt <= gap_factor / mean_rate
+        mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else mean_rate
+    return (rate if rate is not None else mean_rate), mean_rate
+
+
+def _clocks(rng):
+    """Timestamps (s) with gaps and duplicates at and around the edges of 256-interval blocks: a jittered
+    128 Hz clock, a 300 Hz clock stamped in whole ms (many equal intervals: ties at the median), both with an
+    even and an odd number of intervals."""
+    jitter = np.cumsum(rng.uniform(0.9, 1.1, 20_001) / 128.0)
+    for i in (255, 256, 511, 767, 12_800):  # gaps ending at, starting at and straddling block edges
+        jitter[i:] += 0.05 + 0.01 * rng.uniform()
+    ms = np.floor(np.arange(30_000) / 300.0 * 1e3) / 1e3
+    ms[4096:] += 0.02
+    return {"jitter odd": jitter, "jitter even": jitter[:-1], "ms even": ms, "ms odd": ms[:-1]}
+
+
+@pytest.mark.parametrize("block", [129, 256, 1000])
+def test_interval_statistics_blockwise_equal_whole_array(monkeypatch, rng, block):
+    """Every block-wise interval statistic equals the whole-array NumPy expression to the last bit, on records
+    whose gaps and duplicates sit at block edges (blocks of 129, 256 and 1000 intervals: the pairwise sum's
+    recursion is followed across them; a block-by-block sum, or a median of block medians, differs in the last
+    bits or more)."""
+    from imupipe.readers import intervals as iv
     from imupipe.readers.core import _nominal_rate
 
-    t = np.cumsum(rng.uniform(0.9, 1.1, 10_001) / 128.0)  # jittered 128 Hz clock
-    t[5000:] += 0.05  # one gap of ~7 samples
+    monkeypatch.setattr(iv, "INTERVAL_BLOCK", block)
+    for name, t in _clocks(rng).items():
+        dt = np.diff(t)
+        assert iv.median_interval(t) == np.median(dt), name
+        for limit in (1.5 / 128.0, 1.5 / 300.0, 1e-3):
+            gaps = iv.intervals_above(t, limit)
+            np.testing.assert_array_equal(gaps, np.flatnonzero(dt > limit))
+            ok = dt <= limit
+            assert iv.sum_between(t, gaps) == (np.count_nonzero(ok), np.sum(dt, where=ok)), (name, limit)
+        np.testing.assert_array_equal(iv.intervals(t, gaps), dt[gaps])
+        for rate in (None, 128.0, 300.0):
+            assert _nominal_rate(t, rate, 1.5) == _old_nominal_rate(t, rate, 1.5), (name, rate)
+        assert iv.first_nonpositive(t) is None
+    t = np.arange(3000) / 100.0
+    t[block : block + 2] = t[block - 1]  # duplicates on either side of one edge and after another
+    t[2 * block + 1] = t[2 * block]
+    t[2500] = t[2400]  # a step back
     dt = np.diff(t)
-    expected = _nominal_rate(t, None, 1.5, np.diff(t).copy())
-    assert _nominal_rate(t, None, 1.5, dt) == expected
-    np.testing.assert_array_equal(dt, np.diff(t))
-    assert _nominal_rate(t, None, 1.5) == expected
+    assert iv.first_nonpositive(t) == np.flatnonzero(dt <= 0)[0] == block - 1
+    assert iv.count_zero(t) == np.count_nonzero(dt == 0) == 3
 
 
 def test_csv_bad_row_in_a_later_block_is_named(tmp_path, table):

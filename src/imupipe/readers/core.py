@@ -24,6 +24,9 @@ from imupipe.readers.rdata import _load_rdata
 from imupipe.readers.rosbag import _load_rosbag
 from imupipe.readers.text import _load_text
 from imupipe.readers.checks import check_file, check_unchanged, check_values
+from imupipe.readers.intervals import (
+    count_zero, first_nonpositive, interval, intervals, intervals_above, median_interval, sum_between,
+)
 
 #: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
 FROM_FILE = "from_file"
@@ -361,15 +364,18 @@ def read_dataset(
     filled: tuple[FilledGap, ...] = ()
     policy = gap_policy
     if raw.time is not None and gap_policy == "fill":
-        if not np.isfinite(raw.time).all() or len(raw.time) < 2:
+        if not (np.isfinite(raw.time.min()) and np.isfinite(raw.time.max())) or len(raw.time) < 2:
             pass  # _check_time names the bad value
         else:
-            guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
-            max_missing = (
-                fill_max_samples if fill_max_samples is not None
-                else int(math.floor(fill_max_s * guess)) if fill_max_s is not None
-                else DEFAULT_FILL_MAX_SAMPLES
-            )
+            if fill_max_samples is not None:
+                max_missing = fill_max_samples
+            elif fill_max_s is not None:
+                # the median interval needs increasing time (the check _fill_gaps makes first)
+                _check_increasing(raw.time, raw.time_name, where, row_text)
+                guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
+                max_missing = int(math.floor(fill_max_s * guess))
+            else:
+                max_missing = DEFAULT_FILL_MAX_SAMPLES
             filled, row_map = _fill_gaps(
                 raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text
             )
@@ -381,6 +387,7 @@ def read_dataset(
         pass  # no timestamps: no gaps to see
     if raw.time is not None:
         segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text)
+        raw.time = None  # checked: its memory is free for the unit conversion below
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
     selected = max(range(len(segments)), key=lambda i: segments[i].n)
@@ -511,33 +518,31 @@ def _format_of(path: Path, format: str | None) -> str:
     return fmt
 
 
-def _find_gaps(dt: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
+def _find_gaps(t: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
     """Indices i of intervals t[i] -> t[i+1] longer than ``gap_factor * nominal`` (s)."""
-    return np.flatnonzero(dt > gap_factor * nominal)
+    return intervals_above(t, gap_factor * nominal)
 
 
-def _nominal_rate(t: np.ndarray, rate, gap_factor: float, dt: np.ndarray | None = None) -> tuple[float, float]:
+def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
     """(rate in Hz used to find gaps, mean rate in Hz over the intervals that are not gaps).
 
     The mean interval over the record (gap-free intervals only) is the rate's estimate: jitter and a
     quantised clock (integer-millisecond stamps at 128 or 300 Hz) average out, while a median interval
     would report the clock's quantum (1/0.003 s = 333.3 Hz for 300 Hz stamped in ms). Gaps are found
-    against `rate` when known, else against the median interval, then the mean is taken without them.
+    against `rate` when known, else against the median interval, then the mean is taken without them:
+    ``count(ok) / sum(dt[ok])`` with ``ok = dt <= gap_factor / guess``. Computed block-wise over `t`
+    (:mod:`imupipe.readers.intervals`, equal to the whole-array ``np.median`` and ``np.sum(dt, where=ok)`` to
+    the last bit); when `rate` is None, `t` must increase strictly.
     """
-    dt = np.diff(t) if dt is None else dt  # the caller's intervals when it has them: no second copy
-    if rate is None:
-        # the median partitions dt in place (np.median copies its input otherwise: one more record's length);
-        # the intervals are then recomputed as np.diff computes them, bit for bit and in order (the sums below
-        # and the caller's later uses see the same array as before)
-        guess = 1.0 / float(np.median(dt, overwrite_input=True))
-        np.subtract(t[1:], t[:-1], out=dt)
-    else:
-        guess = rate
-    ok = dt <= gap_factor / guess
-    mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
+    guess = 1.0 / median_interval(t) if rate is None else rate
+
+    def mean_rate_below(limit: float, default: float) -> float:
+        count, total = sum_between(t, intervals_above(t, limit))
+        return float(count / total) if count else default
+
+    mean_rate = mean_rate_below(gap_factor / guess, guess)
     if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
-        ok = dt <= gap_factor / mean_rate
-        mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else mean_rate
+        mean_rate = mean_rate_below(gap_factor / mean_rate, mean_rate)
     return (rate if rate is not None else mean_rate), mean_rate
 
 
@@ -565,8 +570,9 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     """
     t = raw.time
     tname = raw.time_name
-    finite = np.isfinite(t)
-    if not finite.all():
+    # min and max need no temporary array (a NaN propagates into both, an infinity into one of them)
+    finite = np.isfinite(t) if not (np.isfinite(t.min()) and np.isfinite(t.max())) else None
+    if finite is not None:
         row = int(np.argmin(finite))
         raise DataError(
             f"{where}: time column {tname} has a non-finite value ({float(t[row])}) at {row_text(row)}"
@@ -574,23 +580,22 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     n = len(t)
     if n < 2:
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
-    dt = np.diff(t)
-    _check_increasing(t, dt, tname, where, row_text)
+    _check_increasing(t, tname, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where)
-    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor, dt)
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where)
+    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
     if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
         raise DataError(
             f"{where}: the file says {rate:g} Hz ({raw.file_rate_from}) but the timestamps ({tname}) "
             f"give {mean_rate:.6g} Hz (mean interval)"
         )
     nominal = 1.0 / nominal_rate
-    gaps = _find_gaps(dt, nominal, gap_factor)
+    gaps = _find_gaps(t, nominal, gap_factor)
     if gaps.size:
 
         def describe(i: int) -> str:
             return (
-                f"{dt[i]:.6g} s between {row_text(int(i))} (t = {t[i]:.9g} s) and {row_text(int(i) + 1)} "
+                f"{interval(t, i):.6g} s between {row_text(int(i))} (t = {t[i]:.9g} s) and {row_text(int(i) + 1)} "
                 f"(t = {t[i + 1]:.9g} s)"
             )
 
@@ -617,7 +622,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     return segments, rate
 
 
-def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
+def _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where) -> None:
     """The sheet's `rate_hz` (Hz) must agree within `rtol` (relative) with the timestamps' mean rate.
 
     The mean rate is found as when ``rate_hz`` is empty (:func:`_nominal_rate` without a rate: gaps
@@ -625,7 +630,7 @@ def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
     rate: a 100 Hz record stated as 200 Hz would otherwise have every interval a gap (and
     ``gap_policy="fill"`` would insert a sample in each).
     """
-    _, mean_rate = _nominal_rate(t, None, gap_factor, dt)
+    _, mean_rate = _nominal_rate(t, None, gap_factor)
     if abs(mean_rate - rate_hz) > rtol * rate_hz:
         raise DataError(
             f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
@@ -635,14 +640,14 @@ def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
         )
 
 
-def _check_increasing(t, dt, tname, where, row_text) -> None:
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0])
-        if dt[i] == 0:
+def _check_increasing(t, tname, where, row_text) -> None:
+    """Time must increase strictly: the first interval <= 0 is named (a duplicate or a step back)."""
+    i = first_nonpositive(t)
+    if i is not None:
+        if interval(t, i) == 0:
             raise DataError(
                 f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
-                f"t = {float(t[i]):.9g} s ({int(np.count_nonzero(dt == 0))} duplicates in all)"
+                f"t = {float(t[i]):.9g} s ({count_zero(t)} duplicates in all)"
             )
         raise DataError(
             f"{where}: time in {tname} is not increasing: t = {float(t[i + 1]):.9g} s at {row_text(i + 1)} comes after "
@@ -684,15 +689,15 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     row in the file (-1 for an inserted sample).
     """
     t = raw.time
-    dt = np.diff(t)
-    _check_increasing(t, dt, raw.time_name, where, row_text)
+    _check_increasing(t, raw.time_name, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, raw.time_name, where)
-    nominal_rate, _ = _nominal_rate(t, rate, gap_factor, dt)
-    gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
-    missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where)
+    nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
+    gaps = _find_gaps(t, 1.0 / nominal_rate, gap_factor)
+    gap_dt = intervals(t, gaps)  # s
+    missing = np.rint(gap_dt * nominal_rate).astype(np.int64) - 1
     fill = missing <= max_missing
-    gaps, missing = gaps[fill], np.maximum(missing[fill], 1)
+    gaps, gap_dt, missing = gaps[fill], gap_dt[fill], np.maximum(missing[fill], 1)
     inserted = int(missing.sum())
     if inserted > max_fraction * len(t):
         raise DataError(
@@ -702,7 +707,7 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
         )
     if not gaps.size:
         return (), None
-    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(dt[i])) for i, k in zip(gaps, missing))
+    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(d)) for i, k, d in zip(gaps, missing, gap_dt))
     # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
     pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]
     for g, (a, b) in enumerate(itertools.pairwise(cuts)):
