@@ -184,6 +184,40 @@ def test_interval_statistics_blockwise_equal_whole_array(monkeypatch, rng, block
     assert iv.count_zero(t) == np.count_nonzero(dt == 0) == 3
 
 
+@pytest.mark.parametrize("move_block", [1, 7, 1 << 16])
+def test_fill_grows_in_place_equal_to_interp(monkeypatch, rng, move_block):
+    """Gap filling inserts the samples in place (the owning array is resized, its rows moved from the end in
+    blocks) and equals, bit for bit, np.interp over the whole filled record's fractional row positions (what
+    the filling computed before), signed zeros included; a view is copied into a new array, with the same
+    values, and the row map names file rows and inserted samples."""
+    from imupipe.readers import core
+
+    monkeypatch.setattr(core, "MOVE_BLOCK", move_block)
+    n = 200
+    table = np.column_stack([np.arange(n) / RATE + rng.uniform(-1e-4, 1e-4, n), rng.normal(0, 1e-3, n)])
+    table[40:43, 1] = [-0.0, -0.0, 0.0]  # signed zeros at a gap's edges survive as np.interp keeps them
+    gaps = np.array([0, 40, 41, 57, 130, n - 2])
+    missing = np.array([1, 3, 1, 2, 1, 4])
+    pieces, cuts = [], [0, *(gaps + 1), n]
+    for g, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
+        pieces.append(np.arange(a, b, dtype=np.float64))
+        if g < len(gaps):
+            k = int(missing[g])
+            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
+    pos = np.concatenate(pieces)
+    for col in range(2):
+        expected = np.interp(pos, np.arange(n, dtype=np.float64), table[:, col])
+        owned = table[:, col].copy()
+        grown = core._insert_filled(owned, gaps, missing)
+        assert grown is owned and grown.tobytes() == expected.tobytes()
+        view = table[:, col]  # a strided view: copied
+        copied = core._insert_filled(view, gaps, missing)
+        assert copied is not view and copied.tobytes() == expected.tobytes()
+        np.testing.assert_array_equal(view, table[:, col])
+    file_row = core._filled_row_map(gaps, missing)
+    assert [file_row(r) for r in range(len(pos))] == [int(p) if p == int(p) else -1 for p in pos]
+
+
 def test_csv_bad_row_in_a_later_block_is_named(tmp_path, table):
     rows = [",".join(repr(float(v)) for v in row) for row in table]
     rows[200] += ",1.0"  # one field too many, far past the first block

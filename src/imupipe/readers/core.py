@@ -319,13 +319,14 @@ def read_dataset(
             raise changed from exc
         raise
     check_unchanged(path, before)
-    row_map = None  # filled record row -> file row (-1: inserted), after gap filling
+    file_row = None  # filled record row -> file row (-1: inserted), after gap filling
 
     def row_text(row: int) -> str:
-        if row_map is not None:
-            if row_map[row] < 0:
+        if file_row is not None:
+            in_file = file_row(row)
+            if in_file < 0:
                 return f"row {row} of the gap-filled record (an inserted sample)"
-            row = int(row_map[row])
+            row = in_file
         text = f"row {row} (0-based)"
         if raw.line_of_row is not None:
             text += f", line {raw.line_of_row(row)}"
@@ -376,12 +377,10 @@ def read_dataset(
                 max_missing = int(math.floor(fill_max_s * guess))
             else:
                 max_missing = DEFAULT_FILL_MAX_SAMPLES
-            filled, row_map = _fill_gaps(
+            filled, file_row = _fill_gaps(
                 raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text
             )
             n = len(raw.time)
-            if not filled:
-                row_map = None
         policy = long_gap_policy
     elif raw.time is None and gap_policy == "fill":
         pass  # no timestamps: no gaps to see
@@ -677,7 +676,7 @@ class FilledGap:
 
 def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text):
     """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map), the
-    row map None when no gap is filled.
+    row map (a function) None when no gap is filled.
 
     The sheet's `rate_hz` (when given) is first checked against the timestamps (:func:`_check_sheet_rate`),
     and the samples inserted in all may be at most `max_fraction` of the file's samples
@@ -686,7 +685,8 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     Method: the k missing samples of a gap between rows i and i+1 are placed at t_i + j dt/(k+1),
     j = 1..k, with values on the straight line between samples i and i+1 (every channel). Longer gaps
     are left for the long-gap policy. The row map gives, for each row of the filled record, its 0-based
-    row in the file (-1 for an inserted sample).
+    row in the file (-1 for an inserted sample). The timestamps and channels grow in place where they own
+    their memory (:func:`_insert_filled`): no second record-length array.
     """
     t = raw.time
     _check_increasing(t, raw.time_name, where, row_text)
@@ -708,19 +708,78 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     if not gaps.size:
         return (), None
     filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(d)) for i, k, d in zip(gaps, missing, gap_dt))
-    # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
-    pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]
-    for g, (a, b) in enumerate(itertools.pairwise(cuts)):
-        pieces.append(np.arange(a, b, dtype=np.float64))
-        if g < len(gaps):
-            k = int(missing[g])
-            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
-    pos = np.concatenate(pieces)
-    base = np.arange(len(t), dtype=np.float64)
-    raw.time = np.interp(pos, base, t)
-    raw.data = {key: np.interp(pos, base, x) for key, x in raw.data.items()}
-    row_map = np.where(pos == np.floor(pos), pos, -1).astype(np.int64)
-    return filled, row_map
+    grown: dict[int, np.ndarray] = {}  # one growth per array object
+
+    def grow(x: np.ndarray) -> np.ndarray:
+        if id(x) not in grown:
+            grown[id(x)] = _insert_filled(x, gaps, missing)
+        return grown[id(x)]
+
+    raw.time = grow(t)
+    del t
+    raw.data = {key: grow(x) for key, x in raw.data.items()}
+    return filled, _filled_row_map(gaps, missing)
+
+
+#: Samples moved per step when a record grows in place (:func:`_insert_filled`).
+MOVE_BLOCK = 1 << 16
+
+
+def _insert_filled(x: np.ndarray, gaps: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """`x` with ``missing[g]`` samples inserted after row ``gaps[g]`` (ascending), on the straight line between
+    ``x[i]`` and ``x[i+1]`` at the fractional rows ``i + j / (k + 1)``, j = 1..k.
+
+    Equal to the last bit to ``np.interp(pos, np.arange(n, dtype=float), x)`` over the positions ``pos`` of the
+    whole filled record (a file row at its own integer position gives ``x[i]`` itself; an inserted sample is
+    interpolated between the same two neighbours and positions), without ``pos`` and a second record: an
+    array owning its memory is resized in place and its rows moved to their new places from the end,
+    :data:`MOVE_BLOCK` samples at a time; any other array (a view) is copied into a new one.
+    """
+    n = len(x)
+    total = n + int(missing.sum())
+    ends = np.stack([x[gaps], x[gaps + 1]], axis=1)  # each gap's two neighbours, before anything moves
+    if x.dtype == np.float64 and x.flags.owndata and x.base is None and x.flags.c_contiguous and x.flags.writeable:
+        x.resize(total, refcheck=False)  # the caller holds no view of x
+        out, src = x, x
+    else:
+        out, src = np.empty(total, dtype=np.float64), x
+    shift = total - n  # samples inserted before the rows being placed
+    stop = n
+    for g in range(len(gaps) - 1, -1, -1):
+        i, k = int(gaps[g]), int(missing[g])
+        _move(out, src, i + 1, stop, shift)
+        shift -= k
+        pos = i + np.arange(1, k + 1) / (k + 1)
+        out[i + 1 + shift : i + 1 + shift + k] = np.interp(pos, np.array([i, i + 1], dtype=np.float64), ends[g])
+        stop = i + 1
+    _move(out, src, 0, stop, 0)
+    return out
+
+
+def _move(out: np.ndarray, src: np.ndarray, a: int, b: int, shift: int) -> None:
+    """``out[a + shift : b + shift] = src[a:b]``, blocks from the end first (so that moving rows to the right
+    within one array never overwrites a row not yet moved)."""
+    if out is src and shift == 0:
+        return
+    for c in range(b, a, -MOVE_BLOCK):
+        lo = max(a, c - MOVE_BLOCK)
+        out[lo + shift : c + shift] = src[lo:c]
+
+
+def _filled_row_map(gaps: np.ndarray, missing: np.ndarray) -> Callable[[int], int]:
+    """Row of the filled record -> 0-based file row, -1 for an inserted sample."""
+    after = np.cumsum(missing)  # samples inserted up to and including gap g
+    starts = gaps + 1 + after - missing  # filled row of each gap's first inserted sample
+
+    def file_row(row: int) -> int:
+        g = int(np.searchsorted(starts, row, side="right")) - 1
+        if g < 0:
+            return int(row)
+        if row < starts[g] + missing[g]:
+            return -1
+        return int(row - after[g])
+
+    return file_row
 
 
 def read_channel(key: Key | str, path: str | Path, format: str = "auto", **kwargs: Any) -> Recording:
