@@ -9,8 +9,9 @@ edge is shared by both blocks), so that the checks cost the timestamps plus a fi
 
 Every result equals, to the last bit, what the whole-array NumPy expression it replaces returns (named in
 each docstring): the same subtractions, an exact selection for the median, and the summation order of
-``np.sum(dt, where=mask)`` (NumPy 1.x and 2.x: the masked reduction sums each maximal run of selected
-elements with its pairwise summation, :func:`_pairwise_sum`, and adds the runs in order to 0).
+``np.sum(dt, where=mask)`` (the masked reduction sums each maximal run of selected elements with NumPy's
+pairwise summation, :func:`_pairwise_sum`, and adds the runs in order to 0: NumPy's float64 reduction loop,
+checked against NumPy itself by tests/test_readers_memory.py for the installed version).
 """
 
 from __future__ import annotations
