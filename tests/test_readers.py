@@ -449,6 +449,16 @@ class TestBadInputs:
         ):
             read_dataset(path, "csv", RATE, NAMES, UNITS, time_column="t")
 
+    def test_mostly_duplicate_timestamps_named_when_filling_by_seconds(self, tmp_path, signals):
+        """gap_policy fill with fill_max_s and no rate needs the median interval: with most stamps duplicated it
+        is 0; the duplicates are named first (not a division by zero)."""
+        columns = csv_columns(signals)
+        columns["t"] = columns["t"][np.arange(N) // 3 * 3]  # each stamp three times: 2/3 of the intervals 0
+        path = write_csv(tmp_path / "imu.csv", columns)
+        n_dup = int(np.count_nonzero(np.diff(columns["t"]) == 0))
+        with pytest.raises(DataError, match=rf"duplicate timestamp in 't': row 0 .* \({n_dup} duplicates in all\)"):
+            read_dataset(path, "csv", None, NAMES, UNITS, time_column="t", gap_policy="fill", fill_max_s=1.0)
+
     def test_time_going_backwards(self, tmp_path, signals):
         columns = csv_columns(signals)
         columns["t"] = columns["t"].copy()

@@ -129,18 +129,93 @@ def test_csv_time_scaled_in_place_and_a_shared_column_kept(tmp_path, table):
     assert alone.rate_hz == RATE
 
 
-def test_nominal_rate_leaves_the_intervals_as_np_diff_gives_them(rng):
-    """The median partitions the intervals in place (no copy of a record's length); the caller's array is
-    then what np.diff returns, bit for bit, and the rates are those of an untouched copy."""
+def _old_nominal_rate(t, rate, gap_factor):
+    """The whole-array rule the block-wise one replaces (np.diff, np.median, masked np.sum)."""
+    dt = np.diff(t)
+    guess = 1.0 / float(np.median(dt)) if rate is None else rate
+    ok = dt <= gap_factor / guess
+    mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
+    if rate is None:
+        ok = dt <= gap_factor / mean_rate
+        mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else mean_rate
+    return (rate if rate is not None else mean_rate), mean_rate
+
+
+def _clocks(rng):
+    """Timestamps (s) with gaps and duplicates at and around the edges of 256-interval blocks: a jittered
+    128 Hz clock, a 300 Hz clock stamped in whole ms (many equal intervals: ties at the median), both with an
+    even and an odd number of intervals."""
+    jitter = np.cumsum(rng.uniform(0.9, 1.1, 20_001) / 128.0)
+    for i in (255, 256, 511, 767, 12_800):  # gaps ending at, starting at and straddling block edges
+        jitter[i:] += 0.05 + 0.01 * rng.uniform()
+    ms = np.floor(np.arange(30_000) / 300.0 * 1e3) / 1e3
+    ms[4096:] += 0.02
+    return {"jitter odd": jitter, "jitter even": jitter[:-1], "ms even": ms, "ms odd": ms[:-1]}
+
+
+@pytest.mark.parametrize("block", [129, 256, 1000])
+def test_interval_statistics_blockwise_equal_whole_array(monkeypatch, rng, block):
+    """Every block-wise interval statistic equals the whole-array NumPy expression to the last bit, on records
+    whose gaps and duplicates sit at block edges (blocks of 129, 256 and 1000 intervals: the pairwise sum's
+    recursion is followed across them; a block-by-block sum, or a median of block medians, differs in the last
+    bits or more)."""
+    from imupipe.readers import intervals as iv
     from imupipe.readers.core import _nominal_rate
 
-    t = np.cumsum(rng.uniform(0.9, 1.1, 10_001) / 128.0)  # jittered 128 Hz clock
-    t[5000:] += 0.05  # one gap of ~7 samples
+    monkeypatch.setattr(iv, "INTERVAL_BLOCK", block)
+    for name, t in _clocks(rng).items():
+        dt = np.diff(t)
+        assert iv.median_interval(t) == np.median(dt), name
+        for limit in (1.5 / 128.0, 1.5 / 300.0, 1e-3):
+            gaps = iv.intervals_above(t, limit)
+            np.testing.assert_array_equal(gaps, np.flatnonzero(dt > limit))
+            ok = dt <= limit
+            assert iv.sum_between(t, gaps) == (np.count_nonzero(ok), np.sum(dt, where=ok)), (name, limit)
+        np.testing.assert_array_equal(iv.intervals(t, gaps), dt[gaps])
+        for rate in (None, 128.0, 300.0):
+            assert _nominal_rate(t, rate, 1.5) == _old_nominal_rate(t, rate, 1.5), (name, rate)
+        assert iv.first_nonpositive(t) is None
+    t = np.arange(3000) / 100.0
+    t[block : block + 2] = t[block - 1]  # duplicates on either side of one edge and after another
+    t[2 * block + 1] = t[2 * block]
+    t[2500] = t[2400]  # a step back
     dt = np.diff(t)
-    expected = _nominal_rate(t, None, 1.5, np.diff(t).copy())
-    assert _nominal_rate(t, None, 1.5, dt) == expected
-    np.testing.assert_array_equal(dt, np.diff(t))
-    assert _nominal_rate(t, None, 1.5) == expected
+    assert iv.first_nonpositive(t) == np.flatnonzero(dt <= 0)[0] == block - 1
+    assert iv.count_zero(t) == np.count_nonzero(dt == 0) == 3
+
+
+@pytest.mark.parametrize("move_block", [1, 7, 1 << 16])
+def test_fill_grows_in_place_equal_to_interp(monkeypatch, rng, move_block):
+    """Gap filling inserts the samples in place (the owning array is resized, its rows moved from the end in
+    blocks) and equals, bit for bit, np.interp over the whole filled record's fractional row positions (what
+    the filling computed before), signed zeros included; a view is copied into a new array, with the same
+    values, and the row map names file rows and inserted samples."""
+    from imupipe.readers import core
+
+    monkeypatch.setattr(core, "MOVE_BLOCK", move_block)
+    n = 200
+    table = np.column_stack([np.arange(n) / RATE + rng.uniform(-1e-4, 1e-4, n), rng.normal(0, 1e-3, n)])
+    table[40:43, 1] = [-0.0, -0.0, 0.0]  # signed zeros at a gap's edges survive as np.interp keeps them
+    gaps = np.array([0, 40, 41, 57, 130, n - 2])
+    missing = np.array([1, 3, 1, 2, 1, 4])
+    pieces, cuts = [], [0, *(gaps + 1), n]
+    for g, (a, b) in enumerate(zip(cuts[:-1], cuts[1:])):
+        pieces.append(np.arange(a, b, dtype=np.float64))
+        if g < len(gaps):
+            k = int(missing[g])
+            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
+    pos = np.concatenate(pieces)
+    for col in range(2):
+        expected = np.interp(pos, np.arange(n, dtype=np.float64), table[:, col])
+        owned = table[:, col].copy()
+        grown = core._insert_filled(owned, gaps, missing)
+        assert grown is owned and grown.tobytes() == expected.tobytes()
+        view = table[:, col]  # a strided view: copied
+        copied = core._insert_filled(view, gaps, missing)
+        assert copied is not view and copied.tobytes() == expected.tobytes()
+        np.testing.assert_array_equal(view, table[:, col])
+    file_row = core._filled_row_map(gaps, missing)
+    assert [file_row(r) for r in range(len(pos))] == [int(p) if p == int(p) else -1 for p in pos]
 
 
 def test_csv_bad_row_in_a_later_block_is_named(tmp_path, table):

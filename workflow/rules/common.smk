@@ -397,7 +397,7 @@ def simulate_mem_mb(wildcards):
 def ingest_mem_mb(wildcards, input):
     """netCDF and npy/npz records are read one channel at a time (ingest.py, readers.read_channel): 100 MB + 3.5
     x the file size per channel written (measured peak at 125 Hz without a time column: 109 MB at 10 h, 217 MB
-    at 40 h = 73 MB + one axis; a time column adds its samples and intervals, ~3.2 x one axis in all; an
+    at 40 h = 73 MB + one axis; a time column adds its samples, 2 x one axis in all; an
     over-estimate when the file holds more variables than the dataset writes). Text records are parsed once
     per channel, R and bag records whole: 100 MB + 2 x the file size."""
     size = input.size_mb

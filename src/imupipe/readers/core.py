@@ -24,6 +24,9 @@ from imupipe.readers.rdata import _load_rdata
 from imupipe.readers.rosbag import _load_rosbag
 from imupipe.readers.text import _load_text
 from imupipe.readers.checks import check_file, check_unchanged, check_values
+from imupipe.readers.intervals import (
+    count_zero, first_nonpositive, interval, intervals, intervals_above, median_interval, sum_between,
+)
 
 #: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
 FROM_FILE = "from_file"
@@ -316,13 +319,14 @@ def read_dataset(
             raise changed from exc
         raise
     check_unchanged(path, before)
-    row_map = None  # filled record row -> file row (-1: inserted), after gap filling
+    file_row = None  # filled record row -> file row (-1: inserted), after gap filling
 
     def row_text(row: int) -> str:
-        if row_map is not None:
-            if row_map[row] < 0:
+        if file_row is not None:
+            in_file = file_row(row)
+            if in_file < 0:
                 return f"row {row} of the gap-filled record (an inserted sample)"
-            row = int(row_map[row])
+            row = in_file
         text = f"row {row} (0-based)"
         if raw.line_of_row is not None:
             text += f", line {raw.line_of_row(row)}"
@@ -361,26 +365,28 @@ def read_dataset(
     filled: tuple[FilledGap, ...] = ()
     policy = gap_policy
     if raw.time is not None and gap_policy == "fill":
-        if not np.isfinite(raw.time).all() or len(raw.time) < 2:
+        if not (np.isfinite(raw.time.min()) and np.isfinite(raw.time.max())) or len(raw.time) < 2:
             pass  # _check_time names the bad value
         else:
-            guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
-            max_missing = (
-                fill_max_samples if fill_max_samples is not None
-                else int(math.floor(fill_max_s * guess)) if fill_max_s is not None
-                else DEFAULT_FILL_MAX_SAMPLES
-            )
-            filled, row_map = _fill_gaps(
+            if fill_max_samples is not None:
+                max_missing = fill_max_samples
+            elif fill_max_s is not None:
+                # the median interval needs increasing time (the check _fill_gaps makes first)
+                _check_increasing(raw.time, raw.time_name, where, row_text)
+                guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
+                max_missing = int(math.floor(fill_max_s * guess))
+            else:
+                max_missing = DEFAULT_FILL_MAX_SAMPLES
+            filled, file_row = _fill_gaps(
                 raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text
             )
             n = len(raw.time)
-            if not filled:
-                row_map = None
         policy = long_gap_policy
     elif raw.time is None and gap_policy == "fill":
         pass  # no timestamps: no gaps to see
     if raw.time is not None:
         segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text)
+        raw.time = None  # checked: its memory is free for the unit conversion below
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
     selected = max(range(len(segments)), key=lambda i: segments[i].n)
@@ -511,33 +517,31 @@ def _format_of(path: Path, format: str | None) -> str:
     return fmt
 
 
-def _find_gaps(dt: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
+def _find_gaps(t: np.ndarray, nominal: float, gap_factor: float) -> np.ndarray:
     """Indices i of intervals t[i] -> t[i+1] longer than ``gap_factor * nominal`` (s)."""
-    return np.flatnonzero(dt > gap_factor * nominal)
+    return intervals_above(t, gap_factor * nominal)
 
 
-def _nominal_rate(t: np.ndarray, rate, gap_factor: float, dt: np.ndarray | None = None) -> tuple[float, float]:
+def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
     """(rate in Hz used to find gaps, mean rate in Hz over the intervals that are not gaps).
 
     The mean interval over the record (gap-free intervals only) is the rate's estimate: jitter and a
     quantised clock (integer-millisecond stamps at 128 or 300 Hz) average out, while a median interval
     would report the clock's quantum (1/0.003 s = 333.3 Hz for 300 Hz stamped in ms). Gaps are found
-    against `rate` when known, else against the median interval, then the mean is taken without them.
+    against `rate` when known, else against the median interval, then the mean is taken without them:
+    ``count(ok) / sum(dt[ok])`` with ``ok = dt <= gap_factor / guess``. Computed block-wise over `t`
+    (:mod:`imupipe.readers.intervals`, equal to the whole-array ``np.median`` and ``np.sum(dt, where=ok)`` to
+    the last bit); when `rate` is None, `t` must increase strictly.
     """
-    dt = np.diff(t) if dt is None else dt  # the caller's intervals when it has them: no second copy
-    if rate is None:
-        # the median partitions dt in place (np.median copies its input otherwise: one more record's length);
-        # the intervals are then recomputed as np.diff computes them, bit for bit and in order (the sums below
-        # and the caller's later uses see the same array as before)
-        guess = 1.0 / float(np.median(dt, overwrite_input=True))
-        np.subtract(t[1:], t[:-1], out=dt)
-    else:
-        guess = rate
-    ok = dt <= gap_factor / guess
-    mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else guess
+    guess = 1.0 / median_interval(t) if rate is None else rate
+
+    def mean_rate_below(limit: float, default: float) -> float:
+        count, total = sum_between(t, intervals_above(t, limit))
+        return float(count / total) if count else default
+
+    mean_rate = mean_rate_below(gap_factor / guess, guess)
     if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
-        ok = dt <= gap_factor / mean_rate
-        mean_rate = float(np.count_nonzero(ok) / np.sum(dt, where=ok)) if ok.any() else mean_rate
+        mean_rate = mean_rate_below(gap_factor / mean_rate, mean_rate)
     return (rate if rate is not None else mean_rate), mean_rate
 
 
@@ -565,8 +569,9 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     """
     t = raw.time
     tname = raw.time_name
-    finite = np.isfinite(t)
-    if not finite.all():
+    # min and max need no temporary array (a NaN propagates into both, an infinity into one of them)
+    finite = np.isfinite(t) if not (np.isfinite(t.min()) and np.isfinite(t.max())) else None
+    if finite is not None:
         row = int(np.argmin(finite))
         raise DataError(
             f"{where}: time column {tname} has a non-finite value ({float(t[row])}) at {row_text(row)}"
@@ -574,23 +579,22 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     n = len(t)
     if n < 2:
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
-    dt = np.diff(t)
-    _check_increasing(t, dt, tname, where, row_text)
+    _check_increasing(t, tname, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where)
-    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor, dt)
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where)
+    nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
     if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
         raise DataError(
             f"{where}: the file says {rate:g} Hz ({raw.file_rate_from}) but the timestamps ({tname}) "
             f"give {mean_rate:.6g} Hz (mean interval)"
         )
     nominal = 1.0 / nominal_rate
-    gaps = _find_gaps(dt, nominal, gap_factor)
+    gaps = _find_gaps(t, nominal, gap_factor)
     if gaps.size:
 
         def describe(i: int) -> str:
             return (
-                f"{dt[i]:.6g} s between {row_text(int(i))} (t = {t[i]:.9g} s) and {row_text(int(i) + 1)} "
+                f"{interval(t, i):.6g} s between {row_text(int(i))} (t = {t[i]:.9g} s) and {row_text(int(i) + 1)} "
                 f"(t = {t[i + 1]:.9g} s)"
             )
 
@@ -617,7 +621,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     return segments, rate
 
 
-def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
+def _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where) -> None:
     """The sheet's `rate_hz` (Hz) must agree within `rtol` (relative) with the timestamps' mean rate.
 
     The mean rate is found as when ``rate_hz`` is empty (:func:`_nominal_rate` without a rate: gaps
@@ -625,7 +629,7 @@ def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
     rate: a 100 Hz record stated as 200 Hz would otherwise have every interval a gap (and
     ``gap_policy="fill"`` would insert a sample in each).
     """
-    _, mean_rate = _nominal_rate(t, None, gap_factor, dt)
+    _, mean_rate = _nominal_rate(t, None, gap_factor)
     if abs(mean_rate - rate_hz) > rtol * rate_hz:
         raise DataError(
             f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
@@ -635,14 +639,14 @@ def _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, tname, where) -> None:
         )
 
 
-def _check_increasing(t, dt, tname, where, row_text) -> None:
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0])
-        if dt[i] == 0:
+def _check_increasing(t, tname, where, row_text) -> None:
+    """Time must increase strictly: the first interval <= 0 is named (a duplicate or a step back)."""
+    i = first_nonpositive(t)
+    if i is not None:
+        if interval(t, i) == 0:
             raise DataError(
                 f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
-                f"t = {float(t[i]):.9g} s ({int(np.count_nonzero(dt == 0))} duplicates in all)"
+                f"t = {float(t[i]):.9g} s ({count_zero(t)} duplicates in all)"
             )
         raise DataError(
             f"{where}: time in {tname} is not increasing: t = {float(t[i + 1]):.9g} s at {row_text(i + 1)} comes after "
@@ -672,7 +676,7 @@ class FilledGap:
 
 def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text):
     """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map), the
-    row map None when no gap is filled.
+    row map (a function) None when no gap is filled.
 
     The sheet's `rate_hz` (when given) is first checked against the timestamps (:func:`_check_sheet_rate`),
     and the samples inserted in all may be at most `max_fraction` of the file's samples
@@ -681,18 +685,19 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     Method: the k missing samples of a gap between rows i and i+1 are placed at t_i + j dt/(k+1),
     j = 1..k, with values on the straight line between samples i and i+1 (every channel). Longer gaps
     are left for the long-gap policy. The row map gives, for each row of the filled record, its 0-based
-    row in the file (-1 for an inserted sample).
+    row in the file (-1 for an inserted sample). The timestamps and channels grow in place where they own
+    their memory (:func:`_insert_filled`): no second record-length array.
     """
     t = raw.time
-    dt = np.diff(t)
-    _check_increasing(t, dt, raw.time_name, where, row_text)
+    _check_increasing(t, raw.time_name, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, dt, rate_hz, rtol, gap_factor, raw.time_name, where)
-    nominal_rate, _ = _nominal_rate(t, rate, gap_factor, dt)
-    gaps = _find_gaps(dt, 1.0 / nominal_rate, gap_factor)
-    missing = np.rint(dt[gaps] * nominal_rate).astype(np.int64) - 1
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where)
+    nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
+    gaps = _find_gaps(t, 1.0 / nominal_rate, gap_factor)
+    gap_dt = intervals(t, gaps)  # s
+    missing = np.rint(gap_dt * nominal_rate).astype(np.int64) - 1
     fill = missing <= max_missing
-    gaps, missing = gaps[fill], np.maximum(missing[fill], 1)
+    gaps, gap_dt, missing = gaps[fill], gap_dt[fill], np.maximum(missing[fill], 1)
     inserted = int(missing.sum())
     if inserted > max_fraction * len(t):
         raise DataError(
@@ -702,20 +707,79 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
         )
     if not gaps.size:
         return (), None
-    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(dt[i])) for i, k in zip(gaps, missing))
-    # positions of the filled record, as fractional file rows: row i + j/(k+1) for an inserted sample
-    pieces, cuts = [], [0, *(int(i) + 1 for i in gaps), len(t)]
-    for g, (a, b) in enumerate(itertools.pairwise(cuts)):
-        pieces.append(np.arange(a, b, dtype=np.float64))
-        if g < len(gaps):
-            k = int(missing[g])
-            pieces.append(b - 1 + np.arange(1, k + 1) / (k + 1))
-    pos = np.concatenate(pieces)
-    base = np.arange(len(t), dtype=np.float64)
-    raw.time = np.interp(pos, base, t)
-    raw.data = {key: np.interp(pos, base, x) for key, x in raw.data.items()}
-    row_map = np.where(pos == np.floor(pos), pos, -1).astype(np.int64)
-    return filled, row_map
+    filled = tuple(FilledGap(int(i), int(k), float(t[i]), float(d)) for i, k, d in zip(gaps, missing, gap_dt))
+    grown: dict[int, np.ndarray] = {}  # one growth per array object
+
+    def grow(x: np.ndarray) -> np.ndarray:
+        if id(x) not in grown:
+            grown[id(x)] = _insert_filled(x, gaps, missing)
+        return grown[id(x)]
+
+    raw.time = grow(t)
+    del t
+    raw.data = {key: grow(x) for key, x in raw.data.items()}
+    return filled, _filled_row_map(gaps, missing)
+
+
+#: Samples moved per step when a record grows in place (:func:`_insert_filled`).
+MOVE_BLOCK = 1 << 16
+
+
+def _insert_filled(x: np.ndarray, gaps: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """`x` with ``missing[g]`` samples inserted after row ``gaps[g]`` (ascending), on the straight line between
+    ``x[i]`` and ``x[i+1]`` at the fractional rows ``i + j / (k + 1)``, j = 1..k.
+
+    Equal to the last bit to ``np.interp(pos, np.arange(n, dtype=float), x)`` over the positions ``pos`` of the
+    whole filled record (a file row at its own integer position gives ``x[i]`` itself; an inserted sample is
+    interpolated between the same two neighbours and positions), without ``pos`` and a second record: an
+    array owning its memory is resized in place and its rows moved to their new places from the end,
+    :data:`MOVE_BLOCK` samples at a time; any other array (a view) is copied into a new one.
+    """
+    n = len(x)
+    total = n + int(missing.sum())
+    ends = np.stack([x[gaps], x[gaps + 1]], axis=1)  # each gap's two neighbours, before anything moves
+    if x.dtype == np.float64 and x.flags.owndata and x.base is None and x.flags.c_contiguous and x.flags.writeable:
+        x.resize(total, refcheck=False)  # the caller holds no view of x
+        out, src = x, x
+    else:
+        out, src = np.empty(total, dtype=np.float64), x
+    shift = total - n  # samples inserted before the rows being placed
+    stop = n
+    for g in range(len(gaps) - 1, -1, -1):
+        i, k = int(gaps[g]), int(missing[g])
+        _move(out, src, i + 1, stop, shift)
+        shift -= k
+        pos = i + np.arange(1, k + 1) / (k + 1)
+        out[i + 1 + shift : i + 1 + shift + k] = np.interp(pos, np.array([i, i + 1], dtype=np.float64), ends[g])
+        stop = i + 1
+    _move(out, src, 0, stop, 0)
+    return out
+
+
+def _move(out: np.ndarray, src: np.ndarray, a: int, b: int, shift: int) -> None:
+    """``out[a + shift : b + shift] = src[a:b]``, blocks from the end first (so that moving rows to the right
+    within one array never overwrites a row not yet moved)."""
+    if out is src and shift == 0:
+        return
+    for c in range(b, a, -MOVE_BLOCK):
+        lo = max(a, c - MOVE_BLOCK)
+        out[lo + shift : c + shift] = src[lo:c]
+
+
+def _filled_row_map(gaps: np.ndarray, missing: np.ndarray) -> Callable[[int], int]:
+    """Row of the filled record -> 0-based file row, -1 for an inserted sample."""
+    after = np.cumsum(missing)  # samples inserted up to and including gap g
+    starts = gaps + 1 + after - missing  # filled row of each gap's first inserted sample
+
+    def file_row(row: int) -> int:
+        g = int(np.searchsorted(starts, row, side="right")) - 1
+        if g < 0:
+            return int(row)
+        if row < starts[g] + missing[g]:
+            return -1
+        return int(row - after[g])
+
+    return file_row
 
 
 def read_channel(key: Key | str, path: str | Path, format: str = "auto", **kwargs: Any) -> Recording:
