@@ -568,6 +568,37 @@ class TestSelectedRefit:
         sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
         assert "white" in sel["kept"]
 
+    def test_two_gm_white_test_null_keeps_its_time_constants_in_range(self):
+        # The octave AV of one simulated 10 h, 10 Hz record of the MEMS truth of tests/test_coverage.py (white
+        # 1e-3 m/s^2/sqrt(Hz), GMs 1.96e-3 m/s^2 at 20 s and 9.81e-4 m/s^2 at 600 s, K 2e-6; record 67 of seed
+        # 9001). The white test's null (no white, no quantization) may only place its GMs three octaves above
+        # the shortest tau, where no GM has the -1/2 slope of white noise. The two-GM search's simplex was
+        # unbounded: it moved a T to 4e-4 s (such a GM is white noise, AV 2 sigma^2 T / tau), the null matched
+        # the white noise (max z 1.24), and the selection dropped a white noise that is 98 % of the AV at
+        # tau = 0.1 s (5 of 200 records of that seed).
+        from imupipe.identify import _SUBSTITUTES, _profile
+
+        tau = 0.1 * 2.0 ** np.arange(17)
+        avar = np.array([1.0003439406373745e-05, 5.033128339070816e-06, 2.5596773294795876e-06,
+                         1.3499561113854628e-06, 8.165281680171485e-07, 6.687456222395348e-07, 7.956740131148518e-07,
+                         1.1132680377986746e-06, 1.4481716319558496e-06, 1.4327137562336426e-06,
+                         1.1401776546737526e-06, 8.831520691040284e-07, 5.582548491860849e-07, 5.694851307558764e-07,
+                         6.757629329571815e-07, 3.8621823310043e-07, 8.680561000290956e-08])
+        edf = np.array([281738.55198502506, 195049.0419359364, 110748.36452439791, 60418.35756502882,
+                        26297.365499715826, 10426.269833355382, 5211.63735145636, 2605.049963323663,
+                        1301.7562980886557, 823.4358808067151, 410.80301912495867, 261.4247715275893,
+                        101.33013740553417, 63.67719989667975, 30.728333640692895, 11.090571934918522,
+                        4.6910481301273155])
+        fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov", "random_walk", "quantization"),
+                        n_gm=2, n_boot=0)
+        null_comps = tuple(c for c in fit.components if c not in ("white",) + _SUBSTITUTES.get("white", ()))
+        grid = fit.T_grid[fit.T_grid >= 8.0 * tau.min()]
+        alt, _ = _profile(tau, avar, edf, null_comps, 2, grid)
+        assert grid[0] * (1 - 1e-9) <= min(alt.T) and max(alt.T) <= grid[-1] * (1 + 1e-9), alt.T
+        assert min(fit.params[f"gm_T_{i}"] for i in (1, 2)) >= fit.T_grid.min() * (1 - 1e-9)
+        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        assert "white" in sel["kept"] and sel["details"]["white"]["shown_by_z"], sel["reasons"]["white"]
+
 
 def test_conservative_end_is_the_upper_end():
     truth = TRUTHS["white+gm+rw"]

@@ -335,7 +335,11 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
                 if cand.chi2 < best.chi2:
                     best = cand
         return best, (grid, chis)
-    # several GM terms: coarse grid over increasing tuples, then Nelder-Mead on log T
+    # several GM terms: coarse grid over increasing tuples, then Nelder-Mead on log T, bounded to the grid's
+    # range: the callers restrict the grid on purpose (select_components keeps T three octaves above the
+    # shortest tau so that no GM stands in for the white noise under test, and below tau_max/8 for the random
+    # walk); an unbounded simplex left that range (T = 4e-4 s against a grid from 0.8 s: the white noise
+    # "not shown" and dropped in two-GM records)
     from itertools import combinations
 
     from scipy.optimize import minimize
@@ -347,10 +351,12 @@ def _profile(t, y, e, comps, n_gm, T_grid, refine=True, offset=None):
         if best is None or sol.chi2 < best.chi2:
             best = sol
     if refine:
+        log_range = (math.log(grid[0]), math.log(grid[-1]))
         res = minimize(
             lambda lt: solve(t, y, e, comps, tuple(np.exp(np.sort(lt)))).chi2,
             np.log(best.T),
             method="Nelder-Mead",
+            bounds=[log_range] * n_gm,
             options={"xatol": 1e-3, "fatol": 1e-6, "maxiter": 400},
         )
         cand = solve(t, y, e, comps, tuple(np.exp(np.sort(res.x))))
