@@ -1,6 +1,7 @@
 """Whole-workflow benchmark: cold run and spec-sheet-only rerun of the Snakemake DAG in a scratch copy.
 
 ``python benchmarks/dag.py [--repeats 5] [--baseline 8de70ed] [--duration-h 40] [--configfile ...]``
+(``--floor-jobs N``: the wall time of a DAG of N script jobs that compute nothing, :func:`job_start_floor`)
 (:func:`compare`): this checkout and the commit ``--baseline`` (checked out in a temporary git worktree, its
 library run from its own ``src/`` with this checkout's compiled kernel) are run alternately, run by run, in
 scratch copies on the same machine: cold run (every output removed but the simulated recordings), spec-sheet
@@ -402,6 +403,33 @@ def script_job_overhead(workdir: Path, n_jobs: int = 6) -> dict:
             "wall_s": wall}
 
 
+def job_start_floor(workdir: Path, n_jobs: int, cores: int, repeats: int = 3) -> dict:
+    """Wall time (s, median of `repeats`) of a DAG of `n_jobs` independent ``script:`` jobs on `cores` cores,
+    whose scripts do nothing but touch their output ("empty"), and whose scripts first import numpy and netCDF4
+    ("numpy + netCDF4", what any job reading or writing the workflow's netCDF files needs): the least a DAG of
+    that many script jobs costs, whatever the jobs compute. Alternating, in `workdir` (removed afterwards)."""
+    out = {"n_jobs": n_jobs, "cores": cores}
+    scripts = {"empty": 'open(snakemake.output[0], "w").close()\n',
+               "numpy + netCDF4": 'import numpy, netCDF4\nopen(snakemake.output[0], "w").close()\n'}
+    walls = {k: [] for k in scripts}
+    for _ in range(repeats):
+        for kind, text in scripts.items():
+            if workdir.exists():
+                shutil.rmtree(workdir)
+            workdir.mkdir(parents=True)
+            (workdir / "Snakefile").write_text(_NOOP_SNAKEFILE.replace("NJOBS", str(n_jobs)))
+            (workdir / "noop.py").write_text(text)
+            wall, _, _ = snakemake(workdir, ["--cores", str(cores), "--quiet", "all"], workdir.parent / "floor.log")
+            walls[kind].append(wall)
+    shutil.rmtree(workdir, ignore_errors=True)
+    out.update({k: {"median_s": statistics.median(v), "min_s": min(v), "max_s": max(v)} for k, v in walls.items()})
+    rows = [[k, fmt_s(v["median_s"]), f"{fmt_s(v['min_s'])}-{fmt_s(v['max_s'])}"]
+            for k, v in out.items() if isinstance(v, dict)]
+    out["markdown"] = (f"Floor of a DAG of {n_jobs} independent script jobs on {cores} cores (median of {repeats}):\n\n"
+                       + md_table(["jobs' scripts", "wall", "min-max"], rows))
+    return out
+
+
 def _netcdf_dims(path: Path) -> dict:
     import netCDF4
 
@@ -791,9 +819,16 @@ def main(argv=None) -> int:
     ap.add_argument("--configfile", default="config/config.yaml", help="relative to the repo")
     ap.add_argument("--spec", default=None, help="spec sheet under config/specs/ to touch (default: found)")
     ap.add_argument("--keep-scratch", action="store_true", help="keep <out>/dag_scratch")
+    ap.add_argument("--floor-jobs", type=int, default=None, metavar="N",
+                    help="instead: the wall time of N empty script jobs, and of N importing numpy and netCDF4, on "
+                         "--cores (job_start_floor; --repeats runs each)")
     args = ap.parse_args(argv)
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.floor_jobs:
+        res = job_start_floor(args.out / "dag_floor", args.floor_jobs, args.cores, args.repeats)
+        print(res["markdown"])
+        return 0
     if args.detail:
         res = run(args.repo, args.out, cores=args.cores, repeats=args.repeats, keep_scratch=args.keep_scratch,
                   configfile=args.configfile, spec_name=args.spec)

@@ -28,12 +28,17 @@ JOBS = {
     "allan": "from imupipe.allan import allan_variance_labelled\nallan_variance_labelled(x, 1.0, units='rad/s')\n",
     "decimate": "from imupipe.spectra import decimate\ndecimate(x, 1.0, 0.5)\n",
     "psd": "from imupipe.spectra import psd_labelled\npsd_labelled(x, 1.0, window_s=1800.0, step_s=900.0, units='rad/s')\n",
+    # the workflow's stationarity job: the calibrated test on the axis's own AV fit; the paper's asymptotic test
+    # (scipy.stats) runs once per sensor type in stationarity_summary, not here (the calibrated function's
+    # `paper=False`; a tree without that argument runs its own default, which included the paper's test)
     "stationarity": ("from imupipe.identify import fit_allan\nfrom imupipe.allan import allan_variance_labelled\n"
-                     "from imupipe.stationarity import stationarity_tests\nstationarity_tests(x)\n"
+                     "from imupipe.stationarity import calibrated_stationarity\nimport inspect\n"
                      "av = allan_variance_labelled(x, 1.0, units='rad/s')\n"
                      "t, a, e = (np.asarray(av.coords['tau'][0]), *(np.asarray(av.data_vars[k][0]) for k in ('avar', 'edf')))\n"
                      "ok = np.isfinite(a) & np.isfinite(e)\n"
-                     "fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, rate=1.0, n_samples=[x.size])\n"),
+                     "fit = fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, rate=1.0, n_samples=[x.size])\n"
+                     "kw = {'paper': False} if 'paper' in inspect.signature(calibrated_stationarity).parameters else {}\n"
+                     "calibrated_stationarity(x, 1.0, fit.model, n_sim=19, **kw)\n"),
     "identify": ("from imupipe.identify import fit_allan, select_components\nfrom imupipe.allan import allan_variance_labelled\n"
                  "av = allan_variance_labelled(x, 1.0, units='rad/s')\n"
                  "t, a, e = (np.asarray(av.coords['tau'][0]), *(np.asarray(av.data_vars[k][0]) for k in ('avar', 'edf')))\n"
