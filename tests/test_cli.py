@@ -108,6 +108,12 @@ def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
     assert main(["check", str(cfg), "--no-dry-run", "--read"]) == 0
     out = capsys.readouterr().out
     assert "1 rows" in out and f"ok  read good: 72000 samples at 20 Hz (1.00 h) from {tmp_path / 'good.csv'}" in out
+    # a record shorter than one Welch window stops the workflow before any job: its message, not an empty one
+    short = cfg.read_text().replace("window_s: 1800.0", "window_s: 7200.0")
+    cfg.write_text(short)
+    assert main(["check", str(cfg), "--no-dry-run", "--read"]) == 1
+    err = capsys.readouterr().err
+    assert "dataset 'good' lasts 3600 s" in err and "psd.window_s = 7200 s" in err and "Error in file" not in err
 
 
 def test_check_with_dry_run_and_run_dry(tmp_path):

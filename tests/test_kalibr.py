@@ -175,6 +175,8 @@ def test_kalibr_follows_the_kf_export_that_dropped_every_line(tmp_path):
     assert k["accelerometer_random_walk"] == pytest.approx(_k_eff(kfm), rel=1e-6)
     assert _k_eff(kfm) < _k_eff(ACCEL) * (1 - 1e-3)  # the two differ: the check can tell which was used
     assert "dropped random_walk, narrowband f0=0.564 Hz" in text and "horizon only (600 s of outage" in text
+    # verified at the reference filter's 100 Hz, the Kalibr update_rate 100 Hz: no rate caveat
+    assert "at that rate only" not in text
 
 
 def test_an_export_without_bias_drift_takes_the_bounds_random_walk(tmp_path):
@@ -191,6 +193,14 @@ def test_an_export_without_bias_drift_takes_the_bounds_random_walk(tmp_path):
     assert k["accelerometer_noise_density"] == pytest.approx(kfm.white, rel=1e-6)  # the export's white noise
     assert k["accelerometer_random_walk"] == pytest.approx(_k_eff(ACCEL), rel=1e-6)  # the bound's drift
     assert "accel: the exported KF model has no bias drift" in out.read_text()
+    # a verification at 1 Hz and a Kalibr update_rate of 100 Hz: said, per sensor
+    for s in ("gyro", "accel"):
+        kf = yaml.safe_load(open(paths[f"kf_{s}"]))
+        kf["export"]["verified_filter_rate_hz"] = 1.0
+        open(paths[f"kf_{s}"], "w").write(yaml.safe_dump(kf))
+    text = _run_kalibr(tmp_path, paths).read_text()
+    assert ("accel: verified with a reference filter at 1 Hz, not at this update_rate (100 Hz): the verification, "
+            "and any state its reduction dropped, hold at that rate only") in text
     white_only = replace(ACCEL, random_walk=0.0, gauss_markov=())
     paths = _stage_files(tmp_path, white_only, white_only, [])
     data = yaml.safe_load(_run_kalibr(tmp_path, paths).read_text())

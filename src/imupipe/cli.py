@@ -262,7 +262,10 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     with tempfile.TemporaryDirectory(prefix="imupipe-check-") as scratch:
-        cmd = _snakemake_cmd(config, cores, Path(scratch), ["--until", "ingest", "--keep-going", "--quiet", "all"])
+        # (not "--quiet all": it also silences an error raised while Snakemake reads the workflow, e.g. the
+        # start-up check of a record against the config)
+        cmd = _snakemake_cmd(config, cores, Path(scratch), ["--until", "ingest", "--keep-going", "--quiet", "rules",
+                                                            "host", "reason", "progress"])
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
         read = []
         for log in sorted(Path(scratch).glob("logs/*/ingest/*.log")):
@@ -274,12 +277,16 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
         # sheet does
         renamed = {os.path.relpath(full, scratch): shown for full, shown in _sheet_paths(config).items()}
     errors = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("imupipe error:")]
+    if proc.returncode != 0 and not errors:  # stopped before any job: the workflow's own message, without traceback
+        errors = [ln.rstrip() for ln in proc.stderr.splitlines()
+                  if ln.strip() and not ln.lstrip().startswith(("File ", "Traceback"))
+                  and not re.match(r"\w+(Error|Exception) in file ", ln)]
     for rel, shown in sorted(renamed.items(), key=lambda kv: -len(kv[0])):
         errors = [e.replace(rel, shown) for e in errors]
         read = [r.replace(rel, shown) for r in read]
     if proc.returncode != 0:
-        raise ValueError("reading the records failed:\n  " + "\n  ".join(errors or [_dry_run_error(proc.stderr
-                         or proc.stdout)]) + ("\nread well: " + "; ".join(read) if read else ""))
+        raise ValueError("reading the records failed:\n  " + "\n  ".join(errors or ["(Snakemake gave no message)"])
+                         + ("\nread well: " + "; ".join(read) if read else ""))
     return read
 
 

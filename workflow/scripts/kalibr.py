@@ -30,12 +30,19 @@ def lines_of(kf: dict) -> list:
     return [t for t in ((kf.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
 
 
-def export_notes(kfs: dict) -> list:
-    """Comment lines stating, per sensor, what exported KF model the values come from (imupipe.kf.export_scope)."""
+def export_notes(kfs: dict, update_rate_hz: float | None = None) -> list:
+    """Comment lines stating, per sensor, what exported KF model the values come from (imupipe.kf.export_scope),
+    and, when Kalibr's update_rate is not the rate of the reference filter that verified that model, that the
+    verification (and any state the reduction dropped) holds at that filter's rate only."""
     out = []
     for sensor, kf in kfs.items():
         scope = kf.get("export") or {}
         out.append(f"{sensor}: from the exported KF model ({scope.get('statement', 'the bound model')})")
+        vrate = scope.get("verified_filter_rate_hz")
+        if vrate and update_rate_hz and abs(float(vrate) - float(update_rate_hz)) > 1e-9 * float(update_rate_hz):
+            out.append(f"{sensor}: verified with a reference filter at {float(vrate):g} Hz, not at this update_rate "
+                       f"({float(update_rate_hz):g} Hz): the verification, and any state its reduction dropped, hold "
+                       "at that rate only")
         if not kf.get("bounded", True):
             out.append(f"{sensor}: NOT BOUNDED: the KF model failed its integrity contract; for diagnosis only")
     return out
@@ -94,7 +101,7 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     source = (f"spec sheet {bounds['gyro'].get('spec_name', spec)} ({spec}), {bounds['gyro'].get('mode', '-')}-mode "
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
     lines = {s: lines_of(k) for s, k in kfs.items() if lines_of(k)}
-    notes = export_notes(kfs)
+    notes = export_notes(kfs, rate)
     # the two-term model of each exported KF model (white, GM folded into the random walk); a line cannot be folded
     # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
     models = {s: replace(model_of_kf(k, p), narrowband=())
