@@ -113,7 +113,8 @@ def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
     cfg.write_text(short)
     assert main(["check", str(cfg), "--no-dry-run", "--read"]) == 1
     err = capsys.readouterr().err
-    assert "dataset 'good' lasts 3600 s" in err and "psd.window_s = 7200 s" in err and "Error in file" not in err
+    assert "dataset 'good' lasts 3600 s (72000 samples at 20 Hz, the sheet's rate_hz)" in err and "Error in file" not in err
+    assert "psd.window_s = 7200 s" in err and "or correct rate_hz if it is not the record's rate" in err
 
 
 def test_check_with_dry_run_and_run_dry(tmp_path):

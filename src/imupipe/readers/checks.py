@@ -308,7 +308,7 @@ def check_against_config(
     """
 
     def get(name):
-        return meta[name] if isinstance(meta, dict) else getattr(meta, name, None)
+        return meta.get(name) if isinstance(meta, dict) else getattr(meta, name, None)
 
     rate = get("rate_hz")
     n = get("n_samples")
@@ -334,9 +334,12 @@ def check_against_config(
         if not (isinstance(window_s, (int, float)) and math.isfinite(window_s) and window_s > 0):
             raise ConfigError(f"config key psd.window_s = {window_s!r}: expected a positive number of s")
         if duration is not None and duration < window_s:
+            source = {"sheet": ", the sheet's rate_hz", "timestamps": ", from the timestamps",
+                      "file": ", the file's rate attribute"}.get(str(get("rate_from") or ""), "")
             raise ConfigError(
-                f"{label} lasts {duration:.6g} s ({n} samples at {rate:g} Hz), shorter than config key "
+                f"{label} lasts {duration:.6g} s ({n} samples at {rate:g} Hz{source}), shorter than config key "
                 f"psd.window_s = {window_s:g} s (one Welch window); shorten psd.window_s or give a longer record"
+                + (" (or correct rate_hz if it is not the record's rate)" if source.endswith("rate_hz") else "")
             )
         if decimate_rate_hz is not None and window_s * decimate_rate_hz < 2:
             raise ConfigError(
