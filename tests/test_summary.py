@@ -276,3 +276,14 @@ def test_inflation_table_shows_a_component_the_spec_sheet_does_not_give_as_in_th
         r = tables[name]
         assert f"| {name} | {r['unit']} | {fmt(r['spec'])} | {fmt(r['bound'])} |" in text
     assert "| 0 |" not in text
+
+
+def test_a_spec_sheet_far_above_the_data_is_said():
+    # spec N 4.4e-5 (0.15 deg/sqrt(h)); the records allow at most 4.4e-6: the bound's N rests on the spec sheet,
+    # which a bound/spec of 1 in the table does not show
+    b = _bound(upper_envelope={"white": 4.4e-6})
+    text = render_summary({"gyro": {"bound": b}})
+    assert ("- white noise: the records allow at most N = 0.015 deg/sqrt(h) (the identification's upper "
+            "envelope), 10x below the spec sheet's: the bound's N rests on the spec sheet, not on these records") in text
+    near = render_summary({"gyro": {"bound": _bound(upper_envelope={"white": 3e-5})}})  # 1.47x: not said
+    assert "the records allow at most" not in near

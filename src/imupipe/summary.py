@@ -264,6 +264,31 @@ def _line_flag(sensor: str, it: Mapping) -> Flag:
     return Flag(sensor, "lines", where, ", ".join(parts))
 
 
+#: Spec sheet's white noise over the data's (the identification's upper envelope) from which the summary says that
+#: the bound's N rests on the spec sheet rather than on the records.
+SPEC_ABOVE_DATA_RATIO = 2.0
+
+
+def _spec_above_data(bound: Mapping) -> str | None:
+    """A sentence when the spec sheet's white noise N is at least SPEC_ABOVE_DATA_RATIO times the data's (the
+    identification's upper envelope, the largest N the records allow at the stated level): the bound's N then
+    rests on the spec sheet, and the table's bound/spec of 1 does not show how far the data are below it."""
+    spec_si = _g(bound, "spec", "white")
+    env_si = _g(bound, "upper_envelope", "white")
+    shown = _g(bound, "spec_spec_units", "white")
+    if not (isinstance(spec_si, (int, float)) and isinstance(env_si, (int, float)) and env_si > 0):
+        return None
+    ratio = float(spec_si) / float(env_si)
+    if ratio < SPEC_ABOVE_DATA_RATIO:
+        return None
+    value = (f"{_num(shown.get('value') / ratio, '{:.3g}')} {shown.get('unit')}"
+             if isinstance(shown, Mapping) and isinstance(shown.get("value"), (int, float)) else
+             f"{_num(env_si, '{:.3g}')} u/sqrt(Hz) (SI)")
+    return (f"- white noise: the records allow at most N = {value} (the identification's upper envelope), "
+            f"{_num(ratio, '{:.3g}')}x below the spec sheet's: the bound's N rests on the spec sheet, not on these "
+            "records")
+
+
 def _inflation_rows(bound: Mapping) -> list[tuple]:
     """(parameter, unit, spec, bound, ratio) rows from bound_spec_units / spec_spec_units (spec-sheet units),
     falling back to SI. A component the spec sheet (or the bound) does not give, value 0 or absent, is None
@@ -361,6 +386,9 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
+            gap = _spec_above_data(bound)
+            if gap:
+                lines += [gap, ""]
             scope = bound.get("inflation_scope")
             if isinstance(scope, Mapping) and scope.get("dropped_from_exported_model") and scope.get("statement"):
                 # the table is the bound's; the exported model lacks these states (imupipe.kf.inflation_scope)
