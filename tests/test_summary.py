@@ -287,3 +287,12 @@ def test_a_spec_sheet_far_above_the_data_is_said():
             "envelope), 10x below the spec sheet's: the bound's N rests on the spec sheet, not on these records") in text
     near = render_summary({"gyro": {"bound": _bound(upper_envelope={"white": 3e-5})}})  # 1.47x: not said
     assert "the records allow at most" not in near
+
+
+def test_a_gm_sigma_below_the_spec_sheets_is_explained():
+    b = _bound(spec_margin=1.02)
+    b["bound_spec_units"]["gauss_markov"][0]["sigma"]["value"] = 1.2  # below the spec's 1.5 deg/h
+    text = render_summary({"gyro": {"bound": b}})
+    assert ("- GM sigma below the spec sheet's: the spec sheet's PSD is bounded at every frequency by the bound's "
+            "terms together (white noise, GM and random walk; spec margin 1.02), not term by term") in text
+    assert "not term by term" not in render_summary({"gyro": {"bound": _bound(spec_margin=1.02)}})  # 4.1 > 1.5

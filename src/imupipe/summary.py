@@ -389,6 +389,14 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             gap = _spec_above_data(bound)
             if gap:
                 lines += [gap, ""]
+            below = [n for n, _, sv, bv, r in rows if n.startswith("GM sigma") and r is not None and r < 1.0]
+            spec_margin = bound.get("spec_margin")
+            if below and isinstance(spec_margin, (int, float)) and spec_margin >= 1.0:
+                # the LP trades the spec's GM against white noise, random walk and a GM of another T: the spec
+                # sheet's PSD is bounded as a whole, not term by term
+                lines += [f"- {', '.join(below)} below the spec sheet's: the spec sheet's PSD is bounded at every "
+                          f"frequency by the bound's terms together (white noise, GM and random walk; spec margin "
+                          f"{_num(spec_margin, '{:.4g}')}), not term by term", ""]
             scope = bound.get("inflation_scope")
             if isinstance(scope, Mapping) and scope.get("dropped_from_exported_model") and scope.get("statement"):
                 # the table is the bound's; the exported model lacks these states (imupipe.kf.inflation_scope)
