@@ -87,23 +87,10 @@ def check_config(config: str | Path) -> list[str]:
     ValueError
         The first problem, naming the file and key / row.
     """
-    import csv
-
-    from imupipe.io import merged_with_defaults, read_yaml
     from imupipe.specsheet import load_spec
 
     config = Path(config)
-    if not config.is_file():
-        raise ValueError(f"{config}: config file not found")
-    given = read_yaml(config)
-    if not isinstance(given, dict):
-        raise ValueError(f"{config}: expected a YAML mapping of config keys")
-    try:
-        root = checkout_root()
-    except FileNotFoundError:
-        root = Path.cwd()
-    defaults = root / "config" / "config.yaml"
-    cfg = merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given
+    root, given, cfg = _merged_config(config)
     done = [f"config {config}: YAML mapping with {len(given)} keys"
             + (" (the others from config/config.yaml)" if cfg is not given else "")]
     sensors = cfg.get("sensors") or ["gyro", "accel"]
@@ -127,8 +114,7 @@ def check_config(config: str | Path) -> list[str]:
         sheet_path = root / str(sheet)
         if not sheet_path.is_file():
             raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
-        with open(sheet_path, newline="") as fh:  # comment lines (#) are skipped, as the workflow skips them
-            rows = list(csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t"))
+        rows = _sheet_rows(sheet_path)
         if not rows:
             raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
         for i, row in enumerate(rows, start=2):
@@ -236,6 +222,33 @@ def _cmd_allan(args) -> int:
     return 0
 
 
+def _merged_config(config: Path) -> tuple[Path, dict, dict]:
+    """(checkout root, the config file's keys, the config merged with config/config.yaml) as the workflow reads
+    it; the root is the working directory outside a checkout."""
+    from imupipe.io import merged_with_defaults, read_yaml
+
+    if not config.is_file():
+        raise ValueError(f"{config}: config file not found")
+    given = read_yaml(config)
+    if not isinstance(given, dict):
+        raise ValueError(f"{config}: expected a YAML mapping of config keys")
+    try:
+        root = checkout_root()
+    except FileNotFoundError:
+        root = Path.cwd()
+    defaults = root / "config" / "config.yaml"
+    return root, given, (merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given)
+
+
+def _sheet_rows(path: Path) -> list[dict]:
+    """The rows of a dataset sheet (TSV with a header line); comment lines (#) are skipped, as the workflow skips
+    them."""
+    import csv
+
+    with open(path, newline="") as fh:
+        return list(csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t"))
+
+
 def read_records(config: str | Path, cores: int = 2) -> list[str]:
     """Read every record of a config's dataset sheet as a run reads it, without running the analysis.
 
@@ -292,19 +305,11 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
 
 def _sheet_paths(config: Path) -> dict[str, str]:
     """{absolute path: the path as the dataset sheet writes it} of a config's recordings (empty without a sheet)."""
-    import csv
-
-    from imupipe.io import merged_with_defaults, read_yaml
-
-    root = checkout_root()
-    defaults = root / "config" / "config.yaml"
-    given = read_yaml(config)
-    cfg = merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given
+    root, _, cfg = _merged_config(config)
     if not cfg.get("datasets"):
         return {}
-    with open(root / str(cfg["datasets"]), newline="") as fh:
-        rows = csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t")
-        return {str(root / row["path"].strip()): row["path"].strip() for row in rows if (row.get("path") or "").strip()}
+    return {str(root / row["path"].strip()): row["path"].strip() for row in _sheet_rows(root / str(cfg["datasets"]))
+            if (row.get("path") or "").strip()}
 
 
 def _cmd_check(args) -> int:

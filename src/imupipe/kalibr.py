@@ -110,13 +110,18 @@ def _model(m, name: str) -> NoiseModel:
     raise TypeError(f"{name}: expected a NoiseModel or its to_dict(), got {type(m).__name__}")
 
 
+def _drift_variance(m: NoiseModel) -> float:
+    r""":math:`K_{eff}^2 = K^2 + \sum_i 2\sigma_i^2/T_i` (u^2/s): m's random walk with its GM terms folded in."""
+    return m.random_walk**2 + sum(2.0 * s**2 / T for s, T in m.gauss_markov if T > 0)
+
+
 def _k_eff(m: NoiseModel, name: str) -> float:
     """Random walk that bounds m's random walk plus its GM terms in PSD (u/sqrt(s))."""
     lines = [t for t in getattr(m, "narrowband", ()) or () if t[0] > 0]  # a sigma-0 term is no line (no KF state)
     if lines:
         raise ValueError(f"{name}: the model has {len(lines)} narrowband line(s); Kalibr's two-term model cannot "
                          "bound them (use the full Kalman-filter export instead)")
-    return math.sqrt(m.random_walk**2 + sum(2.0 * s**2 / T for s, T in m.gauss_markov if T > 0))
+    return math.sqrt(_drift_variance(m))
 
 
 def _below_reason(im: NoiseModel, kind: str) -> str:
@@ -265,8 +270,7 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, rostopic: str = "/imu0", i
     for prefix, ident in (("gyroscope", identified_gyro), ("accelerometer", identified_accel)):
         im = _model(ident, prefix) if ident is not None else None
         for kind, ref in (("noise_density", im.white if im else None),
-                          ("random_walk", math.sqrt(im.random_walk**2 + sum(2.0 * s**2 / T for s, T in im.gauss_markov
-                                                                             if T > 0)) if im else None)):
+                          ("random_walk", math.sqrt(_drift_variance(im)) if im else None)):
             key = f"{prefix}_{kind}"
             inflation[key] = (vals[key] / ref) if ref else None
             if inflation[key] is not None and inflation[key] < 1.0:
@@ -378,8 +382,7 @@ def with_bias_drift(exported: NoiseModel, bound: NoiseModel, sensor: str) -> tup
     """
     from dataclasses import replace
 
-    drift = exported.random_walk > 0 or any(s > 0 and T > 0 for s, T in exported.gauss_markov)
-    if drift or not (bound.random_walk > 0 or any(s > 0 and T > 0 for s, T in bound.gauss_markov)):
+    if _drift_variance(exported) > 0 or not _drift_variance(bound) > 0:
         return exported, None
     note = (f"{sensor}: the exported KF model has no bias drift (the verified reduction dropped every GM and "
             "random-walk state for the configured horizon); Kalibr needs a positive random walk: taken from the "

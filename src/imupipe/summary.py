@@ -109,12 +109,12 @@ def _items(obj) -> list:
     return [{"value": obj}]
 
 
-
 def _export_rate_detail(exp: Mapping) -> str:
     """The words of a KF file exported at another rate than the verified reference filter."""
     return (f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported at "
             f"{_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not cover the "
             "exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide decimate.rate_hz)")
+
 
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:

@@ -10,8 +10,8 @@ The values follow the exported Kalman-filter model (kf/{spec}/{sensor}.yaml: the
 reduction), so the two files never disagree. One exception: an export without any bias-drift state (the verified
 reduction dropped every GM and random walk) takes the bound's drift terms, as Kalibr needs a positive random walk
 (imupipe.kalibr.with_bias_drift, stated in the comment block); a bound without any is refused. When the KF export
-keeps no line state (none in the bound, or the verified reduction dropped every one), the two-term values are derived from the exported model, with its reduction
-and the horizon it holds for in the comment block. An exported model holding a narrowband line state (sigma > 0) is
+keeps no line state (none in the bound, or the verified reduction dropped every one), the two-term values are
+derived from the exported model, with its reduction and the horizon it holds for in the comment block. An exported model holding a narrowband line state (sigma > 0) is
 refused: the file then holds no Kalibr field (Kalibr fails on it rather than using values that do not bound near the
 line), only `refused: true`, the reason and those lines, and the two-term values without the line as commented-out
 lines for a user who accepts the under-statement knowingly. The run summary flags it."""

@@ -11,7 +11,6 @@ NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
 
 def main(path_decimated: str, path_allan: str, n_segments: int, alpha: float, test: str, n_sim: int,
          path_out: str, n_sim_max: int | None = None, close_z: float = 2.0) -> None:
-
     x, rate, attrs = read_series(path_decimated)
     out = {"dataset": attrs.get("dataset"), "sensor": attrs.get("sensor"), "axis": attrs.get("axis"),
            "rate_hz": rate, "n_samples": int(x.size), "test": test}
