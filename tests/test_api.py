@@ -101,10 +101,17 @@ def workflow(records, tmp_path_factory):
     bound = read_yaml(tmp / "bound.yaml")
 
     # kf and verification: the bound YAML's model
+    # the verification first: the KF file's P0 of p is the verified one (imupipe.biasinit.filter_p0 of the
+    # verification's least initial bias variance), the longest decimated record setting the slow-bias family
+    from imupipe.biasinit import filter_p0
+
     m = NoiseModel.from_dict(bound["bound"])
-    kf = export_kf(m, 1.0, sensor="gyro", p0_random_walk=m.random_walk**2 * 600.0 if m.random_walk > 0 else None)
+    record_s = max(decimate(np.asarray(x), RATE, 1.0)[0].size for x in records.values()) / 1.0
     ver = verification_report(m, "gyro", spec=spec.models["gyro"], upper=upper, fix_s=600.0, horizon_s=600.0,
-                              filter_rate_hz=1.0)
+                              filter_rate_hz=1.0, record_s=record_s)
+    bi = ver["exported"]["bias_initialisation"]
+    p0 = filter_p0(m, bi["required_variance"], bi["wander_s"]) or None
+    kf = export_kf(m, 1.0, sensor="gyro", p0_random_walk=p0, reduced=p0 is None)
     return {"identify": identify, "bound": bound, "kf": kf, "verification": ver}
 
 

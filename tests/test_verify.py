@@ -236,7 +236,16 @@ def test_verification_report_with_replay_and_reduction():
     rec = simulate(TRUTH, 20000, 1.0, rng=np.random.default_rng(3), n_records=2)
     rep = verification_report(big, "gyro", spec=TRUTH, upper=TRUTH, records=list(rec), rate_hz=1.0,
                               fix_s=300.0, horizon_s=900.0)
-    assert set(rep["verification"]["checks"]) == {"upper_envelope", "spec", "replay"}
+    # the random walk of the envelope and the spec is a bias slower than the records: its family's worst member
+    # (a GM of T_max = 10 x the 20 000 s record, sigma^2 = K^2 T_max / 2) is a truth of its own
+    assert set(rep["verification"]["checks"]) == {"upper_envelope", "spec", "replay", "slow_bias"}
+    bi = rep["exported"]["bias_initialisation"]
+    assert bi["T_max_s"] == 10 * 20000.0 and bi["slow_bias_family"]["worst_member"]["T"] == 10 * 20000.0
+    assert bi["slow_bias_family"]["k_eff"] == pytest.approx(big.random_walk)
+    assert bi["p0_random_walk"] >= bi["required_variance"] - 6e-5**2 - 1e-18
     assert rep["passed"]
-    assert "random_walk" in rep["reduction"]["refused"] and "gauss_markov T=5 s" in rep["reduction"]["accepted"]
+    # over this 900 s horizon the random walk's drift is small beside the initial bias the filter must carry:
+    # dropping K leaves p as a random constant of the floor's variance, and every truth still passes
+    assert "random_walk" in rep["reduction"]["accepted"] and "gauss_markov T=5 s" in rep["reduction"]["accepted"]
+    assert rep["exported"]["model"]["random_walk"] == 0 and bi["p0_random_walk"] >= bi["required_variance"] - 6e-5**2
     assert rep["reduction"]["verification"]["passed"]

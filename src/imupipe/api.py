@@ -273,6 +273,7 @@ def noise_model(
     units = SI_UNITS[sensor]
 
     allan, spectra = {}, {}
+    record_s = 0.0  # the longest decimated record, s (the workflow's verification measures it so)
     for label, x in curves.items():
         x = np.asarray(x, dtype=np.float64)
         if x.ndim != 1:
@@ -280,6 +281,7 @@ def noise_model(
         y, new_rate = decimate(x, rate, decimate_hz)
         if y.size * (1.0 / new_rate) < window_s:
             raise ValueError(f"curves[{label!r}]: {x.size / rate:g} s long, shorter than window_s = {window_s:g} s")
+        record_s = max(record_s, y.size / new_rate)
         allan[label] = allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
         spectra[label] = psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
                              detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
@@ -329,15 +331,22 @@ def noise_model(
     # the bound YAML's model as the workflow's KF stage reads it back (narrowband lines included)
     m = NoiseModel.from_dict(result.to_dict(sensor=sensor)["bound"])
     kf_dt = 1.0 / float(application_rate_hz)
-    p0_rw = m.random_walk**2 * horizon_s if m.random_walk > 0 else None
-    kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw)
+    turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
     verification = None
     if verify:
         from imupipe.verify import verification_report
 
         verification = verification_report(m, sensor, spec=spec_sheet.models[sensor], upper=upper, fix_s=fix_s,
                                            horizon_s=horizon_s, sigma_fix=sigma_fix,
-                                           filter_rate_hz=application_rate_hz)
+                                           filter_rate_hz=application_rate_hz, record_s=record_s,
+                                           turn_on_bias=turn_on)
+    # the KF file starts the bias where the verification starts the filter (imupipe.biasinit): the bound's model
+    from imupipe.biasinit import bias_initialisation, filter_p0
+
+    bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=upper, turn_on_bias=turn_on,
+                               record_s=record_s, run_s=fix_s + horizon_s)
+    p0_rw = filter_p0(m, bias.required, fix_s + horizon_s) or None
+    kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw, reduced=p0_rw is None)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=result, fit=fit, selection=selection,
                             kf=kf, allan=allan, spectra=spectra, rate_hz=rate, decimate_hz=float(decimate_hz),
                             kf_dt_s=kf_dt, selected=selected, upper=upper, lines=policy,

@@ -16,8 +16,10 @@ absent from the model (the bound then adds them only if the data need them, docs
     accel:
       ...
 
-Optional per sensor: ``flicker`` (B, rate unit), ``quantization`` (Q, e.g. deg or m/s) and
-``ramp`` (R, e.g. deg/h^2). The same format describes the "true" model of simulated data.
+Optional per sensor: ``flicker`` (B, rate unit), ``quantization`` (Q, e.g. deg or m/s),
+``ramp`` (R, e.g. deg/h^2) and ``turn_on_bias`` (the turn-on bias or bias repeatability, 1 sigma, rate unit, e.g.
+deg/h or mg: not a PSD term; it sets the least initial bias variance of the exported filter,
+:mod:`imupipe.biasinit`). The same format describes the "true" model of simulated data.
 
 Model PSDs are two-sided (docs/method.md, section "Conventions: the PSD"): :math:`S_2 = N^2 + \sum 2\sigma^2 T/(1 + (2\pi f T)^2)
 + K^2/(2\pi f)^2 + B^2/(2\pi f)`.
@@ -43,6 +45,7 @@ SENSOR_KEYS = {
     "flicker": "rate",
     "quantization": "quantization",
     "ramp": "ramp",
+    "turn_on_bias": "rate",  # turn-on bias / bias repeatability, 1 sigma (not a PSD term: the filter's initial bias)
 }
 _TOP_KEYS = {"name", "source", "notes", "gyro", "accel"}
 
@@ -69,6 +72,8 @@ class SpecSheet:
     values : dict
         ``{sensor: {parameter: (value, unit)}}`` exactly as written (``gm_sigma_1``, ``gm_T_1`` for
         GM terms), for tables.
+    turn_on_bias : dict
+        ``{sensor: turn-on bias, 1 sigma, SI}`` for the sensors whose sheet gives one.
     """
 
     name: str
@@ -76,6 +81,7 @@ class SpecSheet:
     models: dict
     units: dict
     values: dict = field(default_factory=dict)
+    turn_on_bias: dict = field(default_factory=dict)
 
 
 #: Largest plausible SI value of a spec-sheet parameter (rate-based quantities in their SI unit built on
@@ -141,7 +147,7 @@ def parse_spec(data, where: str = "<spec>") -> SpecSheet:
     sensors = [s for s in ("gyro", "accel") if s in data]
     if not sensors:
         raise SpecError(f"{where}: no 'gyro' or 'accel' section")
-    models, units, values = {}, {}, {}
+    models, units, values, turn_on = {}, {}, {}, {}
     for sensor in sensors:
         block = data[sensor]
         if not isinstance(block, dict) or not block:
@@ -177,10 +183,13 @@ def parse_spec(data, where: str = "<spec>") -> SpecSheet:
             v[f"gm_sigma_{i}"] = (s_raw, s_unit)
             v[f"gm_T_{i}"] = (t_raw, t_unit)
         kw["gauss_markov"] = tuple(terms)
+        if "turn_on_bias" in kw:
+            turn_on[sensor] = kw.pop("turn_on_bias")
         models[sensor] = NoiseModel(**kw)
         units[sensor] = u
         values[sensor] = v
-    return SpecSheet(name=str(data.get("name") or where), path=where, models=models, units=units, values=values)
+    return SpecSheet(name=str(data.get("name") or where), path=where, models=models, units=units, values=values,
+                     turn_on_bias=turn_on)
 
 
 def load_spec(path) -> SpecSheet:
@@ -207,7 +216,7 @@ def load_spec(path) -> SpecSheet:
         raise SpecError(f"{p}: not valid YAML ({exc})") from None
     sheet = parse_spec(data, where=str(p))
     if not (isinstance(data, dict) and data.get("name")):
-        sheet = SpecSheet(p.stem, str(p), sheet.models, sheet.units, sheet.values)
+        sheet = SpecSheet(p.stem, str(p), sheet.models, sheet.units, sheet.values, sheet.turn_on_bias)
     return sheet
 
 

@@ -245,6 +245,29 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
     return out
 
 
+def _bias_lines(bound: Mapping) -> list[str]:
+    """What the exported filter's initial bias variance is and rests on (the contract's ``bias_initialisation``,
+    :mod:`imupipe.biasinit`), with the slow-bias family the records leave open."""
+    bi = bound.get("bias_initialisation")
+    if not isinstance(bi, Mapping) or not bi.get("statement"):
+        return []
+    out = [f"- {bi['statement']}; exported P0 of the random-walk state p: {_num(bi.get('p0_random_walk'))} "
+           f"{(bi.get('units') or {}).get('required_variance', '')}".rstrip()]
+    fam = bi.get("slow_bias_family")
+    if isinstance(fam, Mapping):
+        lo, hi = fam.get("T_range_s") or (None, None)
+        s_lo, s_hi = fam.get("sigma_range") or (None, None)
+        u = (fam.get("units") or {}).get("sigma", "")
+        out.append(f"  - a bias slower than the records: drift K_eff {_num(fam.get('k_eff'))} "
+                   f"{(fam.get('units') or {}).get('k_eff', '')}, any (sigma, T) with sigma^2 = K_eff^2 T / 2 for T "
+                   f"{_num(lo)}-{_num(hi)} s (sigma {_num(s_lo)}-{_num(s_hi)} {u}); the verification's slow_bias "
+                   f"truth is the worst member (T {_num(hi)} s)")
+    if not bi.get("checked_by_records"):
+        out.append("  - the records cannot check this initial variance: set identify.max_bias_time_s (s) or a "
+                   "spec sheet's turn_on_bias to state it")
+    return out
+
+
 def _line_flag(sensor: str, it: Mapping) -> Flag:
     """The FLAG of one narrowband line: where (dataset/sensor/axis), its frequency (Hz), its sinusoid amplitude
     :math:`A = \\sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``), and its peak PSD over the
@@ -422,6 +445,7 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
         lines += _export_lines(bound, kept)
+        lines += _bias_lines(bound)
         if kept is not None:
             lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
             reasons = sel.get("reasons") or {}

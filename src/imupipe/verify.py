@@ -38,10 +38,16 @@ terms, two per decade between `f_floor_hz` and the Nyquist frequency: with time 
 :math:`\sigma_k^2 = B^2\Delta/\pi`, :math:`\sum_k 2\sigma_k^2 T_k/(1 + (f/f_k)^2) \approx B^2/(2\pi f)`
 (the sum approximates :math:`\int u/(1+u^2)\, d\ln u = \pi/2`; ripple below 1 % at two per decade).
 
-Random-walk initial variance: the random walk has no steady state; both the truth and the filter start
-it at :math:`K^2 t_0` with :math:`t_0` = `p0_time_s` (default `fix_s` + `horizon_s`: the bias has been
-wandering one run's length before the filter starts). Kinematic states start at variances `var_pos`
-(default `sigma_fix`^2) and `var_vel` (default 1 (m/s)^2), the same in truth and filter.
+Initial state (:mod:`imupipe.biasinit`): a truth starts at its stationary distribution, as a sensor does at
+turn-on: GM and narrowband states at their steady-state variance, a random walk at :math:`K^2 T_{\max}/2` (the
+stationary variance of the GM of the longest admitted time constant ``max_bias_time_s`` with the same drift; the
+records cannot tell them apart). The filter starts at its own exported P0: GM states at their :math:`\sigma^2`,
+the random-walk state at :math:`\max(K^2 t_0, V - \sum\sigma_i^2)`, with :math:`t_0` = `p0_time_s` (default
+`fix_s` + `horizon_s`) and :math:`V` = `bias_var_floor` the least total initial bias variance
+(:func:`imupipe.biasinit.bias_initialisation`). A filter whose P0 is too small therefore fails where it matters,
+in the first minutes of the outage. With the defaults (``bias_var_floor`` 0, ``max_bias_time_s`` None) both start
+the random walk at :math:`K^2 t_0`. Kinematic states start at variances `var_pos` (default `sigma_fix`^2) and
+`var_vel` (default 1 (m/s)^2), the same in truth and filter.
 
 References
 ----------
@@ -86,8 +92,14 @@ class Scenario:
     sigma_fix: float = 0.5  #: fix standard deviation, m (accel) or rad (gyro)
     var_pos: float | None = None  #: initial position/angle variance, m^2 or rad^2 (None: sigma_fix^2)
     var_vel: float = 1.0  #: initial velocity variance, (m/s)^2 (accel only)
-    p0_time_s: float | None = None  #: random walk initial variance K^2 * p0_time_s (None: fix_s + horizon_s)
+    p0_time_s: float | None = None  #: the filter's random walk has wandered this long, s (None: fix_s + horizon_s)
     f_floor_hz: float | None = None  #: lowest flicker GM frequency, Hz (None: 0.01 / horizon_s)
+    #: least total initial variance of the filter's bias states (GM states + p), u^2
+    #: (:func:`imupipe.biasinit.bias_initialisation`); the deficit goes on p
+    bias_var_floor: float = 0.0
+    #: a truth's random walk starts at the stationary variance K^2 T/2 of the GM of this time constant with the
+    #: same drift, s (None: K^2 * p0_time_s, the filter's own rule)
+    max_bias_time_s: float | None = None
 
     @property
     def dt(self):
@@ -130,18 +142,25 @@ def _flicker_bank(B, f_lo, f_hi, per_decade=2):
     return tuple((math.sqrt(s2), 1.0 / (2 * math.pi * f)) for f in fk)
 
 
-def state_space(model, scenario: Scenario):
+def state_space(model, scenario: Scenario, role: str = "filter"):
     r"""Discrete one-axis model of `model` in the reference filter: (Phi, Qd, P0, H, states).
 
     Built with :func:`imupipe.kf.continuous_model` (no scale factor) and :func:`imupipe.kf.discretize`
     (Van Loan, exact); flicker becomes a GM bank (module docstring), narrowband terms are two states
     each (damped oscillator, :func:`imupipe.kf.continuous_model`), quantization and ramp are left
     out (not states). P0: kinematic variances of the scenario, GM and narrowband terms at steady
-    state, random walk :math:`K^2 t_0`.
+    state. The random-walk state p: as a ``"filter"``, the exported rule
+    :func:`imupipe.biasinit.filter_p0` (:math:`\max(K^2 t_0, V - \sum\sigma_i^2)` with
+    :math:`V` = ``scenario.bias_var_floor``; p is kept with K = 0 when that is positive: a random constant); as a
+    ``"truth"``, the stationary variance :math:`K^2 T_{\max}/2` of the GM of ``scenario.max_bias_time_s`` with the
+    same drift (a sensor's bias at turn-on), or :math:`K^2 t_0` when that is None.
     """
+    from imupipe.biasinit import filter_p0
     from imupipe.kf import continuous_model, discretize, initial_covariance
     from imupipe.models import NoiseModel
 
+    if role not in ("filter", "truth"):
+        raise ValueError(f"state_space role must be 'filter' or 'truth', got {role!r}")
     sc = scenario
     gm = [(s, T) for s, T in model.gauss_markov if s > 0]
     fl = getattr(model, "flicker", 0.0)
@@ -150,12 +169,17 @@ def state_space(model, scenario: Scenario):
         gm += list(_flicker_bank(fl, f_lo, 0.5 * sc.rate_hz))
     nb = tuple(t for t in getattr(model, "narrowband", ()) if t[0] > 0)
     m = NoiseModel(white=model.white, gauss_markov=tuple(gm), random_walk=model.random_walk, narrowband=nb)
-    cm = continuous_model(m, reduced=m.random_walk == 0, sensor=sc.sensor, scale_factor=False)
-    Phi, Qd = discretize(cm.F, cm.G, cm.Qc, sc.dt)
     t0 = sc.p0_time_s if sc.p0_time_s is not None else sc.fix_s + sc.horizon_s
+    if role == "filter":
+        # the bias floor counts the model's own GM terms, not the flicker bank (the KF file has no such states)
+        p0 = filter_p0(NoiseModel(random_walk=model.random_walk, gauss_markov=tuple(model.gauss_markov)),
+                       sc.bias_var_floor, t0)
+    else:
+        p0 = m.random_walk**2 * (0.5 * sc.max_bias_time_s if sc.max_bias_time_s is not None else t0)
+    cm = continuous_model(m, reduced=not (m.random_walk > 0 or p0 > 0), sensor=sc.sensor, scale_factor=False)
+    Phi, Qd = discretize(cm.F, cm.G, cm.Qc, sc.dt)
     var_pos = sc.sigma_fix**2 if sc.var_pos is None else sc.var_pos
-    P0 = initial_covariance(m, cm.states, p0_random_walk=m.random_walk**2 * t0, var_x=var_pos, var_v=sc.var_vel,
-                            var_theta=var_pos)
+    P0 = initial_covariance(m, cm.states, p0_random_walk=p0, var_x=var_pos, var_v=sc.var_vel, var_theta=var_pos)
     H = np.zeros((1, len(cm.states)))
     H[0, 0] = 1.0
     return Phi, Qd, P0, H, list(cm.states)
@@ -265,7 +289,7 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
         differently, measured 4e-8 on a matched filter).
     """
     sc = scenario if scenario is not None else reference_scenario(sensor)
-    Pt, Qt, P0t, Ht, st = state_space(truth_model, sc)
+    Pt, Qt, P0t, Ht, st = state_space(truth_model, sc, role="truth")
     Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
     R = sc.sigma_fix**2
     gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
@@ -310,7 +334,7 @@ def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_r
     """
     sc = scenario if scenario is not None else reference_scenario(sensor)
     rng = np.random.default_rng(rng)
-    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc)
+    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
     Pf, Qf, P0f, Hf, _ = state_space(filter_model, sc)
     R = sc.sigma_fix**2
     gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
@@ -567,35 +591,14 @@ def integrity_contract(bound, allan=None, verification=None, export=None) -> dic
 
 def verification_report(bound_model, sensor: str, spec=None, upper=None, truth=None, records=None,
                         rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
-                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True) -> dict:
-    """Everything the verification stage writes for one spec and sensor (``results/verify/{spec}/{sensor}.yaml``).
-
-    Runs :func:`verify_model` on the reference filter of `sensor` (``accel``: position fixes of `sigma_fix` m,
-    default 0.5 m; ``gyro``: angle fixes of `sigma_fix` rad, default 0.1 deg) and, with `reduce`,
-    :func:`reduce_by_integrity` against the (b) models (upper envelope, spec): the reduced model is verified
-    too and reported with what was tried and accepted or refused. All SI.
-
-    Returns
-    -------
-    dict
-        ``verification`` (the exported model's checks), ``reduction`` (``tried``, ``accepted`` and the
-        reduced model's verification, or None), ``passed``, ``units``.
-    """
-    kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s)
-    if sigma_fix is not None:
-        kw["sigma_fix"] = sigma_fix
-    sc = reference_scenario(sensor, **kw)
-    ver = verify_model(bound_model, sensor, truth=truth, upper=upper, spec=spec, records=records, rate_hz=rate_hz,
-                       scenario=sc)
-    red = None
-    if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec], sensor, sc)
-        red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
-               "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
-               "verification": verify_model(reduced, sensor, truth=truth, upper=upper, spec=spec, records=records,
-                                            rate_hz=rate_hz, scenario=sc) if reduced is not bound_model else None}
-    return {"sensor": sensor, "verification": ver, "reduction": red, "passed": ver["passed"],
-            "units": "SI; sigma_fix m (accel) or rad (gyro); times s; ratios dimensionless"}
+                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
+                        **kw) -> dict:
+    """The YAML-ready report of :func:`verification_stage` (without its time series): what the verification
+    stage writes for one spec and sensor (``results/verify/{spec}/{sensor}.yaml``). Keyword arguments as there."""
+    report, _ = verification_stage(bound_model, sensor, spec=spec, upper=upper, truth=truth, records=records,
+                                   rate_hz=rate_hz, fix_s=fix_s, horizon_s=horizon_s, sigma_fix=sigma_fix,
+                                   filter_rate_hz=filter_rate_hz, reduce=reduce, **kw)
+    return report
 
 
 def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model", application_band_hz=None):
@@ -638,33 +641,53 @@ def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model
 def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth=None, records=None,
                        rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
-                       replay_z: float = 2.0):
-    r"""The verification stage of one spec and sensor: :func:`verification_report` plus the model to export
-    and the time series of its checks (for :func:`imupipe.plot.plot_verification`).
+                       replay_z: float = 2.0, max_bias_time_s: float | None = None, turn_on_bias: float = 0.0,
+                       record_s: float | None = None):
+    r"""The verification stage of one spec and sensor: the report, the model to export and the time series of
+    its checks (for :func:`imupipe.plot.plot_verification`).
 
     Checks of `bound_model` in the reference filter of `sensor` (:func:`reference_scenario` with `fix_s` s of
     fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `filter_rate_hz` Hz, then an
     outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
-    identified upper envelope) and ``spec``; replay of ``records`` (rate `rate_hz`, Hz) passing when the
-    worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff) (:func:`replay`). With `reduce`, :func:`reduce_by_integrity`
-    against (upper, spec); the reduced model is exported only when it drops something AND passes every
-    check above (truth and replay included), else the bound's own model is.
+    identified upper envelope), ``spec`` and ``slow_bias`` (the worst member of the family of biases slower
+    than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift); replay of
+    ``records`` (rate `rate_hz`, Hz) passing when the worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff)
+    (:func:`replay`). Every truth starts at its stationary distribution and the filter at the exported P0
+    (:func:`imupipe.biasinit.bias_initialisation` of `bound_model`, `spec` with its `turn_on_bias` (u, 1 sigma),
+    `upper`, the longest record `record_s` (default: the longest of `records`) and `max_bias_time_s`). With
+    `reduce`, :func:`reduce_by_integrity` against (upper, spec, slow_bias); the reduced model is exported only
+    when it drops something AND passes every check above (truth and replay included), else the bound's own
+    model is. A reduction keeps the bias floor: a dropped random walk leaves a random constant with the floor's
+    variance.
 
     Returns
     -------
     (dict, dict)
-        The YAML-ready report (keys of :func:`verification_report` plus ``exported``: ``reduced`` (bool),
-        ``reason``, ``model`` (SI :meth:`NoiseModel.to_dict`) and ``verification`` (its checks)), and the
-        series: label -> :class:`Verification` of the exported model.
+        The YAML-ready report (``sensor``, ``verification`` (the bound's checks), ``reduction`` (``tried``,
+        ``accepted``, ``refused``, the reduced ``model`` and its ``verification``, or None), ``exported``
+        (``reduced`` (bool), ``reason``, ``model`` (SI :meth:`NoiseModel.to_dict`), ``verification`` (its
+        checks) and ``bias_initialisation`` (the least initial bias variance, what it rests on, and the
+        exported ``p0_random_walk``)), ``passed``, ``units``), and the series: label -> :class:`Verification`
+        of the exported model.
     """
-    kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s)
+    from imupipe.biasinit import bias_initialisation, filter_p0, worst_member
+    from imupipe.units import SI_UNITS
+
+    if record_s is None and records is not None and rate_hz:
+        record_s = max(np.asarray(r).size for r in records) / float(rate_hz)
+    bias = bias_initialisation(bound_model, spec=spec, upper=upper, turn_on_bias=turn_on_bias, record_s=record_s,
+                               max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
+    slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
+    kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s, bias_var_floor=bias.required,
+              max_bias_time_s=bias.T_max_s)
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
+    truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow))
 
     def run(model):
         series = {}
-        for name, m in (("truth", truth), ("upper_envelope", upper), ("spec", spec)):
+        for name, m in truths:
             if m is not None:
                 series[name] = covariance_analysis(model, m, sc)
         if records is not None:
@@ -672,8 +695,11 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                 raise ValueError("verification_stage: replay records need rate_hz")
             series["replay"] = replay(model, records, rate_hz, sc, z=replay_z)
         ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
-                            "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad"},
+                            "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
+                            "bias_var_floor": sc.bias_var_floor, "max_bias_time_s": sc.max_bias_time_s},
                "checks": {k: v.to_dict() for k, v in series.items()}}
+        if slow is not None:
+            ver["checks"]["slow_bias"]["truth_model"] = slow.to_dict()
         ver["passed"] = all(c["passed"] for c in ver["checks"].values())
         return ver, series
 
@@ -681,8 +707,9 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     red, exported = None, {"reduced": False, "model": bound_model.to_dict(), "verification": ver,
                            "reason": "no reduction asked (verify.reduce false)" if not reduce else
                            "no reduction accepted"}
+    exported_model = bound_model
     if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec], sensor, sc)
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc)
         red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
                "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
                "verification": None}
@@ -692,13 +719,18 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
             if rver["passed"]:
                 exported = {"reduced": True, "model": reduced.to_dict(), "verification": rver,
                             "reason": f"dropped {', '.join(red['accepted'])}: every check passes without it"}
-                series = rseries
+                series, exported_model = rseries, reduced
             else:
                 failed = [k for k, c in rver["checks"].items() if not c["passed"]]
                 exported["reason"] = (f"reduction ({', '.join(red['accepted'])}) refused: the reduced model fails "
                                       f"{', '.join(failed)}")
     if not ver["checks"]:
         exported["reason"] += "; no verification check could run"
+    t0 = sc.p0_time_s if sc.p0_time_s is not None else sc.fix_s + sc.horizon_s
+    exported["bias_initialisation"] = {
+        **bias.to_dict(SI_UNITS[sensor]),
+        "p0_random_walk": filter_p0(exported_model, bias.required, t0), "wander_s": float(t0),
+        "statement": bias.statement(SI_UNITS[sensor])}
     report = {"sensor": sensor, "verification": ver, "reduction": red, "exported": exported,
               "passed": bool(exported["verification"]["passed"] and exported["verification"]["checks"]),
               "units": "SI; sigma_fix m (accel) or rad (gyro); times s; ratios dimensionless"}

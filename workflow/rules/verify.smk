@@ -33,6 +33,7 @@ rule verify:
         filter_rate_hz=config["verify"]["filter_rate_hz"],
         reduce=config["verify"]["reduce"],
         replay_z=config["verify"]["replay_z"],
+        max_bias_time_s=config["identify"].get("max_bias_time_s"),
     threads: 1
     resources:
         mem_mb=MEM_MB["verify"],

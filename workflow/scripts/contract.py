@@ -86,6 +86,8 @@ def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on
         # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
         # the reference filter's rate against the export's (imupipe.kf.export_scope)
         "export": scope,
+        # the least initial bias variance the exported P0 carries and what it rests on (imupipe.biasinit)
+        "bias_initialisation": exported.get("bias_initialisation"),
         # the bound's numbers the run summary reads beside the verdict
         "psd_bounded": bound.get("psd_bounded"), "margin": bound.get("margin"),
         "margin_curve": bound.get("margin_curve"), "margin_frequency_hz": bound.get("margin_frequency_hz"),

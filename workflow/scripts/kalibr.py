@@ -43,6 +43,13 @@ def export_notes(kfs: dict, update_rate_hz: float | None = None) -> list:
             out.append(f"{sensor}: verified with a reference filter at {float(vrate):g} Hz, not at this update_rate "
                        f"({float(update_rate_hz):g} Hz): the verification, and any state its reduction dropped, hold "
                        "at that rate only")
+        bi = kf.get("bias_initialisation") or {}
+        if bi.get("required_std"):
+            unit = "rad/s" if sensor == "gyro" else "m/s^2"
+            out.append(f"{sensor}: bias initialisation: start the filter's bias with a standard deviation of at "
+                       f"least {float(bi['required_std']):.3g} {unit} per axis (variance {float(bi['required_variance']):.3g}"
+                       f" ({unit})^2, rests on {bi.get('rests_on', '-')}): Kalibr's random walk alone starts from "
+                       "what the records cannot show")
         if not kf.get("bounded", True):
             out.append(f"{sensor}: NOT BOUNDED: the KF model failed its integrity contract; for diagnosis only")
     return out

@@ -7,6 +7,19 @@ contract, else those of the global model, with the reason."""
 
 from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
+BIAS_RULE = ("the bias states start with a total variance (GM states' sigma^2 + P0 of p) at least required_variance: "
+             "the largest of the spec sheet's stationary bias (GM sigma^2, a random walk as the GM of T_max with its "
+             "drift, the turn-on bias^2) and the records' slow drift extrapolated to T_max (sigma^2 = K_eff^2 T_max / "
+             "2); p0 = max(K^2 * wander_s, required_variance - sum GM sigma^2). A filter using this model must "
+             "initialise its bias at least so (docs/method.md, section 'The bias a filter starts with').")
+
+
+def bias_block(bias: dict, p0) -> dict:
+    """The KF file's statement of the initial bias variance (SI) and the rule it follows."""
+    keep = ("required_variance", "required_std", "rests_on", "parts", "T_max_s", "T_max_source", "record_s",
+            "checked_by_records", "wander_s", "statement", "units")
+    return {"p0_random_walk": p0, "rule": BIAS_RULE, **{k: bias[k] for k in keep if k in bias}}
+
 
 def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, horizon_s: float, path_out: str,
          sensor: str) -> None:
@@ -16,12 +29,15 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
     bound, ver, con = read_yaml(path_bound), read_yaml(path_verify), read_yaml(path_contract)
     model = NoiseModel.from_dict(ver["exported"]["model"])
 
-    def p0_random_walk(m):
-        # The random walk has no steady state: start it with what it accumulates over the application horizon,
-        # K^2 * horizon (u^2); replace by the turn-on bias repeatability squared when the spec sheet gives it.
-        return m.random_walk**2 * horizon_s if m.random_walk > 0 else None
+    def bias_p0(exported):
+        # the verified initial variance of p (imupipe.biasinit.filter_p0: the bias floor less the GM states'
+        # sigma^2, at least K^2 * wander_s): the KF file starts the filter where the verification did. p stays a
+        # state (a random constant when K = 0) whenever that variance is positive.
+        bi = exported.get("bias_initialisation") or {}
+        p0 = float(bi.get("p0_random_walk") or 0.0)
+        return (p0 if p0 > 0 else None), bi
 
-    p0_rw = p0_random_walk(model)
+    p0_rw, bias = bias_p0(ver["exported"])
     red = ver.get("reduction")
     out = {"sensor": sensor, "spec_name": bound["spec_name"], "dt_s": dt_s,
            "bounded": bool(con["bounded"]), "verified": bool(con["verified"]),
@@ -34,20 +50,21 @@ def main(path_bound: str, path_verify: str, path_contract: str, dt_s: float, hor
            # which states the verified reduction dropped, the horizon the export then holds for, and the
            # verification's filter rate against this file's (imupipe.kf.export_scope)
            "export": export_scope(ver["exported"], red, 1.0 / dt_s, horizon_s),
-           "p0_random_walk_rule": "K^2 * application.horizon_s" if p0_rw else None,
-           **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw)}
+           "bias_initialisation": bias_block(bias, p0_rw),
+           **export_kf(model, dt_s, sensor=sensor, p0_random_walk=p0_rw, reduced=p0_rw is None)}
     out["per_axis"] = None
     if con.get("per_axis_models"):
         out["per_axis"] = {}
         for ax, c in con["per_axis_models"].items():
             own = bool(c["exported_in_kf"])
             m = NoiseModel.from_dict(c["model"]) if own else model
-            p0 = p0_random_walk(m)
             rep = (ver.get("per_axis_models") or {}).get(ax) if own else None
+            p0, bias_ax = bias_p0(rep["exported"]) if rep else (p0_rw, bias)
             scope = export_scope(rep["exported"], rep.get("reduction"), 1.0 / dt_s, horizon_s) if rep else out["export"]
             out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
                                    "bounded": bool(c["bounded"]) if own else bool(con["bounded"]), "export": scope,
-                                   **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0)}
+                                   "bias_initialisation": bias_block(bias_ax, p0),
+                                   **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0, reduced=p0 is None)}
     head = f"{sensor}: Kalman-filter model of the bound (SI), one axis"
     if out["per_axis"]:
         head += ("; per_axis: the model of each axis (its own bound where that passed its contract, else the "

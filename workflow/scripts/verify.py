@@ -29,7 +29,8 @@ def model_of(b: dict):
 
 def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records: list, fix_s: float,
          horizon_s: float, sigma_fix_m: float, sigma_fix_rad: float, filter_rate_hz: float, reduce: bool,
-         replay_z: float, path_out: str, path_figure: str, spec_name: str, sensor: str) -> None:
+         replay_z: float, path_out: str, path_figure: str, spec_name: str, sensor: str,
+         max_bias_time_s: float | None = None) -> None:
     import numpy as np
 
     from imupipe.io import read_series
@@ -42,7 +43,9 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
     bound = read_yaml(path_bound)
     filt = model_of(bound["bound"])
     upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
-    spec = load_spec(path_spec).models[sensor]
+    sheet = load_spec(path_spec)
+    spec = sheet.models[sensor]
+    bias_kw = dict(max_bias_time_s=max_bias_time_s, turn_on_bias=sheet.turn_on_bias.get(sensor, 0.0))
     truth = load_spec(path_truth).models[sensor] if path_truth else None
     included = {f"{d}/{a}" for d, a in Stacked(path_spectra).curves(included_only=True)}
     series, rate, used = [], None, []
@@ -60,7 +63,7 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
     report, checks = verification_stage(filt, sensor, spec=spec, upper=upper, truth=truth,
                                         records=series or None, rate_hz=rate, fix_s=fix_s, horizon_s=horizon_s,
                                         sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz, reduce=reduce,
-                                        replay_z=replay_z)
+                                        replay_z=replay_z, **bias_kw)
     report["spec_name"] = bound["spec_name"]
     report["replayed_curves"] = used
     report["bound_file_psd_bounded"] = bound.get("psd_bounded")
@@ -73,7 +76,7 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
             rep_ax, _ = verification_stage(model_of(pa["bound"]), sensor, spec=spec, upper=up_ax, truth=truth,
                                            records=recs or None, rate_hz=rate, fix_s=fix_s, horizon_s=horizon_s,
                                            sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz, reduce=reduce,
-                                           replay_z=replay_z)
+                                           replay_z=replay_z, **bias_kw)
             rep_ax["replayed_curves"] = [lab for lab in used if lab.rsplit("/", 1)[-1] == ax]
             report["per_axis_models"][ax] = rep_ax
             logging.info("per-axis model %s: verification %s", ax, "pass" if rep_ax["passed"] else "FAIL")
@@ -96,5 +99,6 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_bound=i.bound, path_spectra=i.spectra, path_spec=i.spec,
             path_truth=i.get("truth") or None, records=list(i.records), fix_s=p.fix_s, horizon_s=p.horizon_s,
             sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad, filter_rate_hz=p.filter_rate_hz,
-            reduce=p.reduce, replay_z=p.replay_z, path_out=o.verify, path_figure=o.figure,
+            reduce=p.reduce, replay_z=p.replay_z, max_bias_time_s=p.max_bias_time_s, path_out=o.verify,
+            path_figure=o.figure,
             spec_name=snakemake.wildcards.spec, sensor=snakemake.wildcards.sensor)
