@@ -31,7 +31,7 @@ LAYERS = [
     {"models", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},
-    {"bound", "kf", "kalibr"},
+    {"bound", "kf", "kalibr", "biasinit"},
     {"verify", "plot"},
     {"api", "cli", "__main__"},
 ]

@@ -30,8 +30,16 @@ def test_contract_bounded_means_every_check_passed(tiny_run, sensor):
     assert "bounded" not in b and b["psd_bounded"] is True
     assert set(c["checks_run"]) >= {"psd_margin", "spec_bound_all_f", "allan_components", "verification"}
     checks = v["exported"]["verification"]["checks"]
-    # simulated data: the truth, the upper envelope, the spec sheet and the replay of the records are all checked
-    assert set(checks) == {"truth", "upper_envelope", "spec", "replay"}
+    # simulated data: the truth, the upper envelope, the spec sheet and the replay of the records are all checked;
+    # the truth's random walk is a bias slower than the records: the worst member of its family is checked too
+    assert set(checks) == {"truth", "upper_envelope", "spec", "replay", "slow_bias"}
+    bi = v["exported"]["bias_initialisation"]
+    assert bi["slow_bias_family"] is not None and not bi["checked_by_records"]
+    assert c["bias_initialisation"] == bi
+    # the KF file starts p where the verification started the filter
+    kf = _yaml(work / f"{RES}/kf/stim300/{sensor}.yaml")
+    i = kf["states"].index("p")
+    assert kf["P0"][i][i] == bi["p0_random_walk"] == kf["bias_initialisation"]["p0_random_walk"]
     assert c["bounded"] is (not c["failed_checks"] and all(ch["passed"] for ch in checks.values()))
     assert c["bounded"] is True and c["verified"] is True
     # the numbers the contract repeats are the verification's
