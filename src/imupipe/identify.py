@@ -279,7 +279,9 @@ def _wnnls(A, y, edf, n_iter=30, rtol=1e-6, m0=None, offset=None, backend="auto"
     return p, m, chi2
 
 
-def _default_T_grid(tau, per_decade=8):
+def _default_T_grid(tau, per_decade=8, T_min_s=None):
+    # `T_min_s` (s, optional): the shortest T the record resolves (a few sample intervals of the decimated
+    # series, identify.fit_tau_min_samples * dt); the grid starts at max(tau_min, T_min_s).
     # a GM with T below the shortest tau looks like white noise; one whose AV peak (1.89 T) lies
     # beyond the longest tau looks like a random walk (and a random walk with K^2 = 2 sigma^2/T
     # dominates it): outside [tau_min, tau_max/2] T is not identifiable and only feeds confounding
@@ -287,6 +289,10 @@ def _default_T_grid(tau, per_decade=8):
 
     t = np.asarray(tau)
     lo, hi = math.log10(t.min()), math.log10(t.max() / 2.0)
+    if T_min_s is not None:
+        if not (np.isfinite(T_min_s) and T_min_s > 0):
+            raise ValueError(f"T_min_s (shortest resolved GM time constant, s) must be positive, got {T_min_s!r}")
+        lo = max(lo, math.log10(T_min_s))
     if hi <= lo:
         hi = lo + 1.0
     return log_grid(lo, hi, per_decade, min_points=3)
@@ -728,6 +734,7 @@ def fit_allan(
     rate: float | None = None,
     n_samples=None,
     adequacy_level: float = 0.01,
+    T_min_samples: float | None = None,
 ) -> AllanFit:
     r"""Fit noise components to one or several (pooled) Allan-variance curves.
 
@@ -819,6 +826,9 @@ def fit_allan(
     T_grid : array_like, optional
         Trial GM time constants, s. Default: 8 per decade from tau_min to tau_max/2 (outside, a
         GM is indistinguishable from white noise or from a random walk).
+    T_min_samples : float, optional
+        With the default grid: its shortest T is at least ``T_min_samples * dt`` s (a GM of T a few sample
+        intervals acts as white noise; config identify.fit_tau_min_samples). Needs `dt`. Default None (tau_min).
     n_boot : int, optional
         Bootstrap replicates (0 for none). Default 200.
     confidence : float, optional
@@ -882,7 +892,10 @@ def fit_allan(
         if np.any(~np.isfinite(rates) | (rates <= 0)) or np.any(lengths < 2):
             raise ValueError(f"rate (Hz) must be positive and n_samples >= 2 per curve, got {rates}, {lengths}")
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
-    grid = _default_T_grid(t) if T_grid is None else np.asarray(T_grid, dtype=np.float64)
+    if T_min_samples is not None and dt is None:
+        raise ValueError("T_min_samples needs dt (s, the decimated series' sample interval)")
+    T_min_s = None if T_min_samples is None else float(T_min_samples) * float(dt)
+    grid = _default_T_grid(t, T_min_s=T_min_s) if T_grid is None else np.asarray(T_grid, dtype=np.float64)
     if "gauss_markov" in comps and (grid.size == 0 or np.any(grid <= 0)):
         raise ValueError("T_grid must hold positive time constants (s)")
 

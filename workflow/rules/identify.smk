@@ -17,6 +17,8 @@ rule identify:
         significance=config["identify"]["significance"],
         relevance=config["identify"]["relevance"],
         adequacy_level=config["identify"]["adequacy_level"],
+        # optional: the GM T search starts at this many sample intervals of the decimated series (unset: tau_min)
+        fit_tau_min_samples=config["identify"].get("fit_tau_min_samples"),
         pooling_level=config["identify"]["pooling_level"],
         pooling_n_boot=config["identify"]["pooling_n_boot"],
         rate_hz=config["application"]["rate_hz"],

@@ -62,7 +62,7 @@ def _envelope_ratio(envelope: dict, model) -> dict:
 def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: float, significance: float,
          relevance: float, rate_hz: float, horizon_s: float, truth, path_out: str, sensor: str,
          adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
-         envelope_horizon_s: float | None = None) -> None:
+         envelope_horizon_s: float | None = None, fit_tau_min_samples: float | None = None) -> None:
     """`envelope_horizon_s`: the window the bound must hold over, s (verify.fix_s + application.horizon_s; default
     `horizon_s`): the upper envelope covers a GM whose T the data leave open above for f >= 1/envelope_horizon_s."""
     from imupipe.identify import dominating_model, fit_allan, pooling_test, select_components, slope_line
@@ -76,7 +76,7 @@ def main(path_allan: str, components: list, n_gm: int, n_boot: int, confidence: 
     taus, avars, edfs = [c[1] for c in curves], [c[2] for c in curves], [c[3] for c in curves]
     ns, rates = [c[4] for c in curves], [c[5] for c in curves]
     fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], rate=rates, n_samples=ns,
-                  adequacy_level=adequacy_level)
+                  adequacy_level=adequacy_level, T_min_samples=fit_tau_min_samples)
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=SEED_FIT, **fit_kw)
     selection = select_components(fit, taus, avars, edfs, rate_hz=rate_hz, horizon_s=horizon_s,
                                   significance=significance, relevance=relevance)
@@ -177,5 +177,6 @@ if __name__ == "__main__":
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
             rate_hz=p.rate_hz, horizon_s=p.horizon_s, envelope_horizon_s=p.envelope_horizon_s,
+            fit_tau_min_samples=p.fit_tau_min_samples,
             truth=snakemake.input.truth or None,
             path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)
