@@ -18,7 +18,7 @@ SPEC = ROOT / "config" / "specs" / "stim300.yaml"
 RATE = 10.0  # Hz
 DURATION_S = 3600.0
 TRUTH = NoiseModel(white=1.0e-4, gauss_markov=((2.0e-5, 300.0),), random_walk=5.0e-8)  # rad/s
-SETTINGS = dict(window_s=1200.0, step_s=600.0)
+SETTINGS = dict(window_s=1200.0, step_s=600.0, horizon_s=600.0)
 
 
 @pytest.fixture(scope="module")
