@@ -47,3 +47,35 @@ def test_psd_rule_two_hours_and_long_records():
         assert k >= 7 and (t - used) < t / 7.0
     with pytest.raises(ValueError, match="too short"):
         psd_window_step(5.0, 1.0)
+
+
+def test_summary_flags_a_record_mostly_unused():
+    """The issue's case: 2 h at 1 Hz, window 1800 s, step left at 36000 s: one segment, 1800 of 7200 samples."""
+    from imupipe.summary import psd_usage_flags, render_summary
+
+    usage = [{"dataset": "mine", "axis": a, "n_samples": 7200, "n_samples_used": 1800, "window_s": 1800.0,
+              "step_s": 36000.0, "rate_hz": 1.0} for a in "xyz"]
+    flags = psd_usage_flags("gyro", usage)
+    assert len(flags) == 1  # one per dataset, not per axis
+    assert "1800 of 7200 samples" in flags[0].detail and "75 %" in flags[0].detail and "5400 s" in flags[0].detail
+    assert "psd.step_s: 900" in flags[0].detail
+    text = render_summary({"gyro": {"bound": {"bounded": True, "margin": 1.2, "psd_usage": usage}}})
+    assert "FLAG record partly unused [mine/gyro]" in text
+    # the rule's own setting leaves 0 % of a 2 h record: no flag; 10 % exactly is not "more than 10 %"
+    assert psd_usage_flags("gyro", [{"n_samples": 7200, "n_samples_used": 7200}]) == []
+    assert psd_usage_flags("gyro", [{"n_samples": 1000, "n_samples_used": 900}]) == []
+    assert len(psd_usage_flags("gyro", [{"n_samples": 1000, "n_samples_used": 899}])) == 1
+
+
+def test_api_default_window_fits_a_short_record():
+    """The README's library example as written (no window_s) on a 2 h record: the rule's 1800 s / 900 s."""
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    x = 4.4e-5 * np.sqrt(10.0) * rng.standard_normal(10 * 7200)  # rad/s at 10 Hz, 2 h
+    res = noise_model({"lab1/x": x}, rate_hz=10.0, sensor="gyro", spec=ROOT / "config" / "specs" / "stim300.yaml",
+                      verify=False)
+    sp = res.spectra["lab1/x"]
+    assert sp.attrs["window_s"] == 1800.0 and sp.attrs["step_s"] == 900.0
+    assert sp.attrs["n_samples_used"] == sp.attrs["n_samples"]  # the whole record
+    assert res.bound.model.white > 0
