@@ -278,8 +278,14 @@ def noise_model(
     if window_s is None or step_s is None:
         from imupipe.defaults import psd_window_step
 
-        shortest = min(np.asarray(x).size for x in curves.values()) / rate
-        rule_w, rule_s = psd_window_step(shortest, decimate_hz)
+        for label, x in curves.items():
+            if np.ndim(x) != 1:
+                raise ValueError(f"curves[{label!r}]: expected a 1-D record, got shape {np.shape(x)}")
+        label, n_min = min(((k, np.asarray(x).size) for k, x in curves.items()), key=lambda kv: kv[1])
+        try:
+            rule_w, rule_s = psd_window_step(n_min / rate, decimate_hz)
+        except ValueError as exc:
+            raise ValueError(f"curves[{label!r}]: {exc}") from exc
         window_s = rule_w if window_s is None else window_s
         step_s = (rule_s if window_s == rule_w else window_s / 2.0) if step_s is None else step_s
     allan, spectra = {}, {}
