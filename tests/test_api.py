@@ -19,6 +19,7 @@ RATE = 10.0  # Hz
 DURATION_S = 3600.0
 TRUTH = NoiseModel(white=1.0e-4, gauss_markov=((2.0e-5, 300.0),), random_walk=5.0e-8)  # rad/s
 SETTINGS = dict(window_s=1200.0, step_s=600.0)
+HORIZON = dict(horizon_s=600.0)  # the reference computation below uses a 600 s horizon; the API default is 3600 s
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def records():
 
 @pytest.fixture(scope="module")
 def result(records):
-    return noise_model(records, RATE, "gyro", SPEC, **SETTINGS)
+    return noise_model(records, RATE, "gyro", SPEC, **SETTINGS, **HORIZON)
 
 
 @pytest.fixture(scope="module")
@@ -172,8 +173,10 @@ def test_bad_input_is_named():
         noise_model({"a": np.zeros(10)}, RATE, "magnetometer", SPEC)
     with pytest.raises(ValueError, match=r"curves\['a'\]: expected a 1-D record"):
         noise_model({"a": np.zeros((2, 10))}, RATE, "gyro", SPEC)
-    with pytest.raises(ValueError, match="shorter than window_s"):
-        noise_model({"a": np.random.default_rng(0).standard_normal(1000)}, RATE, "gyro", SPEC)
+    with pytest.raises(ValueError, match="shorter than window_s"):  # an explicit window (the default fits the record)
+        noise_model({"a": np.random.default_rng(0).standard_normal(1000)}, RATE, "gyro", SPEC, window_s=25200.0)
+    with pytest.raises(ValueError, match=r"curves\['b'\]: a record of .* too short for a PSD"):
+        noise_model({"a": np.zeros(1000), "b": np.zeros(10)}, RATE, "gyro", SPEC)
 
 
 def test_lines_policy_model_carries_the_line_to_the_filter():
@@ -183,7 +186,7 @@ def test_lines_policy_model_carries_the_line_to_the_filter():
     t = np.arange(int(DURATION_S * RATE)) / RATE
     line = 3e-4 * np.sin(2 * np.pi * 0.3 * t)
     curves = {f"d{i}/x": simulate(TRUTH, t.size, RATE, rng=rng) + line for i in (1, 2)}
-    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS)
+    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS, **HORIZON)
     assert len(r.lines.narrowband) == 1 and r.lines.narrowband[0][0] == pytest.approx(0.3, abs=1e-3)
     assert len(r.model.narrowband) == 1 and r.bounded
     assert "nb" in r.kf["states"]

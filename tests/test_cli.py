@@ -153,7 +153,7 @@ def test_run_keep_going_reaches_snakemake(monkeypatch, tmp_path):
     import imupipe.cli as cli
 
     calls = []
-    monkeypatch.setattr(cli.subprocess, "call", lambda cmd, env=None: calls.append(cmd) or 0)
+    monkeypatch.setattr(cli, "_call", lambda cmd, env=None: calls.append(cmd) or 0)
     assert main(["run", str(TINY), "--keep-going", "--directory", str(tmp_path)]) == 0
     assert "--keep-going" in calls[0]
     assert main(["run", str(TINY), "--directory", str(tmp_path)]) == 0
@@ -190,7 +190,7 @@ def test_run_options_after_the_config_are_imupipes_and_after_dashes_snakemakes(m
     import imupipe.cli as cli
 
     calls = []
-    monkeypatch.setattr(cli.subprocess, "call", lambda cmd, env=None: calls.append(cmd) or 0)
+    monkeypatch.setattr(cli, "_call", lambda cmd, env=None: calls.append(cmd) or 0)
     monkeypatch.setattr(cli, "_print_summary", lambda results: calls.append(("summary", results)))
     assert main(["run", str(TINY), "--cores", "3", "--directory", str(tmp_path), "--", "--keep-going"]) == 0
     cmd = calls[0]

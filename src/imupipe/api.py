@@ -20,8 +20,7 @@ Example
 >>> import numpy as np, imupipe.api as api                                      # doctest: +SKIP
 >>> rng = np.random.default_rng(1)
 >>> curves = {"rec1/x": 4.4e-5 * np.sqrt(20.0) * rng.standard_normal(20 * 5400)}  # rad/s at 20 Hz
->>> res = api.noise_model(curves, rate_hz=20.0, sensor="gyro", spec="config/specs/stim300.yaml",
-...                       window_s=1800.0, step_s=900.0)
+>>> res = api.noise_model(curves, rate_hz=20.0, sensor="gyro", spec="config/specs/stim300.yaml")
 >>> res.bounded, res.bound.model.white
 """
 
@@ -34,6 +33,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from imupipe.defaults import DEFAULTS as _D
 
 __all__ = ["NoiseModelResult", "noise_model"]
 
@@ -174,30 +175,30 @@ def noise_model(
     sensor: str,
     spec,
     *,
-    decimate_hz: float = 1.0,
-    window_s: float = 25200.0,
-    step_s: float = 36000.0,
-    taper: str = "hann",
-    detrend: str = "constant",
-    psd_confidence: float = 0.95,
-    taus="octave",
-    allan_confidence: float = 0.683,
-    components: Sequence[str] = ("white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"),
-    n_gm: int = 1,
+    decimate_hz: float = _D["decimate.rate_hz"],
+    window_s: float | None = None,
+    step_s: float | None = None,
+    taper: str = _D["psd.taper"],
+    detrend: str = _D["psd.detrend"],
+    psd_confidence: float = _D["psd.confidence"],
+    taus=_D["allan.taus"],
+    allan_confidence: float = _D["allan.confidence"],
+    components: Sequence[str] = tuple(_D["identify.components"]),
+    n_gm: int = _D["identify.n_gm"],
     n_boot: int = 0,
-    fit_confidence: float = 0.95,
-    significance: float = 0.05,
-    relevance: float = 0.05,
-    application_rate_hz: float = 1.0,
-    horizon_s: float = 600.0,
-    mode: str = "raw",
-    bound_confidence: float = 0.95,
-    bands_per_decade: int = 10,
+    fit_confidence: float = _D["identify.confidence"],
+    significance: float = _D["identify.significance"],
+    relevance: float = _D["identify.relevance"],
+    application_rate_hz: float = _D["application.rate_hz"],
+    horizon_s: float = _D["application.horizon_s"],
+    mode: str = _D["bound.mode"],
+    bound_confidence: float = _D["bound.confidence"],
+    bands_per_decade: int = _D["bound.bands_per_decade"],
     seed: int = 20211,
     lines_policy: str | None = None,
-    lines_resolution_hz: float = 0.002,
-    lines_alpha: float = 0.01,
-    fix_s: float = 600.0,
+    lines_resolution_hz: float = _D["lines.resolution_hz"],
+    lines_alpha: float = _D["lines.alpha"],
+    fix_s: float = _D["verify.fix_s"],
     verify: bool = True,
     sigma_fix: float | None = None,
 ) -> NoiseModelResult:
@@ -217,15 +218,17 @@ def noise_model(
     decimate_hz : float, optional
         Block-average rate for the PSD, Hz (default 1.0, the paper's).
     window_s, step_s, taper, detrend, psd_confidence :
-        Welch settings (window and step in s; defaults the paper's 7 h / 10 h, Hann, mean removed, 0.95).
+        Welch settings (window and step in s; default None: :func:`imupipe.defaults.psd_window_step` of the
+        shortest curve, the workflow's rule for an unset ``psd.window_s``/``psd.step_s``; Hann, mean removed, 0.95).
     taus, allan_confidence :
         Allan-variance taus (default ``"octave"``) and confidence of its limits (default 0.683).
     components, n_gm, n_boot, fit_confidence, significance, relevance :
         :func:`imupipe.identify.fit_allan` and :func:`~imupipe.identify.select_components` settings
-        (defaults ``config/config.yaml``'s; ``n_boot=0`` skips the bootstrap intervals).
+        (defaults :data:`imupipe.defaults.DEFAULTS`, the workflow's, except ``n_boot=0``, which skips the
+        bootstrap intervals; the workflow's is 100).
     application_rate_hz : float, optional
         Filter rate, Hz (default 1.0): the KF step is 1/application_rate_hz, and with `horizon_s` (s,
-        default 600) it sets the band the selection keeps components for.
+        default 3600, the workflow's) it sets the band the selection keeps components for.
     mode, bound_confidence, bands_per_decade :
         :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
     seed : int, optional
@@ -272,6 +275,19 @@ def noise_model(
 
     units = SI_UNITS[sensor]
 
+    if window_s is None or step_s is None:
+        from imupipe.defaults import psd_window_step
+
+        for label, x in curves.items():
+            if np.ndim(x) != 1:
+                raise ValueError(f"curves[{label!r}]: expected a 1-D record, got shape {np.shape(x)}")
+        label, n_min = min(((k, np.asarray(x).size) for k, x in curves.items()), key=lambda kv: kv[1])
+        try:
+            rule_w, rule_s = psd_window_step(n_min / rate, decimate_hz)
+        except ValueError as exc:
+            raise ValueError(f"curves[{label!r}]: {exc}") from exc
+        window_s = rule_w if window_s is None else window_s
+        step_s = (rule_s if window_s == rule_w else window_s / 2.0) if step_s is None else step_s
     allan, spectra = {}, {}
     record_s = 0.0  # the longest decimated record, s (the workflow's verification measures it so)
     for label, x in curves.items():

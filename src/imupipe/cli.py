@@ -370,6 +370,8 @@ def _cmd_run(args) -> int:
         extra.append("--dry-run")
     if args.keep_going:
         extra.append("--keep-going")
+    if not args.dry_run and "--rerun-incomplete" not in extra and "--ri" not in extra:
+        extra.append("--rerun-incomplete")  # an interrupted run's half-written outputs are re-made: the same command resumes
     if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
         extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
     cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
@@ -378,7 +380,44 @@ def _cmd_run(args) -> int:
     env = dict(os.environ)
     env.setdefault("OPENBLAS_NUM_THREADS", "1")
     # the workflow itself prints the run summary at the end of a run (onsuccess / onerror of the Snakefile)
-    return subprocess.call(cmd, env=env)
+    return _call(cmd, env)
+
+
+#: Exit status of an interrupted run (128 + SIGINT, the shell's convention).
+INTERRUPTED_EXIT = 130
+INTERRUPTED_MESSAGE = "imupipe: interrupted; run the same command again to resume"
+
+
+def _call(cmd: Sequence[str], env: dict) -> int:
+    """Run Snakemake; SIGINT (Ctrl-C) or SIGTERM stops it cleanly and returns :data:`INTERRUPTED_EXIT`.
+
+    Snakemake runs in its own session, so the terminal's Ctrl-C reaches this process alone; the handler passes
+    one SIGINT on, Snakemake's own graceful stop (it ends its jobs and releases its lock). Every run passes
+    ``--rerun-incomplete`` (``_cmd_run``), so the next run removes and re-makes what the interrupted one left
+    half-written: the same command resumes. Instead of a traceback, one line on stderr."""
+    import signal
+
+    proc = subprocess.Popen(list(cmd), env=env, start_new_session=True)
+    got: list[int] = []
+
+    def forward(signum, frame):
+        if not got and proc.poll() is None:
+            try:
+                proc.send_signal(signal.SIGINT)
+            except ProcessLookupError:
+                pass
+        got.append(signum)
+
+    previous = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        rc = proc.wait()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if got:
+        print(INTERRUPTED_MESSAGE, file=sys.stderr, flush=True)
+        return INTERRUPTED_EXIT
+    return rc
 
 
 def _print_summary(results: Path) -> None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Flag", "discover_run", "flags_of", "load_sensor_files", "markdown_to_html", "render_summary",
+__all__ = ["Flag", "discover_run", "flags_of", "psd_usage_flags", "load_sensor_files", "markdown_to_html", "render_summary",
            "sensors_from_paths", "summarise_run", "write_summary"]
 
 
@@ -206,6 +206,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             for it in _items(src.get(key)):
                 if isinstance(it, Mapping):
                     out.append(_line_flag(sensor, it))
+    out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
             for it in _items(src.get(key)):
@@ -213,6 +214,45 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                     out.append(Flag(sensor, key, _where_of(it), _detail_of(it) or key[:-1]))
                 else:
                     out.append(Flag(sensor, key, "-", str(it)))
+    return out
+
+
+#: Share of a record the Welch segments may leave out before the summary flags it: 10 %. With the rule of
+#: imupipe.defaults.psd_window_step (step = window/2, window <= a quarter of the record) at most 1/7 is left, and
+#: usually much less; a config whose step exceeds the window or whose window does not divide the record leaves more.
+UNUSED_RECORD_LIMIT = 0.10
+
+
+def psd_usage_flags(sensor: str, usage) -> list[Flag]:
+    """FLAGs of the records more than :data:`UNUSED_RECORD_LIMIT` of which no Welch segment uses.
+
+    `usage` is a list of mappings with ``n_samples`` and ``n_samples_used`` (the PSD file's attrs, decimated
+    samples), optionally ``dataset``, ``axis``, ``rate_hz`` (Hz), ``window_s``, ``step_s`` (s). One FLAG per
+    dataset (its axes share the numbers), naming the samples used, the seconds left out and the settings.
+    """
+    from imupipe.defaults import psd_window_step, unused_fraction
+
+    out, seen = [], set()
+    for u in usage or []:
+        if not isinstance(u, Mapping) or u.get("n_samples") is None or u.get("n_samples_used") is None:
+            continue
+        n, used = int(u["n_samples"]), int(u["n_samples_used"])
+        frac = unused_fraction(n, used)
+        key = (u.get("dataset"), n, used)
+        if frac <= UNUSED_RECORD_LIMIT or key in seen:
+            continue
+        seen.add(key)
+        rate = float(u.get("rate_hz") or 1.0)
+        hint = ""
+        try:
+            w, st = psd_window_step(n / rate, rate)
+            hint = f"; e.g. psd.window_s: {w:g}, psd.step_s: {st:g} (or leave both unset: that rule is the default)"
+        except ValueError:
+            pass
+        out.append(Flag(sensor, "record partly unused", f"{u.get('dataset', '-')}/{sensor}",
+                        f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
+                        f"record left out) with psd.window_s = {_num(u.get('window_s'), '{:g}')} s, psd.step_s = "
+                        f"{_num(u.get('step_s'), '{:g}')} s: set a step that tiles the record{hint}"))
     return out
 
 

@@ -190,7 +190,8 @@ def _check_records():
     every dataset's message at once."""
     from imupipe.readers import ConfigError, check_against_config, probe_row
 
-    problems = []
+    problems, durations = [], []
+    psd_rule = config["psd"]["window_s"] is None or config["psd"]["step_s"] is None
     for name, row in DATASETS.items():
         if SIMULATION:
             rate = float(SIMULATION["rate_hz"])
@@ -202,6 +203,9 @@ def _check_records():
             except Exception:  # noqa: BLE001 (any failure of the cheap probe: the ingest job reads the file
                 continue  # and reports it with the reader's message, for this dataset only)
         rate_known = (meta["rate_hz"] if isinstance(meta, dict) else meta.rate_hz) is not None
+        duration = meta["duration_s"] if isinstance(meta, dict) else meta.duration_s
+        if duration is not None:
+            durations.append(float(duration))
         try:  # a rate only the timestamps give (no rate_hz cell) is checked by the decimate job
             check_against_config(meta, window_s=config["psd"]["window_s"],
                                  decimate_rate_hz=config["decimate"]["rate_hz"] if rate_known else None,
@@ -210,6 +214,18 @@ def _check_records():
             problems.append(str(exc))
     if problems:
         raise ValueError("records do not fit the config:\n  " + "\n  ".join(problems))
+    if psd_rule:  # unset psd.window_s / psd.step_s: the rule of imupipe.defaults.psd_window_step on the
+        # shortest record, one window for every record (the bound needs one frequency grid)
+        from imupipe.defaults import psd_window_step
+
+        if not durations:
+            raise ValueError("psd.window_s / psd.step_s unset and no record's duration could be probed: "
+                             "set both in the config (e.g. window_s = a quarter of the shortest record, step_s = half that)")
+        w, st = psd_window_step(min(durations), float(config["decimate"]["rate_hz"]))
+        if config["psd"]["window_s"] is None:
+            config["psd"]["window_s"] = w
+        if config["psd"]["step_s"] is None:
+            config["psd"]["step_s"] = st if config["psd"]["window_s"] == w else config["psd"]["window_s"] / 2.0
 
 
 _check_records()

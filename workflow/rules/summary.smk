@@ -10,6 +10,11 @@ SUMMARY_INPUTS.setdefault("identify", []).extend(expand(f"{RESULTS}/identify/{{s
 SUMMARY_INPUTS.setdefault("stationarity", []).extend(
     expand(f"{RESULTS}/stationarity/{{sensor}}.yaml", sensor=SENSORS)
 )
+# the per-axis PSDs: their n_samples / n_samples_used attrs give the share of each record the Welch segments leave
+# out (FLAG above 10 %, imupipe.summary.psd_usage_flags)
+SUMMARY_INPUTS.setdefault("psd", []).extend(
+    f"{RESULTS}/psd/{d}/{s}/{a}.nc" for d in DATASETS for s in SENSORS for a in AXES_OF[d][s]
+)
 MEM_MB["summary"] = 100
 RUNTIME_MIN["summary"] = 10
 MEM_MB["report_file"] = 100

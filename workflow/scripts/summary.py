@@ -58,6 +58,22 @@ def kalibr_flags(paths: list) -> list:
     return out
 
 
+def psd_usage(path: str) -> dict | None:
+    """The PSD file's labels and sample counts (global attrs dataset, sensor, axis, n_samples, n_samples_used,
+    window_s, step_s, rate_hz), or None for a missing or unreadable file."""
+    import netCDF4
+
+    if not Path(path).is_file():
+        return None
+    try:
+        with netCDF4.Dataset(path) as ds:
+            attrs = {k: ds.getncattr(k) for k in ds.ncattrs()}
+    except OSError:
+        return None
+    keys = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "window_s", "step_s", "rate_hz")
+    return {k: (attrs[k].item() if hasattr(attrs[k], "item") else attrs[k]) for k in keys if k in attrs}
+
+
 def render(files: dict, sensors: list, specs: list, name: str) -> str:
     from imupipe.summary import render_summary
 
@@ -65,6 +81,13 @@ def render(files: dict, sensors: list, specs: list, name: str) -> str:
     others = []
     for kind, paths in files.items():
         if kind == "kalibr":
+            continue
+        if kind == "psd":  # netCDF: the Welch segments' share of each record, per sensor
+            for path in paths:
+                usage = psd_usage(path)
+                if usage and usage.get("sensor") in sensors:
+                    for sp in specs:
+                        runs[sp][usage["sensor"]].setdefault("bound", {}).setdefault("psd_usage", []).append(usage)
             continue
         for path in paths:
             data = read_yaml(path) if Path(path).is_file() else None
