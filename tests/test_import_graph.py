@@ -28,7 +28,7 @@ SHARED_PRIVATE = {"_kernels"}
 
 LAYERS = [
     {"__init__", "_kernels", "units", "io", "labelled", "search"},
-    {"models", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
+    {"models", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr"},
