@@ -134,6 +134,7 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gain_rtol=GA
     e0[0] = 1.0
     J = _cycles(m, n_fix)
     Am, Sm = power_and_sum(Phi_f, Qd_f, m)
+    h = np.asarray(H_f, dtype=float)[0]
     sub = quad_series(e0, Phi_f, np.zeros((n, n)), Qd_f, m)[:, 0]  # q_s = e0^T S_s e0, s < m
     Rs = _rows(e0, Phi_f, m)  # e0^T Phi^s, s < m
     pvar = np.empty(n_steps)
@@ -149,11 +150,13 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gain_rtol=GA
         lo = max(0, k0)
         pvar[lo:k0 + m] = vals[lo - k0:]
         Pm = Am @ P @ Am.T + Sm
-        S = float((H_f @ Pm @ H_f.T)[0, 0]) + R
-        K = (Pm @ H_f.T) / S
-        IKH = np.eye(n) - K @ H_f
-        P = IKH @ Pm @ IKH.T + R * (K @ K.T)
+        PH = Pm @ h
+        S = float(h @ PH) + R
+        K = PH / S
+        # Joseph form (I - K h) Pm (I - K h)^T + R K K^T expanded for a scalar fix (no n x n products)
+        P = Pm - np.outer(K, PH) - np.outer(PH, K) + S * np.outer(K, K)
         P = 0.5 * (P + P.T)
+        K = K[:, None]
         gains.append(K)
         j += 1
         if K_prev is not None:
