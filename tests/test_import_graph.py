@@ -27,8 +27,8 @@ WORKFLOW = ROOT / "workflow"
 SHARED_PRIVATE = {"_kernels"}
 
 LAYERS = [
-    {"__init__", "_kernels", "units", "io", "labelled", "search"},
-    {"models", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
+    {"__init__", "_kernels", "units", "io", "labelled", "search", "defaults"},
+    {"models", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},

@@ -71,6 +71,7 @@ __all__ = [
     "reference_scenario",
     "state_space",
     "covariance_analysis",
+    "covariance_analysis_steps",
     "monte_carlo",
     "replay",
     "verify_model",
@@ -100,6 +101,7 @@ class Scenario:
     #: a truth's random walk starts at the stationary variance K^2 T/2 of the GM of this time constant with the
     #: same drift, s (None: K^2 * p0_time_s, the filter's own rule)
     max_bias_time_s: float | None = None
+    fix_rate_hz: float | None = None  #: fix rate, Hz (None: rate_hz); rate_hz / fix_rate_hz must be an integer
 
     @property
     def dt(self):
@@ -112,6 +114,17 @@ class Scenario:
     @property
     def n_fix(self):
         return int(round(self.fix_s * self.rate_hz))
+
+    @property
+    def fix_every(self):
+        """Filter steps per fix, m = rate_hz / fix_rate_hz (fixes at steps k < n_fix with (k+1) % m == 0)."""
+        if self.fix_rate_hz is None:
+            return 1
+        m = self.rate_hz / self.fix_rate_hz
+        if not (math.isfinite(m) and m >= 1 and abs(m - round(m)) <= 1e-9 * m):
+            raise ValueError(f"verification fix_rate_hz must divide rate_hz ({self.rate_hz!r} Hz) with an integer "
+                             f"ratio >= 1, got {self.fix_rate_hz!r}")
+        return int(round(m))
 
 
 def reference_scenario(sensor: str = "accel", **kw) -> Scenario:
@@ -128,6 +141,7 @@ def reference_scenario(sensor: str = "accel", **kw) -> Scenario:
             raise ValueError(f"verification {name} must be a positive number, got {v!r}")
     if not (math.isfinite(sc.fix_s) and sc.fix_s >= 0):
         raise ValueError(f"verification fix_s must be >= 0 s, got {sc.fix_s!r}")
+    sc.fix_every  # validates fix_rate_hz
     return sc
 
 
@@ -183,6 +197,11 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
     H = np.zeros((1, len(cm.states)))
     H[0, 0] = 1.0
     return Phi, Qd, P0, H, list(cm.states)
+
+
+def _shared(st, sf):
+    """(truth index, filter index) of the kinematic states both state lists have."""
+    return tuple((i, sf.index(s)) for i, s in enumerate(st) if s in ("x", "v", "theta") and s in sf)
 
 
 def _kin_index(states):
@@ -249,12 +268,28 @@ def _summary(sc, mse, P, tol=0.0, details=None):
 
 
 def _filter_gains(Phi_f, Qd_f, P0_f, H_f, R, sc):
-    """Gains K_k (None during the outage) and the filter's a-posteriori P_f[0, 0] per step."""
+    """Gains K_k per step (None where there is no fix) and the filter's a-posteriori P_f[0, 0] per step.
+
+    Closed form (:func:`imupipe.covariance.filter_variance`): one Riccati iteration per fix until the gain
+    has converged, no per-step loop; the list repeats the same gain object between fixes' positions."""
+    from imupipe.covariance import filter_variance
+
+    m = sc.fix_every
+    pvar, fg = filter_variance(Phi_f, Qd_f, P0_f, H_f, R, sc.n_steps, sc.n_fix, m)
+    gains = [None] * sc.n_steps
+    for j, K in enumerate(fg):
+        gains[(j + 1) * m - 1] = K
+    return gains, pvar
+
+
+def _filter_gains_steps(Phi_f, Qd_f, P0_f, H_f, R, sc):
+    """Reference step loop of :func:`_filter_gains` (one Python iteration per filter step; tests)."""
     P = P0_f.copy()
+    m = sc.fix_every
     gains, pvar = [], np.empty(sc.n_steps)
     for k in range(sc.n_steps):
         P = Phi_f @ P @ Phi_f.T + Qd_f
-        if k < sc.n_fix:
+        if k < sc.n_fix and (k + 1) % m == 0:
             S = float((H_f @ P @ H_f.T)[0, 0]) + R
             K = (P @ H_f.T) / S
             IKH = np.eye(P.shape[0]) - K @ H_f
@@ -284,6 +319,42 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
     Returns
     -------
     Verification
+        Computed in closed form by :mod:`imupipe.covariance` (no per-step loop; equal to
+        :func:`covariance_analysis_steps` to rounding). ``mse`` = :math:`c^T C c` per step, ``P`` the filter's variance (module docstring); passed when
+        mse <= P at every step (to 1e-6 relative: the Riccati and the augmented recursions round
+        differently, measured 4e-8 on a matched filter).
+    """
+    sc = scenario if scenario is not None else reference_scenario(sensor)
+    Pt, Qt, P0t, Ht, st = state_space(truth_model, sc, role="truth")
+    Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
+    R = sc.sigma_fix**2
+    from imupipe.covariance import mismatched_mse
+
+    mse, pvar, _ = mismatched_mse(Pt, Qt, P0t, Ht, Pf, Qf, P0f, Hf, R, sc.n_steps, sc.n_fix, sc.fix_every,
+                                  shared=_shared(st, sf))
+    return _summary(sc, mse, pvar, tol=1e-6, details={"method": "exact covariance analysis (closed form)",
+                                                       "truth_states": st, "filter_states": sf,
+                                                       "filter_rate_hz": float(sc.rate_hz),
+                                                       "fix_rate_hz": float(sc.rate_hz / sc.fix_every)})
+
+
+def covariance_analysis_steps(filter_model, truth_model, scenario: Scenario | None = None, sensor: str = "accel"):
+    r"""Reference step loop of :func:`covariance_analysis` (one Python iteration per filter step; tests).
+
+    Parameters
+    ----------
+    filter_model : imupipe.models.NoiseModel
+        The exported (bound) model, SI.
+    truth_model : imupipe.models.NoiseModel
+        The error process assumed true (simulation truth, identified upper envelope, spec sheet), SI.
+    scenario : Scenario, optional
+        Default :func:`reference_scenario(sensor) <reference_scenario>`.
+    sensor : {"accel", "gyro"}
+        Used when `scenario` is None.
+
+    Returns
+    -------
+    Verification
         ``mse`` = :math:`c^T C c` per step, ``P`` the filter's variance (module docstring); passed when
         mse <= P at every step (to 1e-6 relative: the Riccati and the augmented recursions round
         differently, measured 4e-8 on a matched filter).
@@ -292,26 +363,18 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
     Pt, Qt, P0t, Ht, st = state_space(truth_model, sc, role="truth")
     Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
     R = sc.sigma_fix**2
-    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
-    nt, nf = Pt.shape[0], Pf.shape[0]
-    n = nt + nf
-    A = np.zeros((n, n))
-    A[:nt, :nt], A[nt:, nt:] = Pt, Pf
-    Qa = np.zeros((n, n))
-    Qa[:nt, :nt] = Qt
-    # the estimate starts at the prior mean 0; the kinematic initial error is the truth's own
-    C = np.zeros((n, n))
-    C[:nt, :nt] = P0t
-    c = np.zeros(n)
-    c[0], c[nt] = -1.0, 1.0
+    gains, pvar = _filter_gains_steps(Pf, Qf, P0f, Hf, R, sc)
+    from imupipe.covariance import augmented
+
+    # the estimate starts at the prior mean 0; the kinematic initial error is the truth's own. Error
+    # coordinates (imupipe.covariance.augmented): the same recursion, without cancellation in c^T C c
+    A, Qa, C, c, B_of, nt = augmented(Pt, Qt, P0t, Ht, Pf, Hf, _shared(st, sf))
     mse = np.empty(sc.n_steps)
     for k in range(sc.n_steps):
         C = A @ C @ A.T + Qa
         K = gains[k]
         if K is not None:
-            B = np.eye(n)
-            B[nt:, :nt] = K @ Ht
-            B[nt:, nt:] -= K @ Hf
+            B = B_of(K)
             C = B @ C @ B.T
             C[nt:, nt:] += R * (K @ K.T)
         mse[k] = c @ C @ c

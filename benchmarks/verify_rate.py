@@ -1,0 +1,45 @@
+"""Wall time of the exact covariance verification at filter rates 1 / 100 / 1000 Hz (600 s fixes + 3600 s outage).
+
+Closed form (imupipe.covariance via verify.covariance_analysis) beside the reference step loop
+(verify.covariance_analysis_steps). The step loop is timed on a shortened scenario (fix_s and horizon_s
+scaled by `--step-fraction` at rates >= 100 Hz) and its time scaled by the step count (it is linear in the
+number of steps); those rows say "estimated". The replay is not included (not yet vectorised).
+
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/verify_rate.py [--rates 1 100 1000]
+"""
+
+import argparse
+import time
+
+from imupipe.models import NoiseModel
+from imupipe.verify import covariance_analysis, covariance_analysis_steps, reference_scenario
+
+MODELS = {  # a bound-like model per sensor: white + GM + random walk + flicker (SI)
+    "accel": NoiseModel(white=1e-3, gauss_markov=((5e-4, 300.0),), random_walk=1e-5, flicker=3e-5),
+    "gyro": NoiseModel(white=5e-5, gauss_markov=((2e-5, 300.0),), random_walk=5e-7, flicker=1e-6),
+}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rates", type=float, nargs="+", default=[1.0, 100.0, 1000.0])
+    ap.add_argument("--step-fraction", type=float, default=0.02)
+    a = ap.parse_args()
+    print(f"{'sensor':6} {'rate_Hz':>8} {'steps':>9} {'closed_s':>9} {'step_loop_s':>12}  note")
+    for sensor, m in MODELS.items():
+        for r in a.rates:
+            sc = reference_scenario(sensor, rate_hz=r)
+            t0 = time.perf_counter()
+            v = covariance_analysis(m, m, sc)
+            tc = time.perf_counter() - t0
+            f = 1.0 if r < 100 else a.step_fraction
+            scs = reference_scenario(sensor, rate_hz=r, fix_s=600.0 * f, horizon_s=3600.0 * f)
+            t0 = time.perf_counter()
+            covariance_analysis_steps(m, m, scs)
+            ts = (time.perf_counter() - t0) * sc.n_steps / scs.n_steps
+            note = "measured" if f == 1.0 else f"estimated from {scs.n_steps} steps"
+            print(f"{sensor:6} {r:8g} {sc.n_steps:9d} {tc:9.2f} {ts:12.1f}  {note}; worst ratio {v.worst_ratio:.6f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,288 @@
+r"""Closed-form covariance analysis of a mismatched linear filter (fix phase + outage), no per-step loop.
+
+Pure linear algebra on the discrete matrices of :func:`imupipe.verify.state_space`: truth
+:math:`(\Phi_t, Q_{d,t}, P_{0,t}, H_t)`, filter :math:`(\Phi_f, Q_{d,f}, P_{0,f}, H_f)`, fix variance
+:math:`R`. The step recursion it reproduces is the one of :func:`imupipe.verify.covariance_analysis_steps`
+(module docstring of :mod:`imupipe.verify`): at every step propagate, and at a fix step apply the gain.
+
+Fix schedule: a fix every ``m`` filter steps (``m`` = filter rate / fix rate, an integer), at the steps
+:math:`k` with :math:`(k+1) \bmod m = 0` and :math:`k <` ``n_fix`` (so at t = 1/f_fix, 2/f_fix, ...); ``m`` = 1
+is a fix at every step.
+
+Quadratic-form series (:func:`quad_series`). For rows :math:`r_s` (a matrix ``R0``), a transition :math:`M`,
+start :math:`C_0` and driving :math:`W`, with :math:`C_j = M^j C_0 M^{jT} + \sum_{i<j} M^i W M^{iT}`:
+
+.. math::  r_s C_j r_s^T = g_{j,s} C_0 g_{j,s}^T + \sum_{i<j} g_{i,s} W g_{i,s}^T, \qquad g_{j,s} = r_s M^j .
+
+The row powers :math:`g_j` are built by doubling (:math:`g_{[l, 2l)} = g_{[0, l)} M^l`, :math:`M^{2l} = (M^l)^2`)
+inside a block of ``block`` powers, then block after block (:math:`g_{[b+L, b+2L)} = g_{[b, b+L)} M^L`).
+No eigen-decomposition is used, so defective (Jordan) transitions such as the kinematic integrator
+:math:`x, v` are exact; every :math:`g_j` is the product of at most :math:`\log_2 L + j/L` matrix
+products, so its rounding error is about that many ulps of :math:`\|r\|\,\|M\|^j` (A's spectral radius is
+<= 1 here, the integrator growing only polynomially). The MSE is a sum of non-negative terms
+(:math:`W, C_0 \succeq 0`), so its cumulative sum has relative error of order n ulps (no cancellation).
+
+Outage: :math:`M = A = \operatorname{diag}(\Phi_t, \Phi_f)`, :math:`W = \operatorname{diag}(Q_{d,t}, 0)`,
+rows :math:`c = [-e_{pos}; e_{pos}]`: the MSE at every outage step from one call; the filter's own
+:math:`P_k[0,0]` the same way with :math:`(\Phi_f, Q_{d,f}, e_0)`.
+
+Fix phase: one cycle of m steps maps the state after a fix to the state after the next fix:
+:math:`C \mapsto B_j (A^m C A^{mT} + S_m) B_j^T + [0; K_j] R [0; K_j]^T` with
+:math:`S_m = \sum_{i<m} A^i Q_a A^{iT}` (built by doubling, :func:`power_and_sum`). The steps inside
+a cycle are pure propagation: MSE at step jm-1+s = :math:`r_s C_j r_s^T + q_s`, with
+:math:`r_s = c^T A^s` and :math:`q_s = c^T S_s c`, vectorised over s. The Riccati recursion runs
+fix by fix (one Python iteration per fix, not per step) until the gain has converged: with
+:math:`\delta_j = \|K_j - K_{j-1}\|` and the contraction estimate :math:`\rho = \delta_j/\delta_{j-1}`,
+converged when :math:`\rho < 1` and :math:`\delta_j \rho/(1-\rho) \le` ``gain_rtol`` :math:`\|K_j\|`
+(a bound on the remaining distance to the fixed point for a geometric tail; ``gain_rtol`` = 1e-13). From
+there the gain is the steady-state one, the cycle map is time-invariant (:math:`M = B A^m`,
+:math:`W = B S_m B^T + [0;K] R [0;K]^T`) and the rest of the fix phase is one :func:`quad_series`
+call over (cycles x sub-steps).
+
+The worst MSE/P is then taken over every step (all steps are computed; nothing is sampled).
+
+Reference: A. Gelb (ed.), "Applied Optimal Estimation", MIT Press 1974, section 7.2 (covariance analysis of
+suboptimal filters); the doubling of :math:`\sum A^i Q A^{iT}` is the standard one for the discrete
+Lyapunov sum (e.g. B. D. O. Anderson, J. B. Moore, "Optimal Filtering", Prentice-Hall 1979, ch. 4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["quad_series", "power_and_sum", "filter_variance", "mismatched_mse", "augmented"]
+
+GAIN_RTOL = 1e-13
+
+
+def _row_powers(R0, M, count, block):
+    """Yield (start, G) with G[j] = R0 @ M^(start + j), shape (L, p, n), block after block."""
+    R0 = np.atleast_2d(np.asarray(R0, dtype=float))
+    L = max(1, min(block, count))
+    G = np.empty((L,) + R0.shape)
+    G[0] = R0
+    Ml = np.asarray(M, dtype=float)
+    filled = 1
+    while filled < L:
+        take = min(filled, L - filled)
+        G[filled:filled + take] = G[:take] @ Ml
+        filled += take
+        Ml = Ml @ Ml  # M^filled (filled doubles until the block is full)
+    # M^L for the block-to-block step
+    ML = np.linalg.matrix_power(np.asarray(M, dtype=float), L)
+    start = 0
+    while start < count:
+        n = min(L, count - start)
+        yield start, G[:n]
+        start += L
+        if start < count:
+            G = G @ ML
+
+
+def quad_series(R0, M, C0, W, count, block=2048):
+    r"""out[j, s] = r_s C_j r_s^T with C_j = M^j C0 M^jT + sum_{i<j} M^i W M^iT, j = 0..count-1.
+
+    R0 : (p, n) rows r_s (or one row, (n,)); returns (count, p). Exact for defective M (module docstring).
+    """
+    R0 = np.atleast_2d(np.asarray(R0, dtype=float))
+    out = np.empty((count, R0.shape[0]))
+    acc = np.zeros(R0.shape[0])
+    for start, G in _row_powers(R0, M, count, block):
+        c0 = np.einsum("jpa,ab,jpb->jp", G, C0, G, optimize=True)
+        w = np.einsum("jpa,ab,jpb->jp", G, W, G, optimize=True)
+        cs = np.cumsum(w, axis=0)
+        excl = np.vstack([np.zeros((1, w.shape[1])), cs[:-1]]) + acc
+        out[start:start + G.shape[0]] = c0 + excl
+        acc = acc + cs[-1]
+    return out
+
+
+def power_and_sum(A, Q, m):
+    r"""(A^m, S_m = sum_{i<m} A^i Q A^iT) by doubling: S_{2l} = S_l + A^l S_l A^lT, exact for Jordan blocks."""
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    P, S = np.eye(n), np.zeros((n, n))  # A^k, S_k for the bits taken so far
+    Al, Sl = A.copy(), np.asarray(Q, dtype=float).copy()  # A^l, S_l, l = 2^b
+    k = m
+    while k:
+        if k & 1:
+            S = S + P @ Sl @ P.T  # S_{k+l} = S_k + A^k S_l A^kT
+            P = P @ Al
+        k >>= 1
+        if k:
+            Sl = Sl + Al @ Sl @ Al.T
+            Al = Al @ Al
+    return P, 0.5 * (S + S.T)
+
+
+def _rows(r, M, m):
+    """(m, n) rows r M^s, s = 0..m-1."""
+    return np.concatenate([G[:, 0, :] for _, G in _row_powers(r, M, m, max(1, m))])
+
+
+def _cycles(m, n_fix):
+    return n_fix // m if m > 0 else 0
+
+
+def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gain_rtol=GAIN_RTOL):
+    """The filter's a-posteriori P[0,0] at every step and its gains per fix: (pvar (n_steps,), gains list).
+
+    gains[j] is the gain of fix j (step (j+1) m - 1); after convergence (module docstring) the list holds
+    the steady gain for the remaining fixes (the same object)."""
+    n = Phi_f.shape[0]
+    e0 = np.zeros(n)
+    e0[0] = 1.0
+    J = _cycles(m, n_fix)
+    Am, Sm = power_and_sum(Phi_f, Qd_f, m)
+    h = np.asarray(H_f, dtype=float)[0]
+    sub = quad_series(e0, Phi_f, np.zeros((n, n)), Qd_f, m)[:, 0]  # q_s = e0^T S_s e0, s < m
+    Rs = _rows(e0, Phi_f, m)  # e0^T Phi^s, s < m
+    pvar = np.empty(n_steps)
+    P = np.asarray(P0_f, dtype=float).copy()
+    gains = []
+    K_prev, d_prev = None, None
+    j = 0
+    steady = None
+    while j < J:
+        # P at sub-steps s = 0..m-1 after state j (step jm-1+s)
+        vals = np.einsum("sa,ab,sb->s", Rs, P, Rs) + sub
+        k0 = j * m - 1
+        lo = max(0, k0)
+        pvar[lo:k0 + m] = vals[lo - k0:]
+        Pm = Am @ P @ Am.T + Sm
+        PH = Pm @ h
+        S = float(h @ PH) + R
+        K = PH / S
+        # Joseph form (I - K h) Pm (I - K h)^T + R K K^T expanded for a scalar fix (no n x n products)
+        P = Pm - np.outer(K, PH) - np.outer(PH, K) + S * np.outer(K, K)
+        P = 0.5 * (P + P.T)
+        K = K[:, None]
+        gains.append(K)
+        j += 1
+        if K_prev is not None:
+            d = float(np.linalg.norm(K - K_prev))
+            if d_prev is not None and d_prev > 0:
+                rho = d / d_prev
+                if rho < 1 and d * rho / (1 - rho) <= gain_rtol * float(np.linalg.norm(K)):
+                    steady = K
+                    K_prev = K
+                    break
+            d_prev = d
+        K_prev = K
+    if steady is not None and j < J:
+        # steady state: P after each fix is constant (to gain_rtol); same sub-step pattern every cycle
+        vals = np.einsum("sa,ab,sb->s", Rs, P, Rs) + sub
+        for jj in range(j, J):
+            gains.append(steady)
+        k0 = j * m - 1
+        pvar[k0:J * m - 1] = np.tile(vals, J - j)[: J * m - 1 - k0]
+        j = J
+    # outage (and the tail of the fix phase after the last fix): propagation from the state after fix J
+    k0 = J * m - 1
+    cnt = n_steps - k0
+    if cnt > 1:
+        pvar[k0 + 1:] = quad_series(e0, Phi_f, P, Qd_f, cnt)[1:, 0]
+    if J > 0:
+        pvar[k0] = P[0, 0]
+    return pvar, gains
+
+
+def augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared=((0, 0),)):
+    r"""Augmented system in error coordinates: (A, Q_a, C_0, c, B(K), n_t).
+
+    The vector :math:`[x_t; \hat x_f]` is mapped to :math:`[x_t; e]`, :math:`e = \hat x_f - E x_t`, with
+    :math:`E` putting truth state i_t at filter state i_f for each pair of `shared` (the kinematic states,
+    present in both). This similarity transform :math:`T = [[I, 0], [-E, I]]` is exact; it takes the
+    large kinematic variances (the truth's position grows like t^2 var_vel) out of the quadratic form,
+    which becomes :math:`c = [0; e_0]`, so no cancellation of two large numbers gives the small MSE.
+    With no measurement :math:`A = T \operatorname{diag}(\Phi_t, \Phi_f) T^{-1}`; a fix is
+    :math:`B = T [[I, 0], [K H_t, I - K H_f]] T^{-1}` plus :math:`[0; K] R [0; K]^T` (T leaves it).
+    """
+    nt, nf = Phi_t.shape[0], Phi_f.shape[0]
+    n = nt + nf
+    E = np.zeros((nf, nt))
+    for it, jf in shared:
+        E[jf, it] = 1.0
+    # blocks of T A T^-1 and T B T^-1 formed directly (differences of equal entries are exact zeros)
+    A = np.zeros((n, n))
+    A[:nt, :nt], A[nt:, nt:] = Phi_t, Phi_f
+    A[nt:, :nt] = Phi_f @ E - E @ Phi_t
+    Qa = np.zeros((n, n))
+    Qa[:nt, :nt] = Qd_t
+    Qa[nt:, :nt] = -E @ Qd_t
+    Qa[:nt, nt:] = Qa[nt:, :nt].T
+    Qa[nt:, nt:] = E @ Qd_t @ E.T
+    C = np.zeros((n, n))
+    C[:nt, :nt] = P0_t
+    C[nt:, :nt] = -E @ P0_t
+    C[:nt, nt:] = C[nt:, :nt].T
+    C[nt:, nt:] = E @ P0_t @ E.T
+    c = np.zeros(n)
+    c[nt] = 1.0
+    c[:nt] = -np.asarray(H_t, dtype=float)[0] + np.asarray(H_f, dtype=float)[0] @ E  # 0 when x is shared
+    dH = np.asarray(H_t, dtype=float) - np.asarray(H_f, dtype=float) @ E
+
+    def B_of(K):
+        B = np.eye(n)
+        B[nt:, :nt] = K @ dH
+        B[nt:, nt:] -= K @ H_f
+        return B
+
+    return A, Qa, C, c, B_of, nt
+
+
+def mismatched_mse(Phi_t, Qd_t, P0_t, H_t, Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gains=None,
+                   gain_rtol=GAIN_RTOL, shared=((0, 0),)):
+    """True MSE c^T C_k c of the filter's position (angle) estimate at every step, (n_steps,), and pvar.
+
+    The estimate starts at 0, C_0 = diag(P0_t, 0); computed in error coordinates (:func:`augmented`, `shared`:
+    (truth index, filter index) of the states both have, the kinematic ones); see the module docstring for the
+    schedule and method."""
+    pvar, gains = (None, gains) if gains is not None else filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps,
+                                                                          n_fix, m, gain_rtol)
+    A, Qa, C, c, B_of, nt = augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared)
+    n = A.shape[0]
+    J = _cycles(m, n_fix)
+    Am, Sm = power_and_sum(A, Qa, m)
+    sub = quad_series(c, A, np.zeros((n, n)), Qa, m)[:, 0]
+    Rs = _rows(c, A, m)
+    mse = np.empty(n_steps)
+    j = 0
+    while j < J:
+        K = gains[j]
+        if j > 0 and K is gains[j - 1]:
+            break  # steady gain from here on
+        vals = np.einsum("sa,ab,sb->s", Rs, C, Rs) + sub
+        k0 = j * m - 1
+        lo = max(0, k0)
+        mse[lo:k0 + m] = vals[lo - k0:]
+        B = B_of(K)
+        C = B @ (Am @ C @ Am.T + Sm) @ B.T
+        C[nt:, nt:] += R * (K @ K.T)
+        j += 1
+    if j < J:
+        K = gains[j]
+        B = B_of(K)
+        M = B @ Am
+        Kz = np.zeros((n, 1))
+        Kz[nt:] = K
+        W = B @ Sm @ B.T + R * (Kz @ Kz.T)
+        vals = quad_series(Rs, M, C, W, J - j)  # (cycles, m): r_s C_i r_s^T, i = j..J-1
+        k0 = j * m - 1  # >= 0: the steady gain is reached after a few fixes
+        mse[k0:J * m - 1] = (vals + sub).reshape(-1)
+        C = _lyap_power(M, C, W, J - j)  # the state after fix J, for the outage
+        j = J
+    k0 = J * m - 1
+    cnt = n_steps - k0
+    if cnt > 1:
+        mse[k0 + 1:] = quad_series(c, A, C, Qa, cnt)[1:, 0]
+    if J > 0:
+        mse[k0] = float(c @ C @ c)
+    return mse, pvar, gains
+
+
+def _lyap_power(M, C0, W, j):
+    """M^j C0 M^jT + sum_{i<j} M^i W M^iT by doubling (power_and_sum)."""
+    Mj, Sj = power_and_sum(M, W, j)
+    C = Mj @ C0 @ Mj.T + Sj
+    return 0.5 * (C + C.T)
