@@ -241,7 +241,7 @@ def test_verification_report_with_replay_and_reduction():
     assert set(rep["verification"]["checks"]) == {"upper_envelope", "spec", "replay", "slow_bias"}
     bi = rep["exported"]["bias_initialisation"]
     assert bi["T_max_s"] == 10 * 20000.0 and bi["slow_bias_family"]["worst_member"]["T"] == 10 * 20000.0
-    assert bi["slow_bias_family"]["k_eff"] == pytest.approx(big.random_walk)
+    assert bi["slow_bias_family"]["k_eff"] == pytest.approx(TRUTH.random_walk)  # the envelope's drift
     assert bi["p0_random_walk"] >= bi["required_variance"] - 6e-5**2 - 1e-18
     assert rep["passed"]
     # over this 900 s horizon the random walk's drift is small beside the initial bias the filter must carry:

@@ -24,7 +24,8 @@ Two consequences (docs/method.md, section "The bias a filter starts with"):
 * **The exported initial variance covers it.** The filter's bias states (its GM states and the random-walk
   state ``p``) start with a total variance at least the largest of: the spec sheet's stationary bias variance (its
   GM :math:`\sigma^2`, a random walk as the GM of :math:`T_{\max}` with the same drift, and the sheet's turn-on
-  bias squared) and the family's worst member plus the identified GMs' :math:`\sigma^2`. The GM states keep their
+  bias squared) and the family's worst member (the identified envelope's slow drift; the bound's when there is no
+  envelope) plus the envelope's resolved GMs' :math:`\sigma^2`. The GM states keep their
   own :math:`\sigma^2`; the deficit goes on ``p`` (a random constant when :math:`K = 0`), which over an application
   horizon far below :math:`T_{\max}` is what a slow bias is (:func:`bias_initialisation`).
 
@@ -224,7 +225,10 @@ def bias_initialisation(filter_model, *, spec=None, upper=None, turn_on_bias: fl
         The verified run (fixes + outage), s: the fallback of :func:`max_bias_time` without records.
     """
     T_max, src = max_bias_time(spec, record_s, max_bias_time_s, run_s)
-    family = slow_bias_family([filter_model, upper], record_s, T_max, src) if record_s else None
+    # the family is the identified envelope's slow drift (the bound's own K is larger: it also pays for the
+    # envelope's faster terms at low frequency, which the worst member keeps beside it); the bound's without one
+    family = slow_bias_family([upper if upper is not None else filter_model], record_s, T_max, src) \
+        if record_s else None
     parts = {"model": float(sum(s * s for s, _ in filter_model.gauss_markov))}
     if spec is not None:
         parts["spec sheet"] = stationary_bias_variance(spec, T_max, turn_on_bias)
