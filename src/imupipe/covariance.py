@@ -178,13 +178,19 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gain_rtol=GA
         pvar[k0:J * m - 1] = np.tile(vals, J - j)[: J * m - 1 - k0]
         j = J
     # outage (and the tail of the fix phase after the last fix): propagation from the state after fix J
-    k0 = J * m - 1
-    cnt = n_steps - k0
-    if cnt > 1:
-        pvar[k0 + 1:] = quad_series(e0, Phi_f, P, Qd_f, cnt)[1:, 0]
-    if J > 0:
-        pvar[k0] = P[0, 0]
+    _fill_outage(pvar, J * m - 1, e0, Phi_f, P, Qd_f)
     return pvar, gains
+
+
+def _fill_outage(out, k0, r, M, C, Q):
+    """Steps k0 .. end of `out` after the last fix (state C at step k0; k0 = -1: no fix, C the prior):
+    out[k0] = r C r^T and out[k0 + i] = r C_i r^T with C_i = M C_{i-1} M^T + Q (:func:`quad_series`)."""
+    cnt = out.size - k0
+    if cnt > 1:
+        out[k0 + 1:] = quad_series(r, M, C, Q, cnt)[1:, 0]
+    if k0 >= 0:
+        rr = np.atleast_2d(r)
+        out[k0] = float((rr @ C @ rr.T)[0, 0])
 
 
 def augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared=((0, 0),)):
@@ -272,12 +278,7 @@ def mismatched_mse(Phi_t, Qd_t, P0_t, H_t, Phi_f, Qd_f, P0_f, H_f, R, n_steps, n
         mse[k0:J * m - 1] = (vals + sub).reshape(-1)
         C = _lyap_power(M, C, W, J - j)  # the state after fix J, for the outage
         j = J
-    k0 = J * m - 1
-    cnt = n_steps - k0
-    if cnt > 1:
-        mse[k0 + 1:] = quad_series(c, A, C, Qa, cnt)[1:, 0]
-    if J > 0:
-        mse[k0] = float(c @ C @ c)
+    _fill_outage(mse, J * m - 1, c, A, C, Qa)
     return mse, pvar, gains
 
 
