@@ -111,7 +111,7 @@ def workflow(records, tmp_path_factory):
     ver = verification_report(m, "gyro", spec=spec.models["gyro"], upper=upper, fix_s=600.0, horizon_s=600.0,
                               filter_rate_hz=1.0, record_s=record_s)
     bi = ver["exported"]["bias_initialisation"]
-    p0 = filter_p0(m, bi["required_variance"], bi["wander_s"]) or None
+    p0 = filter_p0(m, bi["required_variance"], bi["wander_s"], bi["required_slow_variance"]) or None
     kf = export_kf(m, 1.0, sensor="gyro", p0_random_walk=p0, reduced=p0 is None)
     return {"identify": identify, "bound": bound, "kf": kf, "verification": ver}
 

@@ -357,11 +357,11 @@ def noise_model(
                                            filter_rate_hz=application_rate_hz, record_s=record_s,
                                            turn_on_bias=turn_on)
     # the KF file starts the bias where the verification starts the filter (imupipe.biasinit): the bound's model
-    from imupipe.biasinit import bias_initialisation, filter_p0
+    from imupipe.biasinit import bias_initialisation
 
     bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=upper, turn_on_bias=turn_on,
                                record_s=record_s, run_s=fix_s + horizon_s)
-    p0_rw = filter_p0(m, bias.required, fix_s + horizon_s) or None
+    p0_rw = bias.p0(m, fix_s + horizon_s) or None
     kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw, reduced=p0_rw is None)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=result, fit=fit, selection=selection,
                             kf=kf, allan=allan, spectra=spectra, rate_hz=rate, decimate_hz=float(decimate_hz),

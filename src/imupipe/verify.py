@@ -42,8 +42,9 @@ Initial state (:mod:`imupipe.biasinit`): a truth starts at its stationary distri
 turn-on: GM and narrowband states at their steady-state variance, a random walk at :math:`K^2 T_{\max}/2` (the
 stationary variance of the GM of the longest admitted time constant ``max_bias_time_s`` with the same drift; the
 records cannot tell them apart). The filter starts at its own exported P0: GM states at their :math:`\sigma^2`,
-the random-walk state at :math:`\max(K^2 t_0, V - \sum\sigma_i^2)`, with :math:`t_0` = `p0_time_s` (default
-`fix_s` + `horizon_s`) and :math:`V` = `bias_var_floor` the least total initial bias variance
+the random-walk state at :math:`\max(K^2 t_0, V - \sum\sigma_i^2, V_s - \sum_{T_i \ge t_0}\sigma_i^2)`, with
+:math:`t_0` = `p0_time_s` (default `fix_s` + `horizon_s`), :math:`V` = `bias_var_floor` the least total initial
+bias variance and :math:`V_s` = `bias_var_floor_slow` its part from biases slower than the run
 (:func:`imupipe.biasinit.bias_initialisation`). A filter whose P0 is too small therefore fails where it matters,
 in the first minutes of the outage. With the defaults (``bias_var_floor`` 0, ``max_bias_time_s`` None) both start
 the random walk at :math:`K^2 t_0`. Kinematic states start at variances `var_pos` (default `sigma_fix`^2) and
@@ -98,6 +99,8 @@ class Scenario:
     #: least total initial variance of the filter's bias states (GM states + p), u^2
     #: (:func:`imupipe.biasinit.bias_initialisation`); the deficit goes on p
     bias_var_floor: float = 0.0
+    #: the part of it from biases slower than fixes + outage, u^2: carried by p or GM states of T >= p0_time_s
+    bias_var_floor_slow: float = 0.0
     #: a truth's random walk starts at the stationary variance K^2 T/2 of the GM of this time constant with the
     #: same drift, s (None: K^2 * p0_time_s, the filter's own rule)
     max_bias_time_s: float | None = None
@@ -164,8 +167,8 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
     each (damped oscillator, :func:`imupipe.kf.continuous_model`), quantization and ramp are left
     out (not states). P0: kinematic variances of the scenario, GM and narrowband terms at steady
     state. The random-walk state p: as a ``"filter"``, the exported rule
-    :func:`imupipe.biasinit.filter_p0` (:math:`\max(K^2 t_0, V - \sum\sigma_i^2)` with
-    :math:`V` = ``scenario.bias_var_floor``; p is kept with K = 0 when that is positive: a random constant); as a
+    :func:`imupipe.biasinit.filter_p0` (:math:`\max(K^2 t_0, V - \sum\sigma_i^2, V_s - \sum_{T_i \ge t_0}
+    \sigma_i^2)` with :math:`V` = ``scenario.bias_var_floor``, :math:`V_s` = ``scenario.bias_var_floor_slow``; p is kept with K = 0 when that is positive: a random constant); as a
     ``"truth"``, the stationary variance :math:`K^2 T_{\max}/2` of the GM of ``scenario.max_bias_time_s`` with the
     same drift (a sensor's bias at turn-on), or :math:`K^2 t_0` when that is None.
     """
@@ -187,7 +190,7 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
     if role == "filter":
         # the bias floor counts the model's own GM terms, not the flicker bank (the KF file has no such states)
         p0 = filter_p0(NoiseModel(random_walk=model.random_walk, gauss_markov=tuple(model.gauss_markov)),
-                       sc.bias_var_floor, t0)
+                       sc.bias_var_floor, t0, sc.bias_var_floor_slow)
     else:
         p0 = m.random_walk**2 * (0.5 * sc.max_bias_time_s if sc.max_bias_time_s is not None else t0)
     cm = continuous_model(m, reduced=not (m.random_walk > 0 or p0 > 0), sensor=sc.sensor, scale_factor=False)
@@ -733,7 +736,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         exported ``p0_random_walk``)), ``passed``, ``units``), and the series: label -> :class:`Verification`
         of the exported model.
     """
-    from imupipe.biasinit import bias_initialisation, filter_p0, worst_member
+    from imupipe.biasinit import bias_initialisation, worst_member
     from imupipe.units import SI_UNITS
 
     if record_s is None and records is not None and rate_hz:
@@ -742,7 +745,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                                max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
     slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
     kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s, bias_var_floor=bias.required,
-              max_bias_time_s=bias.T_max_s)
+              bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s)
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
@@ -759,7 +762,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
             series["replay"] = replay(model, records, rate_hz, sc, z=replay_z)
         ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
                             "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
-                            "bias_var_floor": sc.bias_var_floor, "max_bias_time_s": sc.max_bias_time_s},
+                            "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
+                            "max_bias_time_s": sc.max_bias_time_s},
                "checks": {k: v.to_dict() for k, v in series.items()}}
         if slow is not None:
             ver["checks"]["slow_bias"]["truth_model"] = slow.to_dict()
@@ -792,7 +796,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     t0 = sc.p0_time_s if sc.p0_time_s is not None else sc.fix_s + sc.horizon_s
     exported["bias_initialisation"] = {
         **bias.to_dict(SI_UNITS[sensor]),
-        "p0_random_walk": filter_p0(exported_model, bias.required, t0), "wander_s": float(t0),
+        "p0_random_walk": bias.p0(exported_model, t0), "wander_s": float(t0),
         "statement": bias.statement(SI_UNITS[sensor])}
     report = {"sensor": sensor, "verification": ver, "reduction": red, "exported": exported,
               "passed": bool(exported["verification"]["passed"] and exported["verification"]["checks"]),
