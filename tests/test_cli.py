@@ -131,7 +131,7 @@ def test_check_with_dry_run_and_run_dry(tmp_path):
 
 
 def test_check_takes_a_partial_config_on_top_of_the_defaults(tmp_path):
-    # the README: "A config may be partial: keys it leaves out take the defaults of config/config.yaml"
+    # the README: "A config may be partial (the rest from config/config.yaml)"
     partial = tmp_path / "partial.yaml"
     partial.write_text("name: partial\npsd:\n  window_s: 3600.0\n")
     lines = check_config(partial)
