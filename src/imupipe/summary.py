@@ -266,6 +266,14 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
     exp = bound.get("export")
     if isinstance(exp, Mapping) and exp.get("statement"):
         out.append(f"- exported filter model (KF file): {exp['statement']}")
+    if isinstance(exp, Mapping) and exp.get("verified_filter_rate_hz") is not None:
+        fix_rate = exp.get("verified_fix_rate_hz") or exp["verified_filter_rate_hz"]
+        sig = (f" (sigma {_num(exp['verified_sigma_fix'])} {exp.get('verified_sigma_fix_unit') or ''})".rstrip(" ")
+               if exp.get("verified_sigma_fix") is not None else "")
+        out.append(f"- verified scenario: reference filter at {_num(exp['verified_filter_rate_hz'])} Hz, fixes at "
+                   f"{_num(fix_rate)} Hz{sig} for {_num(exp.get('fix_s'))} s, then an outage of "
+                   f"{_num(exp.get('horizon_s'))} s (verify.filter_rate_hz, verify.fix_rate_hz, verify.fix_s, "
+                   "application.horizon_s)")
     def k_of(section):
         try:
             return float(_g(bound, section, "random_walk", default=0.0))

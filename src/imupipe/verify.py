@@ -708,13 +708,13 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                        rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
                        replay_z: float = 2.0, max_bias_time_s: float | None = None, turn_on_bias: float = 0.0,
-                       record_s: float | None = None):
+                       record_s: float | None = None, fix_rate_hz: float | None = None):
     r"""The verification stage of one spec and sensor: the report, the model to export and the time series of
     its checks (for :func:`imupipe.plot.plot_verification`).
 
     Checks of `bound_model` in the reference filter of `sensor` (:func:`reference_scenario` with `fix_s` s of
-    fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `filter_rate_hz` Hz, then an
-    outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
+    fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `fix_rate_hz` Hz (None: every step
+    of the filter at `filter_rate_hz` Hz; it must divide `filter_rate_hz`), then an outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
     identified upper envelope), ``spec`` and ``slow_bias`` (the worst member of the family of biases slower
     than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift); replay of
     ``records`` (rate `rate_hz`, Hz) passing when the worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff)
@@ -745,7 +745,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                                max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
     slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
     kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s, bias_var_floor=bias.required,
-              bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s)
+              bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s, fix_rate_hz=fix_rate_hz)
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
@@ -760,7 +760,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
             if rate_hz is None:
                 raise ValueError("verification_stage: replay records need rate_hz")
             series["replay"] = replay(model, records, rate_hz, sc, z=replay_z)
-        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
+        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_rate_hz": sc.rate_hz / sc.fix_every,
+                            "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
                             "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
                             "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
                             "max_bias_time_s": sc.max_bias_time_s},

@@ -31,6 +31,7 @@ rule verify:
         sigma_fix_m=config["verify"]["sigma_fix_m"],
         sigma_fix_rad=config["verify"]["sigma_fix_rad"],
         filter_rate_hz=config["verify"]["filter_rate_hz"],
+        fix_rate_hz=config["verify"].get("fix_rate_hz"),
         reduce=config["verify"]["reduce"],
         replay_z=config["verify"]["replay_z"],
         max_bias_time_s=config["identify"].get("max_bias_time_s"),

@@ -30,7 +30,7 @@ def model_of(b: dict):
 def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records: list, fix_s: float,
          horizon_s: float, sigma_fix_m: float, sigma_fix_rad: float, filter_rate_hz: float, reduce: bool,
          replay_z: float, path_out: str, path_figure: str, spec_name: str, sensor: str,
-         max_bias_time_s: float | None = None) -> None:
+         max_bias_time_s: float | None = None, fix_rate_hz: float | None = None) -> None:
     import numpy as np
 
     from imupipe.io import read_series
@@ -45,7 +45,8 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
     upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
     sheet = load_spec(path_spec)
     spec = sheet.models[sensor]
-    bias_kw = dict(max_bias_time_s=max_bias_time_s, turn_on_bias=sheet.turn_on_bias.get(sensor, 0.0))
+    bias_kw = dict(max_bias_time_s=max_bias_time_s, turn_on_bias=sheet.turn_on_bias.get(sensor, 0.0),
+                   fix_rate_hz=fix_rate_hz)
     truth = load_spec(path_truth).models[sensor] if path_truth else None
     included = {f"{d}/{a}" for d, a in Stacked(path_spectra).curves(included_only=True)}
     series, rate, used = [], None, []
@@ -99,6 +100,7 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_bound=i.bound, path_spectra=i.spectra, path_spec=i.spec,
             path_truth=i.get("truth") or None, records=list(i.records), fix_s=p.fix_s, horizon_s=p.horizon_s,
             sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad, filter_rate_hz=p.filter_rate_hz,
-            reduce=p.reduce, replay_z=p.replay_z, max_bias_time_s=p.max_bias_time_s, path_out=o.verify,
+            reduce=p.reduce, replay_z=p.replay_z, max_bias_time_s=p.max_bias_time_s, fix_rate_hz=p.fix_rate_hz,
+            path_out=o.verify,
             path_figure=o.figure,
             spec_name=snakemake.wildcards.spec, sensor=snakemake.wildcards.sensor)
