@@ -120,8 +120,9 @@ def test_per_axis_models_take_the_largest_of_each():
     assert imu.gyroscope_noise_density == pytest.approx(_pair(x)[0]) and imu.set_by["gyroscope_noise_density"] == "x"
     assert imu.gyroscope_random_walk == pytest.approx(_pair(y)[1]) and imu.set_by["gyroscope_random_walk"] == "y"
     text = kalibr_text(imu)
-    assert "# gyroscope_noise_density: the largest over the per-axis exported models, set by axis x" in text
-    assert "# gyroscope_random_walk: the largest over the per-axis exported models, set by axis y" in text
+    assert "# gyroscope: the largest of each over the per-axis exported models (SI; x: N " in text
+    assert "gyroscope_noise_density set by axis x; gyroscope_random_walk set by axis y" in text
+    assert "# accelerometer: the largest" not in text  # one model: no per-axis line
     f = np.geomspace(BAND[0], BAND[1], 2001)
     for m in (x, y):
         assert np.all(_pair_psd(imu.gyroscope_noise_density, imu.gyroscope_random_walk, f) >= m.psd(f) * (1 - 1e-9))

@@ -481,12 +481,13 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
             "# the band's log-frequency mean of (N^2 + K^2/(2 pi f)^2) / S_model(f) (an LP, HiGHS; GM, flicker and",
             "# quantization terms are carried by N and K wherever they lie in band).",
         ]
-        for key, lab in imu.set_by.items():
-            prefix = key.split("_")[0]
-            per = imu.pairs.get(prefix) or {}
-            if len(per) > 1:
+        for prefix, per in imu.pairs.items():
+            if len(per) > 1:  # one value per sensor: the largest of each over the per-axis exported models
                 listing = ", ".join(f"{k}: N {v[0]:.4g}, K {v[1]:.4g}" for k, v in per.items())
-                lines.append(f"# {key}: the largest over the per-axis exported models, set by axis {lab} ({listing})")
+                which = "; ".join(f"{prefix}_{kind} set by axis {imu.set_by.get(f'{prefix}_{kind}', '-')}"
+                                  for kind in ("noise_density", "random_walk"))
+                lines.append(f"# {prefix}: the largest of each over the per-axis exported models (SI; {listing}): "
+                             f"{which}")
     if source:
         lines.append(f"# Source: {source}")
     lines += [f"# {n}" for n in notes]
