@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -208,9 +208,7 @@ def kalibr_pair(model, band_hz, *, per_decade: int = PER_DECADE, tol: float = LP
 
     m = _model(model, name)
     _check_lines(m, name)
-    from dataclasses import replace as _replace
-
-    m = _replace(m, ramp=0.0, narrowband=())
+    m = replace(m, ramp=0.0, narrowband=())
     lo, hi = float(band_hz[0]), float(band_hz[1])
     if not 0 < lo < hi:
         raise ValueError(f"{name}: band_hz = {band_hz!r}, expected 0 < lo < hi (Hz)")
@@ -439,9 +437,7 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, band_hz, rostopic: str = "
         im = _model(ident, prefix) if ident is not None else None
         ref = None
         if im is not None:
-            from dataclasses import replace as _replace
-
-            ref = kalibr_pair(_replace(im, narrowband=()), band_hz, name=f"identified {prefix}")
+            ref = kalibr_pair(replace(im, narrowband=()), band_hz, name=f"identified {prefix}")
         for kind in ("noise_density", "random_walk"):
             key = f"{prefix}_{kind}"
             r = getattr(ref, kind) if ref is not None else None
@@ -569,8 +565,6 @@ def with_bias_drift(exported: NoiseModel, bound: NoiseModel, sensor: str) -> tup
     (NoiseModel, str or None)
         The model to write and a sentence saying what was taken from the bound (None when nothing was).
     """
-    from dataclasses import replace
-
     if _drift_variance(exported) > 0 or not _drift_variance(bound) > 0:
         return exported, None
     note = (f"{sensor}: the exported KF model has no bias drift (the verified reduction dropped every GM and "
