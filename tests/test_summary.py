@@ -296,3 +296,26 @@ def test_a_gm_sigma_below_the_spec_sheets_is_explained():
     assert ("- GM sigma below the spec sheet's: the spec sheet's PSD is bounded at every frequency by the bound's "
             "terms together (white noise, GM and random walk; spec margin 1.02), not term by term") in text
     assert "not term by term" not in render_summary({"gyro": {"bound": _bound(spec_margin=1.02)}})  # 4.1 > 1.5
+
+
+def test_the_in_band_inflation_line_is_beside_the_table_per_sensor_and_per_axis():
+    """The contract's inband_inflation (imupipe.inband) gives one line after the inflation table, and one per axis
+    under the per-axis table; a GM acting as white noise in band is named so."""
+    from imupipe.inband import inband_inflation
+    from imupipe.models import NoiseModel
+
+    band = (1 / 600.0, 0.5)
+    spec = NoiseModel(white=1e-4)
+    glob = inband_inflation(NoiseModel(white=3e-4, gauss_markov=((5e-3, 0.01),)), spec, band)
+    ax = inband_inflation(NoiseModel(white=2e-4), spec, band)
+    per = {"x": {"inflation": {"N": 2.0}, "exported_in_kf": True, "kf": "axis x: its own model",
+                 "inband_inflation": ax}}
+    text = render_summary({"gyro": {"bound": _bound(inband_inflation=glob, per_axis_models=per)}})
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("- in-band (0.00167 to 0.5 Hz): median "))
+    assert lines[i - 2].startswith("| ")  # right after the table (a blank line between)
+    assert "the spec's PSD; " in lines[i] and "x the spec's white noise (median; max " in lines[i]
+    assert "GM of T 0.01 s (corner 15.9 Hz) acts as white noise" in lines[i]
+    assert ("- axis x: in-band (0.00167 to 0.5 Hz): median 2x, max 2x at 0.00167 Hz the spec's PSD; 2x the spec's "
+            "white noise") in text
+    assert "in-band" not in render_summary({"gyro": {"bound": _bound()}})

@@ -428,6 +428,8 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         inflation table (spec-sheet units), states kept and dropped with the reasons, and the checks
         (``FAIL`` / ``FLAG`` lines, or "none flagged").
     """
+    from imupipe.inband import inband_line
+
     lines = [f"# {title}", ""]
     all_flags: list[Flag] = []
     verdicts = []
@@ -457,6 +459,11 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
+        inband = inband_line(bound.get("inband_inflation")) if bound else None
+        if inband:
+            # what the whole exported model does over the application band (imupipe.inband): beside the table
+            lines += [f"- {inband}", ""]
+        if rows:
             gap = _spec_above_data(bound)
             if gap:
                 lines += [gap, ""]
@@ -489,6 +496,11 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
                     lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
                                  f"{'yes' if own else 'no (global model)'} | "
                                  f"{pa.get('kf', '-')} | {scope or '-'} |")
+            lines.append("")
+            for ax, pa in per.items():
+                text = inband_line(pa.get("inband_inflation")) if isinstance(pa, Mapping) else None
+                if text:
+                    lines.append(f"- axis {ax}: {text}")
             lines.append("")
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
