@@ -23,8 +23,10 @@ rate of the recorded IMU messages, not the filter rate.
 
 Kalibr has no Gauss-Markov state, no flicker and no line. Its two densities are chosen in Kalibr's own family
 (:func:`kalibr_pair`): the pair (N, K) whose two-sided PSD :math:`N^2 + K^2/(2\pi f)^2` bounds the exported model's
-continuous two-sided PSD :math:`S(f)` at every frequency of the application band :math:`[1/\text{horizon},
-f_s/2]` (f_s the reference filter's rate: the band the exported model was verified for) and that minimises the
+continuous two-sided PSD :math:`S(f)` at every frequency of :math:`[1/\text{horizon}, f_u/2]`, with
+:math:`f_u` = ``update_rate`` (Kalibr's filter runs at the IMU's rate, so its white noise must cover the model up to
+that Nyquist frequency; over the 1 Hz reference filter's 0.5 Hz alone the LP may trade white noise for random
+walk and leave the density below the model's white noise above the band) and that minimises the
 log-frequency mean over the band of :math:`(N^2 + K^2/(2\pi f)^2)/S(f)`, the pair's mean power inflation over the
 model (dimensionless). A 2-variable LP in :math:`(N^2, K^2)` (``scipy.optimize.linprog``, HiGHS), its rows the
 ratio to S on a log-uniform grid plus the model's corner frequencies, refined by cutting planes at the local minima
@@ -407,8 +409,8 @@ def kalibr_imu(gyro, accel, *, update_rate_hz: float, band_hz, rostopic: str = "
     update_rate_hz : float
         IMU sample rate, Hz (the recorded messages' rate; see :func:`imu_rate`).
     band_hz : (float, float)
-        The band the pair bounds the model over, Hz: the application band [1/horizon_s, filter_rate_hz/2]
-        (:func:`imupipe.inband.application_band`).
+        The band the pair bounds the model over, Hz: [1/horizon_s, update_rate_hz/2] (the workflow's; Kalibr runs
+        its filter at the IMU's rate).
     rostopic : str, optional
         Topic of the IMU messages (the dataset sheet's ``topic``), default ``"/imu0"``.
     identified_gyro, identified_accel : NoiseModel or dict, optional

@@ -4,7 +4,7 @@ update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for ever
 each dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the
 identify files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities the
 smallest Kalibr pair (white noise, random walk) whose PSD bounds the exported model's over the application band
-[1/horizon_s, filter_rate_hz/2] (imupipe.kalibr.kalibr_pair: an LP; per axis when the KF file has per-axis models, the
+[1/horizon_s, update_rate/2] (imupipe.kalibr.kalibr_pair: an LP; per axis when the KF file has per-axis models, the
 largest of each, the comment naming the axis), and the comment block the rule, the exported model's effective in-band
 inflation against the spec sheet (the contract's inband_inflation) and the ratio to the identified model's pair.
 
@@ -165,7 +165,8 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
     paths = dict(zip(kfs, (path_kf_gyro, path_kf_accel), strict=True))
     models = {s: axis_models(k, paths[s]) for s, k in kfs.items()}
-    band = band_of(kfs["gyro"], path_kf_gyro)
+    # Kalibr's filter runs at update_rate: the pair bounds the exported model from 1/horizon up to its Nyquist
+    band = (band_of(kfs["gyro"], path_kf_gyro)[0], 0.5 * rate)
     # Kalibr needs a positive bias random walk: an export without drift states takes the bound's (said so)
     for s in models:
         for ax in models[s]:
