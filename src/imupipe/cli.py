@@ -161,6 +161,33 @@ def allan_table(rec, taus="octave") -> tuple[list[str], list[list[float]], dict]
     return header, rows, avs
 
 
+def _read_with_time_unit(path, fmt, rate_hz, channels, units, kwargs):
+    """read_dataset for ``imupipe allan``: a ``t`` column is the time column when none is given, and a time column
+    without a unit gets the one :func:`imupipe.readers.timeunit.infer_time_unit` infers (stated on stderr) from the
+    stamps' mean gap-free interval read as seconds; formats whose stamps carry their unit (netCDF, bags) as given."""
+    from imupipe.readers import format_of, probe, read_dataset
+    from imupipe.readers.timeunit import infer_time_unit
+
+    kind = format_of(path, fmt)
+    if kind in ("netcdf", "rosbag"):
+        return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units, **kwargs)
+    if "time_column" not in kwargs:
+        names = probe(path, fmt, **{k: v for k, v in kwargs.items() if k in ("delimiter", "variable")}).channels
+        if "t" in names:
+            kwargs = {**kwargs, "time_column": "t"}
+            print(f"imupipe allan: {path}: column 't' read as the time column (--time-column to choose another)",
+                  file=sys.stderr)
+    if "time_column" not in kwargs or "time_unit" in kwargs:
+        return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units, **kwargs)
+    as_s = read_dataset(path, format=fmt, channels=channels, units=units, **{**kwargs, "time_unit": "s"})
+    unit, reason = infer_time_unit(1.0 / as_s.rate_hz, rate_hz, where=str(path))
+    print(f"imupipe allan: {path}: time unit {unit} ({reason}; --time-unit to state it)", file=sys.stderr)
+    if unit == "s" and rate_hz is None:
+        return as_s
+    return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units,
+                        **{**kwargs, "time_unit": unit})
+
+
 def _cmd_allan(args) -> int:
     from imupipe.readers import read_dataset
 
@@ -182,8 +209,8 @@ def _cmd_allan(args) -> int:
             units[k.strip()] = v.strip()
     kwargs = dict(time_column=args.time_column, time_unit=args.time_unit, variable=args.variable, topic=args.topic,
                   delimiter=args.delimiter)
-    rec = read_dataset(args.file, format=args.format, rate_hz=args.rate_hz, channels=channels, units=units,
-                       **{k: v for k, v in kwargs.items() if v is not None})
+    kwargs = {k: v for k, v in kwargs.items() if v is not None}
+    rec = _read_with_time_unit(args.file, args.format, args.rate_hz, channels, units, kwargs)
     if args.sensor:
         keep = {k: v for k, v in rec.items() if k[0] == args.sensor}
         if not keep:
@@ -457,8 +484,9 @@ def _parser() -> argparse.ArgumentParser:
     a.add_argument("--channel", action="append", metavar="SENSOR_AXIS=COLUMN",
                    help="channel column, e.g. gyro_x=wx (repeatable; default columns gyro_x ... accel_z)")
     a.add_argument("--units", action="append", metavar="SENSOR=UNIT", help="stored unit, e.g. gyro=deg/s")
-    a.add_argument("--time-column", help="timestamp column")
-    a.add_argument("--time-unit", help="timestamp unit: s, ms, us, ns")
+    a.add_argument("--time-column", help="timestamp column (default: a column named t, if any)")
+    a.add_argument("--time-unit", help="timestamp unit: s, ms, us, ns (default: inferred from the stamps' spacing "
+                   "against --rate-hz, else against 1 Hz .. 10 kHz, and stated)")
     a.add_argument("--delimiter", help="text delimiter: ',', tab, semicolon, space")
     a.add_argument("--variable", help="R object / npz array / netCDF variable")
     a.add_argument("--topic", help="bag topic of the sensor_msgs/Imu messages")
