@@ -80,7 +80,7 @@ def test_check_names_a_missing_dataset_file(tmp_path, capsys):
     cfg.write_text(TINY.read_text().replace("datasets: null", f"datasets: {sheet}"))
     assert main(["check", str(cfg), "--no-dry-run"]) == 1
     err = capsys.readouterr().err
-    assert "line 2" in err and "lab1" in err and "does not exist" in err
+    assert "line 2" in err and "lab1" in err and "/nonexistent/lab1.csv: file not found" in err
 
 
 def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
@@ -259,3 +259,33 @@ def test_allan_time_unit_refused_when_ambiguous_or_no_unit_fits(tmp_path, capsys
     # a stated unit is used as given, without inference
     assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--time-unit", "ms"]) == 0
     assert "time unit" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("case", ["commas", "notes", "loop", "windows"])
+def test_check_names_the_culprit_of_a_first_hour_sheet(tmp_path, capsys, case):
+    # before: "no 'path' column", "does not exist" for a loop and a Windows path; the workflow's "Error validating
+    # config file." for an extra column (the workflow reads the sheet header with the same check)
+    rec = tmp_path / "lab1.csv"
+    rec.write_text("gyro_x\n0.1\n0.2\n")
+    head, row = ["dataset", "path", "format", "rate_hz", "gyro_unit"], ["lab1", str(rec), "csv", "100", "deg/s"]
+    sep, expected = "\t", None
+    if case == "commas":
+        sep, expected = ",", "line 1: not tab-separated (found commas"
+    elif case == "notes":
+        head, row = head + ["notes"], row + ["bench 2"]
+        expected = "unknown column 'notes' (column 6); allowed columns: dataset, path,"
+    elif case == "loop":
+        (tmp_path / "a.csv").symlink_to(tmp_path / "b.csv")
+        (tmp_path / "b.csv").symlink_to(tmp_path / "a.csv")
+        row[1] = str(tmp_path / "a.csv")
+        expected = "line 2 (dataset 'lab1'): " + str(tmp_path / "a.csv") + ": symbolic link loop"
+    else:
+        row[1] = "data\\lab1.csv"
+        expected = "the path has backslashes, a Windows path?"
+    sheet = tmp_path / "sheet.tsv"
+    sheet.write_text(sep.join(head) + "\n" + sep.join(row) + "\n")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(TINY.read_text().replace("datasets: null", f"datasets: {sheet}"))
+    assert main(["check", str(cfg), "--no-dry-run"]) == 1
+    err = capsys.readouterr().err
+    assert expected in err, err

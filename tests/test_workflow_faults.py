@@ -504,6 +504,21 @@ def test_duplicated_sheet_column_refused(startup_work):
     assert not (startup_work / "results" / "dupcol").exists()
 
 
+@pytest.mark.parametrize("tag, sep, extra, message", [
+    ("commasheet", ",", "", "sheet_commasheet.tsv', line 1: not tab-separated (found commas"),
+    ("notescol", "\t", "notes", "sheet_notescol.tsv', line 1: unknown column 'notes' (column 13); allowed columns: "
+                                "dataset, path,"),
+])
+def test_first_hour_sheet_refused_naming_the_culprit(startup_work, tag, sep, extra, message):
+    # before: "no 'path' column" (commas) and "Error validating config file." (an extra notes column)
+    cols = [c for c in SHEET_COLUMNS if c in GOOD] + ([extra] if extra else [])
+    cells = [str(GOOD[c]) for c in cols if c in GOOD] + (["bench 2"] if extra else [])
+    proc, out = _startup(startup_work, tag, sheet_text=sep.join(cols) + "\n" + sep.join(cells) + "\n")
+    assert proc.returncode == 1
+    assert message in out, out[-2000:]
+    assert not (startup_work / "results" / tag).exists()
+
+
 @pytest.mark.parametrize("name", ["..", "a/b", "-x"])
 def test_bad_dataset_name_refused(startup_work, name):
     tag = "name" + hashlib.md5(name.encode()).hexdigest()[:6]

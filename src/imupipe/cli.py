@@ -109,11 +109,14 @@ def check_config(config: str | Path) -> list[str]:
         done.append(f"spec sheet {path.name}: {spec.name}, sensors {', '.join(sensors)}")
     sheet = cfg.get("datasets")
     if sheet:
-        from imupipe.readers import sheet_row_to_kwargs
+        from imupipe.readers import check_file, sheet_row_to_kwargs
 
         sheet_path = root / str(sheet)
         if not sheet_path.is_file():
             raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
+        from imupipe.readers import check_sheet_header
+
+        check_sheet_header(sheet_path)
         rows = _sheet_rows(sheet_path)
         if not rows:
             raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
@@ -121,9 +124,10 @@ def check_config(config: str | Path) -> list[str]:
             if "path" not in row:
                 raise ValueError(f"{sheet_path}: no 'path' column (columns: {', '.join(row)})")
             kw = sheet_row_to_kwargs(row, base_dir=root)
-            if not Path(kw["path"]).exists():
-                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): file {kw['path']} "
-                                 "does not exist")
+            try:
+                check_file(kw["path"])  # names a symlink loop, a broken link, a Windows path
+            except ValueError as exc:
+                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
         done.append(f"dataset sheet {sheet_path.name}: {len(rows)} rows, every file present")
     elif not cfg.get("simulation"):
         raise ValueError(f"{config}: 'datasets' is null and 'simulation' is empty: nothing to analyse")
