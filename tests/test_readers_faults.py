@@ -561,3 +561,21 @@ class TestFirstHourMessages:
             read_dataset("data\\imu.csv", "csv", 100.0, CHANNELS, UNITS)
         with pytest.raises(DataError, match=r"nope\.csv: file not found$"):
             read_dataset(tmp_path / "nope.csv", "csv", 100.0, CHANNELS, UNITS)
+
+    @pytest.mark.parametrize("unit, factor", [("ms", 1e-3), ("ns", 1e-9)])
+    def test_stamps_in_another_unit_than_read_name_time_unit(self, tmp_path, table, unit, factor):
+        # ms or ns stamps with rate_hz 100 and no time_unit said "correct rate_hz": the rate is right, the unit not
+        stamped = table.copy()
+        stamped[:, 0] = np.round(stamped[:, 0] / factor)
+        path = write_csv(tmp_path / "imu.csv", stamped)
+        with pytest.raises(DataError) as info:
+            read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t")
+        msg = str(info.value)
+        assert f"read as s give a mean rate of {100 * factor:.6g} Hz" in msg
+        assert f"read as {unit} they give 100 Hz: the time column counts {unit}, set time_unit: {unit}" in msg
+        assert "correct rate_hz" not in msg
+        rec = read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t", time_unit=unit)
+        assert rec.rate_hz == 100.0
+        # a rate no unit explains keeps the rate_hz advice
+        with pytest.raises(DataError, match="correct rate_hz, or leave it empty"):
+            read_dataset(path, "csv", 120.0, CHANNELS, UNITS, time_column="t", time_unit=unit)
