@@ -348,5 +348,6 @@ def test_white_noise_far_above_the_spec_sheet_asks_for_the_unit_of_the_dataset(t
                    curves=["bench/x"], per_axis=[])  # no envelope: bound/spec against its own limit
     (f,) = [f for f in flags_of("accel", bound=accel) if f.check == "data far above the spec sheet"]
     assert "dataset sheet column accel_unit of bench" in f.detail and "data/spec" not in f.detail
+    assert "m/s^2 declared g gives 9.81x" in f.detail and "deg/s" not in f.detail
     correct = {**accel, "bound": {"white": 8.6 * spec_n}}  # the largest correct-unit bound/spec: not flagged
     assert all(f.check != "data far above the spec sheet" for f in flags_of("accel", bound=correct))

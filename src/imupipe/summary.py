@@ -274,9 +274,11 @@ def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
     column = f"{sensor}_unit" if sensor in ("gyro", "accel") else "gyro_unit/accel_unit"
     said = [f"bound/spec {_num(r_bound)}x" if r_bound is not None else None,
             f"data/spec {_num(r_data)}x (the identification's upper envelope)" if r_data is not None else None]
+    examples = ("m/s^2 declared g gives 9.81x, mg declared g 1000x" if sensor == "accel" else
+                "deg/s declared rad/s gives 57.3x, mrad/s declared rad/s 1000x")
     return [Flag(sensor, "data far above the spec sheet", datasets,
                  f"white noise N {', '.join(x for x in said if x)}, above the {limit:.2g}x a correct unit "
-                 "plausibly gives (deg/s declared rad/s gives 57.3x, mrad/s declared rad/s 1000x): check the unit of "
+                 f"plausibly gives ({examples}): check the unit of "
                  f"{sensor} (dataset sheet column {column} of {datasets}) and that the spec sheet is this sensor's")]
 
 
