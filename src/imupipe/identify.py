@@ -497,6 +497,46 @@ def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=No
     return float(lower), float(upper), lower_open, upper_open
 
 
+def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None):
+    r"""The fit with a single GM's variance held at `s2` (u^2), its time constant and every other coefficient
+    refitted (helper of the GM sigma's profile interval in :func:`fit_allan`): :math:`\min_T \chi^2` of the
+    components `rest` (the fit's without ``gauss_markov``) with the fixed part :math:`s_2\, g(\tau; T)`, on
+    `grid` (s) and then by Brent's method in :math:`\ln T` between the best point's neighbours (as
+    :func:`_profile`). With `s2` = 0 the GM is absent and T plays no part.
+
+    Returns
+    -------
+    _Solution
+        The held fit (``T`` the optimal time constant, s; empty for `s2` = 0).
+    """
+    from imupipe.search import refine_between_neighbours
+
+    if not s2 > 0.0:
+        return _solve_fixed(t, y, e, rest, (), m0=m0)
+    tb = np.ascontiguousarray(t, dtype=np.float64).tobytes()
+
+    def solve(T, m_start):
+        sol = _solve_fixed(t, y, e, rest, (), m0=m_start, offset=s2 * _gm_column(tb, float(T)))
+        sol.T = (float(T),)
+        return sol
+
+    g = np.sort(np.asarray(grid, dtype=np.float64))
+    best, m_start = None, m0
+    sols = []
+    for T in g:
+        sols.append(solve(T, m_start))
+        m_start = sols[-1].m
+    i = int(np.argmin([sol.chi2 for sol in sols]))
+    best = sols[i]
+    if g.size >= 2:
+        res = refine_between_neighbours(lambda lt: solve(math.exp(lt), best.m).chi2, g, i, 1e-3)
+        if res is not None and res.fun < best.chi2:
+            cand = solve(math.exp(res.x), best.m)
+            if cand.chi2 < best.chi2:
+                best = cand
+    return best
+
+
 def _solution_to_params(sol, comps, n_gm):
     """Flat SI parameter dict (coefficients are square roots of the fitted squared ones)."""
     params = {c: 0.0 for c in comps if c != "gauss_markov"}
@@ -655,6 +695,7 @@ class AllanFit:
     random_walk_profile: dict = field(default_factory=dict)
     gm_T_profile: dict = field(default_factory=dict)
     white_profile: dict = field(default_factory=dict)
+    gm_sigma_profile: dict = field(default_factory=dict)
     adequacy: dict = field(default_factory=dict)
     on_boundary: dict = field(default_factory=dict)
     interval_kind: dict = field(default_factory=dict)
@@ -922,6 +963,11 @@ def fit_allan(
     n_hat = params.get("white", float("nan"))
     n_deltas = np.full(int(n_boot), np.nan) if n_boot > 0 and "white" in comps and n_hat > 0 else None
     no_white = tuple(comp for comp in comps if comp != "white")
+    # the single GM variance's profile interval (see the docstring): the statistic at the fitted sigma, T and
+    # every other coefficient refitted (the same statistic on the data and on every replicate)
+    s_hat = params.get("gm_sigma_1", float("nan")) if n_gm == 1 else float("nan")
+    s_deltas = np.full(int(n_boot), np.nan) if n_boot > 0 and s_hat > 0 and grid.size >= 2 else None
+    no_gm = tuple(comp for comp in comps if comp != "gauss_markov")
     if n_boot > 0:
         # bootstrap grid: a little coarser than the fit's, same span
         bgrid = grid if grid.size <= 30 else np.logspace(math.log10(grid[0]), math.log10(grid[-1]), 30)
@@ -963,6 +1009,12 @@ def fit_allan(
             if n_deltas is not None:
                 held_N = _solve_fixed(t, ystar, e, no_white, sol.T, m0=sol.m, offset=n_hat * n_hat / t)
                 n_deltas[b] = max(held_N.chi2 - sol.chi2, 0.0)
+            if s_deltas is not None:
+                # the replicate's fit with sigma held at the value it was drawn with, T searched near the
+                # replicate's own optimum (a better T missed only enlarges the threshold: conservative)
+                local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
+                held_s = _gm_sigma_held(t, ystar, e, no_gm, s_hat * s_hat, local, m0=sol.m)
+                s_deltas[b] = max(held_s.chi2 - sol.chi2, 0.0)
     lo_q, hi_q = 100 * (1 - c) / 2, 100 * (1 + c) / 2
     intervals, p_zero = {}, {}
     for j, k in enumerate(names):
@@ -1001,6 +1053,20 @@ def fit_allan(
         white_profile = {"threshold": threshold, "lower": n_lo, "upper": n_up,
                          "percentile_lower": lo_p, "percentile_upper": hi_p}
         intervals["white"] = _hull((lo_p, hi_p), (n_lo, n_up))
+
+    gm_sigma_profile = {}
+    if s_deltas is not None and np.isfinite(s_deltas).any() and "gm_sigma_1" in intervals:
+        threshold = float(np.quantile(s_deltas[np.isfinite(s_deltas)], c))
+        lo_p, hi_p = intervals["gm_sigma_1"]
+
+        def delta_s(x):
+            return _gm_sigma_held(t, y, e, no_gm, x * x, grid, m0=best.m).chi2 - best.chi2
+
+        step = (hi_p - s_hat) if np.isfinite(hi_p) and hi_p > s_hat else 1e-2 * s_hat
+        s_lo, s_up = _profile_interval(delta_s, s_hat, threshold, step, rtol=1e-3)
+        gm_sigma_profile = {"threshold": threshold, "lower": s_lo, "upper": s_up,
+                            "percentile_lower": lo_p, "percentile_upper": hi_p}
+        intervals["gm_sigma_1"] = _hull((lo_p, hi_p), (s_lo, s_up))
 
     gm_T_profile, T_open = {}, (False, False)
     if t_deltas is not None and np.isfinite(t_deltas).any() and profile[1].size == profile[0].size:
@@ -1079,6 +1145,9 @@ def fit_allan(
         notes.append(f"GM term 1: the data do not bound T {'below' if T_open[0] else 'above'} within the search "
                      f"({grid.min():.3g}-{grid.max():.3g} s) at {100 * c:.0f} % (profile of the fit statistic); "
                      "the interval is one-sided")
+    if gm_sigma_profile and gm_sigma_profile["lower"] == 0.0:
+        interval_kind["gm_sigma_1"] = ("one-sided (the profile interval reaches sigma = 0: the data do not exclude "
+                                       "the GM's absence)")
     for k in names:
         if not k.startswith("gm_T") and params[k] == 0.0 and k in intervals:
             on_boundary[k] = True  # NNLS at its constraint: the interval's lower end is 0, one-sided
@@ -1131,6 +1200,7 @@ def fit_allan(
         random_walk_profile=random_walk_profile,
         gm_T_profile=gm_T_profile,
         white_profile=white_profile,
+        gm_sigma_profile=gm_sigma_profile,
         adequacy=adequacy,
         on_boundary=on_boundary,
         interval_kind=interval_kind,
