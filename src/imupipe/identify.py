@@ -35,6 +35,10 @@ References
        re-weighted least squares).
 .. [5] N. El-Sheimy, H. Hou, X. Niu, "Analysis and Modeling of Inertial Sensors Using Allan
        Variance", IEEE Trans. Instrum. Meas. 57(1), 140-149, 2008.
+.. [6] D. J. Venzon, S. H. Moolgavkar, "A Method for Computing Profile-Likelihood-Based Confidence
+       Intervals", Applied Statistics 37(1), 87-94, 1988.
+.. [7] A. C. Davison, D. V. Hinkley, "Bootstrap Methods and their Application", Cambridge University
+       Press, 1997, chapter 5 (confidence intervals).
 """
 
 from __future__ import annotations
@@ -640,7 +644,8 @@ class AllanFit:
         Parameter -> (lower, upper) percentile interval of the parametric bootstrap at level
         `confidence` (NaN where no bootstrap was run); the random walk's upper end is the larger of the
         percentile and the profile limit (`random_walk_profile`); a single GM's time constant ``gm_T_1`` and the
-        white noise are the hull of the percentile and the profile interval (`gm_T_profile`, `white_profile`).
+        white noise are the hull of the percentile and the profile interval (`gm_T_profile`, `white_profile`),
+        a single GM's ``gm_sigma_1`` its profile interval (`gm_sigma_profile`).
     p_zero : dict
         Parameter -> fraction of bootstrap refits with that coefficient exactly zero (NNLS at its
         constraint): a large value means the data do not pin the component down.
@@ -675,6 +680,10 @@ class AllanFit:
     white_profile : dict
         ``threshold`` (a chi2 difference), ``lower`` and ``upper`` (the profile interval of N, u/sqrt(Hz)),
         ``percentile_lower`` and ``percentile_upper``; empty without a bootstrap or a fitted white noise.
+    gm_sigma_profile : dict
+        ``threshold`` (a chi2 difference), ``lower`` and ``upper`` (the profile interval of ``gm_sigma_1``, u:
+        the reported interval), ``percentile_lower`` and ``percentile_upper`` (u, for comparison); empty
+        without a bootstrap or with other than one GM term.
     """
 
     model: object
@@ -839,6 +848,24 @@ def fit_allan(
     the N it was drawn with, T at the replicate's own optimum), so the calibration matches the statistic;
     both ends bisected to 1e-4 N (:func:`_profile_interval`, one extra fixed-T solve per replicate), the
     reported interval the hull of the percentile and the profile interval (``white_profile``).
+
+    A single GM's sigma gets the profile interval alone (``gm_sigma_profile``): with
+    :math:`\chi^2_\sigma(s) = \min_{T,\,\theta' \ge 0} \chi^2` of the fit with :math:`\sigma^2 g(\tau; T)` held
+    at :math:`s^2 g(\tau; T)` (a fixed part of the model) and T and every other coefficient :math:`\theta'`
+    refitted (:func:`_gm_sigma_held`: the fit's T grid, then Brent's method in :math:`\ln T`),
+    :math:`\Delta(s) = \chi^2_\sigma(s) - \chi^2_{free}`, the interval is :math:`\{s \ge 0 : \Delta(s) \le c\}`,
+    c the `confidence` quantile of the same statistic over the replicates, each held at the sigma it was drawn
+    with (T searched within a factor 4 of the replicate's own optimum: a better T missed only enlarges c), both
+    ends bisected to 1e-3 sigma (:func:`_profile_interval`); a lower end 0 (:math:`\Delta(0) \le c`: the data do
+    not exclude the GM's absence) is labelled one-sided. Profiling T (and with it K) is the point: sigma, T and
+    K trade off along a ridge of the fit statistic (the GM's AV plateau :math:`\approx \sigma^2` against the
+    random walk's rise), and the percentile interval, drawn around the fitted point of that ridge, missed on
+    the side the estimate had moved to (development seeds, 200 tactical records: low sigma with low T and a
+    high K, high sigma with high T and a low K; docs/performance.md, 2026-12-03). Profile-likelihood intervals:
+    Venzon & Moolgavkar [6]; their calibration by the bootstrap: Davison & Hinkley [7], chapter 5. The
+    percentile ends are kept in ``gm_sigma_profile``; the hull with them over-covered (0.95-0.97 over 100
+    records at a nominal 0.9, the profile interval 0.91-0.93). About 15 extra fixed-T solves per replicate
+    (identify job +30 % CPU).
 
     Coverage of the ``"correlated"`` intervals on simulated 10 h and 50 h records (tests, nominal
     90 %): N, GM sigma and T, and the random walk, present or absent in the truth, within binomial
@@ -1652,9 +1679,12 @@ def _hull_gm_intervals(sel: AllanFit, with_rw: AllanFit) -> None:
     (measured: a tactical gyro truth with K > 0, 10 h at 10 Hz, K dropped in about 10 % of the records, GM T
     and sigma missed in most of those). The fit with the random walk contains both models (K >= 0), so:
 
-    * a single GM's time constant, whose interval there includes the profile interval (test inversion in the
-      larger model, calibrated whichever model holds), is taken from the fit with the random walk;
-    * a percentile-only interval (every GM sigma; T with two GM terms) is the hull of the two: the percentile
+    * a single GM's time constant and sigma, whose intervals there are (or include) profile intervals (test
+      inversion in the larger model, calibrated whichever model holds), are taken from the fit with the random
+      walk (measured, development seeds: with the random walk dropped the refit's own sigma interval missed the
+      tactical truth in all 19 of 200 records, above it; the hull with the larger fit's percentile interval in
+      5 of them, its lower end just above the truth; that fit's profile interval in none);
+    * a percentile-only interval (the GM intervals of two GM terms) is the hull of the two: the percentile
       interval of the larger model is centred on an estimate the random walk pulls low when the truth has none
       (measured: GM sigma covered 0.85 of 100 white + GM records without a random walk, 0.90 for the refit's
       own), the refit's on one pushed high when it has one.
