@@ -240,6 +240,19 @@ def test_gm_sigma_profile_interval_brackets_its_threshold():
     assert fit.to_dict()["gm_sigma_profile"]["upper"] == prof["upper"]
 
 
+def test_gm_sigma_profile_reaching_zero_is_one_sided():
+    # a GM far below the white noise (2 h, sigma 2e-5 against N 8.3e-4): sigma is fitted > 0 but Delta(0) <= c, the
+    # profile interval's lower end is 0 and the interval is labelled one-sided
+    truth = NoiseModel(white=8.333e-4, gauss_markov=((2e-5, 100.0),))
+    tau, avar, edf = curves(truth, 2.0, 1, seed=3)
+    n = int(2.0 * 3600 * RATE)
+    fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_boot=30, rng=1, confidence=0.9,
+                    rate=RATE, n_samples=n)
+    assert fit.params["gm_sigma_1"] > 0 and fit.gm_sigma_profile["lower"] == 0.0
+    assert fit.intervals["gm_sigma_1"][0] == 0.0 and fit.intervals["gm_sigma_1"][1] > fit.params["gm_sigma_1"]
+    assert fit.interval_kind["gm_sigma_1"].startswith("one-sided")
+
+
 def test_profile_interval_of_a_known_statistic():
     # Delta(x) = ((x - 5) / 0.5)^2, threshold 4: the set is [4, 6]; each end is returned as the outside end of a
     # bracket of at most rtol * x_hat = 5e-4; a set reaching 0 gives the lower end 0, one that never closes inf
