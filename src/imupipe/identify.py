@@ -877,8 +877,9 @@ def fit_allan(
     0.935-0.99 (widened for GM/random-walk confounding: conservative). With sigma's profile interval
     (docs/performance.md, 2026-12-03; seeds 555, 8080, 7777 not used in its development): tactical GM sigma
     0.905, 0.845, 0.935 (0.89, 0.82, 0.885 with the percentile interval; pooled 0.895 against 0.865), white
-    + GM 0.89, 0.925; the shortfall on 8080 is records whose fitted K is below the truth's, where the
-    threshold calibrated under the fitted model is too small.
+    + GM 0.89, 0.925; the misses on 8080 gather in records whose fitted K is below the truth's, where the
+    threshold, calibrated under the fitted model, is likely too small (over 399 records its median 4.0 against
+    4.44 for the 0.9 quantile of the statistic at the truth).
 
     With one 10 h record GM and rate random walk are confounded (docs/method.md, section "Identification"): K is often
     fitted as 0 and the GM parameters have 50-200 % spread, while white noise is recovered to < 1 %.
