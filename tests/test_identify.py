@@ -211,6 +211,48 @@ def test_white_profile_interval_brackets_its_threshold():
     assert fit.to_dict()["white_profile"]["upper"] == prof["upper"]
 
 
+def test_gm_sigma_profile_interval_brackets_its_threshold():
+    # a single GM's sigma interval is its profile interval {s : Delta(s) <= the bootstrap threshold}, Delta(s) =
+    # chi2(sigma held at s, T and every other coefficient refitted) - chi2(free); each end the outside end of a
+    # bisection bracket of 1e-3 sigma, so Delta crosses the threshold inside it; the percentile ends are kept
+    from imupipe.identify import _check_components, _gm_sigma_held
+
+    truth = TRUTHS["white+gm+rw"]
+    tau, avar, edf = curves(truth, 10.0, 1, seed=5)
+    n = int(10.0 * 3600 * RATE)
+    comps = ("white", "gauss_markov", "random_walk")
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    prof, s_hat = fit.gm_sigma_profile, fit.params["gm_sigma_1"]
+    assert prof["threshold"] > 0 and prof["lower"] < s_hat < prof["upper"]
+    assert fit.intervals["gm_sigma_1"] == (prof["lower"], prof["upper"])
+    assert np.isfinite(prof["percentile_lower"]) and np.isfinite(prof["percentile_upper"])
+    t, y, e = tau[0], avar[0], edf[0]
+    rest = _check_components(("white", "random_walk"), 0)
+
+    def delta(x):
+        return _gm_sigma_held(t, y, e, rest, x * x, fit.T_grid).chi2 - fit.chi2
+
+    tol = 1e-3 * s_hat
+    assert delta(prof["upper"]) > prof["threshold"] >= delta(prof["upper"] - tol)
+    assert delta(prof["lower"]) > prof["threshold"] >= delta(prof["lower"] + tol)
+    # the held fit at the estimate is the free fit (T refitted): Delta(sigma-hat) ~ 0
+    assert abs(delta(s_hat)) < 1e-3 * max(1.0, fit.chi2)
+    assert fit.to_dict()["gm_sigma_profile"]["upper"] == prof["upper"]
+
+
+def test_gm_sigma_profile_reaching_zero_is_one_sided():
+    # a GM far below the white noise (2 h, sigma 2e-5 against N 8.3e-4): sigma is fitted > 0 but Delta(0) <= c, the
+    # profile interval's lower end is 0 and the interval is labelled one-sided
+    truth = NoiseModel(white=8.333e-4, gauss_markov=((2e-5, 100.0),))
+    tau, avar, edf = curves(truth, 2.0, 1, seed=3)
+    n = int(2.0 * 3600 * RATE)
+    fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_boot=30, rng=1, confidence=0.9,
+                    rate=RATE, n_samples=n)
+    assert fit.params["gm_sigma_1"] > 0 and fit.gm_sigma_profile["lower"] == 0.0
+    assert fit.intervals["gm_sigma_1"][0] == 0.0 and fit.intervals["gm_sigma_1"][1] > fit.params["gm_sigma_1"]
+    assert fit.interval_kind["gm_sigma_1"].startswith("one-sided")
+
+
 def test_profile_interval_of_a_known_statistic():
     # Delta(x) = ((x - 5) / 0.5)^2, threshold 4: the set is [4, 6]; each end is returned as the outside end of a
     # bracket of at most rtol * x_hat = 5e-4; a set reaching 0 gives the lower end 0, one that never closes inf
@@ -526,8 +568,8 @@ class TestSelectedRefit:
         assert ref.params["white"] == pytest.approx(truth.white, rel=0.015)
 
     def test_dropped_random_walk_gm_intervals_from_the_fit_with_it(self):
-        # the selection drops the random walk (the truth has none): the GM intervals must allow for it, T of the
-        # single GM from the fit with the random walk (its profile interval), sigma the hull of both fits'
+        # the selection drops the random walk (the truth has none): the GM intervals must allow for it, T and
+        # sigma of the single GM from the fit with the random walk (their profile intervals)
         from imupipe.identify import COMPONENTS, refit_selected
 
         truth = TRUTHS["white+gm"]
@@ -544,16 +586,16 @@ class TestSelectedRefit:
         with_rw = fit_allan(tau, avar, edf, components=kept + ("random_walk",), T_grid=fit.T_grid, **kw)
         assert with_rw.gm_T_profile and ref.intervals["gm_T_1"] == with_rw.intervals["gm_T_1"]
         assert ref.gm_T_profile == with_rw.gm_T_profile
-        (a0, a1), (w0, w1) = alone.intervals["gm_sigma_1"], with_rw.intervals["gm_sigma_1"]
-        assert ref.intervals["gm_sigma_1"] == (min(a0, w0), max(a1, w1))
+        assert with_rw.gm_sigma_profile and ref.intervals["gm_sigma_1"] == with_rw.intervals["gm_sigma_1"]
+        assert ref.gm_sigma_profile == with_rw.gm_sigma_profile
+        assert "confounding" in ref.interval_kind["gm_sigma_1"]
         assert ref.params["gm_sigma_1"] == alone.params["gm_sigma_1"]  # the estimate stays the refit's
         assert any("given the dropped random walk" in note for note in ref.notes)
         # the statistical intervals (before any widening), which the upper envelope reads, carry the same rule:
         # the dropped random walk's upper limit and the GM intervals of the fit with it, so the envelope keeps K
         from imupipe.bound import upper_envelope
 
-        (ws0, ws1), (as0, as1) = with_rw.intervals_statistical["gm_sigma_1"], alone.intervals_statistical["gm_sigma_1"]
-        assert ref.intervals_statistical["gm_sigma_1"] == (min(as0, ws0), max(as1, ws1))
+        assert ref.intervals_statistical["gm_sigma_1"] == with_rw.intervals_statistical["gm_sigma_1"]
         assert ref.intervals_statistical["gm_T_1"] == with_rw.intervals_statistical["gm_T_1"]
         k_up = with_rw.intervals_statistical["random_walk"][1]
         assert ref.intervals_statistical["random_walk"] == (0.0, k_up) and k_up > 0
