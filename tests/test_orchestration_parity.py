@@ -1,0 +1,121 @@
+"""One orchestration: the workflow (the shared tiny run, `tiny_run`) and the one-call API
+(:func:`imupipe.noise_model`) on the same records with the same settings give the same identification
+(selection, selected model, upper envelope), the same bound and the same Kalman-filter matrices.
+
+The records are the tiny run's own full-rate series (results/tiny/series/...), the curves its stacked Allan
+file includes, in its order; the settings are the tiny configuration's over config/config.yaml's defaults.
+Both paths call the same library functions on the same numbers (the YAML files in between write floats by
+repr, so the round trip is exact): the tolerance, 1e-12 relative, only allows for a different order of
+floating-point sums, not for a different rule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip install -e '.[test]')")
+
+from workflow_helpers import RES, ROOT  # noqa: E402
+
+RTOL = 1e-12
+KF_MATRICES = ("F", "G", "Qc", "Phi", "Qd", "P0")
+
+
+def _config(config_path):
+    """The tiny configuration over the defaults of config/config.yaml (one level of sections merged)."""
+    cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+    for key, value in yaml.safe_load(config_path.read_text()).items():
+        cfg[key] = {**cfg[key], **value} if isinstance(value, dict) and isinstance(cfg.get(key), dict) else value
+    return cfg
+
+
+@pytest.fixture(scope="module", params=["gyro", "accel"])
+def both(request, tiny_run):
+    """(workflow files, API result) of one sensor type of the tiny run."""
+    from imupipe.api import noise_model
+    from imupipe.io import read_series, read_yaml
+    from imupipe.merge import Stacked
+
+    sensor = request.param
+    work, config_path = tiny_run
+    cfg = _config(config_path)
+    res = work / RES
+    spec_name = cfg["specs"][0]
+    records, rates = {}, set()
+    for d, a in Stacked(res / "allan" / f"{sensor}.nc").curves(included_only=True):
+        x, rate, _ = read_series(res / "series" / d / sensor / f"{a}.nc")
+        records[f"{d}/{a}"] = np.array(x, dtype=np.float64)
+        rates.add(float(rate))
+    assert len(rates) == 1 and records
+    idn, app, b, ver = cfg["identify"], cfg["application"], cfg["bound"], cfg["verify"]
+    api = noise_model(
+        records, rates.pop(), sensor, work / cfg["spec_dir"] / f"{spec_name}.yaml",
+        decimate_hz=cfg["decimate"]["rate_hz"], window_s=cfg["psd"]["window_s"], step_s=cfg["psd"]["step_s"],
+        taper=cfg["psd"]["taper"], detrend=cfg["psd"]["detrend"], psd_confidence=cfg["psd"]["confidence"],
+        taus=cfg["allan"]["taus"], allan_confidence=cfg["allan"]["confidence"],
+        components=idn["components"], n_gm=idn["n_gm"], n_boot=idn["n_boot"], fit_confidence=idn["confidence"],
+        significance=idn["significance"], relevance=idn["relevance"],
+        application_rate_hz=app["rate_hz"], horizon_s=app["horizon_s"],
+        mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
+        lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
+        lines_alpha=cfg["lines"]["alpha"], fix_s=ver["fix_s"],
+        sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"])
+    files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),
+             "bound": read_yaml(res / "bound" / spec_name / f"{sensor}.yaml"),
+             "kf": read_yaml(res / "kf" / spec_name / f"{sensor}.yaml")}
+    return sensor, files, api
+
+
+def _flat(model: dict) -> dict:
+    """name -> value of a NoiseModel dict (GM and narrowband terms numbered), for a per-parameter comparison."""
+    from imupipe.models import NoiseModel
+
+    d = NoiseModel.from_dict({k: v for k, v in model.items() if k in (
+        "white", "gauss_markov", "random_walk", "flicker", "quantization", "ramp", "narrowband")}).to_dict()
+    out = {k: float(d[k]) for k in ("white", "random_walk", "flicker", "quantization", "ramp")}
+    for i, g in enumerate(d["gauss_markov"]):
+        out |= {f"gm{i}_sigma": g["sigma"], f"gm{i}_T": g["T"]}
+    for i, n in enumerate(d.get("narrowband") or []):
+        out |= {f"nb{i}_{k}": float(v) for k, v in n.items()}
+    return out
+
+
+def _same_model(name, got: dict, want: dict):
+    g, w = _flat(got), _flat(want)
+    assert set(g) == set(w), f"{name}: parameters {sorted(g)} (API) vs {sorted(w)} (workflow)"
+    diff = {k: (g[k], w[k]) for k in w if not np.isclose(g[k], w[k], rtol=RTOL, atol=0.0)}
+    assert not diff, f"{name} differs (API, workflow): {diff}"
+
+
+def test_same_selection(both):
+    sensor, files, api = both
+    sel = files["identify"]["selection"]
+    assert list(api.selection["kept"]) == list(sel["kept"])
+    assert list(api.selection["dropped"]) == list(sel["dropped"])
+
+
+def test_same_selected_model_and_envelope(both):
+    sensor, files, api = both
+    _same_model(f"{sensor} model_selected", api.selected.model.to_dict(), files["identify"]["model_selected"])
+    _same_model(f"{sensor} upper envelope", api.upper.to_dict(), files["bound"]["upper_envelope"])
+
+
+def test_same_bound(both):
+    sensor, files, api = both
+    _same_model(f"{sensor} bound", api.bound.to_dict(sensor=sensor)["bound"], files["bound"]["bound"])
+
+
+def test_same_kf_matrices(both):
+    sensor, files, api = both
+    assert list(api.kf["states"]) == list(files["kf"]["states"]), f"{sensor}: KF states differ"
+    errors = {}
+    for name in KF_MATRICES:
+        got, want = np.array(api.kf[name], dtype=float), np.array(files["kf"][name], dtype=float)
+        assert got.shape == want.shape, f"{sensor} {name}: shape {got.shape} (API) vs {want.shape} (workflow)"
+        # relative to the matrix's scale: an entry that is 0 in one is 0 (to 1e-12 of the largest) in the other
+        scale = float(np.max(np.abs(want))) or 1.0
+        errors[name] = float(np.max(np.abs(got - want))) / scale
+    bad = {k: f"{v:.3g}" for k, v in errors.items() if v > RTOL}
+    assert not bad, f"{sensor}: max |API - workflow| / max |workflow| of {bad}"
