@@ -15,6 +15,8 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "psd.confidence": "psd_confidence", "allan.taus": "taus", "allan.confidence": "allan_confidence",
            "identify.components": "components", "identify.n_gm": "n_gm", "identify.confidence": "fit_confidence",
            "identify.significance": "significance", "identify.relevance": "relevance",
+           "identify.adequacy_level": "adequacy_level", "identify.pooling_level": "pooling_level",
+           "identify.pooling_n_boot": "pooling_n_boot", "verify.reduce": "reduce", "verify.replay_z": "replay_z",
            "application.rate_hz": "application_rate_hz", "application.horizon_s": "horizon_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}

@@ -56,12 +56,15 @@ def both(request, tiny_run):
         taper=cfg["psd"]["taper"], detrend=cfg["psd"]["detrend"], psd_confidence=cfg["psd"]["confidence"],
         taus=cfg["allan"]["taus"], allan_confidence=cfg["allan"]["confidence"],
         components=idn["components"], n_gm=idn["n_gm"], n_boot=idn["n_boot"], fit_confidence=idn["confidence"],
-        significance=idn["significance"], relevance=idn["relevance"],
+        significance=idn["significance"], relevance=idn["relevance"], adequacy_level=idn["adequacy_level"],
+        pooling_level=idn["pooling_level"], pooling_n_boot=idn["pooling_n_boot"],
+        fit_tau_min_samples=idn.get("fit_tau_min_samples"), max_bias_time_s=idn.get("max_bias_time_s"),
         application_rate_hz=app["rate_hz"], horizon_s=app["horizon_s"],
         mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
         lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
         lines_alpha=cfg["lines"]["alpha"], fix_s=ver["fix_s"],
-        sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"])
+        sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"], reduce=ver["reduce"],
+        replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"])
     files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),
              "bound": read_yaml(res / "bound" / spec_name / f"{sensor}.yaml"),
              "kf": read_yaml(res / "kf" / spec_name / f"{sensor}.yaml")}

@@ -29,6 +29,9 @@ DEFAULTS: dict[str, object] = {
     "identify.confidence": 0.95,
     "identify.significance": 0.05,
     "identify.relevance": 0.05,
+    "identify.adequacy_level": 0.01,
+    "identify.pooling_level": 0.01,
+    "identify.pooling_n_boot": 99,
     "application.rate_hz": 1.0,
     "application.horizon_s": 3600.0,
     "bound.mode": "raw",
@@ -37,6 +40,8 @@ DEFAULTS: dict[str, object] = {
     "lines.resolution_hz": 0.002,
     "lines.alpha": 0.01,
     "verify.fix_s": 600.0,
+    "verify.reduce": True,
+    "verify.replay_z": 2.0,
 }
 
 
