@@ -67,7 +67,8 @@ def both(request, tiny_run):
         replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"])
     files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),
              "bound": read_yaml(res / "bound" / spec_name / f"{sensor}.yaml"),
-             "kf": read_yaml(res / "kf" / spec_name / f"{sensor}.yaml")}
+             "kf": read_yaml(res / "kf" / spec_name / f"{sensor}.yaml"),
+             "contract": read_yaml(res / "contract" / spec_name / f"{sensor}.yaml")}
     return sensor, files, api
 
 
@@ -108,6 +109,15 @@ def test_same_selected_model_and_envelope(both):
 def test_same_bound(both):
     sensor, files, api = both
     _same_model(f"{sensor} bound", api.bound.to_dict(sensor=sensor)["bound"], files["bound"]["bound"])
+
+
+def test_same_verdict_and_export(both):
+    sensor, files, api = both
+    con = files["contract"]
+    assert {k: api.contract[k] for k in ("bounded", "verified")} == {k: con[k] for k in ("bounded", "verified")}
+    assert [f["check"] for f in api.contract["failed_checks"]] == [f["check"] for f in con["failed_checks"]]
+    for key in ("bounded", "reduction", "states", "export"):
+        assert api.kf[key] == files["kf"][key], f"{sensor}: the KF file's {key} differs"
 
 
 def test_same_kf_matrices(both):

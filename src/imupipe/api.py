@@ -1,17 +1,20 @@
 r"""One call from in-memory records to a bounding noise model: :func:`noise_model`.
 
-The steps are the workflow's, in its order, with its defaults (``config/config.yaml``): per curve (one
-axis of one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block
-average to ``decimate_hz`` and its two-sided Welch PSD; then, over every curve of the sensor type, the pooled
-Allan-variance fit (:func:`imupipe.identify.fit_allan`), the model selection for the application band
-(:func:`imupipe.identify.select_components`) and the refit of the selected components
-(:func:`imupipe.identify.refit_selected`); optionally the narrowband lines of every curve
-(:func:`imupipe.lines.find_lines`) and their policy (:func:`imupipe.lines.line_policy`); the all-frequency
-PSD bound against the spec sheet (:func:`imupipe.bound.bound_psd` restricted to the kept components, with the
-selected refit's upper confidence envelope :func:`imupipe.bound.upper_envelope` imposed below the lowest bin
-down to the outage horizon); the Kalman-filter matrices of the bound at the filter step
-(:func:`imupipe.kf.export_kf`); and the covariance verification of the bound in the reference scenario
-(:func:`imupipe.verify.verification_report`). Stationarity tests, figures and tables are left to the workflow.
+The steps are the workflow's, in its order, with its defaults (``config/config.yaml``), and the stages are
+the workflow's own functions (:mod:`imupipe.stages`, which the workflow scripts call): per curve (one axis of
+one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block average to
+``decimate_hz`` and its two-sided Welch PSD, optionally its narrowband lines (:func:`imupipe.lines.find_lines`);
+then, over every curve of the sensor type, the identification (:func:`imupipe.stages.identify.identify_sensor`:
+pooled Allan-variance fit, model selection for the application band, refit of the selected components, their
+upper envelope with the random walk capped by the Allan variances, the pooling test and per-axis fits); the
+all-frequency PSD bound against the spec sheet (:func:`imupipe.stages.bound.bound_sensor`: the kept
+components, the identified envelope imposed below the lowest bin down to the outage horizon, the lines'
+policy, the Allan check, per-axis models when the axes differ); the verification in the reference scenario
+(:func:`imupipe.stages.verify.verify_sensor`: covariance analysis, replay of the decimated records, reduction
+by integrity); the contract (:func:`imupipe.stages.contract.contract_stage`); and the Kalman-filter matrices
+of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). Stationarity tests, outlier
+screening, per-axis bounds, figures and tables are left to the workflow (the API takes the records as they are,
+every one included). tests/test_orchestration_parity.py runs the workflow and this function on the same records.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
 
@@ -56,9 +59,10 @@ class NoiseModelResult:
     selection : dict
         :func:`imupipe.identify.select_components` result (``kept``, ``dropped``, ``reasons``, ...).
     kf : dict
-        :func:`imupipe.stages.kf.exported_kf` at ``kf_dt_s`` (F, G, Qc, Phi, Qd, P0, ..., and the
-        ``bias_initialisation``): the matrices of the model the verification exported (the bound's, or its
-        reduction by integrity), as the workflow's KF file.
+        The KF file's content (:func:`imupipe.stages.kf.kf_stage` at ``kf_dt_s``: F, G, Qc, Phi, Qd, P0, ...,
+        the ``bias_initialisation``, the contract's verdict, ``per_axis``): the matrices of the model the
+        verification exported (the bound's, or its reduction by integrity). With ``verify=False``, those of the
+        bound's model (:func:`imupipe.stages.kf.exported_kf`).
     allan : dict
         Curve label -> ``xarray.Dataset`` of :func:`imupipe.allan_variance` (full rate).
     spectra : dict
@@ -76,10 +80,14 @@ class NoiseModelResult:
         The lines policy applied to the bound (None when no policy was asked for).
     verification : dict or None
         :func:`imupipe.stages.verify.verify_stage` of the bound (None when ``verify=False``).
+    contract : dict or None
+        :func:`imupipe.stages.contract.contract_stage`: the workflow's verdict, ``contract["bounded"]`` (every
+        check passed and the verification ran), with ``failed_checks`` (None when ``verify=False``). Not
+        :attr:`bounded`, which is the PSD bound's alone.
     records : dict
         The stages' dicts, as the workflow's files hold them: ``identify``
         (:func:`imupipe.stages.identify.identification_stage`), ``bound``
-        (:func:`imupipe.stages.bound.bound_stage`) and ``verify`` (None when ``verify=False``).
+        (:func:`imupipe.stages.bound.bound_stage`), ``verify`` and ``contract`` (None when ``verify=False``).
     """
 
     sensor: str
@@ -97,6 +105,7 @@ class NoiseModelResult:
     upper: Any = None
     lines: Any = None
     verification: dict | None = None
+    contract: dict | None = None
     records: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -133,6 +142,8 @@ class NoiseModelResult:
             out["lines"] = plain(self.lines.to_dict())
         if self.verification is not None:
             out["verification"] = plain(self.verification)
+        if self.contract is not None:
+            out["contract"] = plain(self.contract)
         return out
 
 
@@ -275,8 +286,8 @@ def noise_model(
         Run the verification stage on the bound (:func:`imupipe.stages.verify.verify_sensor`: the covariance
         checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
         True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
-        default the scenario's). The KF matrices are then the verification's exported model's
-        (:func:`imupipe.stages.kf.exported_kf`), as the workflow's KF file; with ``verify=False`` the bound's,
+        default the scenario's). Then the contract and the KF file's matrices of the model the verification
+        exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
         unreduced, its P0 of p from :func:`imupipe.biasinit.filter_p0`.
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
@@ -290,14 +301,16 @@ def noise_model(
     ------
     ValueError
         No curves, a curve that is not 1-D or too short for one PSD window, a non-positive rate, an
-        unknown sensor, or a spec sheet without that sensor.
+        unknown sensor, or a spec sheet without that sensor; with `verify`, no decimated record as long as
+        ``fix_s + horizon_s`` (the replay's window, as in the workflow's verify stage).
     """
     from imupipe.allan import allan_variance
     from imupipe.spectra import decimate, psd
     from imupipe.specsheet import display_units
     from imupipe.stages.bound import bound_sensor
+    from imupipe.stages.contract import contract_stage
     from imupipe.stages.identify import Curve, identify_sensor
-    from imupipe.stages.kf import exported_kf
+    from imupipe.stages.kf import exported_kf, kf_stage
     from imupipe.stages.verify import verify_sensor
 
     if sensor not in ("gyro", "accel"):
@@ -386,16 +399,18 @@ def noise_model(
                              allan=(tau, allan_curves), lines=lines, line_policy=lines_policy or "model",
                              spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
 
-    # verification (rule verify) and the KF matrices of the model it exports (rule kf)
+    # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
     kf_dt = 1.0 / float(application_rate_hz)
     turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
-    verification = None
+    verification = contract = None
     if verify:
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
                                      rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
                                      horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=application_rate_hz,
                                      reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s)[0]
-        exported = verification["exported"]
+        contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
+                                  on_failure="warn", kf_rate_hz=application_rate_hz)
+        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=horizon_s, sensor=sensor)
     else:  # the bound's model unreduced, its bias started where the verification would start it
         from imupipe.biasinit import bias_initialisation, filter_p0
         from imupipe.stages.verify import model_of
@@ -404,12 +419,12 @@ def noise_model(
         record_s = max(y.size for y in decimated.values()) * dt
         bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
                                    record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
-        exported = {"model": m.to_dict(), "bias_initialisation": {
-            "p0_random_walk": filter_p0(m, bias.required, fix_s + horizon_s)}}
-    kf = exported_kf(exported, kf_dt, sensor)
+        kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
+            "p0_random_walk": filter_p0(m, bias.required, fix_s + horizon_s)}}, kf_dt, sensor)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
                             selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
                             decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
-                            verification=verification,
-                            records={"identify": ident.record, "bound": bound.record, "verify": verification})
+                            verification=verification, contract=contract,
+                            records={"identify": ident.record, "bound": bound.record, "verify": verification,
+                                     "contract": contract})

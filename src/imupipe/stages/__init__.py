@@ -11,6 +11,8 @@ module                          rule                stage function
 :mod:`imupipe.stages.identify`  identify            :func:`~imupipe.stages.identify.identification_stage`
 :mod:`imupipe.stages.bound`     bound               :func:`~imupipe.stages.bound.bound_stage`
 :mod:`imupipe.stages.verify`    verify              :func:`~imupipe.stages.verify.verify_stage`
+:mod:`imupipe.stages.contract`  contract            :func:`~imupipe.stages.contract.contract_stage`
+:mod:`imupipe.stages.contract`  integrity           :func:`~imupipe.stages.contract.verdict_stage`
 :mod:`imupipe.stages.kf`        kf                  :func:`~imupipe.stages.kf.kf_stage`
 ==============================  ==================  ==========================================================
 
@@ -18,4 +20,4 @@ The modules are imported on use (``from imupipe.stages import identify``): impor
 nothing heavy.
 """
 
-__all__ = ["bound", "identify", "kf", "verify"]
+__all__ = ["bound", "contract", "identify", "kf", "verify"]
