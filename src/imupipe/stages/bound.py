@@ -11,6 +11,9 @@ model per axis (:func:`imupipe.bound.bound_by_axis`, each with that axis's envel
 optionally the paper's hand inflation for comparison (:func:`imupipe.bound.paper_inflation`). Not the verdict:
 ``psd_bounded`` says only that the model's PSD is above its targets; the verdict is the contract's.
 
+:func:`axis_bound_stage` is the per-axis bound (rule ``bound_axis``): the tightest model of one axis of one
+dataset by the same rules (kept components, all frequencies, line policy) on a coarser T grid.
+
 Plain values in (arrays keyed by curve label ``dataset/axis``, dicts of the identify and lines files, the
 config's numbers), the bound file's dict out (:func:`bound_stage`); :func:`bound_sensor` keeps the
 :class:`imupipe.bound.BoundResult` as well. SI units, PSDs two-sided.
@@ -25,7 +28,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["HEADER", "BoundStage", "bound_sensor", "bound_stage", "phase_ends"]
+__all__ = ["AXIS_T_PER_DECADE", "HEADER", "BoundStage", "axis_bound_stage", "bound_sensor", "bound_stage", "phase_ends"]
+
+#: T grid (points per decade) of the per-axis bound (rule bound_axis): coarser than the global bound's,
+#: refined by a bounded search all the same.
+AXIS_T_PER_DECADE = 4
 
 
 #: Header of the bound file (what its fields mean, units).
@@ -195,3 +202,32 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
 def bound_stage(frequency, psd: Mapping, edf: Mapping, spec_model, identified: dict, **settings) -> dict:
     """The bound file's content (a YAML-ready dict, SI) of :func:`bound_sensor` with the same arguments."""
     return bound_sensor(frequency, psd, edf, spec_model, identified, **settings).record
+
+
+def axis_bound_stage(frequency, psd, edf, label: str, spec_model, identified: dict, *, dt: float, sensor: str,
+                     mode: str, n_gm: int, confidence: float, bands_per_decade: int, horizon_s: float,
+                     taper: str = "hann", lines: Mapping | None = None, line_policy: str = "model",
+                     application_band_hz=None, spec_units=None, spec_name: str = "") -> dict:
+    """The per-axis bound file's content (YAML-ready, SI) of the curve `label` (its two-sided `psd`, u^2/Hz, and
+    `edf` on `frequency`, Hz): :func:`imupipe.bound.bound_psd` of the components the pooled identification kept,
+    on :data:`AXIS_T_PER_DECADE`, over all frequencies (spec sheet and the identified upper envelope below the
+    lowest bin, down to 0.01/`horizon_s`), with the line policy of `lines` (label -> lines file). The other
+    arguments as :func:`bound_sensor`'s."""
+    from imupipe.bound import bound_psd, upper_envelope_from_identification
+    from imupipe.io import plain
+    from imupipe.verify import line_policy_from_files
+
+    f = np.asarray(frequency, dtype=np.float64)
+    pol = line_policy_from_files(dict(lines or {}), dt, f, line_policy, application_band_hz)
+    result = bound_psd(f, {label: np.asarray(psd)}, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
+                       bands_per_decade=bands_per_decade, edf=edf, taper=taper, keep=identified["selection"]["kept"],
+                       T_grid=AXIS_T_PER_DECADE, horizon_s=horizon_s,
+                       upper_model=upper_envelope_from_identification(identified),
+                       **(pol.bound_kwargs() if pol is not None else {}))
+    logging.info("bound of %s: margin %.4g, %d LPs in %.3g s", label, result.margin, result.n_lp, result.solve_time_s)
+    body = result.to_dict(spec_units=spec_units, sensor=sensor)
+    body["psd_bounded"] = body.pop("bounded")
+    body.pop("solve_time_s", None)  # wall clock: in the log only
+    return plain({"spec_name": spec_name, "curve": label, "sensor": sensor, "dt_s": dt, "horizon_s": float(horizon_s),
+                  **body, "lines": pol.to_dict() if pol is not None
+                  else {"policy": None, "note": "no lines files (lines stage not run)"}})
