@@ -118,7 +118,7 @@ def envelope_ratio(env: dict, model) -> dict:
     return {k: (float(out[k] / est[k]) if est[k] > 0 else None) for k in out if out[k] > 0 or est[k] > 0}
 
 
-def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h):
+def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed):
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry."""
@@ -130,8 +130,8 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h):
         kw = {**fit_kw, "rate": [c[5] for c in ax_curves], "n_samples": [c[4] for c in ax_curves],
               "dt": 1.0 / ax_curves[0][5]}
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
-                         components=components, n_gm=n_gm, rng=SEED_FIT, **{**kw, "n_boot": 0})
-        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, env_h)
+                         components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
+        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, env_h, seed=seed)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
                           "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
@@ -204,7 +204,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     band = out["selection"]["band_hz"]
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
     if not pooling["consistent"]:
-        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h)
+        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed)
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
