@@ -96,7 +96,7 @@ def workflow(records, tmp_path_factory):
     # verification of the bound file on the decimated records, then the KF matrices of the model it exports
     dec = {label: decimate(np.asarray(x), RATE, 1.0)[0] for label, x in records.items()}
     ver = verify_stage(bound, "gyro", spec=spec.models["gyro"], records=dec, rate_hz=1.0, fix_s=600.0,
-                       horizon_s=600.0, filter_rate_hz=1.0)
+                       horizon_s=600.0, filter_rate_hz=1.0, sigma_fix=0.001745)  # config.yaml's sigma_fix_rad
     write_yaml_atomic(ver, tmp / "verify.yaml")
     ver = read_yaml(tmp / "verify.yaml")
     kf = exported_kf(ver["exported"], 1.0, "gyro")
@@ -128,6 +128,13 @@ def test_bound_and_kf_equal_the_workflows(result, workflow):
     assert set(checks) == set(wchecks) and checks
     for name in checks:  # same model, same scenario: the covariance analysis is deterministic
         assert checks[name]["worst_outage_ratio"] == pytest.approx(wchecks[name]["worst_outage_ratio"], rel=1e-12)
+
+
+def test_default_fix_is_the_workflows(result):
+    # sigma_fix left unset: the workflow's verify.sigma_fix_rad (config/config.yaml, imupipe.defaults.DEFAULTS)
+    from imupipe.defaults import DEFAULTS
+
+    assert result.verification["verification"]["scenario"]["sigma_fix"] == DEFAULTS["verify.sigma_fix_rad"]
 
 
 def test_result_object(result, capfd):

@@ -62,7 +62,8 @@ def both(request, tiny_run):
         application_rate_hz=app["rate_hz"], horizon_s=app["horizon_s"],
         mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
         lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
-        lines_alpha=cfg["lines"]["alpha"], fix_s=ver["fix_s"],
+        lines_alpha=cfg["lines"]["alpha"], lines_floor_window_bins=cfg["lines"]["floor_window_bins"],
+        fix_s=ver["fix_s"], filter_rate_hz=ver["filter_rate_hz"],
         sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"], reduce=ver["reduce"],
         replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"])
     files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),

@@ -235,9 +235,11 @@ def noise_model(
     lines_policy: str | None = None,
     lines_resolution_hz: float = _D["lines.resolution_hz"],
     lines_alpha: float = _D["lines.alpha"],
+    lines_floor_window_bins: int = _D["lines.floor_window_bins"],
     fix_s: float = _D["verify.fix_s"],
     verify: bool = True,
     sigma_fix: float | None = None,
+    filter_rate_hz: float = _D["verify.filter_rate_hz"],
     reduce: bool = _D["verify.reduce"],
     replay_z: float = _D["verify.replay_z"],
     truth=None,
@@ -277,8 +279,9 @@ def noise_model(
         Seed of the fit's bootstrap (default 20211, the workflow's :data:`imupipe.stages.identify.SEED_FIT`).
     lines_policy : {None, "model", "exclude", "keep"}, optional
         Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
-        `lines_resolution_hz`, Hz, and `lines_alpha`) and apply :func:`imupipe.lines.line_policy` over the
-        whole decimated band (default None: no search).
+        `lines_resolution_hz`, Hz, `lines_alpha` and `lines_floor_window_bins`) and apply the policy
+        (:func:`imupipe.verify.line_policy_from_files`) over the whole decimated band (default None: no search;
+        the workflow's default is ``model``).
     fix_s : float, optional
         Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's
         all-frequency horizon is ``fix_s + horizon_s``.
@@ -286,7 +289,9 @@ def noise_model(
         Run the verification stage on the bound (:func:`imupipe.stages.verify.verify_sensor`: the covariance
         checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
         True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
-        default the scenario's). Then the contract and the KF file's matrices of the model the verification
+        default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
+        `filter_rate_hz`: the reference filter's rate, Hz (``verify.filter_rate_hz``, default 1.0); the contract
+        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's. Then the contract and the KF file's matrices of the model the verification
         exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
         unreduced, its P0 of p from :func:`imupipe.biasinit.filter_p0`.
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
@@ -388,7 +393,8 @@ def noise_model(
         from imupipe.lines import find_lines
 
         lines = {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=lines_resolution_hz,
-                                   alpha=lines_alpha, units=units, label=label).to_dict()
+                                   alpha=lines_alpha, floor_window_bins=lines_floor_window_bins, units=units,
+                                   label=label).to_dict()
                  for label, x in curves.items()}
     with _no_stdout_fd():
         bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
@@ -400,13 +406,15 @@ def noise_model(
                              spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
 
     # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
+    if sigma_fix is None:
+        sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
     kf_dt = 1.0 / float(application_rate_hz)
     turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
     verification = contract = None
     if verify:
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
                                      rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
-                                     horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=application_rate_hz,
+                                     horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
                                      reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s)[0]
         contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
                                   on_failure="warn", kf_rate_hz=application_rate_hz)
