@@ -15,19 +15,16 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
     from imupipe.merge import Stacked
     from imupipe.plot import plot_verification, save_figure
     from imupipe.specsheet import load_spec
-    from imupipe.stages.verify import HEADER, verify_sensor
+    from imupipe.stages.verify import HEADER, records_at_one_rate, verify_sensor
 
     sheet = load_spec(path_spec)
     included = {f"{d}/{a}" for d, a in Stacked(path_spectra).curves(included_only=True)}
-    series, rate = {}, None
+    series = {}
     for path in records:
-        y, r, attrs = read_series(path)
-        label = f"{attrs.get('dataset')}/{attrs.get('axis')}"
-        if label not in included:
-            continue
-        if rate is not None and abs(r - rate) > 1e-9 * rate:
-            raise ValueError(f"{path}: decimated rate {r} Hz differs from {rate} Hz of the other records")
-        rate, series[label] = r, y
+        y, r, at = read_series(path)
+        if (label := f"{at.get('dataset')}/{at.get('axis')}") in included:
+            series[label] = (y, r)
+    series, rate = records_at_one_rate(series)  # one decimated rate, or an error naming the record
     report, checks = verify_sensor(
         read_yaml(path_bound), sensor, spec=sheet.models[sensor], records=series, rate_hz=rate,
         truth=load_spec(path_truth).models[sensor] if path_truth else None,

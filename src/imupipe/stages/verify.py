@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-__all__ = ["HEADER", "model_of", "verify_sensor", "verify_stage"]
+__all__ = ["HEADER", "model_of", "records_at_one_rate", "verify_sensor", "verify_stage"]
 
 #: Header of the verification file (what its fields mean, units).
 HEADER = """verification of the bound in the reference filter (docs/method.md, "Integrity: what bounded must mean").
@@ -37,6 +37,18 @@ def model_of(b: dict):
 
     return NoiseModel.from_dict({"white": b.get("white") or 0.0, "random_walk": b.get("random_walk") or 0.0,
                                  "gauss_markov": b.get("gauss_markov") or [], "narrowband": b.get("narrowband") or []})
+
+
+def records_at_one_rate(series: Mapping):
+    """(label -> record, rate in Hz) of `series` (label -> (record, rate_hz)), the decimated records the
+    verification replays; (empty, None) for none. Raises ValueError naming a record whose rate differs from the
+    others' (relative 1e-9)."""
+    records, rate = {}, None
+    for label, (y, r) in series.items():
+        if rate is not None and abs(r - rate) > 1e-9 * rate:
+            raise ValueError(f"{label}: decimated rate {r} Hz differs from {rate} Hz of the other records")
+        records[label], rate = y, r
+    return records, rate
 
 
 def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = None, rate_hz: float | None = None,
