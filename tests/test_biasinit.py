@@ -127,3 +127,25 @@ def test_spec_turn_on_bias(tmp_path):
     p.write_text("accel:\n  white: {value: 0.05, unit: m/s/sqrt(h)}\n  turn_on_bias: 2\n")
     with pytest.raises(SpecError, match="turn_on_bias"):
         load_spec(p)
+
+
+def test_a_slow_bias_is_not_carried_by_a_fast_filter_state():
+    """A truth whose bias is slower than the run (a random walk started at K^2 T_max / 2) against a filter that
+    holds most of the initial variance in a GM of T = 168 s: with the fast GM counted (the slow floor 0) the filter
+    lets that estimate decay and under-states its error; with the slow part on p it holds. filter_p0 puts the slow
+    deficit on p, and a filter GM at least as slow as the run counts against it."""
+    from imupipe.verify import covariance_analysis, reference_scenario
+
+    K, T_max = 2.64e-6, 360000.0
+    V = K * K * T_max / 2
+    truth = NoiseModel(white=5e-5, random_walk=K)
+    filt = NoiseModel(white=6e-5, gauss_markov=((math.sqrt(0.7 * V), 168.0),), random_walk=1.1 * K)
+    worst = {}
+    for slow in (0.0, V):
+        sc = reference_scenario("accel", fix_s=600.0, horizon_s=3600.0, bias_var_floor=V, bias_var_floor_slow=slow,
+                                max_bias_time_s=T_max)
+        worst[slow] = covariance_analysis(filt, truth, sc).worst_ratio
+    assert worst[0.0] > 1.0 + 1e-6 and worst[V] <= 1.0 + 1e-6, worst
+    assert filter_p0(filt, V, 4200.0, V) == pytest.approx(V)  # the fast GM does not count against the slow part
+    slow_gm = NoiseModel(white=6e-5, gauss_markov=((math.sqrt(0.7 * V), 5000.0),))
+    assert filter_p0(slow_gm, V, 4200.0, V) == pytest.approx(0.3 * V)  # a GM slower than the run does

@@ -80,7 +80,7 @@ def test_check_names_a_missing_dataset_file(tmp_path, capsys):
     cfg.write_text(TINY.read_text().replace("datasets: null", f"datasets: {sheet}"))
     assert main(["check", str(cfg), "--no-dry-run"]) == 1
     err = capsys.readouterr().err
-    assert "line 2" in err and "lab1" in err and "does not exist" in err
+    assert "line 2" in err and "lab1" in err and "/nonexistent/lab1.csv: file not found" in err
 
 
 def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
@@ -131,7 +131,7 @@ def test_check_with_dry_run_and_run_dry(tmp_path):
 
 
 def test_check_takes_a_partial_config_on_top_of_the_defaults(tmp_path):
-    # the README: "A config may be partial: keys it leaves out take the defaults of config/config.yaml"
+    # the README: "A config may be partial (the rest from config/config.yaml)"
     partial = tmp_path / "partial.yaml"
     partial.write_text("name: partial\npsd:\n  window_s: 3600.0\n")
     lines = check_config(partial)
@@ -213,3 +213,79 @@ def test_summary_command_writes_markdown_and_html(tmp_path, capsys):
     assert "<h2>accel: NOT BOUNDED</h2>" in page.read_text()
     assert main(["summary", str(tmp_path / "none")]) == 1
     assert "no such results folder" in capsys.readouterr().err
+
+
+def _stamped_csv(tmp_path, rate, factor, name="t", n=20_000):
+    """White gyro noise at `rate` Hz with a time column `name` in units of `factor` s (ms: 1e-3)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(n) / rate / factor
+    path = tmp_path / f"stamped_{factor:g}.csv"
+    np.savetxt(path, np.column_stack([t, 0.01 * rng.standard_normal(n)]), header=f"{name},gx", comments="",
+               delimiter=",", fmt="%.17g")
+    return path
+
+
+@pytest.mark.parametrize("unit, factor", [("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)])
+def test_allan_infers_the_time_unit_of_a_t_column_and_says_so(tmp_path, capsys, unit, factor):
+    # 100 Hz stamped in `unit`, no --time-column and no --time-unit: read as seconds, ms stamps gave 0.1 Hz (every
+    # tau 1000x too long) and a `t` column was not taken for the time column ("sample rate unknown")
+    path = _stamped_csv(tmp_path, 100.0, factor)
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s"]) == 0
+    cap = capsys.readouterr()
+    assert "100 Hz" in cap.out.splitlines()[0]
+    assert float(cap.out.splitlines()[2].split("\t")[0]) == pytest.approx(0.01)  # first tau = 1 / rate
+    assert "column 't' read as the time column" in cap.err and f"time unit {unit} (" in cap.err
+    # against a stated rate: the unit that matches it within 1 %
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--rate-hz", "100.5"]) == 0
+    cap = capsys.readouterr()
+    assert f"time unit {unit} (" in cap.err and "matches --rate-hz 100.5" in cap.err
+
+
+def test_allan_time_unit_refused_when_ambiguous_or_no_unit_fits(tmp_path, capsys):
+    # 5 Hz stamped in s reads 5 kHz in ms: both plausible, so no guess; a stated rate decides
+    path = _stamped_csv(tmp_path, 5.0, 1.0, name="stamp")
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--time-column", "stamp"]) == 1
+    err = capsys.readouterr().err
+    assert "cannot infer the time unit: s and ms both put the sample rate in 1 .. 10000 Hz" in err
+    assert "give --time-unit" in err
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--time-column", "stamp", "--rate-hz", "5"]) == 0
+    assert "time unit s (" in capsys.readouterr().err
+    # a rate no unit matches (100 Hz stamps against --rate-hz 120): named, with the rate each unit gives
+    path = _stamped_csv(tmp_path, 100.0, 1e-3)
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--rate-hz", "120"]) == 1
+    err = capsys.readouterr().err
+    assert "no time unit makes the timestamps' spacing 10 match --rate-hz 120 within 1 %" in err
+    assert "ms: 100 Hz" in err and "--time-unit" in err
+    # a stated unit is used as given, without inference
+    assert main(["allan", str(path), "--channel", "gyro_x=gx", "--units", "gyro=deg/s", "--time-unit", "ms"]) == 0
+    assert "time unit" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("case", ["commas", "notes", "loop", "windows"])
+def test_check_names_the_culprit_of_a_first_hour_sheet(tmp_path, capsys, case):
+    # before: "no 'path' column", "does not exist" for a loop and a Windows path; the workflow's "Error validating
+    # config file." for an extra column (the workflow reads the sheet header with the same check)
+    rec = tmp_path / "lab1.csv"
+    rec.write_text("gyro_x\n0.1\n0.2\n")
+    head, row = ["dataset", "path", "format", "rate_hz", "gyro_unit"], ["lab1", str(rec), "csv", "100", "deg/s"]
+    sep, expected = "\t", None
+    if case == "commas":
+        sep, expected = ",", "line 1: not tab-separated (found commas"
+    elif case == "notes":
+        head, row = head + ["notes"], row + ["bench 2"]
+        expected = "unknown column 'notes' (column 6); allowed columns: dataset, path,"
+    elif case == "loop":
+        (tmp_path / "a.csv").symlink_to(tmp_path / "b.csv")
+        (tmp_path / "b.csv").symlink_to(tmp_path / "a.csv")
+        row[1] = str(tmp_path / "a.csv")
+        expected = "line 2 (dataset 'lab1'): " + str(tmp_path / "a.csv") + ": symbolic link loop"
+    else:
+        row[1] = "data\\lab1.csv"
+        expected = "the path has backslashes, a Windows path?"
+    sheet = tmp_path / "sheet.tsv"
+    sheet.write_text(sep.join(head) + "\n" + sep.join(row) + "\n")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(TINY.read_text().replace("datasets: null", f"datasets: {sheet}"))
+    assert main(["check", str(cfg), "--no-dry-run"]) == 1
+    err = capsys.readouterr().err
+    assert expected in err, err

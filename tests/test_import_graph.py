@@ -29,7 +29,8 @@ SHARED_PRIVATE = {"_kernels"}
 
 LAYERS = [
     {"__init__", "_kernels", "units", "io", "labelled", "search", "defaults"},
-    {"models", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers", "summary"},
+    {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
+     "summary"},
     {"avcov", "specsheet"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},

@@ -516,3 +516,66 @@ def test_probe_counts_text_rows_like_the_reader(tmp_path, table, layout):
     full = read_dataset(path, "csv", None, channels, UNITS, time_column=tcol)
     meta = probe(path, "csv", None, time_column=tcol, channels=channels)
     assert (meta.n_samples, meta.rate_hz) == (full.n_samples, full.rate_hz) == (N, 100.0)
+
+
+class TestFirstHourMessages:
+    """Inputs a new user's first hour produced, each refused naming the culprit or accepted (docs/inputs.md)."""
+
+    @pytest.mark.parametrize("sep, found", [(",", "commas"), (";", "semicolons")])
+    def test_sheet_not_tab_separated(self, tmp_path, sep, found):
+        sheet = tmp_path / "datasets.tsv"
+        sheet.write_text(sep.join(["dataset", "path", "rate_hz"]) + "\n" + sep.join(["d1", "imu.csv", "100"]) + "\n")
+        with pytest.raises(DataError, match=rf"datasets\.tsv', line 1: not tab-separated \(found {found}"):
+            check_sheet_header(sheet)
+
+    def test_sheet_unknown_column_named_with_the_allowed_ones(self, tmp_path):
+        sheet = tmp_path / "datasets.tsv"
+        sheet.write_text("# lab records\ndataset\tpath\tnotes\tgyro_unit\nd1\timu.csv\tbench 2\tdeg/s\n")
+        with pytest.raises(DataError) as exc:
+            check_sheet_header(sheet)
+        msg = str(exc.value)
+        assert "line 2: unknown column 'notes' (column 3); allowed columns: dataset, path, format, rate_hz" in msg
+        assert "long_gap_policy" in msg and "'#' comment line" in msg
+        ok = tmp_path / "ok.tsv"
+        ok.write_text("dataset\tpath\tgyro_unit\t\t\nd1\timu.csv\tdeg/s\t\t\n")  # trailing tabs: fine
+        assert check_sheet_header(ok) == ["dataset", "path", "gyro_unit", "", ""]
+
+    @pytest.mark.parametrize("header_too", [True, False])
+    def test_csv_with_a_trailing_comma_on_every_line_is_read(self, tmp_path, table, header_too):
+        path = tmp_path / "imu.csv"
+        lines = [",".join(NAMES) + ("," if header_too else "")]
+        lines += [",".join("%.17g" % v for v in row) + "," for row in table]
+        path.write_text("\n".join(lines) + "\n")
+        rec = read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t")
+        np.testing.assert_allclose(rec["gyro", "y"], table[:, 2] * DEG, rtol=1e-15)
+        assert rec.n_samples == N
+        # a value in the trailing column is data without a header: refused, naming the line
+        lines[5] = lines[5] + "7"
+        path.write_text("\n".join(lines) + "\n")
+        with pytest.raises(DataError, match=r"imu\.csv: line 6 has too many fields \(8, expected 7\)"):
+            read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t")
+
+    def test_windows_path_hint(self, tmp_path):
+        with pytest.raises(DataError, match=r"file not found \(the path has backslashes, a Windows path\? .*"
+                                            r"write 'data/imu\.csv'"):
+            read_dataset("data\\imu.csv", "csv", 100.0, CHANNELS, UNITS)
+        with pytest.raises(DataError, match=r"nope\.csv: file not found$"):
+            read_dataset(tmp_path / "nope.csv", "csv", 100.0, CHANNELS, UNITS)
+
+    @pytest.mark.parametrize("unit, factor", [("ms", 1e-3), ("ns", 1e-9)])
+    def test_stamps_in_another_unit_than_read_name_time_unit(self, tmp_path, table, unit, factor):
+        # ms or ns stamps with rate_hz 100 and no time_unit said "correct rate_hz": the rate is right, the unit not
+        stamped = table.copy()
+        stamped[:, 0] = np.round(stamped[:, 0] / factor)
+        path = write_csv(tmp_path / "imu.csv", stamped)
+        with pytest.raises(DataError) as info:
+            read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t")
+        msg = str(info.value)
+        assert f"read as s give a mean rate of {100 * factor:.6g} Hz" in msg
+        assert f"read as {unit} they give 100 Hz: the time column counts {unit}, set time_unit: {unit}" in msg
+        assert "correct rate_hz" not in msg
+        rec = read_dataset(path, "csv", 100.0, CHANNELS, UNITS, time_column="t", time_unit=unit)
+        assert rec.rate_hz == 100.0
+        # a rate no unit explains keeps the rate_hz advice
+        with pytest.raises(DataError, match="correct rate_hz, or leave it empty"):
+            read_dataset(path, "csv", 120.0, CHANNELS, UNITS, time_column="t", time_unit=unit)

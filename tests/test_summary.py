@@ -296,3 +296,58 @@ def test_a_gm_sigma_below_the_spec_sheets_is_explained():
     assert ("- GM sigma below the spec sheet's: the spec sheet's PSD is bounded at every frequency by the bound's "
             "terms together (white noise, GM and random walk; spec margin 1.02), not term by term") in text
     assert "not term by term" not in render_summary({"gyro": {"bound": _bound(spec_margin=1.02)}})  # 4.1 > 1.5
+
+
+def test_the_in_band_inflation_line_is_beside_the_table_per_sensor_and_per_axis():
+    """The contract's inband_inflation (imupipe.inband) gives one line after the inflation table, and one per axis
+    under the per-axis table; a GM acting as white noise in band is named so."""
+    from imupipe.inband import inband_inflation
+    from imupipe.models import NoiseModel
+
+    band = (1 / 600.0, 0.5)
+    spec = NoiseModel(white=1e-4)
+    glob = inband_inflation(NoiseModel(white=3e-4, gauss_markov=((5e-3, 0.01),)), spec, band)
+    ax = inband_inflation(NoiseModel(white=2e-4), spec, band)
+    per = {"x": {"inflation": {"N": 2.0}, "exported_in_kf": True, "kf": "axis x: its own model",
+                 "inband_inflation": ax}}
+    text = render_summary({"gyro": {"bound": _bound(inband_inflation=glob, per_axis_models=per)}})
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("- in-band (0.00167 to 0.5 Hz): median "))
+    assert lines[i - 2].startswith("| ")  # right after the table (a blank line between)
+    assert "the spec's PSD; " in lines[i] and "x the spec's white noise (median; max " in lines[i]
+    assert "GM of T 0.01 s (corner 15.9 Hz) acts as white noise" in lines[i]
+    assert ("- axis x: in-band (0.00167 to 0.5 Hz): median 2x, max 2x at 0.00167 Hz the spec's PSD; 2x the spec's "
+            "white noise") in text
+    assert "in-band" not in render_summary({"gyro": {"bound": _bound()}})
+
+
+def test_white_noise_far_above_the_spec_sheet_asks_for_the_unit_of_the_dataset(tmp_path):
+    # deg/s declared rad/s inflates N by 180/pi = 57.3x: a bound N 98.8x the spec's (an outside tester's run) is
+    # flagged from the run's files, naming the sheet column and the dataset; the fixture's 2.73x is not
+    from imupipe.io import write_yaml_atomic
+    from imupipe.summary import ABOVE_SPEC_RATIO_BOUND, ABOVE_SPEC_RATIO_DATA, summarise_run
+
+    spec_n = 4.4e-5
+    bad = _bound(bound={"white": 98.8 * spec_n, "gauss_markov": [], "random_walk": 1e-7},
+                 upper_envelope={"white": 60.0 * spec_n}, curves=["lab1/x", "lab2/x"],
+                 per_axis=[{"curve": "lab1/x", "bounded": True, "margin": 1.2, "inflation": {"N": 98.8}},
+                           {"curve": "lab2/x", "bounded": True, "margin": 3.0, "inflation": {"N": 1.5}}])
+    res = tmp_path / "results" / "myrun"
+    write_yaml_atomic({**bad, "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
+    write_yaml_atomic({**_bound(), "sensor": "accel"}, res / "bound" / "stim300" / "accel.yaml")
+    text = summarise_run(tmp_path / "results")
+    assert "FLAG data far above the spec sheet [lab1]: white noise N bound/spec 98.8x, data/spec 60x" in text
+    assert "check the unit of gyro (dataset sheet column gyro_unit of lab1)" in text
+    assert "of accel" not in text and "lab2" not in text.split("data far above")[1].split("\n")[0]
+    # the limits: above the largest correct-unit ratio, below the smallest inflating slip (m/s^2 as g, 9.81)
+    assert 2 * 1.47 < ABOVE_SPEC_RATIO_DATA < 9.81 and 2 * 4.31 < ABOVE_SPEC_RATIO_BOUND < 9.81
+    edge = _bound(bound={"white": 30 * spec_n, "gauss_markov": [], "random_walk": 1e-7},
+                  upper_envelope={"white": 0.99 * ABOVE_SPEC_RATIO_DATA * spec_n})  # the data decide, not the bound
+    assert not [f for f in flags_of("gyro", bound=edge) if f.check == "data far above the spec sheet"]
+    accel = _bound(bound={"white": 1.01 * ABOVE_SPEC_RATIO_BOUND * spec_n, "gauss_markov": [], "random_walk": 0.0},
+                   curves=["bench/x"], per_axis=[])  # no envelope: bound/spec against its own limit
+    (f,) = [f for f in flags_of("accel", bound=accel) if f.check == "data far above the spec sheet"]
+    assert "dataset sheet column accel_unit of bench" in f.detail and "data/spec" not in f.detail
+    assert "m/s^2 declared g gives 9.81x" in f.detail and "deg/s" not in f.detail
+    correct = {**accel, "bound": {"white": 8.6 * spec_n}}  # the largest correct-unit bound/spec: not flagged
+    assert all(f.check != "data far above the spec sheet" for f in flags_of("accel", bound=correct))

@@ -69,3 +69,21 @@ def test_reduction_exported_only_when_verified():
     assert any(a.startswith("gauss_markov") for a in red["accepted"])
     assert rep["exported"]["reduced"] is True and rep["exported"]["verification"]["passed"]
     assert rep["exported"]["model"]["gauss_markov"] == [] and math.isclose(rep["exported"]["model"]["white"], 3e-3)
+
+
+def test_the_fix_rate_reaches_the_scenario_and_the_filter():
+    """verify.fix_rate_hz: a filter at 10 Hz with fixes at 1 Hz. The spec sheet as its own filter is matched
+    (MSE = P at every step: worst ratio 1 within round-off), the scenario says the fix rate, and the filter's
+    variance differs from the one with a fix every step (the fix rate is used, not only reported)."""
+    m = NoiseModel(white=1e-4, gauss_markov=((3e-4, 300.0),))
+    kw = dict(spec=m, fix_s=100.0, horizon_s=300.0, filter_rate_hz=10.0, reduce=False)
+    rep, series = verification_stage(m, "accel", fix_rate_hz=1.0, **kw)
+    every, series_every = verification_stage(m, "accel", **kw)
+    assert rep["verification"]["scenario"]["fix_rate_hz"] == 1.0
+    assert every["verification"]["scenario"]["fix_rate_hz"] == 10.0
+    assert rep["verification"]["checks"]["spec"]["passed"]
+    assert abs(rep["verification"]["checks"]["spec"]["worst_ratio"] - 1.0) < 1e-9
+    n_fix = int(100.0 * 10.0)
+    assert series["spec"].P[n_fix - 1] > 1.5 * series_every["spec"].P[n_fix - 1]  # fewer fixes: larger variance
+    with pytest.raises(ValueError, match="fix_rate_hz"):
+        verification_stage(m, "accel", fix_rate_hz=3.0, **kw)

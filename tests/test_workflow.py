@@ -362,6 +362,8 @@ class TestRealData:
         assert "gyro: BOUNDED; accel: BOUNDED" in summary
         assert "FLAG per-axis model" not in summary and "tau from 1 to 1.2e+03 s" in summary
         assert "FLAG export rate" not in summary
+        assert ("verified scenario: reference filter at 1 Hz, fixes at 1 Hz (sigma 0.5 m) for 600 s, then an outage "
+                "of 600 s") in summary
 
 
 def _bad_input_files(folder, rng):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import gzip
 import hashlib
+import math
 import os
 import re
 import shutil
@@ -504,6 +505,21 @@ def test_duplicated_sheet_column_refused(startup_work):
     assert not (startup_work / "results" / "dupcol").exists()
 
 
+@pytest.mark.parametrize("tag, sep, extra, message", [
+    ("commasheet", ",", "", "sheet_commasheet.tsv', line 1: not tab-separated (found commas"),
+    ("notescol", "\t", "notes", "sheet_notescol.tsv', line 1: unknown column 'notes' (column 13); allowed columns: "
+                                "dataset, path,"),
+])
+def test_first_hour_sheet_refused_naming_the_culprit(startup_work, tag, sep, extra, message):
+    # before: "no 'path' column" (commas) and "Error validating config file." (an extra notes column)
+    cols = [c for c in SHEET_COLUMNS if c in GOOD] + ([extra] if extra else [])
+    cells = [str(GOOD[c]) for c in cols if c in GOOD] + (["bench 2"] if extra else [])
+    proc, out = _startup(startup_work, tag, sheet_text=sep.join(cols) + "\n" + sep.join(cells) + "\n")
+    assert proc.returncode == 1
+    assert message in out, out[-2000:]
+    assert not (startup_work / "results" / tag).exists()
+
+
 @pytest.mark.parametrize("name", ["..", "a/b", "-x"])
 def test_bad_dataset_name_refused(startup_work, name):
     tag = "name" + hashlib.md5(name.encode()).hexdigest()[:6]
@@ -642,3 +658,29 @@ def test_rate_from_timestamps_reaches_the_bound_and_kalibr(tmp_path):
     assert not kalibr.get("refused"), kalibr  # white-noise records (seeded): no line, one rate
     assert kalibr["update_rate"] == RATE_HZ and kalibr["rostopic"] == "/imu"
     assert (res / "summary.md").is_file()
+
+
+def test_first_hour_deg_s_declared_rad_s_is_flagged_in_the_summary(tmp_path):
+    """The issue's case end to end: a one-axis gyro record at the STIM-300's white noise (0.15 deg/sqrt(h)),
+    stored in deg/s but declared rad/s: every value 57.3x too large. The run stays BOUNDED (a valid unit) and its
+    summary FLAGs the white noise far above the spec sheet, naming the sheet column and the dataset."""
+    work = copy_checkout(tmp_path / "checkout")
+    (work / "data_faults").mkdir()
+    sigma_deg_s = 0.15 / 60.0 * math.sqrt(RATE_HZ)  # N (deg/s/sqrt(Hz)) * sqrt(rate): the sample sigma, deg/s
+    t = _table(8)
+    t[:, 1] = np.random.default_rng(8).normal(0.0, sigma_deg_s, N)
+    _csv(work / "data_faults" / "degs.csv", t)
+    row = {"dataset": "degs", "path": "data_faults/degs.csv", "rate_hz": RATE_HZ, "gyro_unit": "rad/s",
+           "time_column": "t", "gyro_x": "wx"}
+    cfg = _config(work, "degs", _sheet(work, [row], name="degs.tsv"), sensors=["gyro"])
+    snakemake(work, config=cfg, snakefile=work / "Snakefile", timeout=900)
+    text = (work / "results" / "degs" / "summary.md").read_text()
+    flag = [ln for ln in text.splitlines() if "FLAG data far above the spec sheet [degs]" in ln]
+    assert len(flag) == 1, text
+    assert "check the unit of gyro (dataset sheet column gyro_unit of degs)" in flag[0]
+    ratio = float(flag[0].split("data/spec ")[1].split("x")[0])
+    assert 40.0 < ratio < 120.0  # 57.3x the data's N, within the envelope's statistical width
+    # the same record declared in its own unit: no such flag
+    cfg = _config(work, "degs_ok", _sheet(work, [{**row, "gyro_unit": "deg/s"}], name="degs_ok.tsv"), sensors=["gyro"])
+    snakemake(work, config=cfg, snakefile=work / "Snakefile", timeout=900)
+    assert "far above the spec sheet" not in (work / "results" / "degs_ok" / "summary.md").read_text()

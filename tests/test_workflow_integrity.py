@@ -58,6 +58,15 @@ def test_contract_bounded_means_every_check_passed(tiny_run, sensor):
     if "upper_envelope_model" in ident:
         for key in ("white", "random_walk", "gauss_markov"):
             assert b["upper_envelope"][key] == ident["upper_envelope_model"][key]
+    # the exported model's effective in-band inflation against the spec sheet, over [1/horizon_s, filter_rate/2]
+    from imupipe.inband import inband_inflation
+    from imupipe.specsheet import load_spec
+
+    ib = c["inband_inflation"]
+    assert ib["band_hz"] == [pytest.approx(1 / 600.0), 0.5]
+    spec = load_spec(work / "config" / "specs" / "stim300.yaml").models[sensor]
+    assert ib == inband_inflation(v["exported"]["model"], spec, ib["band_hz"])  # the exported model, not the bound's
+    assert ib["vs_spec_psd"]["max"] >= ib["vs_spec_psd"]["median"] >= ib["vs_spec_psd"]["min"] > 0
     # the reduction is reported: what was tried, and each attempt accepted or refused
     red = v["reduction"]
     assert red is not None and {t["drop"] for t in red["tried"]} == set(red["accepted"]) | set(red["refused"])

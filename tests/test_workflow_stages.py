@@ -432,6 +432,12 @@ def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_re
     assert proc.returncode != 0
     assert (f"verify.filter_rate_hz = {base * 3} Hz must divide decimate.rate_hz = {cfg['decimate']['rate_hz']} Hz"
             in proc.stdout + proc.stderr)
+    # a fix rate that is not a whole fraction of the filter rate: refused before any job, naming both keys
+    odd_fix = _changed(work, config, "odd_fix", verify={"fix_rate_hz": base / 2.5})
+    proc = snakemake(work, "-n", config=odd_fix, check=False)
+    assert proc.returncode != 0
+    assert (f"verify.fix_rate_hz = {base / 2.5} Hz must divide verify.filter_rate_hz = {base} Hz"
+            in proc.stdout + proc.stderr)
 
 
 def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_dropped(tmp_path):

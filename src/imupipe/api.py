@@ -240,6 +240,7 @@ def noise_model(
     verify: bool = True,
     sigma_fix: float | None = None,
     filter_rate_hz: float = _D["verify.filter_rate_hz"],
+    fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"],
     replay_z: float = _D["verify.replay_z"],
     truth=None,
@@ -291,9 +292,11 @@ def noise_model(
         True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
         default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
         `filter_rate_hz`: the reference filter's rate, Hz (``verify.filter_rate_hz``, default 1.0); the contract
-        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's. Then the contract and the KF file's matrices of the model the verification
+        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's; `fix_rate_hz`:
+        the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the KF file's
+        matrices of the model the verification
         exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
-        unreduced, its P0 of p from :func:`imupipe.biasinit.filter_p0`.
+        unreduced, its P0 of p from :meth:`imupipe.biasinit.BiasInitialisation.p0`.
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
@@ -415,12 +418,14 @@ def noise_model(
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
                                      rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
                                      horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
-                                     reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s)[0]
+                                     reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
+                                     fix_rate_hz=fix_rate_hz)[0]
         contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
-                                  on_failure="warn", kf_rate_hz=application_rate_hz)
+                                  on_failure="warn", kf_rate_hz=application_rate_hz, horizon_s=horizon_s,
+                                  filter_rate_hz=filter_rate_hz)
         kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=horizon_s, sensor=sensor)
     else:  # the bound's model unreduced, its bias started where the verification would start it
-        from imupipe.biasinit import bias_initialisation, filter_p0
+        from imupipe.biasinit import bias_initialisation
         from imupipe.stages.verify import model_of
 
         m = model_of(bound.record["bound"])
@@ -428,7 +433,7 @@ def noise_model(
         bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
                                    record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
         kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
-            "p0_random_walk": filter_p0(m, bias.required, fix_s + horizon_s)}}, kf_dt, sensor)
+            "p0_random_walk": bias.p0(m, fix_s + horizon_s)}}, kf_dt, sensor)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
                             selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
                             decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,

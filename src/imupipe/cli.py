@@ -109,11 +109,14 @@ def check_config(config: str | Path) -> list[str]:
         done.append(f"spec sheet {path.name}: {spec.name}, sensors {', '.join(sensors)}")
     sheet = cfg.get("datasets")
     if sheet:
-        from imupipe.readers import sheet_row_to_kwargs
+        from imupipe.readers import check_file, sheet_row_to_kwargs
 
         sheet_path = root / str(sheet)
         if not sheet_path.is_file():
             raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
+        from imupipe.readers import check_sheet_header
+
+        check_sheet_header(sheet_path)
         rows = _sheet_rows(sheet_path)
         if not rows:
             raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
@@ -121,9 +124,10 @@ def check_config(config: str | Path) -> list[str]:
             if "path" not in row:
                 raise ValueError(f"{sheet_path}: no 'path' column (columns: {', '.join(row)})")
             kw = sheet_row_to_kwargs(row, base_dir=root)
-            if not Path(kw["path"]).exists():
-                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): file {kw['path']} "
-                                 "does not exist")
+            try:
+                check_file(kw["path"])  # names a symlink loop, a broken link, a Windows path
+            except ValueError as exc:
+                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
         done.append(f"dataset sheet {sheet_path.name}: {len(rows)} rows, every file present")
     elif not cfg.get("simulation"):
         raise ValueError(f"{config}: 'datasets' is null and 'simulation' is empty: nothing to analyse")
@@ -161,6 +165,33 @@ def allan_table(rec, taus="octave") -> tuple[list[str], list[list[float]], dict]
     return header, rows, avs
 
 
+def _read_with_time_unit(path, fmt, rate_hz, channels, units, kwargs):
+    """read_dataset for ``imupipe allan``: a ``t`` column is the time column when none is given, and a time column
+    without a unit gets the one :func:`imupipe.readers.timeunit.infer_time_unit` infers (stated on stderr) from the
+    stamps' mean gap-free interval read as seconds; formats whose stamps carry their unit (netCDF, bags) as given."""
+    from imupipe.readers import format_of, probe, read_dataset
+    from imupipe.readers.timeunit import infer_time_unit
+
+    kind = format_of(path, fmt)
+    if kind in ("netcdf", "rosbag"):
+        return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units, **kwargs)
+    if "time_column" not in kwargs:
+        names = probe(path, fmt, **{k: v for k, v in kwargs.items() if k in ("delimiter", "variable")}).channels
+        if "t" in names:
+            kwargs = {**kwargs, "time_column": "t"}
+            print(f"imupipe allan: {path}: column 't' read as the time column (--time-column to choose another)",
+                  file=sys.stderr)
+    if "time_column" not in kwargs or "time_unit" in kwargs:
+        return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units, **kwargs)
+    as_s = read_dataset(path, format=fmt, channels=channels, units=units, **{**kwargs, "time_unit": "s"})
+    unit, reason = infer_time_unit(1.0 / as_s.rate_hz, rate_hz, where=str(path))
+    print(f"imupipe allan: {path}: time unit {unit} ({reason}; --time-unit to state it)", file=sys.stderr)
+    if unit == "s" and rate_hz is None:
+        return as_s
+    return read_dataset(path, format=fmt, rate_hz=rate_hz, channels=channels, units=units,
+                        **{**kwargs, "time_unit": unit})
+
+
 def _cmd_allan(args) -> int:
     from imupipe.readers import read_dataset
 
@@ -182,8 +213,8 @@ def _cmd_allan(args) -> int:
             units[k.strip()] = v.strip()
     kwargs = dict(time_column=args.time_column, time_unit=args.time_unit, variable=args.variable, topic=args.topic,
                   delimiter=args.delimiter)
-    rec = read_dataset(args.file, format=args.format, rate_hz=args.rate_hz, channels=channels, units=units,
-                       **{k: v for k, v in kwargs.items() if v is not None})
+    kwargs = {k: v for k, v in kwargs.items() if v is not None}
+    rec = _read_with_time_unit(args.file, args.format, args.rate_hz, channels, units, kwargs)
     if args.sensor:
         keep = {k: v for k, v in rec.items() if k[0] == args.sensor}
         if not keep:
@@ -457,8 +488,9 @@ def _parser() -> argparse.ArgumentParser:
     a.add_argument("--channel", action="append", metavar="SENSOR_AXIS=COLUMN",
                    help="channel column, e.g. gyro_x=wx (repeatable; default columns gyro_x ... accel_z)")
     a.add_argument("--units", action="append", metavar="SENSOR=UNIT", help="stored unit, e.g. gyro=deg/s")
-    a.add_argument("--time-column", help="timestamp column")
-    a.add_argument("--time-unit", help="timestamp unit: s, ms, us, ns")
+    a.add_argument("--time-column", help="timestamp column (default: a column named t, if any)")
+    a.add_argument("--time-unit", help="timestamp unit: s, ms, us, ns (default: inferred from the stamps' spacing "
+                   "against --rate-hz, else against 1 Hz .. 10 kHz, and stated)")
     a.add_argument("--delimiter", help="text delimiter: ',', tab, semicolon, space")
     a.add_argument("--variable", help="R object / npz array / netCDF variable")
     a.add_argument("--topic", help="bag topic of the sensor_msgs/Imu messages")

@@ -489,7 +489,8 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
     -------
     dict
         ``dropped_by_reduction`` (list of str; empty when the bound is exported whole), ``horizon_s`` (s),
-        ``fix_s`` (s), ``verified_filter_rate_hz`` and ``kf_rate_hz`` (Hz), ``rate_mismatch`` (bool: the
+        ``fix_s`` (s), ``verified_filter_rate_hz``, ``verified_fix_rate_hz`` and ``kf_rate_hz`` (Hz),
+        ``verified_sigma_fix`` (with its ``verified_sigma_fix_unit``, m or rad), ``rate_mismatch`` (bool: the
         reference filter ran at another rate than the exported filter's), ``line_states`` (narrowband terms of
         the exported model with sigma > 0: sigma in the sensor's SI unit, f0_hz in Hz) and ``statement`` (one
         sentence for the summary and the files).
@@ -517,6 +518,9 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
     return {"dropped_by_reduction": dropped, "horizon_s": None if horizon_s is None else float(horizon_s),
             "fix_s": None if scen.get("fix_s") is None else float(scen["fix_s"]),
             "verified_filter_rate_hz": None if vrate is None else float(vrate), "kf_rate_hz": float(kf_rate_hz),
+            "verified_fix_rate_hz": None if scen.get("fix_rate_hz") is None else float(scen["fix_rate_hz"]),
+            "verified_sigma_fix": None if scen.get("sigma_fix") is None else float(scen["sigma_fix"]),
+            "verified_sigma_fix_unit": scen.get("sigma_fix_unit"),
             "rate_mismatch": bool(mismatch), "line_states": line_states, "statement": text}
 
 

@@ -27,6 +27,19 @@ __all__ = ["Flag", "discover_run", "flags_of", "psd_usage_flags", "load_sensor_f
 #: no sensor beats its data sheet by that much; a unit error (deg/s declared as mrad/s: 17.5x) does.
 FAR_BELOW_SPEC_MARGIN = 25.0
 
+#: White-noise ratios (N amplitudes, u/sqrt(Hz)) above which the summary asks for the unit: each the log-midpoint
+#: between the largest ratio a correct unit plausibly gives and the smallest common unit slip that inflates, m/s^2
+#: declared g (9.81x; then mrad/s declared deg/s 17.5x, deg/s declared rad/s 57.3x, mrad/s declared rad/s or mg
+#: declared g 1000x; the gravity check also catches accel slips when three axes are present). A correct unit may be
+#: worse than the sheet's typical value by the data sheets' usual typical-to-maximum spread (<= 2x). Data/spec (the
+#: identification's upper envelope over the spec sheet) was at most 1.47 on the ADIS16405 and STIM-300 reference
+#: records, so a correct unit gives <= 2 * 1.47 = 2.9 and the limit is sqrt(2.9 * 9.81) = 5.4. Bound/spec, used
+#: when the envelope is absent, adds the bound's own inflation (it absorbs components the spec sheet lacks): at
+#: most 4.31 on the same records, so <= 8.6 and the limit is sqrt(8.6 * 9.81) = 9.2 (under a slip the bound is
+#: at least the data's N, so at least 9.81x the spec's). The same bound/spec limit picks the datasets named.
+ABOVE_SPEC_RATIO_DATA = (2.0 * 1.47 * 9.80665) ** 0.5
+ABOVE_SPEC_RATIO_BOUND = (2.0 * 4.31 * 9.80665) ** 0.5
+
 
 @dataclass(frozen=True)
 class Flag:
@@ -176,6 +189,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         "S_bound/S_sample); the bound is the spec sheet's, the data are not what it describes: check "
                         "the data's unit in the dataset sheet (a record in a smaller unit than declared, e.g. deg/s "
                         "declared as mrad/s, looks like this) and that the spec sheet is this sensor's"))
+    out += above_spec_flags(sensor, bound)
     if exp.get("rate_mismatch") and not rate_failed:  # a contract written before the export_rate check
         out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail(exp)))
     for ax in bound.get("per_axis") or []:
@@ -215,6 +229,57 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 else:
                     out.append(Flag(sensor, key, "-", str(it)))
     return out
+
+
+def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
+    """The FLAG of white noise far above the spec sheet's: a unit slip (a record in a larger unit than declared).
+
+    Ratios of white-noise densities N (amplitudes, u/sqrt(Hz), SI): data/spec = ``upper_envelope.white /
+    spec.white`` (the identification's upper envelope, the largest N the records allow) and bound/spec =
+    ``bound.white / spec.white``. A FLAG when data/spec exceeds :data:`ABOVE_SPEC_RATIO_DATA`, or, without an
+    envelope, bound/spec exceeds :data:`ABOVE_SPEC_RATIO_BOUND` (their derivation there). The datasets named are
+    those whose per-axis bound alone (``per_axis[].inflation.N``, bound/spec) exceeds the bound limit, else every
+    dataset of the bound's ``curves``. The mirror of the far-below-spec FLAG (:data:`FAR_BELOW_SPEC_MARGIN`).
+    """
+    bound = bound or {}
+
+    def ratio(num):
+        try:
+            n, s = float(num), float(_g(bound, "spec", "white"))
+        except (TypeError, ValueError):
+            return None
+        return n / s if s > 0 and n > 0 else None
+
+    r_bound, r_data = ratio(_g(bound, "bound", "white")), ratio(_g(bound, "upper_envelope", "white"))
+    if r_data is not None:
+        limit, over = ABOVE_SPEC_RATIO_DATA, r_data > ABOVE_SPEC_RATIO_DATA
+    else:
+        limit, over = ABOVE_SPEC_RATIO_BOUND, r_bound is not None and r_bound > ABOVE_SPEC_RATIO_BOUND
+    if not over:
+        return []
+
+    def dataset(curve):
+        return str(curve).split("/")[0]
+
+    high = []
+    for ax in bound.get("per_axis") or []:
+        try:
+            if isinstance(ax, Mapping) and float(_g(ax, "inflation", "N")) > ABOVE_SPEC_RATIO_BOUND:
+                high.append(dataset(ax.get("curve", "-")))
+        except (TypeError, ValueError):
+            continue
+    if not high:
+        high = [dataset(c) for c in bound.get("curves") or []] or [dataset(bound.get("margin_curve", "-"))]
+    datasets = ", ".join(dict.fromkeys(high))
+    column = f"{sensor}_unit" if sensor in ("gyro", "accel") else "gyro_unit/accel_unit"
+    said = [f"bound/spec {_num(r_bound)}x" if r_bound is not None else None,
+            f"data/spec {_num(r_data)}x (the identification's upper envelope)" if r_data is not None else None]
+    examples = ("m/s^2 declared g gives 9.81x, mg declared g 1000x" if sensor == "accel" else
+                "deg/s declared rad/s gives 57.3x, mrad/s declared rad/s 1000x")
+    return [Flag(sensor, "data far above the spec sheet", datasets,
+                 f"white noise N {', '.join(x for x in said if x)}, above the {limit:.2g}x a correct unit "
+                 f"plausibly gives ({examples}): check the unit of "
+                 f"{sensor} (dataset sheet column {column} of {datasets}) and that the spec sheet is this sensor's")]
 
 
 #: Share of a record the Welch segments may leave out before the summary flags it: 10 %. With the rule of
@@ -266,6 +331,14 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
     exp = bound.get("export")
     if isinstance(exp, Mapping) and exp.get("statement"):
         out.append(f"- exported filter model (KF file): {exp['statement']}")
+    if isinstance(exp, Mapping) and exp.get("verified_filter_rate_hz") is not None:
+        fix_rate = exp.get("verified_fix_rate_hz") or exp["verified_filter_rate_hz"]
+        sig = (f" (sigma {_num(exp['verified_sigma_fix'])} {exp.get('verified_sigma_fix_unit') or ''})".rstrip(" ")
+               if exp.get("verified_sigma_fix") is not None else "")
+        out.append(f"- verified scenario: reference filter at {_num(exp['verified_filter_rate_hz'])} Hz, fixes at "
+                   f"{_num(fix_rate)} Hz{sig} for {_num(exp.get('fix_s'))} s, then an outage of "
+                   f"{_num(exp.get('horizon_s'))} s (verify.filter_rate_hz, verify.fix_rate_hz, verify.fix_s, "
+                   "application.horizon_s)")
     def k_of(section):
         try:
             return float(_g(bound, section, "random_walk", default=0.0))
@@ -420,6 +493,8 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         inflation table (spec-sheet units), states kept and dropped with the reasons, and the checks
         (``FAIL`` / ``FLAG`` lines, or "none flagged").
     """
+    from imupipe.inband import inband_line
+
     lines = [f"# {title}", ""]
     all_flags: list[Flag] = []
     verdicts = []
@@ -449,6 +524,11 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
+        inband = inband_line(bound.get("inband_inflation")) if bound else None
+        if inband:
+            # what the whole exported model does over the application band (imupipe.inband): beside the table
+            lines += [f"- {inband}", ""]
+        if rows:
             gap = _spec_above_data(bound)
             if gap:
                 lines += [gap, ""]
@@ -481,6 +561,11 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
                     lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
                                  f"{'yes' if own else 'no (global model)'} | "
                                  f"{pa.get('kf', '-')} | {scope or '-'} |")
+            lines.append("")
+            for ax, pa in per.items():
+                text = inband_line(pa.get("inband_inflation")) if isinstance(pa, Mapping) else None
+                if text:
+                    lines.append(f"- axis {ax}: {text}")
             lines.append("")
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")

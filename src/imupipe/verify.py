@@ -42,8 +42,9 @@ Initial state (:mod:`imupipe.biasinit`): a truth starts at its stationary distri
 turn-on: GM and narrowband states at their steady-state variance, a random walk at :math:`K^2 T_{\max}/2` (the
 stationary variance of the GM of the longest admitted time constant ``max_bias_time_s`` with the same drift; the
 records cannot tell them apart). The filter starts at its own exported P0: GM states at their :math:`\sigma^2`,
-the random-walk state at :math:`\max(K^2 t_0, V - \sum\sigma_i^2)`, with :math:`t_0` = `p0_time_s` (default
-`fix_s` + `horizon_s`) and :math:`V` = `bias_var_floor` the least total initial bias variance
+the random-walk state at :math:`\max(K^2 t_0, V - \sum\sigma_i^2, V_s - \sum_{T_i \ge t_0}\sigma_i^2)`, with
+:math:`t_0` = `p0_time_s` (default `fix_s` + `horizon_s`), :math:`V` = `bias_var_floor` the least total initial
+bias variance and :math:`V_s` = `bias_var_floor_slow` its part from biases slower than the run
 (:func:`imupipe.biasinit.bias_initialisation`). A filter whose P0 is too small therefore fails where it matters,
 in the first minutes of the outage. With the defaults (``bias_var_floor`` 0, ``max_bias_time_s`` None) both start
 the random walk at :math:`K^2 t_0`. Kinematic states start at variances `var_pos` (default `sigma_fix`^2) and
@@ -98,6 +99,8 @@ class Scenario:
     #: least total initial variance of the filter's bias states (GM states + p), u^2
     #: (:func:`imupipe.biasinit.bias_initialisation`); the deficit goes on p
     bias_var_floor: float = 0.0
+    #: the part of it from biases slower than fixes + outage, u^2: carried by p or GM states of T >= p0_time_s
+    bias_var_floor_slow: float = 0.0
     #: a truth's random walk starts at the stationary variance K^2 T/2 of the GM of this time constant with the
     #: same drift, s (None: K^2 * p0_time_s, the filter's own rule)
     max_bias_time_s: float | None = None
@@ -164,8 +167,8 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
     each (damped oscillator, :func:`imupipe.kf.continuous_model`), quantization and ramp are left
     out (not states). P0: kinematic variances of the scenario, GM and narrowband terms at steady
     state. The random-walk state p: as a ``"filter"``, the exported rule
-    :func:`imupipe.biasinit.filter_p0` (:math:`\max(K^2 t_0, V - \sum\sigma_i^2)` with
-    :math:`V` = ``scenario.bias_var_floor``; p is kept with K = 0 when that is positive: a random constant); as a
+    :func:`imupipe.biasinit.filter_p0` (:math:`\max(K^2 t_0, V - \sum\sigma_i^2, V_s - \sum_{T_i \ge t_0}
+    \sigma_i^2)` with :math:`V` = ``scenario.bias_var_floor``, :math:`V_s` = ``scenario.bias_var_floor_slow``; p is kept with K = 0 when that is positive: a random constant); as a
     ``"truth"``, the stationary variance :math:`K^2 T_{\max}/2` of the GM of ``scenario.max_bias_time_s`` with the
     same drift (a sensor's bias at turn-on), or :math:`K^2 t_0` when that is None.
     """
@@ -187,7 +190,7 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
     if role == "filter":
         # the bias floor counts the model's own GM terms, not the flicker bank (the KF file has no such states)
         p0 = filter_p0(NoiseModel(random_walk=model.random_walk, gauss_markov=tuple(model.gauss_markov)),
-                       sc.bias_var_floor, t0)
+                       sc.bias_var_floor, t0, sc.bias_var_floor_slow)
     else:
         p0 = m.random_walk**2 * (0.5 * sc.max_bias_time_s if sc.max_bias_time_s is not None else t0)
     cm = continuous_model(m, reduced=not (m.random_walk > 0 or p0 > 0), sensor=sc.sensor, scale_factor=False)
@@ -705,13 +708,13 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                        rate_hz: float | None = None, fix_s: float = 600.0, horizon_s: float = 3600.0,
                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
                        replay_z: float = 2.0, max_bias_time_s: float | None = None, turn_on_bias: float = 0.0,
-                       record_s: float | None = None):
+                       record_s: float | None = None, fix_rate_hz: float | None = None):
     r"""The verification stage of one spec and sensor: the report, the model to export and the time series of
     its checks (for :func:`imupipe.plot.plot_verification`).
 
     Checks of `bound_model` in the reference filter of `sensor` (:func:`reference_scenario` with `fix_s` s of
-    fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `filter_rate_hz` Hz, then an
-    outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
+    fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `fix_rate_hz` Hz (None: every step
+    of the filter at `filter_rate_hz` Hz; it must divide `filter_rate_hz`), then an outage of `horizon_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
     identified upper envelope), ``spec`` and ``slow_bias`` (the worst member of the family of biases slower
     than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift); replay of
     ``records`` (rate `rate_hz`, Hz) passing when the worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff)
@@ -733,7 +736,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         exported ``p0_random_walk``)), ``passed``, ``units``), and the series: label -> :class:`Verification`
         of the exported model.
     """
-    from imupipe.biasinit import bias_initialisation, filter_p0, worst_member
+    from imupipe.biasinit import bias_initialisation, worst_member
     from imupipe.units import SI_UNITS
 
     if record_s is None and records is not None and rate_hz:
@@ -742,7 +745,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                                max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
     slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
     kw = dict(rate_hz=filter_rate_hz, fix_s=fix_s, horizon_s=horizon_s, bias_var_floor=bias.required,
-              max_bias_time_s=bias.T_max_s)
+              bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s, fix_rate_hz=fix_rate_hz)
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
@@ -757,9 +760,11 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
             if rate_hz is None:
                 raise ValueError("verification_stage: replay records need rate_hz")
             series["replay"] = replay(model, records, rate_hz, sc, z=replay_z)
-        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
+        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.rate_hz, "fix_rate_hz": sc.rate_hz / sc.fix_every,
+                            "fix_s": sc.fix_s, "horizon_s": sc.horizon_s,
                             "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
-                            "bias_var_floor": sc.bias_var_floor, "max_bias_time_s": sc.max_bias_time_s},
+                            "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
+                            "max_bias_time_s": sc.max_bias_time_s},
                "checks": {k: v.to_dict() for k, v in series.items()}}
         if slow is not None:
             ver["checks"]["slow_bias"]["truth_model"] = slow.to_dict()
@@ -792,7 +797,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     t0 = sc.p0_time_s if sc.p0_time_s is not None else sc.fix_s + sc.horizon_s
     exported["bias_initialisation"] = {
         **bias.to_dict(SI_UNITS[sensor]),
-        "p0_random_walk": filter_p0(exported_model, bias.required, t0), "wander_s": float(t0),
+        "p0_random_walk": bias.p0(exported_model, t0), "wander_s": float(t0),
         "statement": bias.statement(SI_UNITS[sensor])}
     report = {"sensor": sensor, "verification": ver, "reduction": red, "exported": exported,
               "passed": bool(exported["verification"]["passed"] and exported["verification"]["checks"]),

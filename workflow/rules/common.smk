@@ -54,6 +54,14 @@ if _ratio < 1.0 - 1e-9 or abs(_ratio - round(_ratio)) > 1e-9 * _ratio:
                      f"decimate.rate_hz = {config['decimate']['rate_hz']} Hz (the verification replays the decimated "
                      "records at the reference filter's rate); lower verify.filter_rate_hz or raise decimate.rate_hz")
 
+# Fixes every m filter steps: m = verify.filter_rate_hz / verify.fix_rate_hz must be a whole number >= 1.
+if config["verify"].get("fix_rate_hz") is not None:
+    _m = float(config["verify"]["filter_rate_hz"]) / float(config["verify"]["fix_rate_hz"])
+    if _m < 1.0 - 1e-9 or abs(_m - round(_m)) > 1e-9 * _m:
+        raise ValueError(f"config: verify.fix_rate_hz = {config['verify']['fix_rate_hz']} Hz must divide "
+                         f"verify.filter_rate_hz = {config['verify']['filter_rate_hz']} Hz (a fix every whole number "
+                         "of filter steps); e.g. fix_rate_hz 1 with filter_rate_hz 100, or null for a fix every step")
+
 NAME = config["name"]
 RESULTS = f"results/{NAME}"
 LOGS = f"logs/{NAME}"

@@ -1,4 +1,5 @@
-# Kalibr imu.yaml of both sensor types of one spec sheet: the bounding continuous-time densities, the IMU's
+# Kalibr imu.yaml of both sensor types of one spec sheet: the smallest white noise and random walk whose PSD bounds
+# the exported model's over the application band (an LP per exported axis model, the largest of each), the IMU's
 # sample rate as update_rate (one rate for every dataset, else the job refuses, naming each) and the topic of the
 # dataset sheet. The values follow the exported KF model (kf rule: the bound after the verified reduction). An
 # exported model with a narrowband line state is refused (no Kalibr fields written, the reason in the file and in
@@ -13,6 +14,8 @@ rule kalibr:
         identified_accel=f"{RESULTS}/identify/accel.yaml",
         kf_gyro=f"{RESULTS}/kf/{{spec}}/gyro.yaml",
         kf_accel=f"{RESULTS}/kf/{{spec}}/accel.yaml",
+        contract_gyro=f"{RESULTS}/contract/{{spec}}/gyro.yaml",
+        contract_accel=f"{RESULTS}/contract/{{spec}}/accel.yaml",
     output:
         kalibr=report(
             f"{RESULTS}/kf/{{spec}}/kalibr_imu.yaml",

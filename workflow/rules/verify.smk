@@ -31,6 +31,7 @@ rule verify:
         sigma_fix_m=config["verify"]["sigma_fix_m"],
         sigma_fix_rad=config["verify"]["sigma_fix_rad"],
         filter_rate_hz=config["verify"]["filter_rate_hz"],
+        fix_rate_hz=config["verify"].get("fix_rate_hz"),
         reduce=config["verify"]["reduce"],
         replay_z=config["verify"]["replay_z"],
         max_bias_time_s=config["identify"].get("max_bias_time_s"),
@@ -58,6 +59,9 @@ rule contract:
     params:
         kf_file=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
         kf_rate_hz=config["application"]["rate_hz"],
+        # the application band of the in-band inflation, [1/horizon_s, filter_rate_hz/2], as verify has them
+        horizon_s=config["application"]["horizon_s"],
+        filter_rate_hz=config["verify"]["filter_rate_hz"],
         on_failure=config["verify"]["on_failure"],
     threads: 1
     resources:

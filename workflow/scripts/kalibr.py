@@ -3,8 +3,10 @@
 update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, else refused with
 each dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the
 identify files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities the
-bounding continuous-time values with Gauss-Markov terms folded into the random walk, and the comment block the
-inflation factor against the identified model.
+smallest Kalibr pair (white noise, random walk) whose PSD bounds the exported model's over the application band
+[1/horizon_s, update_rate/2] (imupipe.kalibr.kalibr_pair: an LP; per axis when the KF file has per-axis models, the
+largest of each, the comment naming the axis), and the comment block the rule, the exported model's effective in-band
+inflation against the spec sheet (the contract's inband_inflation) and the ratio to the identified model's pair.
 
 The values follow the exported Kalman-filter model (kf/{spec}/{sensor}.yaml: the bound after the verified
 reduction), so the two files never disagree. One exception: an export without any bias-drift state (the verified
@@ -27,7 +29,12 @@ REFUSED = "refused"
 def lines_of(kf: dict) -> list:
     """The narrowband line states of an exported KF model (SI: sigma in u, f0 in Hz, zeta), sigma > 0 only (a
     sigma-0 term has no state)."""
-    return [t for t in ((kf.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
+    out = [t for t in ((kf.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
+    for e in (kf.get("per_axis") or {}).values():  # an axis's own exported model counts as well
+        if e.get("model") == "own":
+            out += [t for t in ((e.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0
+                    and t not in out]
+    return out
 
 
 def export_notes(kfs: dict, update_rate_hz: float | None = None) -> list:
@@ -79,10 +86,55 @@ def refused_text(lines: dict, imu, source: str, notes=()) -> str:
     return "\n".join(out) + "\n"
 
 
+def band_of(kf: dict, path: str) -> tuple:
+    """The application band [1/horizon_s, filter_rate_hz/2] Hz of an exported KF model, from its export scope (the
+    horizon and the rate of the reference filter that verified it, as the verify rule had them; the KF file's own rate
+    where the scope names no verified rate)."""
+    from imupipe.inband import application_band
+
+    scope = kf.get("export") or {}
+    horizon = scope.get("horizon_s")
+    rate = scope.get("verified_filter_rate_hz") or scope.get("kf_rate_hz") or (1.0 / float(kf["dt_s"]) if kf.get("dt_s")
+                                                                              else None)
+    if not horizon or not rate:
+        raise ValueError(f"{path}: the export scope gives no horizon_s or filter rate: no application band for Kalibr")
+    return application_band(float(horizon), float(rate))
+
+
+def axis_models(kf: dict, path: str) -> dict:
+    """Label -> the model the KF file exports: per axis (its own model or the global one) when the file has
+    per_axis, else {"global": the global model}; lines removed (see lines_of)."""
+    from imupipe.kalibr import model_of_kf
+
+    glob = replace(model_of_kf(kf, path), narrowband=())
+    per = kf.get("per_axis") or {}
+    if not per:
+        return {"global": glob}
+    return {str(ax): (replace(model_of_kf(e, f"{path} per_axis {ax}"), narrowband=()) if e.get("model") == "own"
+                      else glob) for ax, e in per.items()}
+
+
+def inband_notes(contracts: dict) -> list:
+    """Comment lines with each sensor's effective in-band inflation (the contract's inband_inflation)."""
+    from imupipe.inband import inband_line
+
+    out = []
+    for sensor, con in contracts.items():
+        text = inband_line((con or {}).get("inband_inflation"))
+        if text:
+            out.append(f"{sensor}: exported model {text}")
+        for ax, pa in ((con or {}).get("per_axis_models") or {}).items():
+            t = inband_line((pa or {}).get("inband_inflation"))
+            if t:
+                out.append(f"{sensor} axis {ax}: {t}")
+    return out
+
+
 def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str, rates: dict, topics: dict,
-         path_out: str, spec: str, path_kf_gyro: str, path_kf_accel: str) -> None:
+         path_out: str, spec: str, path_kf_gyro: str, path_kf_accel: str, path_contract_gyro: str | None = None,
+         path_contract_accel: str | None = None) -> None:
     from imupipe.kalibr import (
-        dataset_rates, imu_rate, kalibr_imu, model_of_bound, model_of_kf, rostopic_of, with_bias_drift, write_kalibr,
+        dataset_rates, imu_rate, kalibr_imu, model_of_bound, rostopic_of, with_bias_drift, write_kalibr,
     )
     from imupipe.models import NoiseModel
 
@@ -111,16 +163,21 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     notes = export_notes(kfs, rate)
     # the two-term model of each exported KF model (white, GM folded into the random walk); a line cannot be folded
     # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
-    models = {s: replace(model_of_kf(k, p), narrowband=())
-              for (s, k), p in zip(kfs.items(), (path_kf_gyro, path_kf_accel), strict=True)}
+    paths = dict(zip(kfs, (path_kf_gyro, path_kf_accel), strict=True))
+    models = {s: axis_models(k, paths[s]) for s, k in kfs.items()}
+    # Kalibr's filter runs at update_rate: the pair bounds the exported model from 1/horizon up to its Nyquist
+    band = (band_of(kfs["gyro"], path_kf_gyro)[0], 0.5 * rate)
     # Kalibr needs a positive bias random walk: an export without drift states takes the bound's (said so)
     for s in models:
-        models[s], note = with_bias_drift(models[s], model_of_bound(bounds[s]), s)
-        if note:
-            notes.append(note)
-            logging.info("Kalibr: %s", note)
+        for ax in models[s]:
+            models[s][ax], note = with_bias_drift(models[s][ax], model_of_bound(bounds[s]), s)
+            if note and note not in notes:
+                notes.append(note)
+                logging.info("Kalibr: %s", note)
+    contracts = {s: read_yaml(p) for s, p in (("gyro", path_contract_gyro), ("accel", path_contract_accel)) if p}
+    notes += inband_notes(contracts)
     try:
-        imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, rostopic=topic,
+        imu = kalibr_imu(models["gyro"], models["accel"], update_rate_hz=rate, band_hz=band, rostopic=topic,
                          identified_gyro=ident["gyro"], identified_accel=ident["accel"])
     except ValueError as exc:  # no bias drift in the bound either: refused, and said so, without failing the run
         logging.warning("Kalibr export refused: %s", exc)
@@ -142,4 +199,4 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_gyro=i.gyro, path_accel=i.accel, path_id_gyro=i.identified_gyro,
             path_id_accel=i.identified_accel, rates=dict(snakemake.params.rates), topics=dict(snakemake.params.topics),
             path_out=snakemake.output.kalibr, spec=snakemake.wildcards.spec, path_kf_gyro=i.kf_gyro,
-            path_kf_accel=i.kf_accel)
+            path_kf_accel=i.kf_accel, path_contract_gyro=i.contract_gyro, path_contract_accel=i.contract_accel)

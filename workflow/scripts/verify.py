@@ -10,7 +10,7 @@ from imupipe.io import read_yaml, run_job, write_yaml_atomic
 def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records: list, fix_s: float,
          horizon_s: float, sigma_fix_m: float, sigma_fix_rad: float, filter_rate_hz: float, reduce: bool,
          replay_z: float, path_out: str, path_figure: str, spec_name: str, sensor: str,
-         max_bias_time_s: float | None = None) -> None:
+         max_bias_time_s: float | None = None, fix_rate_hz: float | None = None) -> None:
     from imupipe.io import read_series
     from imupipe.merge import Stacked
     from imupipe.plot import plot_verification, save_figure
@@ -30,7 +30,7 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
         truth=load_spec(path_truth).models[sensor] if path_truth else None,
         turn_on_bias=sheet.turn_on_bias.get(sensor, 0.0), fix_s=fix_s, horizon_s=horizon_s,
         sigma_fix=sigma_fix_m if sensor == "accel" else sigma_fix_rad, filter_rate_hz=filter_rate_hz,
-        reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s)
+        reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s, fix_rate_hz=fix_rate_hz)
     write_yaml_atomic(report, path_out, header=HEADER)
     unit, scale = ("m", 1.0) if sensor == "accel" else ("deg", math.degrees(1.0))
     what = "reduced model" if report["exported"]["reduced"] else "bound"
@@ -44,6 +44,7 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_bound=i.bound, path_spectra=i.spectra, path_spec=i.spec,
             path_truth=i.get("truth") or None, records=list(i.records), fix_s=p.fix_s, horizon_s=p.horizon_s,
             sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad, filter_rate_hz=p.filter_rate_hz,
-            reduce=p.reduce, replay_z=p.replay_z, max_bias_time_s=p.max_bias_time_s, path_out=o.verify,
+            reduce=p.reduce, replay_z=p.replay_z, max_bias_time_s=p.max_bias_time_s, fix_rate_hz=p.fix_rate_hz,
+            path_out=o.verify,
             path_figure=o.figure,
             spec_name=snakemake.wildcards.spec, sensor=snakemake.wildcards.sensor)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from imupipe.readers._common import DataError
+from imupipe.readers._common import SHEET_COLUMNS, DataError
 from imupipe.units import SI_UNITS, STANDARD_GRAVITY, UnitError, rate_factor
 
 __all__ = [
@@ -85,10 +85,20 @@ class ConfigError(DataError):
     """A config value that a dataset cannot satisfy: the message names the config key and the dataset."""
 
 
+def _backslash_hint(where: str) -> str:
+    """The hint for a missing path written with backslashes: a Windows path, whose separators are ordinary
+    characters of a file name on Linux and macOS."""
+    if "\\" not in where:
+        return ""
+    return (f" (the path has backslashes, a Windows path? Here '\\' is part of a file name, not a separator: "
+            f"write {where.replace(chr(92), '/')!r})")
+
+
 def check_file(path: str | Path, fmt: str | None = None) -> os.stat_result:
     """Refuse a path that cannot be read as a data file of format `fmt`, before opening it for data.
 
-    Checks, in order: a symlink loop (named as such), a missing file, a FIFO / socket / device (refused
+    Checks, in order: a symlink loop (named as such), a missing file (a path with backslashes: the hint that
+    it is a Windows path), a FIFO / socket / device (refused
     at once: reading a FIFO would block forever), a directory (allowed for ROS 2 bags only), and for
     regular files the leading bytes: a compressed or binary file given as text (e.g. a gzip'd CSV), or
     a file of another format than `fmt`.
@@ -119,7 +129,7 @@ def check_file(path: str | Path, fmt: str | None = None) -> os.stat_result:
         if exc.errno == errno.ENOENT:
             if path.is_symlink():
                 raise DataError(f"{where}: broken symbolic link (its target {os.readlink(path)!r} is missing)") from None
-            raise DataError(f"{where}: file not found") from None
+            raise DataError(f"{where}: file not found{_backslash_hint(where)}") from None
         if exc.errno == errno.EACCES:
             raise DataError(f"{where}: permission denied") from None
         raise DataError(f"{where}: cannot stat ({exc.strerror})") from None
@@ -360,7 +370,9 @@ def check_against_config(
 
 
 def check_sheet_header(path: str | Path, delimiter: str = "\t") -> list[str]:
-    """Read the header line of the dataset sheet and refuse duplicated or empty column names.
+    """Read the header line of the dataset sheet and refuse a sheet separated by commas or semicolons instead of
+    tabs (a spreadsheet's CSV export), duplicated or empty column names, and columns the sheet does not know
+    (:data:`~imupipe.readers.SHEET_COLUMNS`, named with the allowed ones).
 
     A TSV reader such as pandas renames a second ``gyro_x`` column to ``gyro_x.1`` silently, so that a
     channel would be read from whichever column the sheet names first; the workflow calls this before
@@ -391,6 +403,14 @@ def check_sheet_header(path: str | Path, delimiter: str = "\t") -> list[str]:
                 break
         else:
             raise DataError(f"dataset sheet {str(path)!r}: no header line")
+    if delimiter == "\t" and "\t" not in line:
+        found = [name for sep, name in ((",", "commas"), (";", "semicolons")) if sep in line]
+        if found:
+            raise DataError(
+                f"dataset sheet {str(path)!r}, line {number}: not tab-separated (found {found[0]} in the header line "
+                f"{line.strip()[:80]!r}); the sheet is a TSV: save it as tab-separated text (a spreadsheet's "
+                "'Text (tab delimited)' / 'TSV' export), not as CSV"
+            )
     names = [c.strip() for c in line.rstrip("\r\n").split(delimiter)]
     dup = sorted({c for c in names if c and names.count(c) > 1})
     if dup:
@@ -403,6 +423,13 @@ def check_sheet_header(path: str | Path, delimiter: str = "\t") -> list[str]:
     empty = [i + 1 for i, c in enumerate(names) if not c and any(names[i + 1 :])]  # trailing tabs are fine
     if empty:
         raise DataError(f"dataset sheet {str(path)!r}, line {number}: column(s) {empty} have an empty header")
+    unknown = [(i + 1, c) for i, c in enumerate(names) if c and c not in SHEET_COLUMNS]
+    if unknown:
+        listed = ", ".join(f"{c!r} (column {i})" for i, c in unknown)
+        raise DataError(
+            f"dataset sheet {str(path)!r}, line {number}: unknown column {listed}; allowed columns: "
+            f"{', '.join(SHEET_COLUMNS)} (config/README.md; a note belongs in a '#' comment line)"
+        )
     return names
 
 

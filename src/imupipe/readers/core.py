@@ -362,6 +362,8 @@ def read_dataset(
     elif rate is None:
         rate = raw.file_rate
     segments = [Segment(0, n)]
+    # the unit the stamps were read in, for the time_unit hint (netCDF without time_unit: the file's, not known here)
+    stamp_unit = str(time_unit).strip() if not _blank(time_unit) else None if fmt in ("netcdf", "rosbag") else "s"
     filled: tuple[FilledGap, ...] = ()
     policy = gap_policy
     if raw.time is not None and gap_policy == "fill":
@@ -378,14 +380,14 @@ def read_dataset(
             else:
                 max_missing = DEFAULT_FILL_MAX_SAMPLES
             filled, file_row = _fill_gaps(
-                raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text
+                raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text, stamp_unit
             )
             n = len(raw.time)
         policy = long_gap_policy
     elif raw.time is None and gap_policy == "fill":
         pass  # no timestamps: no gaps to see
     if raw.time is not None:
-        segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text)
+        segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text, stamp_unit)
         raw.time = None  # checked: its memory is free for the unit conversion below
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
@@ -560,7 +562,7 @@ def snap_rate(rate_hz: float, rtol: float = 1e-3) -> float:
     return float(rate_hz)
 
 
-def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, row_text):
+def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, row_text, time_unit=None):
     """Check timestamps; return (segments, rate in Hz).
 
     Tolerance: an interval in (0, gap_factor / rate] is a sample step (jitter and clock quantisation
@@ -581,7 +583,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
     _check_increasing(t, tname, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where)
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where, time_unit)
     nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
     if rate is not None and rate_hz is None and abs(mean_rate - rate) > rtol * rate:
         raise DataError(
@@ -621,8 +623,12 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     return segments, rate
 
 
-def _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where) -> None:
+def _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where, time_unit=None) -> None:
     """The sheet's `rate_hz` (Hz) must agree within `rtol` (relative) with the timestamps' mean rate.
+
+    When another time unit (s, ms, us, ns) makes them agree (:func:`imupipe.readers.timeunit.infer_time_unit`
+    on the stamps' interval in the unit they were read in, `time_unit`; None: not known), the message names
+    ``time_unit`` and that unit instead of asking to correct ``rate_hz``.
 
     The mean rate is found as when ``rate_hz`` is empty (:func:`_nominal_rate` without a rate: gaps
     against the median interval, then the mean over the gap-free intervals), not against the sheet's
@@ -631,6 +637,20 @@ def _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where) -> None:
     """
     _, mean_rate = _nominal_rate(t, None, gap_factor)
     if abs(mean_rate - rate_hz) > rtol * rate_hz:
+        from imupipe.readers.timeunit import infer_time_unit
+
+        factor = rate_hz / mean_rate  # the stamps' interval is `factor` x what the unit read says
+        if time_unit is not None:
+            try:
+                unit, _ = infer_time_unit(1.0 / (mean_rate * _time_factor(time_unit, where)), rate_hz, rtol=rtol)
+            except DataError:
+                unit = None
+            if unit is not None:
+                raise DataError(
+                    f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) read as {time_unit} give a mean "
+                    f"rate of {mean_rate:.6g} Hz ({factor:.6g}x off); read as {unit} they give {rate_hz:g} Hz: the "
+                    f"time column counts {unit}, set time_unit: {unit} (rate_hz is right)"
+                )
         raise DataError(
             f"{where}: rate_hz = {rate_hz:g} Hz but the timestamps ({tname}) give a mean rate of {mean_rate:.6g} Hz "
             f"(mean interval {1.0 / mean_rate:.6g} s over the gap-free intervals, the rule used when rate_hz is "
@@ -674,7 +694,8 @@ class FilledGap:
     dt_s: float
 
 
-def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text):
+def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_fraction, where, row_text,
+               time_unit=None):
     """Fill gaps of at most `max_missing` samples by linear interpolation; return (filled gaps, row map), the
     row map (a function) None when no gap is filled.
 
@@ -691,7 +712,7 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     t = raw.time
     _check_increasing(t, raw.time_name, where, row_text)
     if rate_hz is not None:
-        _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where)
+        _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where, time_unit)
     nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
     gaps = _find_gaps(t, 1.0 / nominal_rate, gap_factor)
     gap_dt = intervals(t, gaps)  # s

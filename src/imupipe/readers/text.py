@@ -79,6 +79,9 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
             raise DataError(f"{where}: unknown delimiter {delimiter!r}; use ',', tab, semicolon, space")
         delim = _DELIMITERS[key]
     tokens = _split(header, delim)
+    trailing = _trailing_delimiter(path, header_line, tokens, delim)
+    if trailing and tokens[-1] == "":
+        tokens = tokens[:-1]
     has_header = _is_header(tokens, specs, time_column)
     if has_header:
         dup = sorted({t for t in tokens if tokens.count(t) > 1})
@@ -101,7 +104,7 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
     tcol = None if _blank(time_column) else _resolve(time_column, names, ncols, "time", where)
 
     wanted = sorted(set(cols.values()) | ({tcol} if tcol is not None else set()))
-    values, n_rows, width = _parse_columns(path, first_data_line, delim, ncols, names, wanted, where)
+    values, n_rows, width = _parse_columns(path, first_data_line, delim, ncols, names, wanted, where, trailing)
     if n_rows == 0:
         raise DataError(
             f"{where}: no data rows after line {first_data_line - 1} (header only or truncated file)"
@@ -151,7 +154,29 @@ def _count_lines(path) -> int:
     return count + (last != b"\n")
 
 
-def _parse_columns(path, first_line, delim, ncols, names, wanted, where):
+def _trailing_delimiter(path, header_line, tokens, delim) -> bool:
+    """Whether the rows end with a delimiter (``1.0,2.0,``, a common spreadsheet / logger export): the header line
+    ends with one, or the line after it has one field more than it with that field empty. Its empty last field
+    is not data: :func:`_parse_columns` drops one trailing delimiter from every line that has one, and a row with
+    a value there still differs from the header's field count (and is refused)."""
+    if delim is None or len(tokens) < 1:
+        return False
+    if len(tokens) > 1 and tokens[-1] == "":
+        return True
+    following = next(_content_lines(path, header_line + 1), None)
+    if following is None:
+        return False
+    fields = _split(following[1], delim)
+    return len(fields) == len(tokens) + 1 and fields[-1] == ""
+
+
+def _drop_trailing(line: str, delim: str) -> str:
+    """`line` without one delimiter at its end (spaces and the newline aside)."""
+    body = line.rstrip("\r\n").rstrip(" ")
+    return (body[: -len(delim)] if body.endswith(delim) else body) + "\n"
+
+
+def _parse_columns(path, first_line, delim, ncols, names, wanted, where, trailing=False):
     """Columns `wanted` (0-based) of the data rows from line `first_line` on, as float64; (columns, rows, fields).
 
     The rows are parsed :data:`READ_LINES` lines at a time (``numpy.loadtxt``: ``#`` comments, blank lines
@@ -167,19 +192,21 @@ def _parse_columns(path, first_line, delim, ncols, names, wanted, where):
         for _ in range(first_line - 1):
             next(fh, None)
         while lines := list(itertools.islice(fh, READ_LINES)):
+            if trailing:
+                lines = [_drop_trailing(ln, delim) for ln in lines]
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # "Empty input file" from loadtxt: a block of comments only
                 try:
                     block = np.loadtxt(lines, delimiter=delim, comments="#", dtype=np.float64, ndmin=2, quotechar='"')
                 except ValueError as exc:
-                    _diagnose_text(path, first_line, delim, ncols, names, where)
+                    _diagnose_text(path, first_line, delim, ncols, names, where, trailing)
                     raise DataError(f"{where}: cannot parse the data rows ({exc})") from exc
             if block.shape[0] == 0:
                 continue
             if width is None:
                 width = block.shape[1]
             if block.shape[1] != width:
-                _diagnose_text(path, first_line, delim, ncols, names, where)
+                _diagnose_text(path, first_line, delim, ncols, names, where, trailing)
                 raise DataError(f"{where}: cannot parse the data rows (the number of fields changed from "
                                 f"{width} to {block.shape[1]} after row {n})")
             rows = block.shape[0]
@@ -192,10 +219,13 @@ def _parse_columns(path, first_line, delim, ncols, names, wanted, where):
     return out, n, width if width is not None else ncols
 
 
-def _diagnose_text(path, first_line, delim, ncols, names, where) -> None:
-    """Find the first malformed data line and raise a DataError naming it (else return)."""
+def _diagnose_text(path, first_line, delim, ncols, names, where, trailing=False) -> None:
+    """Find the first malformed data line and raise a DataError naming it (else return); `trailing`: one
+    empty last field per line is dropped first (:func:`_trailing_delimiter`)."""
     for number, text in _content_lines(path, first_line):
         fields = _split(text, delim)
+        if trailing and len(fields) > 1 and fields[-1] == "":
+            fields = fields[:-1]
         if len(fields) != ncols:
             kind = "too few" if len(fields) < ncols else "too many"
             raise DataError(

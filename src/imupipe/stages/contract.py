@@ -20,7 +20,7 @@ import logging
 import sys
 from types import SimpleNamespace
 
-__all__ = ["HEADER", "contract_stage", "failed_names", "per_axis_contracts", "verdict_stage"]
+__all__ = ["HEADER", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
 
 #: Header of the contract file (what its fields mean, units).
 HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
@@ -34,7 +34,12 @@ states the verified reduction dropped (dropped_by_reduction; the model then hold
 reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
 narrowband line states (line_states) and one statement of all this.
 per_axis_models: null when the axes are pooled; else per axis its own contract (bounded, verified, failed_checks) and
-exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one)."""
+exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one).
+inband_inflation: the effective in-band inflation of the exported model against the spec sheet over the application
+band [1/horizon_s, filter_rate_hz/2] Hz (imupipe.inband.inband_inflation): sqrt(S_model/S_spec) (vs_spec_psd) and
+sqrt(S_model)/N_spec (vs_spec_white), median, max, max_frequency_hz, min (dimensionless amplitude ratios), two-sided
+PSDs as sampled at the reference filter's interval, and each component with what it acts as in band (components:
+acts_as; corner_hz Hz, as_N u/sqrt(Hz), as_K u/sqrt(s)); per_axis_models carry the same of each axis's model."""
 
 
 def _bound_view(b: dict):
@@ -71,16 +76,37 @@ def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, se
     return c, in_units, note, scope
 
 
+def inband(exported: dict | None, spec, sensor: str, band_hz) -> dict | None:
+    """The exported model's effective in-band inflation against the spec sheet (imupipe.inband.inband_inflation), or
+    None without an exported model, a band, or a spec model of this sensor with a positive PSD."""
+    from imupipe.inband import inband_inflation
+    from imupipe.models import NoiseModel
+
+    specm = spec.models.get(sensor)
+    if not exported or band_hz is None or specm is None:
+        return None
+    try:
+        return inband_inflation(NoiseModel.from_dict(exported["model"]), specm, band_hz)
+    except ValueError as exc:
+        logging.warning("%s: no in-band inflation: %s", sensor, exc)
+        return None
+
+
 def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_file: str | None = None,
-                   on_failure: str = "fail", kf_rate_hz: float | None = None) -> dict:
+                   on_failure: str = "fail", kf_rate_hz: float | None = None, horizon_s: float | None = None,
+                   filter_rate_hz: float | None = None) -> dict:
     """The contract file's content (YAML-ready) of the bound file's dict `bound` and the verification file's dict
     `verification`, against the spec sheet `spec` (:class:`imupipe.specsheet.SpecSheet`) of `sensor`; `kf_file`
     names the KF file it marks, `on_failure` is ``verify.on_failure`` (stated, not acted on here) and
-    `kf_rate_hz` (Hz) the KF export's rate (application.rate_hz), checked against the verification's."""
+    `kf_rate_hz` (Hz) the KF export's rate (application.rate_hz), checked against the verification's;
+    `horizon_s` (s, application.horizon_s) and `filter_rate_hz` (Hz, verify.filter_rate_hz) set the application
+    band [1/horizon_s, filter_rate_hz/2] of the in-band inflation (:mod:`imupipe.inband`; None: not computed)."""
+    from imupipe.inband import application_band
     from imupipe.kf import inflation_scope
 
     ver = verification
     exported = ver["exported"]
+    band = application_band(horizon_s, filter_rate_hz) if horizon_s and filter_rate_hz else None
     c, in_spec_units, note, scope = _checks(bound, exported, ver.get("reduction"), spec, sensor, kf_rate_hz)
     out = {
         "sensor": sensor, "spec_name": bound["spec_name"],
@@ -114,13 +140,15 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     }
     if note:
         out["unit_note"] = note
-    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor, kf_rate_hz)
+    # what the whole exported model does in the application band against the spec sheet (imupipe.inband)
+    out["inband_inflation"] = inband(exported, spec, sensor, band)
+    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor, kf_rate_hz, band)
     if not c["bounded"]:
         logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
     return out
 
 
-def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None):
+def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None, band_hz=None):
     """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
     and whether the KF file exports it (bounded) or gives that axis the global model."""
     from imupipe.kf import inflation_scope
@@ -145,6 +173,7 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: fl
                  "margin": pa.get("margin"),
                  "all_frequency_margin": pa.get("all_frequency_margin"),
                  "allan_check_passed": pa.get("allan_check_passed"),
+                 "inband_inflation": inband(exported, spec, sensor, band_hz),
                  "export": scope}
         entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
                        f"axis {ax}: the global model (its own failed: {failed_names(entry)})")

@@ -17,21 +17,22 @@ __all__ = ["BIAS_RULE", "bias_block", "exported_kf", "kf_header", "kf_stage"]
 BIAS_RULE = ("the bias states start with a total variance (GM states' sigma^2 + P0 of p) at least required_variance: "
              "the largest of the spec sheet's stationary bias (GM sigma^2, a random walk as the GM of T_max with its "
              "drift, the turn-on bias^2) and the records' slow drift extrapolated to T_max (sigma^2 = K_eff^2 T_max / "
-             "2); p0 = max(K^2 * wander_s, required_variance - sum GM sigma^2). A filter using this model must "
+             "2), and its part from biases slower than the verified run (required_slow_variance) on states at least as slow "
+             "(p, GMs with T >= wander_s); p0 = max(K^2 * wander_s, required_variance - sum GM sigma^2, "
+             "required_slow_variance - sum of GM sigma^2 with T >= wander_s). A filter using this model must "
              "initialise its bias at least so (docs/method.md, section 'The bias a filter starts with').")
-
 
 
 def bias_block(bias: dict, p0) -> dict:
     """The KF file's statement of the initial bias variance (SI) and the rule it follows."""
     keep = ("required_variance", "required_std", "rests_on", "parts", "T_max_s", "T_max_source", "record_s",
-            "checked_by_records", "wander_s", "statement", "units")
+            "checked_by_records", "required_slow_variance", "wander_s", "statement", "units")
     return {"p0_random_walk": p0, "rule": BIAS_RULE, **{k: bias[k] for k in keep if k in bias}}
 
 
 def _bias_p0(exported: dict):
     """The verified initial variance of p (imupipe.biasinit.filter_p0: the bias floor less the GM states'
-    sigma^2, at least K^2 * wander_s), u^2, or None when it is 0 (no p state), and the bias block it comes from:
+    sigma^2, its slow part less the slow GM states', at least K^2 * wander_s), u^2, or None when it is 0 (no p state), and the bias block it comes from:
     the KF file starts the filter where the verification did. p stays a state (a random constant when K = 0)
     whenever that variance is positive."""
     bi = exported.get("bias_initialisation") or {}

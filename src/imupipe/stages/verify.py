@@ -54,12 +54,13 @@ def records_at_one_rate(series: Mapping):
 def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = None, rate_hz: float | None = None,
                   truth=None, turn_on_bias: float = 0.0, fix_s: float = 600.0, horizon_s: float = 3600.0,
                   sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
-                  replay_z: float = 2.0, max_bias_time_s: float | None = None):
+                  replay_z: float = 2.0, max_bias_time_s: float | None = None, fix_rate_hz: float | None = None):
     """The verification of the bound file's dict `bound` (its ``bound``, ``upper_envelope``, ``spec_name``,
     ``psd_bounded`` and ``per_axis_models``): `spec` the spec sheet's model of `sensor` and its `turn_on_bias`
     (u, 1 sigma), `truth` the simulation's model or None, `records` curve label -> decimated record (u) at
     `rate_hz` (Hz; the included curves), the ``verify`` settings (`fix_s`, `horizon_s` in s, `sigma_fix` m for
-    accel or rad for gyro, `filter_rate_hz` Hz, `reduce`, `replay_z`) and ``identify.max_bias_time_s`` (s).
+    accel or rad for gyro, `filter_rate_hz` Hz, `reduce`, `replay_z`, `fix_rate_hz` Hz: the fixes' rate, None: the
+    filter's) and ``identify.max_bias_time_s`` (s).
 
     Returns (report, checks): the verification file's dict and the exported model's series by check."""
     import numpy as np
@@ -70,7 +71,7 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
     records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
     kw = dict(spec=spec, truth=truth, rate_hz=rate_hz, fix_s=fix_s, horizon_s=horizon_s, sigma_fix=sigma_fix,
               filter_rate_hz=filter_rate_hz, reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
-              turn_on_bias=turn_on_bias)
+              turn_on_bias=turn_on_bias, fix_rate_hz=fix_rate_hz)
     upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
     report, checks = verification_stage(model_of(bound["bound"]), sensor, upper=upper,
                                         records=list(records.values()) or None, **kw)

@@ -1,0 +1,102 @@
+"""The earlier integrity truths (tactical white + GM + random walk, MEMS white + two GMs + random walk, white + GM:
+the truths of tests/test_verify.py) end to end through the one-call pipeline (imupipe.api.noise_model: the KF file
+with its verified P0), judged by the independent exact covariance analysis of tests/exact_kf.py, with the truth's
+GM terms started at their stationary variance.
+
+The fast tests check the analysis itself on identities: a filter whose model IS the truth (the harness's own
+discrete truth, or the project's export of the truth model) has MSE/P = 1 at every step. The slow test runs the
+earlier cases; run as a script for the table (worst MSE/P over fixes + outage and over the outage, mean P/MSE over the outage):
+``OPENBLAS_NUM_THREADS=1 python tests/test_integrity_cases.py [seed ...]`` (default seeds 101 and 202, the ones
+of tests/test_verify.py: 1 dataset on the first, 5 on the second).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from exact_kf import FIX_S, HORIZON_S, kf_against_truth, truth_discrete
+from imupipe.models import NoiseModel
+from imupipe.specsheet import parse_spec
+
+RATE_HZ, RECORD_S = 10.0, 36000.0
+TRUTHS = {  # as in tests/test_verify.py (SI: m/s^2 units, used for both sensor kinds)
+    "tactical": NoiseModel(white=3e-5, gauss_markov=((2e-5, 300.0),), random_walk=3e-7),
+    "mems": NoiseModel(white=6e-4, gauss_markov=((3e-4, 30.0), (2e-4, 900.0)), random_walk=2e-6),
+    "no_rw": NoiseModel(white=1e-4, gauss_markov=((6e-5, 500.0),)),
+}
+UNITS = {"accel": ("m/s^2/sqrt(Hz)", "m/s^2", "m/s^2/sqrt(s)"), "gyro": ("rad/s/sqrt(Hz)", "rad/s", "rad/s/sqrt(s)")}
+
+
+def optimistic_spec(t: NoiseModel, sensor: str):
+    """The earlier work's unflated datasheet: N x 0.8, sigma x 0.7, K x 0.5 (every parameter below the truth)."""
+    wu, su, ku = UNITS[sensor]
+    body = {"white": {"value": 0.8 * t.white, "unit": wu},
+            "gauss_markov": [{"sigma": {"value": 0.7 * s, "unit": su}, "T": {"value": T, "unit": "s"}}
+                             for s, T in t.gauss_markov]}
+    if t.random_walk > 0:
+        body["random_walk"] = {"value": 0.5 * t.random_walk, "unit": ku}
+    return parse_spec({"name": "optimistic", sensor: body})
+
+
+def run_case(name: str, sensor: str, n_data: int, seed: int) -> dict:
+    from imupipe.api import noise_model
+    from imupipe.simulate import simulate
+
+    truth = TRUTHS[name]
+    X = simulate(truth, int(RECORD_S * RATE_HZ), RATE_HZ, rng=np.random.default_rng(seed), n_records=n_data)
+    curves = {f"d{i}/x": X[i] for i in range(n_data)}
+    res = noise_model(curves, RATE_HZ, sensor, optimistic_spec(truth, sensor), window_s=25200.0, step_s=36000.0,
+                      horizon_s=HORIZON_S, fix_s=FIX_S, n_boot=50, n_gm=len(truth.gauss_markov))
+    ver = res.verification["verification"]
+    out = kf_against_truth(res.kf, truth, sensor)
+    return {"case": name, "sensor": sensor, "n_data": n_data, "seed": seed,
+            "bounded": bool(res.bound.bounded and ver["passed"]), **out}
+
+
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+@pytest.mark.parametrize("name", list(TRUTHS))
+def test_exact_analysis_of_the_truth_itself_is_one(name, sensor):
+    truth = TRUTHS[name]
+    Phi, Qd, P0 = truth_discrete(truth, sensor, 1.0)
+    r = kf_against_truth({"dt_s": 1.0, "Phi": Phi, "Qd": Qd, "P0": P0}, truth, sensor)
+    # the same model in truth and filter: MSE = P at every step up to round-off, which the joint form magnifies
+    # by its cancellation (MSE = var + var - 2 cov) and accumulates over the steps (a random walk of errors)
+    tol = 10 * np.finfo(float).eps * r["cancellation"] * np.sqrt(r["n_steps"])
+    assert abs(r["worst"] - 1.0) < tol and abs(r["end_p_over_mse"] - 1.0) < tol, (r, tol)
+
+
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+def test_exact_analysis_of_the_projects_export_of_the_truth_is_one(sensor):
+    """The project's KF export of a white + GM truth (P0 of the GM its stationary sigma^2) against the independent
+    discrete truth: the two discretisations agree, so MSE/P = 1 to the accuracy of the matrix exponentials."""
+    from imupipe.kf import export_kf
+
+    truth = TRUTHS["no_rw"]
+    r = kf_against_truth(export_kf(truth, 1.0, sensor=sensor), truth, sensor)
+    assert abs(r["worst"] - 1.0) < 1e-6 and abs(r["end_p_over_mse"] - 1.0) < 1e-6, r
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(TRUTHS))
+def test_earlier_integrity_cases(name):
+    for sensor in ("accel", "gyro"):
+        for n_data, seed in ((1, 101), (5, 202)):
+            r = run_case(name, sensor, n_data, seed)
+            assert r["bounded"] and r["worst"] <= 1.0 + 1e-6, r
+
+
+if __name__ == "__main__":
+    seeds = [int(s) for s in sys.argv[1:]] or [101, 202]
+    print("| truth | sensor | datasets | seed | bounded | worst MSE/P, fixes + outage (first > 1, s) | worst MSE/P, "
+          "outage | mean P/MSE, outage |")
+    print("|---|---|---|---|---|---|---|")
+    for name in TRUTHS:
+        for sensor in ("accel", "gyro"):
+            for n_data, seed in zip((1, 5), seeds) if len(seeds) == 2 else ((1, s) for s in seeds):
+                r = run_case(name, sensor, n_data, seed)
+                fe = "" if r["first_exceed_s"] is None else f" ({r['first_exceed_s']:.0f})"
+                print(f"| {name} | {sensor} | {n_data} | {seed} | {r['bounded']} | {r['worst']:.3f}{fe} | "
+                      f"{r['worst_outage']:.3f} | {r['mean_p_over_mse_outage']:.2f} |", flush=True)
