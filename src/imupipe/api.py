@@ -82,8 +82,8 @@ class NoiseModelResult:
         :func:`imupipe.stages.verify.verify_stage` of the bound (None when ``verify=False``).
     contract : dict or None
         :func:`imupipe.stages.contract.contract_stage`: the workflow's verdict, ``contract["bounded"]`` (every
-        check passed and the verification ran), with ``failed_checks`` (None when ``verify=False``). Not
-        :attr:`bounded`, which is the PSD bound's alone.
+        check passed and the verification ran), with ``failed_checks`` (None when ``verify=False``); what
+        :attr:`bounded` returns.
     records : dict
         The stages' dicts, as the workflow's files hold them: ``identify``
         (:func:`imupipe.stages.identify.identification_stage`), ``bound``
@@ -115,7 +115,14 @@ class NoiseModelResult:
 
     @property
     def bounded(self) -> bool:
-        """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``)."""
+        """The workflow's verdict: True only when every check passed, the verification included
+        (``contract["bounded"]``); False without a verification (``verify=False``): the PSD bound alone does not
+        say that a filter using the model will not under-state its error (:attr:`psd_bounded` says that much)."""
+        return bool(self.contract is not None and self.contract.get("bounded"))
+
+    @property
+    def psd_bounded(self) -> bool:
+        """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``), nothing more."""
         return bool(self.bound.bounded)
 
     def to_dict(self) -> dict:
