@@ -19,6 +19,7 @@ RATE = 10.0  # Hz
 DURATION_S = 3600.0
 TRUTH = NoiseModel(white=1.0e-4, gauss_markov=((2.0e-5, 300.0),), random_walk=5.0e-8)  # rad/s
 SETTINGS = dict(window_s=1200.0, step_s=600.0)
+BOOT = dict(n_boot=20)  # the reference computation below uses 20 replicates (the API default is 100)
 HORIZON = dict(horizon_s=600.0)  # the reference computation below uses a 600 s horizon; the API default is 3600 s
 
 
@@ -30,7 +31,7 @@ def records():
 
 @pytest.fixture(scope="module")
 def result(records):
-    return noise_model(records, RATE, "gyro", SPEC, **SETTINGS, **HORIZON)
+    return noise_model(records, RATE, "gyro", SPEC, **SETTINGS, **BOOT, **HORIZON)
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +74,7 @@ def workflow(records, tmp_path_factory):
 
     ident = identification_stage(
         curves_of(Stacked(tmp / "allan.nc")), sensor="gyro",
-        components=["white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"], n_gm=1, n_boot=0,
+        components=["white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"], n_gm=1, n_boot=20,
         confidence=0.95, significance=0.05, relevance=0.05, rate_hz=1.0, horizon_s=600.0,
         envelope_horizon_s=600.0 + 600.0)
     write_yaml_atomic(ident, tmp / "identify.yaml")
@@ -181,7 +182,7 @@ def test_lines_policy_model_carries_the_line_to_the_filter():
     t = np.arange(int(DURATION_S * RATE)) / RATE
     line = 3e-4 * np.sin(2 * np.pi * 0.3 * t)
     curves = {f"d{i}/x": simulate(TRUTH, t.size, RATE, rng=rng) + line for i in (1, 2)}
-    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS, **HORIZON)
+    r = noise_model(curves, RATE, "gyro", SPEC, lines_policy="model", **SETTINGS, **BOOT, **HORIZON)
     assert len(r.lines.narrowband) == 1 and r.lines.narrowband[0][0] == pytest.approx(0.3, abs=1e-3)
     assert len(r.model.narrowband) == 1 and r.bounded
     assert "nb" in r.kf["states"]

@@ -351,3 +351,18 @@ def test_white_noise_far_above_the_spec_sheet_asks_for_the_unit_of_the_dataset(t
     assert "m/s^2 declared g gives 9.81x" in f.detail and "deg/s" not in f.detail
     correct = {**accel, "bound": {"white": 8.6 * spec_n}}  # the largest correct-unit bound/spec: not flagged
     assert all(f.check != "data far above the spec sheet" for f in flags_of("accel", bound=correct))
+
+
+def test_a_replay_passed_only_by_its_allowance_is_flagged():
+    """A replay whose worst MSE/P is above 1 but within its Monte Carlo allowance (few windows: an outside
+    evaluation's 1.875 against 2.49 with two windows) passes the check and is FLAGged; one at or below 1 is not."""
+    from imupipe.summary import replay_allowance_flags
+
+    contract = {"verification": {"replay": {"worst_ratio": 1.875, "tolerance": 2.49, "worst_t_s": 4200.0,
+                                            "passed": True}}}
+    (f,) = replay_allowance_flags("gyro", contract)
+    assert f.severity == "flag" and "1.88" in f.detail and "2.49" in f.detail
+    contract["verification"]["replay"]["worst_ratio"] = 0.98
+    assert replay_allowance_flags("gyro", contract) == []
+    contract["verification"]["replay"].update(worst_ratio=3.0, passed=False)  # a failed replay is a FAIL elsewhere
+    assert replay_allowance_flags("gyro", contract) == []

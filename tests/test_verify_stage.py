@@ -87,3 +87,20 @@ def test_the_fix_rate_reaches_the_scenario_and_the_filter():
     assert series["spec"].P[n_fix - 1] > 1.5 * series_every["spec"].P[n_fix - 1]  # fewer fixes: larger variance
     with pytest.raises(ValueError, match="fix_rate_hz"):
         verification_stage(m, "accel", fix_rate_hz=3.0, **kw)
+
+
+def test_the_contract_needs_the_identifications_bootstrap():
+    """identification_intervals: fewer than ceil(1/(1 - c)) replicates (0: no bootstrap) fail the contract, which
+    is then not bounded even when every other check passed; 20 at c = 0.95 pass."""
+    from types import SimpleNamespace
+
+    from imupipe.verify import integrity_contract, min_bootstrap
+
+    assert min_bootstrap(0.95) == 20 and min_bootstrap(0.9) == 10 and min_bootstrap(0.99) == 100
+    ok = SimpleNamespace(margin=1.0, margin_curve="a/x", margin_frequency=0.1, spec_margin=1.0,
+                         spec_margin_frequency=0.1, allf_margin=1.0, allf_margin_frequency=0.1)
+    ver = {"f": {"checks": {"spec": {"passed": True}}}}
+    for n_boot, bounded in ((0, False), (19, False), (20, True)):
+        c = integrity_contract(ok, None, ver, intervals={"n_boot": n_boot, "confidence": 0.95})
+        assert c["bounded"] is bounded and "identification_intervals" in c["checks_run"]
+        assert bounded or c["failed_checks"][0]["check"] == "identification_intervals"

@@ -224,7 +224,7 @@ def noise_model(
     allan_confidence: float = _D["allan.confidence"],
     components: Sequence[str] = tuple(_D["identify.components"]),
     n_gm: int = _D["identify.n_gm"],
-    n_boot: int = 0,
+    n_boot: int = _D["identify.n_boot"],
     fit_confidence: float = _D["identify.confidence"],
     significance: float = _D["identify.significance"],
     relevance: float = _D["identify.relevance"],
@@ -274,8 +274,9 @@ def noise_model(
         Allan-variance taus (default ``"octave"``) and confidence of its limits (default 0.683).
     components, n_gm, n_boot, fit_confidence, significance, relevance, adequacy_level, pooling_level, pooling_n_boot, fit_tau_min_samples :
         The identification's settings (:func:`imupipe.stages.identify.identify_sensor`, the workflow's
-        ``identify`` section; defaults :data:`imupipe.defaults.DEFAULTS`, the workflow's, except ``n_boot=0``,
-        which skips the bootstrap intervals; the workflow's is 100).
+        ``identify`` section; defaults :data:`imupipe.defaults.DEFAULTS`, the workflow's: ``n_boot`` 100). With
+        fewer than :func:`imupipe.verify.min_bootstrap` replicates (``n_boot=0`` skips the bootstrap) the
+        contract fails its ``identification_intervals`` check: the envelope is then the point fit.
     max_bias_time_s : float, optional
         Longest bias time constant admitted, s (``identify.max_bias_time_s``; None: the verification's rule).
     application_rate_hz : float, optional

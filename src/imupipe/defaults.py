@@ -31,6 +31,7 @@ DEFAULTS: dict[str, object] = {
     "identify.relevance": 0.05,
     "identify.adequacy_level": 0.01,
     "identify.pooling_level": 0.01,
+    "identify.n_boot": 100,
     "identify.pooling_n_boot": 99,
     "application.rate_hz": 1.0,
     "application.horizon_s": 3600.0,

@@ -129,6 +129,23 @@ def _export_rate_detail(exp: Mapping) -> str:
             "exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide decimate.rate_hz)")
 
 
+def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
+    """FLAG a replay of the records that passed only by its Monte Carlo allowance: its worst MSE/P above 1 but within
+    ``tolerance`` (1 + replay_z sqrt(2 / n_eff): with few windows of short records the allowance is wide, and the
+    records themselves then show the filter under-stating its error without the check failing)."""
+    rep = (bound.get("verification") or {}).get("replay")
+    if not isinstance(rep, Mapping) or not rep.get("passed"):
+        return []
+    worst, tol = rep.get("worst_ratio"), rep.get("tolerance")
+    if worst is None or tol is None or not float(worst) > 1.0 + 1e-6:
+        return []
+    return [Flag(sensor, "replay within its allowance", "replay of the records",
+                 f"the records' worst MSE/P is {_num(worst)} (> 1) at {_num(rep.get('worst_t_s'))} s, passed only "
+                 f"by the allowance {_num(tol)} for the few independent windows the records give: the records do "
+                 "not confirm the bound (longer or more records would)",
+                 "flag")]
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -190,6 +207,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         "the data's unit in the dataset sheet (a record in a smaller unit than declared, e.g. deg/s "
                         "declared as mrad/s, looks like this) and that the spec sheet is this sensor's"))
     out += above_spec_flags(sensor, bound)
+    out += replay_allowance_flags(sensor, bound)
     if exp.get("rate_mismatch") and not rate_failed:  # a contract written before the export_rate check
         out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail(exp)))
     for ax in bound.get("per_axis") or []:

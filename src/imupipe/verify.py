@@ -78,6 +78,7 @@ __all__ = [
     "verify_model",
     "reduce_by_integrity",
     "integrity_contract",
+    "min_bootstrap",
     "verification_report",
     "Verification",
 ]
@@ -582,7 +583,15 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     return current, tried
 
 
-def integrity_contract(bound, allan=None, verification=None, export=None) -> dict:
+def min_bootstrap(confidence: float) -> int:
+    r"""The fewest bootstrap replicates that can place the upper end of a `confidence`-level interval beyond the
+    largest replicate's value: :math:`\lceil 1/(1 - c) \rceil` (20 at c = 0.95). Fewer (none, ``n_boot = 0``)
+    leave the intervals, and the identified upper envelope built from their upper ends, at or near the point fit,
+    which under-states a parameter about half the time."""
+    return int(math.ceil(1.0 / (1.0 - float(confidence)) - 1e-9))
+
+
+def integrity_contract(bound, allan=None, verification=None, export=None, intervals=None) -> dict:
     """The contract dict: ``bounded`` means verified.
 
     Parameters
@@ -598,6 +607,10 @@ def integrity_contract(bound, allan=None, verification=None, export=None) -> dic
         filter's (``rate_mismatch``), the KF file is not the filter that was verified (its discretisation, and
         any state the reduction dropped, were checked at another rate): the check ``export_rate`` fails and
         the model is not verified.
+    intervals : dict, optional
+        ``n_boot`` and ``confidence`` of the identification's bootstrap: below :func:`min_bootstrap` the check
+        ``identification_intervals`` fails (the envelope, a truth of the verification and the floor of the bound
+        below the lowest PSD bin, is then the point fit: the checks against it cannot see what the records allow).
 
     Returns
     -------
@@ -642,6 +655,15 @@ def integrity_contract(bound, allan=None, verification=None, export=None) -> dic
                     failed.append({"check": "verification", "filter": filt, "against": check,
                                    "worst_ratio": c["worst_ratio"], "worst_t_s": c["worst_t_s"],
                                    "first_exceed_s": c["first_exceed_s"], "tolerance": c["tolerance"]})
+    if intervals is not None:
+        run.append("identification_intervals")
+        need = min_bootstrap(intervals.get("confidence", 0.95))
+        if int(intervals.get("n_boot") or 0) < need:
+            failed.append({"check": "identification_intervals", "n_boot": int(intervals.get("n_boot") or 0),
+                           "needed": need, "note": f"the identification ran with {int(intervals.get('n_boot') or 0)} "
+                           f"bootstrap replicates (identify.n_boot; noise_model(n_boot=)): at least {need} place the "
+                           "upper ends of its intervals, and so the upper envelope the verification checks against, "
+                           "beyond the point fit"})
     if export is not None:
         run.append("export_rate")
         if export.get("rate_mismatch"):

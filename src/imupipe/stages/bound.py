@@ -134,6 +134,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
            "horizon_s": float(horizon_s), "n_curves": len(curves), "curves": list(curves),
            "states_kept_by_identification": kept, **body,
            "upper_envelope": upper.to_dict(),
+           "identification_intervals": identified.get("intervals_bootstrap"),
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
     tau_min_s = 1.0 / float(application_rate_hz)
     labels, avars, edfs = [], [], []

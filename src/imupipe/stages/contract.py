@@ -69,7 +69,8 @@ def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, se
     verification = ({f"{sensor} reference filter": exported["verification"]}
                     if exported and exported["verification"].get("checks") else None)
     scope = None if (kf_rate_hz is None or not exported) else export_scope(exported, reduction, float(kf_rate_hz))
-    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification, export=scope)
+    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification, export=scope,
+                           intervals=bound.get("identification_intervals"))
     if not exported:
         return c, None, None, None
     in_units, note = model_in_units(NoiseModel.from_dict(exported["model"]), display_units(spec, sensor), sensor)

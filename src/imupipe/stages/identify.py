@@ -187,6 +187,9 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "curves": labels,
         "rate_hz": {lab: float(r) for lab, r in zip(labels, rates)},
         "n_samples": {lab: int(n) for lab, n in zip(labels, ns)},
+        # the bootstrap behind every interval and so behind the upper envelope the bound covers (the contract's
+        # identification_intervals check: without it the envelope is the point fit)
+        "intervals_bootstrap": {"n_boot": int(n_boot), "confidence": float(confidence)},
         "fit": fit.to_dict(),  # the full fit (every allowed component); `selected` inside: the refit
         "model": fit.model.to_dict(),
         "model_selected": selected.model.to_dict(),  # the parameters to report and bound
