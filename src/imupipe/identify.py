@@ -541,6 +541,67 @@ def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None):
     return best
 
 
+def _child_rng(rng):
+    """An independent generator spawned from `rng` without advancing its stream (so the draws `rng` makes
+    afterwards, e.g. a caller's next simulated record, are the same with or without the extra calibration);
+    `rng` itself when it has no seed sequence to spawn from."""
+    try:
+        return rng.spawn(1)[0]
+    except (AttributeError, TypeError, ValueError):
+        return rng
+
+
+def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot, rng, bootstrap, dt, cid, ms,
+                       lengths, rates):
+    r"""The GM sigma's profile statistic over bootstrap replicates drawn from the fit with the random walk held
+    at `k` (u/sqrt(s); helper of the second calibration of ``gm_sigma_profile`` in :func:`fit_allan`).
+
+    The fit with :math:`K^2	au/3` held at `k` and every other coefficient and the GM time constant refitted
+    (the fit the random walk's profile limit is read from, :func:`_random_walk_upper`) is the model the
+    replicates are drawn from, with the same generator as the main bootstrap (`bootstrap`; `ms`, `lengths`,
+    `rates` per curve for ``correlated`` and ``series``). Each replicate gets the free fit (components `comps`,
+    T on `bgrid`) and the fit with the GM's variance held at that model's :math:`\sigma_k^2`
+    (:func:`_gm_sigma_held`, T searched within a factor 4 of the replicate's optimum, as in the main bootstrap);
+    the statistic is :math:`\max(\chi^2_\sigma(\sigma_k) - \chi^2_{free}, 0)`, dimensionless.
+
+    Returns
+    -------
+    numpy.ndarray
+        `n_boot` values of the statistic (NaN where a replicate's fit failed).
+    """
+    held, _ = _profile(t, y, e, rest, n_gm, grid, offset=k * k * t / 3.0)
+    p_k = _solution_to_params(held, rest, n_gm)
+    p_k["random_walk"] = float(k)
+    s2 = p_k.get("gm_sigma_1", 0.0) ** 2
+    model_k = _params_to_model(p_k, dt)
+    mean = np.maximum(held.m, 1e-300)
+    out = np.full(int(n_boot), np.nan)
+    if bootstrap in ("correlated", "series"):
+        sim_model = model_k if model_k.dt is not None else replace(model_k, dt=1.0 / float(rates[0]))
+    if bootstrap == "correlated":
+        ystar_all = _correlated_draws(sim_model, mean, ms, cid, lengths, rates, int(n_boot), rng)
+    elif bootstrap == "series":
+        from imupipe.allan import overlapping_avar
+        from imupipe.simulate import simulate
+    for b in range(int(n_boot)):
+        if bootstrap == "correlated":
+            ystar = ystar_all[b]
+        elif bootstrap == "series":
+            ystar = np.empty_like(y)
+            for ci in range(int(cid.max()) + 1):
+                x = simulate(replace(sim_model, dt=1.0 / float(rates[ci])), int(lengths[ci]), float(rates[ci]), rng)
+                for j in np.flatnonzero(cid == ci):
+                    ystar[j] = overlapping_avar(x, float(rates[ci]), int(ms[j]))
+        else:
+            ystar = mean * rng.chisquare(e) / e
+        ystar = np.maximum(ystar, 1e-300)
+        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
+        local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
+        held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m)
+        out[b] = max(held_s.chi2 - sol.chi2, 0.0)
+    return out
+
+
 def _solution_to_params(sol, comps, n_gm):
     """Flat SI parameter dict (coefficients are square roots of the fitted squared ones)."""
     params = {c: 0.0 for c in comps if c != "gauss_markov"}
@@ -1091,7 +1152,20 @@ def fit_allan(
 
     gm_sigma_profile = {}
     if s_deltas is not None and np.isfinite(s_deltas).any() and "gm_sigma_1" in intervals:
-        threshold = float(np.quantile(s_deltas[np.isfinite(s_deltas)], c))
+        threshold_fitted = float(np.quantile(s_deltas[np.isfinite(s_deltas)], c))
+        # the same statistic calibrated under the fit with K at its profile upper limit (see the docstring:
+        # the statistic's distribution depends on K), the larger threshold kept
+        k_up = random_walk_profile.get("upper", float("nan"))
+        threshold_k_upper, k_cal = float("nan"), float("nan")
+        if np.isfinite(k_up) and k_up > math.sqrt(k2_hat):
+            k_cal = float(k_up)
+            k_deltas_up = _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k_cal, int(n_boot),
+                                             _child_rng(rng), bootstrap, dt, cid, ms if bootstrap != "chi2" else None,
+                                             lengths if bootstrap != "chi2" else None,
+                                             rates if bootstrap != "chi2" else None)
+            if np.isfinite(k_deltas_up).any():
+                threshold_k_upper = float(np.quantile(k_deltas_up[np.isfinite(k_deltas_up)], c))
+        threshold = max(threshold_fitted, threshold_k_upper) if np.isfinite(threshold_k_upper) else threshold_fitted
         lo_p, hi_p = intervals["gm_sigma_1"]
 
         def delta_s(x):
@@ -1100,7 +1174,9 @@ def fit_allan(
         step = (hi_p - s_hat) if np.isfinite(hi_p) and hi_p > s_hat else 1e-2 * s_hat
         s_lo, s_up = _profile_interval(delta_s, s_hat, threshold, step, rtol=1e-3)
         gm_sigma_profile = {"threshold": threshold, "lower": s_lo, "upper": s_up,
-                            "percentile_lower": lo_p, "percentile_upper": hi_p}
+                            "percentile_lower": lo_p, "percentile_upper": hi_p,
+                            "threshold_fitted": threshold_fitted, "threshold_k_upper": threshold_k_upper,
+                            "k_calibration": k_cal}
         # the profile interval alone (not the hull with the percentile one: the hull over-covered, 0.95-0.97
         # of 100-record sets at a nominal 0.9, each alone 0.91-0.92; docs/performance.md, 2026-12-03)
         intervals["gm_sigma_1"] = (float(s_lo), float(s_up))
