@@ -936,14 +936,14 @@ def fit_allan(
     from :math:`\tilde\theta_{K_u}`, the fit with K held at its profile upper limit :math:`K_u` (the
     ``random_walk_profile`` upper end) and everything else refitted (:func:`_sigma_deltas_at_k`; skipped
     without a random walk or when :math:`K_u \le \hat K`). Why two: :math:`\Delta(\sigma_{true})` is not pivotal,
-    its distribution depends on the nuisance K (a larger K, its rise on the GM's plateau, lets T and K absorb
-    more of a wrong sigma in some records and less in others: a wider spread), and a K fitted below the truth
-    (the GM absorbing part of the random walk) gives a threshold too small exactly where the interval needs to
-    be wide. Taking the larger quantile over the K the data allow (the fitted one and the upper end of its
+    its distribution depends on the nuisance K (how much of a wrong sigma T and K can absorb depends on the
+    random walk's rise across the GM's plateau), and a K fitted below the truth (the GM absorbing part of the
+    random walk) was measured to give thresholds below the quantile at the truth, where the interval misses
+    (docs/performance.md). Taking the larger quantile over the K the data allow (the fitted one and the upper end of its
     interval) is conservative over that nuisance range: the usual treatment of a nuisance parameter in
     bootstrap test inversion, calibrating at the least favourable value within its confidence set (Berger &
-    Boos [8] maximise over the whole set; here two points of it, the estimate and the end towards which the
-    statistic spreads; Davison & Hinkley [7], chapters 4 and 5). The second bootstrap costs about as much
+    Boos [8] maximise over the whole set; here two points of it, the estimate and K's upper end, the side
+    the measured shortfall came from; Davison & Hinkley [7], chapters 4 and 5). The second bootstrap costs about as much
     again as the replicates' free fits and sigma's held fit (the other held fits are not repeated). Its
     replicates come from a generator spawned from `rng`, so the draws `rng` makes afterwards are unchanged.
     Profile-likelihood intervals: Venzon & Moolgavkar [6]; their calibration by the bootstrap: Davison &
