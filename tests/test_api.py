@@ -1,7 +1,7 @@
-"""One-call API (imupipe.api.noise_model): the same result as the library calls the workflow's stages make, on
-the files the workflow would have written (per-axis netCDF, per-sensor stacks, the identify and bound YAML read
-back), so that the in-memory path and the file path agree. The comparison is with the library calls, not with
-the workflow scripts' internals (their signatures change with the rules)."""
+"""One-call API (imupipe.api.noise_model): the same result as the stage functions the workflow's scripts call
+(imupipe.stages), on the files the workflow would have written (per-axis netCDF, per-sensor stacks, the
+identify, bound and verify YAML read back), so that the in-memory path and the file path agree. The workflow
+itself against the API: tests/test_orchestration_parity.py."""
 
 from pathlib import Path
 
@@ -35,18 +35,14 @@ def result(records):
 
 @pytest.fixture(scope="module")
 def workflow(records, tmp_path_factory):
-    """The workflow's per-axis files (allan, decimate + psd), per-sensor stacks (stack) and the library calls of
-    the identify, bound and kf stages on them, for the same records and the same (default) settings; each
-    stage's YAML is written and read back as the next stage reads it."""
+    """The workflow's per-axis files (allan, decimate + psd), per-sensor stacks (stack) and the stage functions of
+    the identify, bound, verify and kf rules on them (imupipe.stages), for the same records and the same
+    (default) settings; each stage's YAML is written and read back as the next stage reads it."""
     from imupipe.allan import allan_variance
-    from imupipe.bound import bound_psd, upper_envelope
-    from imupipe.identify import fit_allan, refit_selected, select_components
     from imupipe.io import write_yaml_atomic
-    from imupipe.kf import export_kf
     from imupipe.merge import Stacked
     from imupipe.spectra import decimate, psd
     from imupipe.specsheet import load_spec
-    from imupipe.verify import verification_report
 
     tmp = tmp_path_factory.mktemp("wf")
     av_paths, psd_paths, curves = [], [], []
@@ -69,50 +65,41 @@ def workflow(records, tmp_path_factory):
         st.attrs["sensor"] = "gyro"
         st.to_netcdf(out)
 
-    # identify: pooled fit, selection, selected refit (identify YAML: model, selection, model_selected)
-    av = Stacked(tmp / "allan.nc")
-    data = []
-    for d, a in av.curves(included_only=True):
-        avar, edf = av.at("avar", d, a), av.at("edf", d, a)
-        ok = np.isfinite(avar) & np.isfinite(edf)
-        data.append((av["tau"][ok], avar[ok], edf[ok], int(av.at("n_samples", d, a))))
-    taus, avars, edfs = ([c[i] for c in data] for i in range(3))
-    rate = float(av.attrs["rate_hz"])
-    kw = dict(n_boot=0, confidence=0.95, rng=20211, dt=1.0 / rate, rate=rate, n_samples=[c[3] for c in data])
-    fit = fit_allan(taus, avars, edfs, components=["white", "gauss_markov", "flicker", "random_walk",
-                                                   "quantization", "ramp"], n_gm=1, **kw)
-    selection = select_components(fit, taus, avars, edfs, rate_hz=1.0, horizon_s=600.0, significance=0.05,
-                                  relevance=0.05)
-    selected = refit_selected(fit, selection, taus, avars, edfs, **kw)
-    write_yaml_atomic({"model": fit.model.to_dict(), "model_selected": selected.model.to_dict(),
-                       "selection": {"kept": list(selection["kept"])}}, tmp / "identify.yaml")
+    # identify (imupipe.stages.identify, as workflow/scripts/identify.py calls it on the stacked Allan file)
+    from imupipe.stages.bound import bound_stage
+    from imupipe.stages.identify import curves_of, identification_stage
+    from imupipe.stages.kf import exported_kf
+    from imupipe.stages.verify import verify_stage
+
+    ident = identification_stage(
+        curves_of(Stacked(tmp / "allan.nc")), sensor="gyro",
+        components=["white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"], n_gm=1, n_boot=0,
+        confidence=0.95, significance=0.05, relevance=0.05, rate_hz=1.0, horizon_s=600.0,
+        envelope_horizon_s=600.0 + 600.0)
+    write_yaml_atomic(ident, tmp / "identify.yaml")
     identify = read_yaml(tmp / "identify.yaml")
 
-    # bound: all-frequency bound of the kept components with the selected refit's upper envelope
-    sp = Stacked(tmp / "spectra.nc")
-    f = sp["frequency"]
-    psds = {f"{d}/{a}": sp.at("psd", d, a) for d, a in sp.curves(included_only=True)}
-    edf = np.array([np.broadcast_to(sp.at("edf", d, a), f.shape) for d, a in sp.curves(included_only=True)])
+    # bound (imupipe.stages.bound on the stacked spectra and Allan files, as workflow/scripts/bound.py)
+    sp, al = Stacked(tmp / "spectra.nc"), Stacked(tmp / "allan.nc")
+    inc = sp.curves(included_only=True)
     spec = load_spec(SPEC)
-    upper = upper_envelope(selected, selection, horizon_s=600.0 + 600.0)
-    result = bound_psd(f, psds, spec.models["gyro"], dt=1.0 / float(sp.attrs["rate_hz"]), mode="raw", n_gm=1,
-                       confidence=0.95, bands_per_decade=10, edf=edf, keep=identify["selection"]["kept"],
-                       taper=sp.attrs.get("taper", "hann"), horizon_s=600.0 + 600.0, upper_model=upper)
-    write_yaml_atomic(result.to_dict(sensor="gyro"), tmp / "bound.yaml")
+    bound_doc = bound_stage(
+        sp["frequency"], {f"{d}/{a}": sp.at("psd", d, a) for d, a in inc},
+        {f"{d}/{a}": sp.at("edf", d, a) for d, a in inc}, spec.models["gyro"], identify,
+        dt=1.0 / float(sp.attrs["rate_hz"]), sensor="gyro", mode="raw", n_gm=1, confidence=0.95, bands_per_decade=10,
+        horizon_s=600.0 + 600.0, application_rate_hz=1.0, taper=sp.attrs.get("taper", "hann"),
+        allan=(al["tau"], {f"{d}/{a}": (al.at("avar", d, a), al.at("edf", d, a)) for d, a in al.curves(True)}),
+        spec_name=spec.name)
+    write_yaml_atomic(bound_doc, tmp / "bound.yaml")
     bound = read_yaml(tmp / "bound.yaml")
 
-    # kf and verification: the bound YAML's model
-    # the verification first: the KF file's P0 of p is the verified one (imupipe.biasinit.filter_p0 of the
-    # verification's least initial bias variance), the longest decimated record setting the slow-bias family
-    from imupipe.biasinit import filter_p0
-
-    m = NoiseModel.from_dict(bound["bound"])
-    record_s = max(decimate(np.asarray(x), RATE, 1.0)[0].size for x in records.values()) / 1.0
-    ver = verification_report(m, "gyro", spec=spec.models["gyro"], upper=upper, fix_s=600.0, horizon_s=600.0,
-                              filter_rate_hz=1.0, record_s=record_s)
-    bi = ver["exported"]["bias_initialisation"]
-    p0 = filter_p0(m, bi["required_variance"], bi["wander_s"], bi["required_slow_variance"]) or None
-    kf = export_kf(m, 1.0, sensor="gyro", p0_random_walk=p0, reduced=p0 is None)
+    # verification of the bound file on the decimated records, then the KF matrices of the model it exports
+    dec = {label: decimate(np.asarray(x), RATE, 1.0)[0] for label, x in records.items()}
+    ver = verify_stage(bound, "gyro", spec=spec.models["gyro"], records=dec, rate_hz=1.0, fix_s=600.0,
+                       horizon_s=600.0, filter_rate_hz=1.0, sigma_fix=0.001745)  # config.yaml's sigma_fix_rad
+    write_yaml_atomic(ver, tmp / "verify.yaml")
+    ver = read_yaml(tmp / "verify.yaml")
+    kf = exported_kf(ver["exported"], 1.0, "gyro")
     return {"identify": identify, "bound": bound, "kf": kf, "verification": ver}
 
 
@@ -126,7 +113,7 @@ def test_identification_equals_the_workflows(result, workflow):
 def test_bound_and_kf_equal_the_workflows(result, workflow):
     wb = workflow["bound"]
     d = result.bound.to_dict(sensor="gyro")
-    assert d["bounded"] == wb["bounded"]
+    assert d["bounded"] == wb["psd_bounded"]  # the bound file names the PSD verdict psd_bounded
     np.testing.assert_allclose(d["margin"], wb["margin"], rtol=1e-12)
     assert d["bound"]["white"] == pytest.approx(wb["bound"]["white"], rel=1e-12)
     assert d["bound"]["random_walk"] == pytest.approx(wb["bound"]["random_walk"], rel=1e-12, abs=1e-300)
@@ -141,6 +128,13 @@ def test_bound_and_kf_equal_the_workflows(result, workflow):
     assert set(checks) == set(wchecks) and checks
     for name in checks:  # same model, same scenario: the covariance analysis is deterministic
         assert checks[name]["worst_outage_ratio"] == pytest.approx(wchecks[name]["worst_outage_ratio"], rel=1e-12)
+
+
+def test_default_fix_is_the_workflows(result):
+    # sigma_fix left unset: the workflow's verify.sigma_fix_rad (config/config.yaml, imupipe.defaults.DEFAULTS)
+    from imupipe.defaults import DEFAULTS
+
+    assert result.verification["verification"]["scenario"]["sigma_fix"] == DEFAULTS["verify.sigma_fix_rad"]
 
 
 def test_result_object(result, capfd):
@@ -162,7 +156,8 @@ def test_library_call_prints_nothing_on_stdout():
     code = ("import numpy as np; from imupipe.api import noise_model; from imupipe.models import NoiseModel; "
             "from imupipe.simulate import simulate; "
             "x = simulate(NoiseModel(white=1e-4), 20000, 10.0, rng=1); "
-            f"r = noise_model({{'a/x': x}}, 10.0, 'gyro', {str(SPEC)!r}, window_s=1200.0, step_s=600.0)")
+            f"r = noise_model({{'a/x': x}}, 10.0, 'gyro', {str(SPEC)!r}, window_s=1200.0, step_s=600.0, "
+            "horizon_s=600.0)")  # the verification replays fix_s + horizon_s = 1200 s of the 2000 s record
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == ""

@@ -15,6 +15,9 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "psd.confidence": "psd_confidence", "allan.taus": "taus", "allan.confidence": "allan_confidence",
            "identify.components": "components", "identify.n_gm": "n_gm", "identify.confidence": "fit_confidence",
            "identify.significance": "significance", "identify.relevance": "relevance",
+           "identify.adequacy_level": "adequacy_level", "identify.pooling_level": "pooling_level",
+           "identify.pooling_n_boot": "pooling_n_boot", "verify.reduce": "reduce", "verify.replay_z": "replay_z",
+           "verify.filter_rate_hz": "filter_rate_hz", "lines.floor_window_bins": "lines_floor_window_bins",
            "application.rate_hz": "application_rate_hz", "application.horizon_s": "horizon_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}
@@ -27,9 +30,14 @@ def test_config_yaml_ships_the_table():
         assert cfg[section][name] == value, key
 
 
+#: keys the API resolves inside noise_model (one argument, `sigma_fix`, whose default depends on the sensor)
+RESOLVED_INSIDE = {"verify.sigma_fix_m", "verify.sigma_fix_rad"}
+
+
 def test_api_defaults_are_the_table():
     params = inspect.signature(noise_model).parameters
-    assert set(API_ARG) == set(DEFAULTS)
+    assert set(API_ARG) | RESOLVED_INSIDE == set(DEFAULTS)
+    assert params["sigma_fix"].default is None
     for key, arg in API_ARG.items():
         got = params[arg].default
         assert (list(got) if isinstance(got, tuple) else got) == DEFAULTS[key], key

@@ -747,3 +747,22 @@ def test_selection_reason_names_the_test_that_showed_the_component_and_both_crit
     assert "shown by neither the z test nor the chi-squared test of the refit" in one["reasons"]["gauss_markov"]
     # the white noise, shown by both
     assert "shown by the z test and by the chi-squared test of the refit" in many["reasons"]["white"]
+
+
+def test_gm_sigma_profile_is_not_used_when_T_sits_on_a_search_end():
+    # a GM of T = 0.05 s at 10 Hz (below one sample): the fit puts T on the shortest time constant searched, where
+    # the GM is white noise seen through the shortest tau and sigma trades with the white noise: sigma's profile is
+    # not identified, the percentile interval is reported (widening may only enlarge it); a GM the search resolves
+    # (truth T = 0.02 s with sigma ten times the white level: fitted T ~ 0.9 s, inside the search) keeps its profile
+    for T, on_end in ((0.05, True), (0.02, False)):
+        truth = NoiseModel(white=3e-4, gauss_markov=((3e-3, T),))
+        tau, avar, edf = curves(truth, 2.0, 1, seed=7)
+        fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_boot=30, rng=1, confidence=0.9,
+                        rate=RATE, n_samples=int(2.0 * 3600 * RATE))
+        prof = fit.gm_sigma_profile
+        assert fit.on_boundary["gm_T_1"] is on_end and prof["used"] is (not on_end), (T, fit.params, prof)
+        lo, hi = fit.intervals["gm_sigma_1"]
+        if on_end:
+            assert lo <= prof["percentile_lower"] and hi >= prof["percentile_upper"]
+        else:
+            assert (lo, hi) == (prof["lower"], prof["upper"])

@@ -8,7 +8,8 @@ Snakemake rule files) uses the public API only, and a library module does not re
 each use).
 
 Layers, bottom up: files, units and containers; estimators and the noise model; what builds on the model;
-identification and stationarity; bounding and the Kalman filter; figures.
+identification and stationarity; bounding and the Kalman filter; verification and figures; the workflow's stages
+(imupipe.stages: one module per rule, calling the layers below); the one-call API and the command line.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ LAYERS = [
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},
     {"verify", "plot"},
+    {"stages"},
     {"api", "cli", "__main__"},
 ]
 LAYER_OF = {name: i for i, layer in enumerate(LAYERS) for name in layer}

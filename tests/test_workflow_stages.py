@@ -276,7 +276,7 @@ class TestRecordsOfDifferentLengthAndRate:
 
 
 class TestPerAxisIdentification:
-    """The identify script's per-axis rule (`_selected_and_envelope`, also the pooled path's): the selection's
+    """The identification's per-axis rule (imupipe.stages.identify.selected_and_envelope, also the pooled path's): the selection's
     kept components refitted with imupipe.identify.refit_selected, so a random walk the selection dropped keeps
     its upper limit in the axis's envelope (the per-axis bounds read it)."""
 
@@ -284,7 +284,8 @@ class TestPerAxisIdentification:
         from imupipe.allan import allan_variance
         from imupipe.identify import fit_allan
 
-        mod = _script("identify")
+        from imupipe.stages import identify as mod
+
         rate, n = 10.0, 72000  # 2 h at 10 Hz: white 1e-3 u/sqrt(Hz) plus a GM (sigma 5e-4 u, T 20 s), no random walk
         rng = np.random.default_rng(7)
         phi = math.exp(-1.0 / (rate * 20.0))
@@ -302,13 +303,13 @@ class TestPerAxisIdentification:
         full = fit_allan([tau], [avar], [edf], components=("white", "gauss_markov", "random_walk"), n_gm=1,
                          rng=1, **{**kw, "n_boot": 0})
         selection = {"kept": ["white", "gauss_markov"], "dropped": ["random_walk"]}
-        sel, env = mod._selected_and_envelope(full, selection, curves, kw, 0.95, 1200.0)
+        sel, env = mod.selected_and_envelope(full, selection, curves, kw, 0.95, 1200.0)
         assert sel.params["random_walk"] == 0.0 and sel.intervals["random_walk"][1] > 0
         assert env.random_walk > 0
         assert "random walk" in sel.interval_kind["random_walk"]
         # the former per-axis rule (a fit of the kept components only) had no random walk at all in the envelope
         only_kept = fit_allan([tau], [avar], [edf], components=("white", "gauss_markov"), n_gm=1, rng=1, **kw)
-        assert mod._envelope(only_kept, selection["kept"], curves, 0.95, 1200.0).random_walk == 0.0
+        assert mod.envelope(only_kept, selection["kept"], curves, 0.95, 1200.0).random_walk == 0.0
 
 
 class TestDominatingModel:

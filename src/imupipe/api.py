@@ -1,17 +1,20 @@
 r"""One call from in-memory records to a bounding noise model: :func:`noise_model`.
 
-The steps are the workflow's, in its order, with its defaults (``config/config.yaml``): per curve (one
-axis of one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block
-average to ``decimate_hz`` and its two-sided Welch PSD; then, over every curve of the sensor type, the pooled
-Allan-variance fit (:func:`imupipe.identify.fit_allan`), the model selection for the application band
-(:func:`imupipe.identify.select_components`) and the refit of the selected components
-(:func:`imupipe.identify.refit_selected`); optionally the narrowband lines of every curve
-(:func:`imupipe.lines.find_lines`) and their policy (:func:`imupipe.lines.line_policy`); the all-frequency
-PSD bound against the spec sheet (:func:`imupipe.bound.bound_psd` restricted to the kept components, with the
-selected refit's upper confidence envelope :func:`imupipe.bound.upper_envelope` imposed below the lowest bin
-down to the outage horizon); the Kalman-filter matrices of the bound at the filter step
-(:func:`imupipe.kf.export_kf`); and the covariance verification of the bound in the reference scenario
-(:func:`imupipe.verify.verification_report`). Stationarity tests, figures and tables are left to the workflow.
+The steps are the workflow's, in its order, with its defaults (``config/config.yaml``), and the stages are
+the workflow's own functions (:mod:`imupipe.stages`, which the workflow scripts call): per curve (one axis of
+one record, SI rate units) the overlapping Allan variance of the full-rate samples, the block average to
+``decimate_hz`` and its two-sided Welch PSD, optionally its narrowband lines (:func:`imupipe.lines.find_lines`);
+then, over every curve of the sensor type, the identification (:func:`imupipe.stages.identify.identify_sensor`:
+pooled Allan-variance fit, model selection for the application band, refit of the selected components, their
+upper envelope with the random walk capped by the Allan variances, the pooling test and per-axis fits); the
+all-frequency PSD bound against the spec sheet (:func:`imupipe.stages.bound.bound_sensor`: the kept
+components, the identified envelope imposed below the lowest bin down to the outage horizon, the lines'
+policy, the Allan check, per-axis models when the axes differ); the verification in the reference scenario
+(:func:`imupipe.stages.verify.verify_sensor`: covariance analysis, replay of the decimated records, reduction
+by integrity); the contract (:func:`imupipe.stages.contract.contract_stage`); and the Kalman-filter matrices
+of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). Stationarity tests, outlier
+screening, per-axis bounds, figures and tables are left to the workflow (the API takes the records as they are,
+every one included). tests/test_orchestration_parity.py runs the workflow and this function on the same records.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
 
@@ -56,7 +59,10 @@ class NoiseModelResult:
     selection : dict
         :func:`imupipe.identify.select_components` result (``kept``, ``dropped``, ``reasons``, ...).
     kf : dict
-        :func:`imupipe.kf.export_kf` of the bound at ``kf_dt_s`` (F, G, Qc, Phi, Qd, P0, ...).
+        The KF file's content (:func:`imupipe.stages.kf.kf_stage` at ``kf_dt_s``: F, G, Qc, Phi, Qd, P0, ...,
+        the ``bias_initialisation``, the contract's verdict, ``per_axis``): the matrices of the model the
+        verification exported (the bound's, or its reduction by integrity). With ``verify=False``, those of the
+        bound's model (:func:`imupipe.stages.kf.exported_kf`).
     allan : dict
         Curve label -> ``xarray.Dataset`` of :func:`imupipe.allan_variance` (full rate).
     spectra : dict
@@ -67,11 +73,21 @@ class NoiseModelResult:
         :func:`imupipe.identify.refit_selected`: the fit of the kept components only (the workflow's
         ``model_selected``).
     upper : imupipe.models.NoiseModel
-        :func:`imupipe.bound.upper_envelope` of `selected`: imposed by the bound below the lowest PSD bin.
+        The identified upper envelope (:func:`imupipe.stages.identify.envelope` of `selected`, its random walk
+        capped by :func:`imupipe.bound.random_walk_cap`; dominating every axis's when the axes differ): imposed
+        by the bound below the lowest PSD bin.
     lines : imupipe.lines.LinePolicy or None
         The lines policy applied to the bound (None when no policy was asked for).
     verification : dict or None
-        :func:`imupipe.verify.verification_report` of the bound (None when ``verify=False``).
+        :func:`imupipe.stages.verify.verify_stage` of the bound (None when ``verify=False``).
+    contract : dict or None
+        :func:`imupipe.stages.contract.contract_stage`: the workflow's verdict, ``contract["bounded"]`` (every
+        check passed and the verification ran), with ``failed_checks`` (None when ``verify=False``); what
+        :attr:`bounded` returns.
+    records : dict
+        The stages' dicts, as the workflow's files hold them: ``identify``
+        (:func:`imupipe.stages.identify.identification_stage`), ``bound``
+        (:func:`imupipe.stages.bound.bound_stage`), ``verify`` and ``contract`` (None when ``verify=False``).
     """
 
     sensor: str
@@ -89,6 +105,8 @@ class NoiseModelResult:
     upper: Any = None
     lines: Any = None
     verification: dict | None = None
+    contract: dict | None = None
+    records: dict = field(default_factory=dict, repr=False)
 
     @property
     def model(self):
@@ -97,7 +115,14 @@ class NoiseModelResult:
 
     @property
     def bounded(self) -> bool:
-        """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``)."""
+        """The workflow's verdict: True only when every check passed, the verification included
+        (``contract["bounded"]``); False without a verification (``verify=False``): the PSD bound alone does not
+        say that a filter using the model will not under-state its error (:attr:`psd_bounded` says that much)."""
+        return bool(self.contract is not None and self.contract.get("bounded"))
+
+    @property
+    def psd_bounded(self) -> bool:
+        """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``), nothing more."""
         return bool(self.bound.bounded)
 
     def to_dict(self) -> dict:
@@ -124,6 +149,8 @@ class NoiseModelResult:
             out["lines"] = plain(self.lines.to_dict())
         if self.verification is not None:
             out["verification"] = plain(self.verification)
+        if self.contract is not None:
+            out["contract"] = plain(self.contract)
         return out
 
 
@@ -169,6 +196,18 @@ def _spec_of(spec):
     raise TypeError(f"spec: expected a spec-sheet path or an imupipe.specsheet.SpecSheet, got {type(spec).__name__}")
 
 
+def _truth_of(truth, sensor):
+    """The true :class:`~imupipe.models.NoiseModel` of `sensor` from a spec-sheet path or sheet, a model, or None."""
+    from imupipe.models import NoiseModel
+
+    if truth is None or isinstance(truth, NoiseModel):
+        return truth
+    sheet = _spec_of(truth)
+    if sensor not in sheet.models:
+        raise ValueError(f"truth {sheet.name!r}: no '{sensor}' section")
+    return sheet.models[sensor]
+
+
 def noise_model(
     curves: Mapping[str, Sequence[float]],
     rate_hz: float,
@@ -189,6 +228,11 @@ def noise_model(
     fit_confidence: float = _D["identify.confidence"],
     significance: float = _D["identify.significance"],
     relevance: float = _D["identify.relevance"],
+    adequacy_level: float = _D["identify.adequacy_level"],
+    pooling_level: float = _D["identify.pooling_level"],
+    pooling_n_boot: int = _D["identify.pooling_n_boot"],
+    fit_tau_min_samples: float | None = None,
+    max_bias_time_s: float | None = None,
     application_rate_hz: float = _D["application.rate_hz"],
     horizon_s: float = _D["application.horizon_s"],
     mode: str = _D["bound.mode"],
@@ -198,9 +242,15 @@ def noise_model(
     lines_policy: str | None = None,
     lines_resolution_hz: float = _D["lines.resolution_hz"],
     lines_alpha: float = _D["lines.alpha"],
+    lines_floor_window_bins: int = _D["lines.floor_window_bins"],
     fix_s: float = _D["verify.fix_s"],
     verify: bool = True,
     sigma_fix: float | None = None,
+    filter_rate_hz: float = _D["verify.filter_rate_hz"],
+    fix_rate_hz: float | None = None,
+    reduce: bool = _D["verify.reduce"],
+    replay_z: float = _D["verify.replay_z"],
+    truth=None,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -222,27 +272,41 @@ def noise_model(
         shortest curve, the workflow's rule for an unset ``psd.window_s``/``psd.step_s``; Hann, mean removed, 0.95).
     taus, allan_confidence :
         Allan-variance taus (default ``"octave"``) and confidence of its limits (default 0.683).
-    components, n_gm, n_boot, fit_confidence, significance, relevance :
-        :func:`imupipe.identify.fit_allan` and :func:`~imupipe.identify.select_components` settings
-        (defaults :data:`imupipe.defaults.DEFAULTS`, the workflow's, except ``n_boot=0``, which skips the
-        bootstrap intervals; the workflow's is 100).
+    components, n_gm, n_boot, fit_confidence, significance, relevance, adequacy_level, pooling_level, pooling_n_boot, fit_tau_min_samples :
+        The identification's settings (:func:`imupipe.stages.identify.identify_sensor`, the workflow's
+        ``identify`` section; defaults :data:`imupipe.defaults.DEFAULTS`, the workflow's, except ``n_boot=0``,
+        which skips the bootstrap intervals; the workflow's is 100).
+    max_bias_time_s : float, optional
+        Longest bias time constant admitted, s (``identify.max_bias_time_s``; None: the verification's rule).
     application_rate_hz : float, optional
         Filter rate, Hz (default 1.0): the KF step is 1/application_rate_hz, and with `horizon_s` (s,
         default 3600, the workflow's) it sets the band the selection keeps components for.
     mode, bound_confidence, bands_per_decade :
         :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
     seed : int, optional
-        Seed of the fit's bootstrap (default 20211, the workflow's).
+        Seed of the fit's bootstrap (default 20211, the workflow's :data:`imupipe.stages.identify.SEED_FIT`).
     lines_policy : {None, "model", "exclude", "keep"}, optional
         Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
-        `lines_resolution_hz`, Hz, and `lines_alpha`) and apply :func:`imupipe.lines.line_policy` over the
-        whole decimated band (default None: no search).
+        `lines_resolution_hz`, Hz, `lines_alpha` and `lines_floor_window_bins`) and apply the policy
+        (:func:`imupipe.verify.line_policy_from_files`) over the whole decimated band (default None: no search;
+        the workflow's default is ``model``).
     fix_s : float, optional
         Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's
         all-frequency horizon is ``fix_s + horizon_s``.
-    verify, sigma_fix :
-        Run :func:`imupipe.verify.verification_report` on the bound (default True); `sigma_fix` is the fix
-        standard deviation (m for accel, rad for gyro; default the scenario's).
+    verify, sigma_fix, reduce, replay_z :
+        Run the verification stage on the bound (:func:`imupipe.stages.verify.verify_sensor`: the covariance
+        checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
+        True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
+        default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
+        `filter_rate_hz`: the reference filter's rate, Hz (``verify.filter_rate_hz``, default 1.0); the contract
+        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's; `fix_rate_hz`:
+        the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the KF file's
+        matrices of the model the verification
+        exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
+        unreduced, its P0 of p from :meth:`imupipe.biasinit.BiasInitialisation.p0`.
+    truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
+        The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
+        checked by the verification.
 
     Returns
     -------
@@ -252,14 +316,17 @@ def noise_model(
     ------
     ValueError
         No curves, a curve that is not 1-D or too short for one PSD window, a non-positive rate, an
-        unknown sensor, or a spec sheet without that sensor.
+        unknown sensor, or a spec sheet without that sensor; with `verify`, no decimated record as long as
+        ``fix_s + horizon_s`` (the replay's window, as in the workflow's verify stage).
     """
     from imupipe.allan import allan_variance
-    from imupipe.bound import bound_psd, upper_envelope
-    from imupipe.identify import fit_allan, refit_selected, select_components
-    from imupipe.kf import export_kf
-    from imupipe.models import NoiseModel
     from imupipe.spectra import decimate, psd
+    from imupipe.specsheet import display_units
+    from imupipe.stages.bound import bound_sensor
+    from imupipe.stages.contract import contract_stage
+    from imupipe.stages.identify import Curve, identify_sensor
+    from imupipe.stages.kf import exported_kf, kf_stage
+    from imupipe.stages.verify import verify_sensor
 
     if sensor not in ("gyro", "accel"):
         raise ValueError(f"sensor: expected 'gyro' or 'accel', got {sensor!r}")
@@ -288,8 +355,7 @@ def noise_model(
             raise ValueError(f"curves[{label!r}]: {exc}") from exc
         window_s = rule_w if window_s is None else window_s
         step_s = (rule_s if window_s == rule_w else window_s / 2.0) if step_s is None else step_s
-    allan, spectra = {}, {}
-    record_s = 0.0  # the longest decimated record, s (the workflow's verification measures it so)
+    allan, spectra, decimated = {}, {}, {}
     for label, x in curves.items():
         x = np.asarray(x, dtype=np.float64)
         if x.ndim != 1:
@@ -297,73 +363,88 @@ def noise_model(
         y, new_rate = decimate(x, rate, decimate_hz)
         if y.size * (1.0 / new_rate) < window_s:
             raise ValueError(f"curves[{label!r}]: {x.size / rate:g} s long, shorter than window_s = {window_s:g} s")
-        record_s = max(record_s, y.size / new_rate)
+        decimated[label] = y
         allan[label] = allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
         spectra[label] = psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
                              detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
 
-    taus_l, avars, edfs, ns = [], [], [], []
+    # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
+    ident_curves = []
     for label, x in curves.items():
         av = allan[label]
         a, e = av["avar"].values, av["edf"].values
         ok = np.isfinite(a) & np.isfinite(e)
-        taus_l.append(av["tau"].values[ok])
-        avars.append(a[ok])
-        edfs.append(e[ok])
-        ns.append(int(np.asarray(x).size))
-    fit_kw = dict(n_boot=n_boot, confidence=fit_confidence, rng=seed, dt=1.0 / rate, rate=rate, n_samples=ns)
-    fit = fit_allan(taus_l, avars, edfs, components=list(components), n_gm=n_gm, **fit_kw)
-    selection = select_components(fit, taus_l, avars, edfs, rate_hz=application_rate_hz, horizon_s=horizon_s,
-                                  significance=significance, relevance=relevance)
-    kept = selection["kept"]
-    selected = refit_selected(fit, selection, taus_l, avars, edfs, **fit_kw)
-    upper = upper_envelope(selected, selection, horizon_s=fix_s + horizon_s)
+        ident_curves.append(Curve(label, av["tau"].values[ok], a[ok], e[ok], int(np.asarray(x).size), rate,
+                                  label.rsplit("/", 1)[-1]))
+    true_model = _truth_of(truth, sensor)
+    ident = identify_sensor(ident_curves, sensor=sensor, components=list(components), n_gm=n_gm, n_boot=n_boot,
+                            confidence=fit_confidence, significance=significance, relevance=relevance,
+                            rate_hz=application_rate_hz, horizon_s=horizon_s, adequacy_level=adequacy_level,
+                            pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
+                            envelope_horizon_s=fix_s + horizon_s, fit_tau_min_samples=fit_tau_min_samples,
+                            truth=true_model, seed=seed)
 
+    # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     first = next(iter(spectra.values()))
     f = first["frequency"].values
-    psd_curves, edf = {}, []
     for label, sp in spectra.items():
         if sp["frequency"].size != f.size:
             raise ValueError(f"curves[{label!r}]: its PSD has {sp['frequency'].size} bins, the first curve's "
                              f"{f.size}: give records whose decimated length covers the same windows")
-        psd_curves[label] = sp["psd"].values
-        edf.append(np.broadcast_to(sp["edf"].values, f.shape))
     dt = 1.0 / float(first.attrs.get("rate_hz", decimate_hz))
-    policy, line_kw = None, {}
+    tau = np.unique(np.concatenate([av["tau"].values for av in allan.values()]))
+    allan_curves = {}
+    for label, av in allan.items():  # on the union of the taus (the stack's outer join), NaN where a curve has none
+        at = np.searchsorted(tau, av["tau"].values)
+        allan_curves[label] = tuple(np.full(tau.shape, np.nan) for _ in range(2))
+        allan_curves[label][0][at], allan_curves[label][1][at] = av["avar"].values, av["edf"].values
+    lines = {}
     if lines_policy is not None:
-        from imupipe.lines import find_lines, line_policy
+        from imupipe.lines import find_lines
 
-        found = [ln for label, x in curves.items()
-                 for ln in find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=lines_resolution_hz,
-                                      alpha=lines_alpha, units=units, label=label).lines]
-        policy = line_policy(found, dt, (0.0, 0.5 / dt), policy=lines_policy, frequency=f)
-        line_kw = policy.bound_kwargs()
+        lines = {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=lines_resolution_hz,
+                                   alpha=lines_alpha, floor_window_bins=lines_floor_window_bins, units=units,
+                                   label=label).to_dict()
+                 for label, x in curves.items()}
     with _no_stdout_fd():
-        result = bound_psd(f, psd_curves, spec_sheet.models[sensor], dt=dt, mode=mode, n_gm=n_gm,
-                           confidence=bound_confidence, bands_per_decade=bands_per_decade, edf=np.array(edf),
-                           keep=kept, taper=first.attrs.get("taper", taper), horizon_s=fix_s + horizon_s,
-                           upper_model=upper, **line_kw)
+        bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
+                             {k: sp["edf"].values for k, sp in spectra.items()}, spec_sheet.models[sensor],
+                             ident.record, dt=dt, sensor=sensor, mode=mode, n_gm=n_gm, confidence=bound_confidence,
+                             bands_per_decade=bands_per_decade, horizon_s=fix_s + horizon_s,
+                             application_rate_hz=application_rate_hz, taper=first.attrs.get("taper", taper),
+                             allan=(tau, allan_curves), lines=lines, line_policy=lines_policy or "model",
+                             spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
 
-    # the bound YAML's model as the workflow's KF stage reads it back (narrowband lines included)
-    m = NoiseModel.from_dict(result.to_dict(sensor=sensor)["bound"])
+    # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
+    if sigma_fix is None:
+        sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
     kf_dt = 1.0 / float(application_rate_hz)
     turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
-    verification = None
+    verification = contract = None
     if verify:
-        from imupipe.verify import verification_report
+        verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
+                                     rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
+                                     horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
+                                     reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
+                                     fix_rate_hz=fix_rate_hz)[0]
+        contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
+                                  on_failure="warn", kf_rate_hz=application_rate_hz, horizon_s=horizon_s,
+                                  filter_rate_hz=filter_rate_hz)
+        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=horizon_s, sensor=sensor)
+    else:  # the bound's model unreduced, its bias started where the verification would start it
+        from imupipe.biasinit import bias_initialisation
+        from imupipe.stages.verify import model_of
 
-        verification = verification_report(m, sensor, spec=spec_sheet.models[sensor], upper=upper, fix_s=fix_s,
-                                           horizon_s=horizon_s, sigma_fix=sigma_fix,
-                                           filter_rate_hz=application_rate_hz, record_s=record_s,
-                                           turn_on_bias=turn_on)
-    # the KF file starts the bias where the verification starts the filter (imupipe.biasinit): the bound's model
-    from imupipe.biasinit import bias_initialisation
-
-    bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=upper, turn_on_bias=turn_on,
-                               record_s=record_s, run_s=fix_s + horizon_s)
-    p0_rw = bias.p0(m, fix_s + horizon_s) or None
-    kf = export_kf(m, kf_dt, sensor=sensor, p0_random_walk=p0_rw, reduced=p0_rw is None)
-    return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=result, fit=fit, selection=selection,
-                            kf=kf, allan=allan, spectra=spectra, rate_hz=rate, decimate_hz=float(decimate_hz),
-                            kf_dt_s=kf_dt, selected=selected, upper=upper, lines=policy,
-                            verification=verification)
+        m = model_of(bound.record["bound"])
+        record_s = max(y.size for y in decimated.values()) * dt
+        bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
+                                   record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
+        kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
+            "p0_random_walk": bias.p0(m, fix_s + horizon_s)}}, kf_dt, sensor)
+    return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
+                            selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
+                            decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
+                            upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
+                            verification=verification, contract=contract,
+                            records={"identify": ident.record, "bound": bound.record, "verify": verification,
+                                     "contract": contract})

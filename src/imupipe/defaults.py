@@ -29,6 +29,9 @@ DEFAULTS: dict[str, object] = {
     "identify.confidence": 0.95,
     "identify.significance": 0.05,
     "identify.relevance": 0.05,
+    "identify.adequacy_level": 0.01,
+    "identify.pooling_level": 0.01,
+    "identify.pooling_n_boot": 99,
     "application.rate_hz": 1.0,
     "application.horizon_s": 3600.0,
     "bound.mode": "raw",
@@ -36,7 +39,13 @@ DEFAULTS: dict[str, object] = {
     "bound.bands_per_decade": 10,
     "lines.resolution_hz": 0.002,
     "lines.alpha": 0.01,
+    "lines.floor_window_bins": 51,
     "verify.fix_s": 600.0,
+    "verify.reduce": True,
+    "verify.replay_z": 2.0,
+    "verify.filter_rate_hz": 1.0,
+    "verify.sigma_fix_m": 0.5,
+    "verify.sigma_fix_rad": 0.001745,
 }
 
 

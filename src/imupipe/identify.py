@@ -746,9 +746,10 @@ class AllanFit:
     gm_sigma_profile : dict
         ``threshold`` (a chi2 difference: the larger of ``threshold_fitted``, the calibration under the fitted
         model, and ``threshold_k_upper``, the one under the fit with K at ``k_calibration``, the random walk's
-        profile upper limit, u/sqrt(s); both NaN-free only with a random-walk component), ``lower`` and
-        ``upper`` (the profile interval of ``gm_sigma_1``, u: the reported interval), ``percentile_lower`` and
-        ``percentile_upper`` (u, for comparison); empty without a bootstrap or with other than one GM term.
+        profile upper limit, u/sqrt(s); these two NaN without a random walk), ``lower`` and ``upper`` (the
+        profile interval of ``gm_sigma_1``, u: the reported interval when ``used``), ``percentile_lower`` and
+        ``percentile_upper`` (u, for comparison; the reported interval when not ``used``: T on an end of the
+        search); empty without a bootstrap or with other than one GM term.
     """
 
     model: object
@@ -822,7 +823,7 @@ class AllanFit:
             "random_walk_profile": {k: fl(v) for k, v in self.random_walk_profile.items()},
             **({"gm_T_profile": {k: fl(v) for k, v in self.gm_T_profile.items()}} if self.gm_T_profile else {}),
             **({"white_profile": {k: fl(v) for k, v in self.white_profile.items()}} if self.white_profile else {}),
-            **({"gm_sigma_profile": {k: fl(v) for k, v in self.gm_sigma_profile.items()}}
+            **({"gm_sigma_profile": {k: (bool(v) if k == "used" else fl(v)) for k, v in self.gm_sigma_profile.items()}}
                if self.gm_sigma_profile else {}),
             "notes": list(self.notes),
             "adequacy": {k: (fl(v) if isinstance(v, (float, np.floating)) else v)
@@ -1272,7 +1273,21 @@ def fit_allan(
         notes.append(f"GM term 1: the data do not bound T {'below' if T_open[0] else 'above'} within the search "
                      f"({grid.min():.3g}-{grid.max():.3g} s) at {100 * c:.0f} % (profile of the fit statistic); "
                      "the interval is one-sided")
-    if gm_sigma_profile and gm_sigma_profile["lower"] == 0.0:
+    if gm_sigma_profile and on_boundary.get("gm_T_1", False):
+        # T on an end of the search: the GM is white noise seen through the shortest tau (level 2 sigma^2 T) or a
+        # random walk seen through the longest (drift 2 sigma^2 / T), and with T held at that end sigma trades with
+        # the white noise or the random walk, so its profile need not close (ADIS16405 gyro z, T on the longest
+        # 655 s: widened upper end 6.7e27 rad/s); sigma is not identified there, so the percentile interval (the rule
+        # before the profile) is reported and the profile kept beside it. A T inside the search keeps the profile.
+        gm_sigma_profile["used"] = False
+        intervals["gm_sigma_1"] = (float(gm_sigma_profile["percentile_lower"]),
+                                   float(gm_sigma_profile["percentile_upper"]))
+        notes.append("GM term 1: T on an end of the search, so sigma's profile interval is not identified "
+                     f"([{gm_sigma_profile['lower']:.3g}, {gm_sigma_profile['upper']:.3g}]); the percentile "
+                     "interval is reported")
+    elif gm_sigma_profile:
+        gm_sigma_profile["used"] = True
+    if gm_sigma_profile and gm_sigma_profile["used"] and gm_sigma_profile["lower"] == 0.0:
         interval_kind["gm_sigma_1"] = ("one-sided (the profile interval reaches sigma = 0: the data do not exclude "
                                        "the GM's absence)")
     for k in names:
@@ -1762,7 +1777,8 @@ def refit_selected(fit: AllanFit, selection: dict, tau, avar, edf, **fit_kwargs)
 def _profiled_in(fit: AllanFit, name: str) -> bool:
     """Is `fit`'s interval of `name` a profile interval (a single GM's T or sigma)? Helper of
     :func:`_hull_gm_intervals`."""
-    return (name == "gm_T_1" and bool(fit.gm_T_profile)) or (name == "gm_sigma_1" and bool(fit.gm_sigma_profile))
+    return (name == "gm_T_1" and bool(fit.gm_T_profile)) or (
+        name == "gm_sigma_1" and bool(fit.gm_sigma_profile) and fit.gm_sigma_profile.get("used", True))
 
 
 def _hull_gm_intervals(sel: AllanFit, with_rw: AllanFit) -> None:

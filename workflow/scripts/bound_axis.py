@@ -1,49 +1,34 @@
-"""The tightest model of one axis of one dataset against one spec sheet (rule bound_axis): the components the
-pooled identification kept, on a coarser T grid than the global bound (refined by a bounded search all the
-same), over all frequencies as the global bound (spec sheet and identified upper envelope below the lowest
-bin), with the sensor's line policy."""
+"""The tightest model of one axis of one dataset against one spec sheet (rule bound_axis):
+imupipe.stages.bound.axis_bound_stage on the axis's PSD file, the identify file, the spec sheet and the sensor's
+lines files."""
 
-import logging
+from pathlib import Path
 
-from imupipe.io import plain, read_yaml, run_job, write_yaml_atomic
-
-AXIS_T_PER_DECADE = 4
+from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 
 def main(path_psd: str, path_identified: str, path_spec: str, mode: str, n_gm: int, confidence: float,
          bands_per_decade: int, horizon_s: float, lines: list, lines_params: dict, path_out: str,
          sensor: str) -> None:
-    from imupipe.bound import bound_psd, upper_envelope_from_identification
     from imupipe.merge import Stacked
     from imupipe.specsheet import display_units, load_spec
-    from imupipe.verify import line_policy_from_files
-
+    from imupipe.stages.bound import axis_bound_stage
 
     spec = load_spec(path_spec)
     if sensor not in spec.models:
         raise ValueError(f"{path_spec}: no '{sensor}' section, but the config processes {sensor}")
-    identified = read_yaml(path_identified)
-    kept = identified["selection"]["kept"]
     sp = Stacked.from_axis_files([path_psd], join="exact")
-    dt = 1.0 / float(sp.attrs["rate_hz"])
     ((d, a),) = sp.curves()
-    label = f"{d}/{a}"
-    f = sp["frequency"]
-    pol = line_policy_from_files({path: read_yaml(path) for path in lines}, dt, f, lines_params["policy"][sensor],
-                                 lines_params["application_band_hz"])
-    result = bound_psd(f, {label: sp.at("psd", d, a)}, spec.models[sensor], dt=dt, mode=mode,
-                       n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, edf=sp.at("edf", d, a),
-                       taper=sp.attrs.get("taper", "hann"), keep=kept, T_grid=AXIS_T_PER_DECADE, horizon_s=horizon_s,
-                       upper_model=upper_envelope_from_identification(identified), **(pol.bound_kwargs() if pol is not None else {}))
-    logging.info("bound of %s: margin %.4g, %d LPs in %.3g s", label, result.margin, result.n_lp, result.solve_time_s)
-    body = result.to_dict(spec_units=display_units(spec, sensor), sensor=sensor)
-    body["psd_bounded"] = body.pop("bounded")
-    body.pop("solve_time_s", None)  # wall clock: in the log only
-    out = {"spec_name": spec.name, "curve": label, "sensor": sensor, "dt_s": dt, "horizon_s": float(horizon_s), **body,
-           "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
-    write_yaml_atomic(plain(out), path_out, header=f"per-axis bound of {label} against {spec.name}")
-
-
+    out = axis_bound_stage(sp["frequency"], sp.at("psd", d, a), sp.at("edf", d, a), f"{d}/{a}", spec.models[sensor],
+                           read_yaml(path_identified), dt=1.0 / float(sp.attrs["rate_hz"]), sensor=sensor, mode=mode,
+                           n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, horizon_s=horizon_s,
+                           taper=sp.attrs.get("taper", "hann"),
+                           # results/<name>/lines/{dataset}/{sensor}/{axis}.yaml by label dataset/axis
+                           lines={f"{Path(p).parent.parent.name}/{Path(p).stem}": read_yaml(p) for p in lines},
+                           line_policy=lines_params["policy"][sensor],
+                           application_band_hz=lines_params["application_band_hz"],
+                           spec_units=display_units(spec, sensor), spec_name=spec.name)
+    write_yaml_atomic(out, path_out, header=f"per-axis bound of {d}/{a} against {spec.name}")
 
 
 if __name__ == "__main__":

@@ -1,205 +1,27 @@
 """The integrity contract of one spec sheet and sensor type (rule contract) and the run's verdict over every
-contract (rule integrity).
-
-contract: `bounded` is true only when every check passed AND the verification ran: PSD margin over the sample
-bins, the spec sheet over all frequencies, the Allan-domain check of the kept components, the reference-filter
-verification of the exported model (imupipe.verify.integrity_contract). A failing model is still written, marked.
-integrity: with verify.on_failure = fail, a contract that is not bounded fails this job (the last of the run,
-after the figures, tables and summary are written), naming the failed checks; with warn, it logs a warning.
-per-axis models (bound and verify files, when the axes differ): each gets the same contract; the KF file gives an
-axis its own model only when that contract is bounded, else the global model (the reason is in both files). They
-never change `bounded`, which is the global model's: the global model covers every axis."""
-
-import logging
-import sys
-from types import SimpleNamespace
+contract (rule integrity): imupipe.stages.contract on the bound and verification files and the spec sheet; the
+verdict job (the last of the run) fails with verify.on_failure = fail when a contract is not bounded."""
 
 from imupipe.io import read_yaml, run_job, write_yaml_atomic
-
-HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
-bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
-reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
-times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
-u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter of the BOUND's
-model, before the verified reduction (not of model when the reduction dropped a state); inflation_scope: the
-components the exported model dropped and one statement of this (imupipe.kf.inflation_scope). export: the
-states the verified reduction dropped (dropped_by_reduction; the model then holds for horizon_s s of outage only), the
-reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
-narrowband line states (line_states) and one statement of all this.
-per_axis_models: null when the axes are pooled; else per axis its own contract (bounded, verified, failed_checks) and
-exported_in_kf: whether the KF file gives that axis its own model (only when bounded; else the global one).
-inband_inflation: the effective in-band inflation of the exported model against the spec sheet over the application
-band [1/horizon_s, filter_rate_hz/2] Hz (imupipe.inband.inband_inflation): sqrt(S_model/S_spec) (vs_spec_psd) and
-sqrt(S_model)/N_spec (vs_spec_white), median, max, max_frequency_hz, min (dimensionless amplitude ratios), two-sided
-PSDs as sampled at the reference filter's interval, and each component with what it acts as in band (components:
-acts_as; corner_hz Hz, as_N u/sqrt(Hz), as_K u/sqrt(s)); per_axis_models carry the same of each axis's model."""
-
-
-def _bound_view(b: dict):
-    """The bound file's margins as the attributes imupipe.verify.integrity_contract reads (None: not finite)."""
-    def num(v, default=float("nan")):
-        return default if v is None else float(v)
-
-    return SimpleNamespace(margin=num(b.get("margin")), margin_curve=b.get("margin_curve"),
-                           margin_frequency=num(b.get("margin_frequency_hz")),
-                           spec_margin=num(b.get("spec_margin"), float("inf")),
-                           spec_margin_frequency=b.get("spec_margin_frequency_hz"),
-                           allf_margin=num(b.get("all_frequency_margin"), float("inf")),
-                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
-
-
-def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, sensor: str,
-            kf_rate_hz: float | None):
-    """The steps of every contract, the global model's and each per-axis model's: (the checks of
-    imupipe.verify.integrity_contract on the bound entry `bound` and the verification of `exported`, the exported
-    model in the spec sheet's units (imupipe.specsheet.model_in_units), its unit note, the export's scope
-    (imupipe.kf.export_scope)). Without an exported model (an axis that was not verified) the last three are None."""
-    from imupipe.kf import export_scope
-    from imupipe.models import NoiseModel
-    from imupipe.specsheet import display_units, model_in_units
-    from imupipe.verify import integrity_contract
-
-    verification = ({f"{sensor} reference filter": exported["verification"]}
-                    if exported and exported["verification"].get("checks") else None)
-    scope = None if (kf_rate_hz is None or not exported) else export_scope(exported, reduction, float(kf_rate_hz))
-    c = integrity_contract(_bound_view(bound), bound.get("allan_check"), verification, export=scope)
-    if not exported:
-        return c, None, None, None
-    in_units, note = model_in_units(NoiseModel.from_dict(exported["model"]), display_units(spec, sensor), sensor)
-    return c, in_units, note, scope
-
-
-def inband(exported: dict | None, spec, sensor: str, band_hz) -> dict | None:
-    """The exported model's effective in-band inflation against the spec sheet (imupipe.inband.inband_inflation), or
-    None without an exported model, a band, or a spec model of this sensor with a positive PSD."""
-    from imupipe.inband import inband_inflation
-    from imupipe.models import NoiseModel
-
-    specm = spec.models.get(sensor)
-    if not exported or band_hz is None or specm is None:
-        return None
-    try:
-        return inband_inflation(NoiseModel.from_dict(exported["model"]), specm, band_hz)
-    except ValueError as exc:
-        logging.warning("%s: no in-band inflation: %s", sensor, exc)
-        return None
 
 
 def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
              sensor: str, kf_rate_hz: float | None = None, horizon_s: float | None = None,
              filter_rate_hz: float | None = None) -> None:
-    from imupipe.kf import inflation_scope
     from imupipe.specsheet import load_spec
+    from imupipe.stages.contract import HEADER, contract_stage
 
-    from imupipe.inband import application_band
-
-    bound, ver = read_yaml(path_bound), read_yaml(path_verify)
-    exported = ver["exported"]
-    spec = load_spec(path_spec)
-    band = application_band(horizon_s, filter_rate_hz) if horizon_s and filter_rate_hz else None
-    c, in_spec_units, note, scope = _checks(bound, exported, ver.get("reduction"), spec, sensor, kf_rate_hz)
-    out = {
-        "sensor": sensor, "spec_name": bound["spec_name"],
-        "bounded": c["bounded"], "verified": c["verified"], "failed_checks": c["failed_checks"],
-        "checks_run": c["checks_run"], "note": c["note"],
-        "on_failure": on_failure,
-        "model": exported["model"], "model_spec_units": in_spec_units,
-        "model_reduced": bool(exported["reduced"]), "model_reason": exported["reason"],
-        "inflation": bound.get("inflation"),
-        "inflation_scope": inflation_scope(exported, ver.get("reduction")),
-        "kf_file": kf_file,
-        # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
-        # the reference filter's rate against the export's (imupipe.kf.export_scope)
-        "export": scope,
-        # the least initial bias variance the exported P0 carries and what it rests on (imupipe.biasinit)
-        "bias_initialisation": exported.get("bias_initialisation"),
-        # the bound's numbers the run summary reads beside the verdict
-        "psd_bounded": bound.get("psd_bounded"), "margin": bound.get("margin"),
-        "margin_curve": bound.get("margin_curve"), "margin_frequency_hz": bound.get("margin_frequency_hz"),
-        "spec_margin": bound.get("spec_margin"), "all_frequency_margin": bound.get("all_frequency_margin"),
-        "all_frequency_margin_frequency_hz": bound.get("all_frequency_margin_frequency_hz"),
-        "allan_check_passed": bound.get("allan_check_passed"),
-        "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
-        "per_axis": bound.get("per_axis"),
-        **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
-        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio",
-                                                       "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
-                         for name, ch in exported["verification"].get("checks", {}).items()},
-        "reduction": None if ver.get("reduction") is None else
-        {k: ver["reduction"][k] for k in ("accepted", "refused", "tried")},
-    }
-    if note:
-        out["unit_note"] = note
-    # what the whole exported model does in the application band against the spec sheet (imupipe.inband)
-    out["inband_inflation"] = inband(exported, spec, sensor, band)
-    out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor, kf_rate_hz, band)
-    if not c["bounded"]:
-        logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
+    out = contract_stage(read_yaml(path_bound), read_yaml(path_verify), load_spec(path_spec), sensor=sensor,
+                         kf_file=kf_file, on_failure=on_failure, kf_rate_hz=kf_rate_hz, horizon_s=horizon_s,
+                         filter_rate_hz=filter_rate_hz)
     write_yaml_atomic(out, path_out, header=HEADER)
 
 
-def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None, band_hz=None):
-    """The contract of each per-axis model (None when the bound file has none): its checks as the global model's,
-    and whether the KF file exports it (bounded) or gives that axis the global model."""
-    from imupipe.kf import inflation_scope
-
-    axes = bound.get("per_axis_models")
-    if not axes:
-        return None
-    vers = ver.get("per_axis_models") or {}
-    out = {}
-    for ax, pa in axes.items():
-        v = vers.get(ax)
-        exported = v["exported"] if v else None
-        c, in_spec_units, _, scope = _checks(pa, exported, v.get("reduction") if v else None, spec, sensor,
-                                             kf_rate_hz)
-        entry = {"curves": pa.get("curves"), "bounded": c["bounded"], "verified": c["verified"],
-                 "failed_checks": c["failed_checks"], "exported_in_kf": bool(c["bounded"]),
-                 "model": exported["model"] if exported else None,
-                 "model_spec_units": in_spec_units,
-                 "model_reduced": bool(exported["reduced"]) if exported else None,
-                 "inflation": pa.get("inflation"),
-                 "inflation_scope": inflation_scope(exported, v.get("reduction")) if exported else None,
-                 "margin": pa.get("margin"),
-                 "all_frequency_margin": pa.get("all_frequency_margin"),
-                 "allan_check_passed": pa.get("allan_check_passed"),
-                 "inband_inflation": inband(exported, spec, sensor, band_hz),
-                 "export": scope}
-        entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
-                       f"axis {ax}: the global model (its own failed: {failed_names(entry)})")
-        out[ax] = entry
-    return out
-
-
-def failed_names(doc: dict) -> str:
-    """One line naming each failed check and its number."""
-    parts = []
-    for f in doc.get("failed_checks") or ():
-        num = next((f[k] for k in ("worst_ratio", "margin", "ratio") if k in f), None)
-        where = f.get("against") or f.get("component") or f.get("curve") or ""
-        parts.append(f"{f['check']}{' ' + str(where) if where else ''}"
-                     f"{'' if num is None else f' ({num:.4g})'}")
-    if not doc.get("verified") and not any(f["check"] in ("verification", "export_rate")
-                                           for f in doc.get("failed_checks") or ()):
-        parts.append("verification did not run")
-    return "; ".join(parts) or "none"
-
-
 def verdict(contracts: list, on_failure: str, path_out: str) -> None:
-    docs = [read_yaml(p) for p in contracts]
-    failing = [d for d in docs if not d["bounded"]]
-    rows = [{"spec_name": d["spec_name"], "sensor": d["sensor"], "bounded": d["bounded"], "verified": d["verified"],
-             "failed_checks": failed_names(d) if not d["bounded"] else "none", "contract": p}
-            for d, p in zip(docs, contracts)]
-    msg = "; ".join(f"{d['sensor']} against {d['spec_name']}: {failed_names(d)}" for d in failing)
-    if failing and on_failure == "fail":
-        text = (f"imupipe integrity: NOT BOUNDED ({msg}). The models are written, marked bounded: false, in the "
-                f"contract files; verify.on_failure: warn downgrades this to a warning.")
-        raise ValueError(text)  # run_job prints it on the terminal and exits non-zero
-    if failing:
-        logging.warning("NOT BOUNDED (verify.on_failure: warn): %s", msg)
-        print(f"imupipe integrity warning: NOT BOUNDED ({msg})", file=sys.__stderr__)
-    write_yaml_atomic({"all_bounded": not failing, "on_failure": on_failure, "contracts": rows}, path_out,
+    from imupipe.stages.contract import verdict_stage
+
+    out = verdict_stage([read_yaml(p) for p in contracts], contracts, on_failure)  # raises when it fails the run
+    write_yaml_atomic(out, path_out,
                       header="the run's integrity verdict: every contract's bounded flag (contract/{spec}/{sensor}.yaml)")
 
 

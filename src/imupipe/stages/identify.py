@@ -1,0 +1,240 @@
+r"""The identification stage of one sensor type (rule ``identify``; :func:`imupipe.api.noise_model`).
+
+From the Allan-variance curves of every included axis of every record (each at its own rate and length):
+
+1. the pooled fit with every allowed component and its adequacy (:func:`imupipe.identify.fit_allan`);
+2. the model selection for the application band (:func:`imupipe.identify.select_components`);
+3. the SELECTED model refitted (:func:`imupipe.identify.refit_selected`: a random walk the selection dropped
+   keeps its upper limit, the GM intervals their hull with the fit with a random walk): the parameters to
+   report and bound;
+4. its upper confidence envelope (:func:`imupipe.bound.upper_envelope`; a GM time constant the data leave
+   open covered for :math:`f \ge 1/h`, h = ``envelope_horizon_s``), the random walk at most what the curves'
+   Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
+5. the test whether the curves may be pooled (:func:`imupipe.identify.pooling_test`) and, where not, one
+   identification per axis by the same rule, the envelope the bound reads then dominating the pooled and every
+   per-axis envelope (:func:`imupipe.identify.dominating_model`);
+6. slope-line readings (:func:`imupipe.identify.slope_line`) and, for simulated data, the truth beside the fit.
+
+Plain values in (:class:`Curve` tuples, the config's numbers, the truth as a
+:class:`~imupipe.models.NoiseModel` or None), a YAML-ready dict out (:func:`identification_stage`); the
+workflow script reads the stacked Allan file (:func:`curves_of`) and writes the dict, the API keeps the objects
+as well (:func:`identify_sensor`). SI units throughout.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope", "envelope_ratio",
+           "identification_stage", "identify_sensor", "selected_and_envelope"]
+
+#: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
+SEED_FIT, SEED_POOLING = 20211, 20212
+
+ENVELOPE_NOTE = (
+    "kept components at the upper ends of the selected refit's statistical intervals (before any over-dispersion "
+    "widening), each GM as GM terms above every GM of its interval box (one per sub-box of at most a decade in T), "
+    "the random walk at its upper limit even when dropped, capped by what the recorded Allan variances allow, a GM "
+    "time constant the data leave open covered for f >= 1/upper_envelope_horizon_s (imupipe.bound.upper_envelope, "
+    "random_walk_cap); SI; upper_envelope_horizon_s s")
+UNITS = ("SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, quantization u*s, "
+         "ramp u/s, gm_sigma u, gm_T s; rate_hz Hz; chi2, p-values dimensionless")
+
+
+class Curve(NamedTuple):
+    """One Allan-variance curve: its label (``dataset/axis``), tau (s), Allan variance (u^2), equivalent
+    degrees of freedom, record length (samples), record rate (Hz) and axis; finite entries only."""
+
+    label: str
+    tau: Any
+    avar: Any
+    edf: Any
+    n_samples: int
+    rate_hz: float
+    axis: str
+
+
+@dataclass
+class Identification:
+    """:func:`identify_sensor`'s result: ``record`` (the dict the workflow writes), the pooled ``fit``, the
+    ``selection``, the ``selected`` refit (:class:`imupipe.identify.AllanFit`) and the ``envelope`` the bound
+    reads (:class:`~imupipe.models.NoiseModel`, SI: the pooled one, or the dominating one when the axes differ)."""
+
+    record: dict
+    fit: Any
+    selection: dict
+    selected: Any
+    envelope: Any
+
+
+def curves_of(av) -> list[Curve]:
+    """:class:`Curve` of every included curve of a :class:`imupipe.merge.Stacked` Allan-variance file, NaN
+    entries removed (records of different lengths have different tau grids), each with its own record's rate."""
+    out = []
+    tau = av["tau"]
+    for d, a in av.curves(included_only=True):
+        avar, edf = av.at("avar", d, a), av.at("edf", d, a)
+        ok = np.isfinite(avar) & np.isfinite(edf)
+        out.append(Curve(f"{d}/{a}", tau[ok], avar[ok], edf[ok], int(av.at("n_samples", d, a)), av.rate_of(d, a), a))
+    return out
+
+
+def envelope(fit, kept, curves, confidence: float, horizon_s: float):
+    """The upper confidence envelope of the kept components of `fit` (:func:`imupipe.bound.upper_envelope`; a
+    GM time constant the data leave open covered for f >= 1/horizon_s, horizon_s in s), its random walk at most
+    what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap` at `confidence`)."""
+    from imupipe.bound import random_walk_cap, upper_envelope
+
+    cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
+    return upper_envelope(fit, kept, random_walk_cap=cap, horizon_s=horizon_s)
+
+
+def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, horizon_s: float,
+                          seed: int = SEED_FIT):
+    """The selected refit of `fit` on `curves` (:func:`imupipe.identify.refit_selected`: a random walk the
+    selection dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its
+    upper envelope (:func:`envelope`); the one rule of the pooled and the per-axis identification. `seed`: the
+    refit's bootstrap."""
+    from imupipe.identify import refit_selected
+
+    taus, avars, edfs = ([c[i] for c in curves] for i in (1, 2, 3))
+    selected = refit_selected(fit, selection, taus, avars, edfs, rng=seed, **fit_kw)
+    return selected, envelope(selected, list(selection["kept"]), curves, confidence, horizon_s)
+
+
+def envelope_ratio(env: dict, model) -> dict:
+    """Envelope over estimate of each amplitude (white, random_walk, flicker; gm_sigma_i with GM terms matched in
+    order), dimensionless; None where the estimate is 0 (a component the envelope adds, e.g. a dropped random walk
+    at its upper limit)."""
+    est = {"white": model.white, "random_walk": model.random_walk, "flicker": model.flicker}
+    out = {k: env.get(k, 0.0) for k in est}
+    for i, term in enumerate(env.get("gauss_markov") or [], start=1):
+        out[f"gm_sigma_{i}"] = term["sigma"]
+        est[f"gm_sigma_{i}"] = model.gauss_markov[i - 1][0] if len(model.gauss_markov) >= i else 0.0
+    return {k: (float(out[k] / est[k]) if est[k] > 0 else None) for k in out if out[k] > 0 or est[k] > 0}
+
+
+def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed):
+    """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
+    axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
+    the pooled selection refitted on the axis; axis -> its identify-file entry."""
+    from imupipe.identify import fit_allan
+
+    per_axis = {}
+    for axis in sorted({c[6] for c in curves}):
+        ax_curves = [c for c in curves if c[6] == axis]
+        kw = {**fit_kw, "rate": [c[5] for c in ax_curves], "n_samples": [c[4] for c in ax_curves],
+              "dt": 1.0 / ax_curves[0][5]}
+        full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
+                         components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
+        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, env_h, seed=seed)
+        d = fa.to_dict()
+        per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
+                          "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
+                          "on_boundary": d["on_boundary"], "interval_kind": d["interval_kind"],
+                          "conservative": d["conservative"],
+                          **({"intervals_statistical": d["intervals_statistical"]}
+                             if "intervals_statistical" in d else {}),
+                          **({"T_search_s": d["T_search_s"]} if "T_search_s" in d else {}),
+                          "random_walk_profile": d["random_walk_profile"],
+                          "upper_envelope_model": env_a.to_dict(), "notes": d["notes"]}
+    return per_axis
+
+
+def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, confidence: float,
+                    significance: float, relevance: float, rate_hz: float, horizon_s: float,
+                    adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
+                    envelope_horizon_s: float | None = None, fit_tau_min_samples: float | None = None,
+                    truth=None, seed: int = SEED_FIT) -> Identification:
+    """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
+    tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
+    `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
+    `fit_tau_min_samples`), the application's `rate_hz` (Hz) and `horizon_s` (s) for the selection, and
+    `envelope_horizon_s` (s; the window the bound must hold over, verify.fix_s + application.horizon_s;
+    default `horizon_s`). `truth`: the simulation's :class:`~imupipe.models.NoiseModel` or None. `seed`: of the
+    fit's bootstrap and refit (the pooling test's is :data:`SEED_POOLING`).
+
+    Raises ValueError when `curves` is empty."""
+    from imupipe.identify import dominating_model, fit_allan, pooling_test, select_components, slope_line
+    from imupipe.models import NoiseModel
+
+    curves = [Curve(*c) for c in curves]
+    if not curves:
+        raise ValueError("identification: no included curve")
+    labels = [c.label for c in curves]
+    taus, avars, edfs = [c.tau for c in curves], [c.avar for c in curves], [c.edf for c in curves]
+    ns, rates = [c.n_samples for c in curves], [c.rate_hz for c in curves]
+    components = list(components)
+    fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], rate=rates, n_samples=ns,
+                  adequacy_level=adequacy_level, T_min_samples=fit_tau_min_samples)
+    fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=seed, **fit_kw)
+    selection = select_components(fit, taus, avars, edfs, rate_hz=rate_hz, horizon_s=horizon_s,
+                                  significance=significance, relevance=relevance)
+    kept = list(selection["kept"])
+    logging.info("kept %s; dropped %s", kept, selection["dropped"])
+    env_h = float(envelope_horizon_s if envelope_horizon_s is not None else horizon_s)
+    selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, env_h, seed=seed)
+    pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, rate=rates, n_samples=ns,
+                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
+    logging.info("pooling: %s", pooling["note"])
+
+    out = {
+        "sensor": sensor,
+        "curves": labels,
+        "rate_hz": {lab: float(r) for lab, r in zip(labels, rates)},
+        "n_samples": {lab: int(n) for lab, n in zip(labels, ns)},
+        "fit": fit.to_dict(),  # the full fit (every allowed component); `selected` inside: the refit
+        "model": fit.model.to_dict(),
+        "model_selected": selected.model.to_dict(),  # the parameters to report and bound
+        "selection": {k: selection[k] for k in ("kept", "dropped", "reasons", "reduced_model", "band_hz")},
+        "adequacy": {"pooled": selected.to_dict()["adequacy"], "full_fit": fit.to_dict()["adequacy"],
+                     "per_curve": {c["label"]: {k: c[k] for k in ("chi2", "dof", "chi2_per_dof", "p_value",
+                                                                  "adequate")} for c in pooling["per_curve"]}},
+        "on_boundary": {k: bool(v) for k, v in selected.on_boundary.items()},
+        "conservative": selected.to_dict()["conservative"],
+        "pooling": pooling,
+        "upper_envelope_model": env.to_dict(),
+        "upper_envelope_horizon_s": env_h,
+        "slope_line": {},
+    }
+    band = out["selection"]["band_hz"]
+    out["selection"]["band_hz"] = [float(v) for v in band] if band else None
+    if not pooling["consistent"]:
+        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed)
+        out["per_axis"] = per_axis
+        # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
+        env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
+        out["upper_envelope_model"] = env.to_dict()
+        out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the "
+                                 "pooled fit is kept for reference, `per_axis` gives each axis's parameters and "
+                                 "`upper_envelope_model` dominates the pooled and every per-axis envelope")
+    else:
+        out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+    out["upper_envelope_ratio"] = envelope_ratio(out["upper_envelope_model"], selected.model)
+    if not out["adequacy"]["pooled"].get("adequate", True):
+        out["upper_envelope_note"] = (
+            "the selected model does not describe the data (adequacy): its reported intervals are widened by the "
+            f"over-dispersion factor {out['adequacy']['pooled'].get('widening')}, but the envelope uses the model's "
+            "statistical limits (not widened), so below the lowest PSD bin the bound rests on a model the data "
+            "reject; the verification's replay of the records is the model-free check over the horizon")
+    out["upper_envelope"] = ENVELOPE_NOTE
+    for c in curves:
+        sl = slope_line(c.tau, np.sqrt(c.avar))
+        out["slope_line"][c.label] = {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+                                      for k, v in sl.items()}
+    if truth is not None:
+        out["truth"] = truth.to_dict()
+        if truth.white > 0:
+            out["white_relative_error"] = float(selected.model.white / truth.white - 1.0)
+    out["units"] = UNITS
+    return Identification(record=out, fit=fit, selection=selection, selected=selected,
+                          envelope=NoiseModel.from_dict(out["upper_envelope_model"]))
+
+
+def identification_stage(curves, **settings) -> dict:
+    """The identify file's content (a YAML-ready dict, SI) of :func:`identify_sensor` with the same arguments."""
+    return identify_sensor(curves, **settings).record

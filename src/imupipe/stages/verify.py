@@ -1,0 +1,101 @@
+r"""The verification stage of one spec sheet's bound of one sensor type (rule ``verify``;
+:func:`imupipe.api.noise_model`).
+
+The reference filter built on the bound's model (accel: paper eq. 17 position filter; gyro: angle filter;
+``fix_s`` s of fixes, then an outage of ``horizon_s`` s), checked by exact covariance analysis against the
+identified upper envelope, the spec sheet and, for simulated data, the truth; the replay of the decimated
+records of that sensor; the model reduction by integrity (all of it :func:`imupipe.verify.verification_stage`).
+When the bound carries per-axis models (the axes differ), each is verified the same way against its own
+envelope and the records of its axis.
+
+Plain values in (the bound file's dict, the decimated records keyed by curve label ``dataset/axis``, the
+config's numbers), the verification file's dict out (:func:`verify_stage`); :func:`verify_sensor` also gives
+the time series of the exported model's checks (for :func:`imupipe.plot.plot_verification`). SI units.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+
+__all__ = ["HEADER", "model_of", "records_at_one_rate", "verify_sensor", "verify_stage"]
+
+#: Header of the verification file (what its fields mean, units).
+HEADER = """verification of the bound in the reference filter (docs/method.md, "Integrity: what bounded must mean").
+SI: times s; sigma_fix m (accel) or rad (gyro); ratio = true (or replayed) MSE / filter variance P, dimensionless.
+worst_outage_ratio: the largest MSE/P after the fixes end (the informative number), at worst_outage_t_s s;
+worst_ratio at worst_t_s: the same over the whole run (fixes included); mean_conservatism: mean P/MSE
+over the outage. exported: the model the KF file carries (the bound's, or its reduction when every check passes).
+per_axis_models: the same per axis (each against that axis's envelope, the spec sheet and that axis's records), when
+the bound file has per-axis models; null otherwise."""
+
+
+def model_of(b: dict):
+    """A :class:`~imupipe.models.NoiseModel` from a bound file's ``bound`` block (SI; None stands for an absent
+    component)."""
+    from imupipe.models import NoiseModel
+
+    return NoiseModel.from_dict({"white": b.get("white") or 0.0, "random_walk": b.get("random_walk") or 0.0,
+                                 "gauss_markov": b.get("gauss_markov") or [], "narrowband": b.get("narrowband") or []})
+
+
+def records_at_one_rate(series: Mapping):
+    """(label -> record, rate in Hz) of `series` (label -> (record, rate_hz)), the decimated records the
+    verification replays; (empty, None) for none. Raises ValueError naming a record whose rate differs from the
+    others' (relative 1e-9)."""
+    records, rate = {}, None
+    for label, (y, r) in series.items():
+        if rate is not None and abs(r - rate) > 1e-9 * rate:
+            raise ValueError(f"{label}: decimated rate {r} Hz differs from {rate} Hz of the other records")
+        records[label], rate = y, r
+    return records, rate
+
+
+def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = None, rate_hz: float | None = None,
+                  truth=None, turn_on_bias: float = 0.0, fix_s: float = 600.0, horizon_s: float = 3600.0,
+                  sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
+                  replay_z: float = 2.0, max_bias_time_s: float | None = None, fix_rate_hz: float | None = None):
+    """The verification of the bound file's dict `bound` (its ``bound``, ``upper_envelope``, ``spec_name``,
+    ``psd_bounded`` and ``per_axis_models``): `spec` the spec sheet's model of `sensor` and its `turn_on_bias`
+    (u, 1 sigma), `truth` the simulation's model or None, `records` curve label -> decimated record (u) at
+    `rate_hz` (Hz; the included curves), the ``verify`` settings (`fix_s`, `horizon_s` in s, `sigma_fix` m for
+    accel or rad for gyro, `filter_rate_hz` Hz, `reduce`, `replay_z`, `fix_rate_hz` Hz: the fixes' rate, None: the
+    filter's) and ``identify.max_bias_time_s`` (s).
+
+    Returns (report, checks): the verification file's dict and the exported model's series by check."""
+    import numpy as np
+
+    from imupipe.models import NoiseModel
+    from imupipe.verify import verification_stage
+
+    records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
+    kw = dict(spec=spec, truth=truth, rate_hz=rate_hz, fix_s=fix_s, horizon_s=horizon_s, sigma_fix=sigma_fix,
+              filter_rate_hz=filter_rate_hz, reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
+              turn_on_bias=turn_on_bias, fix_rate_hz=fix_rate_hz)
+    upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
+    report, checks = verification_stage(model_of(bound["bound"]), sensor, upper=upper,
+                                        records=list(records.values()) or None, **kw)
+    report["spec_name"] = bound["spec_name"]
+    report["replayed_curves"] = list(records)
+    report["bound_file_psd_bounded"] = bound.get("psd_bounded")
+    report["per_axis_models"] = None
+    if bound.get("per_axis_models"):
+        report["per_axis_models"] = {}
+        for ax, pa in bound["per_axis_models"].items():
+            mine = [lab for lab in records if lab.rsplit("/", 1)[-1] == ax]
+            up_ax = NoiseModel.from_dict(pa["upper_envelope"]) if pa.get("upper_envelope") else None
+            rep_ax, _ = verification_stage(model_of(pa["bound"]), sensor, upper=up_ax,
+                                           records=[records[lab] for lab in mine] or None, **kw)
+            rep_ax["replayed_curves"] = mine
+            report["per_axis_models"][ax] = rep_ax
+            logging.info("per-axis model %s: verification %s", ax, "pass" if rep_ax["passed"] else "FAIL")
+    for name, c in report["exported"]["verification"]["checks"].items():
+        logging.info("%s: worst MSE/P %.4g at %.0f s, outage worst %.4g at %s s, mean P/MSE %.3g, %s", name,
+                     c["worst_ratio"], c["worst_t_s"], c["worst_outage_ratio"], c.get("worst_outage_t_s"),
+                     c["mean_conservatism"], "pass" if c["passed"] else "FAIL")
+    return report, checks
+
+
+def verify_stage(bound: dict, sensor: str, **settings) -> dict:
+    """The verification file's content (a YAML-ready dict, SI) of :func:`verify_sensor` with the same arguments."""
+    return verify_sensor(bound, sensor, **settings)[0]
