@@ -558,7 +558,7 @@ def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot
     r"""The GM sigma's profile statistic over bootstrap replicates drawn from the fit with the random walk held
     at `k` (u/sqrt(s); helper of the second calibration of ``gm_sigma_profile`` in :func:`fit_allan`).
 
-    The fit with :math:`K^2	au/3` held at `k` and every other coefficient and the GM time constant refitted
+    The fit with :math:`K^2\tau/3` held at `k` and every other coefficient and the GM time constant refitted
     (the fit the random walk's profile limit is read from, :func:`_random_walk_upper`) is the model the
     replicates are drawn from, with the same generator as the main bootstrap (`bootstrap`; `ms`, `lengths`,
     `rates` per curve for ``correlated`` and ``series``). Each replicate gets the free fit (components `comps`,
@@ -931,22 +931,23 @@ def fit_allan(
 
         c = \max\bigl(q_c(\Delta^* \mid \hat\theta),\; q_c(\Delta^* \mid \tilde\theta_{K_u})\bigr),
 
-    :math:`q_c` the `confidence` quantile of the same statistic over bootstrap replicates, each held at the
-    sigma it was drawn with (T searched within a factor 4 of the replicate's own optimum: a better T missed
-    only enlarges c), the replicates drawn once from the fitted model :math:`\hat\theta` and once, as many,
-    from :math:`\tilde\theta_{K_u}`, the fit with K held at its profile upper limit :math:`K_u` (the
-    ``random_walk_profile`` upper end) and everything else refitted (:func:`_sigma_deltas_at_k`; skipped
-    without a random walk or when :math:`K_u \le \hat K`). Why two: :math:`\Delta(\sigma_{true})` is not pivotal,
-    its distribution depends on the nuisance K (how much of a wrong sigma T and K can absorb depends on the
-    random walk's rise across the GM's plateau), and a K fitted below the truth (the GM absorbing part of the
-    random walk) was measured to give thresholds below the quantile at the truth, where the interval misses
-    (docs/performance.md). Taking the larger quantile over the K the data allow (the fitted one and the upper end of its
-    interval) is conservative over that nuisance range: the usual treatment of a nuisance parameter in
-    bootstrap test inversion, calibrating at the least favourable value within its confidence set (Berger &
-    Boos [8] maximise over the whole set; here two points of it, the estimate and K's upper end, the side
-    the measured shortfall came from; Davison & Hinkley [7], chapters 4 and 5). The second bootstrap costs about as much
-    again as the replicates' free fits and sigma's held fit (the other held fits are not repeated). Its
-    replicates come from a generator spawned from `rng`, so the draws `rng` makes afterwards are unchanged.
+    :math:`q_c` the `confidence` quantile of the same statistic over bootstrap replicates, each held at the sigma it
+    was drawn with (T searched within a factor 4 of the replicate's own optimum: a better T missed only enlarges c),
+    the replicates drawn once from the fitted model :math:`\hat\theta` and once, as many, from
+    :math:`\tilde\theta_{K_u}`, the fit with K held at its profile upper limit :math:`K_u` (the
+    ``random_walk_profile`` upper end) and everything else refitted (:func:`_sigma_deltas_at_k`; skipped without a
+    random walk or when :math:`K_u \le \hat K`). Why two: :math:`\Delta(\sigma_{true})` is not pivotal, its
+    distribution depends on the nuisance K (how much of a wrong sigma T and K can absorb depends on the random
+    walk's rise across the GM's plateau), and a K fitted below the truth (the GM absorbing part of the random walk)
+    was measured to give thresholds below the quantile at the truth, where the interval misses
+    (docs/performance.md). Taking the larger quantile over the K the data allow (the fitted one and the upper end of
+    its interval) is conservative over that nuisance range: the usual treatment of a nuisance parameter in bootstrap
+    test inversion, calibrating at the least favourable value within its confidence set (Berger & Boos [8] maximise
+    over the whole set; here two points of it, the estimate and K's upper end, the side the measured shortfall came
+    from; Davison & Hinkley [7], chapters 4 and 5). The second bootstrap repeats the replicates' free fits and
+    sigma's held fit (not the other held fits): about 40 % more CPU for the identify job's calls
+    (docs/performance.md). Its replicates come from a generator spawned from `rng`, so the draws `rng` makes
+    afterwards are unchanged.
     Profile-likelihood intervals: Venzon & Moolgavkar [6]; their calibration by the bootstrap: Davison &
     Hinkley [7], chapter 5. The percentile ends are kept in ``gm_sigma_profile`` (the hull with them
     over-covered). Measured coverage, the seeds used for development and for verification, and the cost:
