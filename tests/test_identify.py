@@ -238,6 +238,34 @@ def test_gm_sigma_profile_interval_brackets_its_threshold():
     # the held fit at the estimate is the free fit (T refitted): Delta(sigma-hat) ~ 0
     assert abs(delta(s_hat)) < 1e-3 * max(1.0, fit.chi2)
     assert fit.to_dict()["gm_sigma_profile"]["upper"] == prof["upper"]
+    # the threshold is the larger of the calibration under the fitted model and the one under the fit with K at
+    # its profile upper limit
+    assert prof["k_calibration"] == fit.random_walk_profile["upper"] > fit.params["random_walk"]
+    assert prof["threshold_fitted"] > 0 and prof["threshold_k_upper"] > 0
+    assert prof["threshold"] == max(prof["threshold_fitted"], prof["threshold_k_upper"])
+
+
+def test_gm_sigma_second_calibration_under_k_upper():
+    # the statistic drawn under the fit with K held at k (helper of the second calibration): finite,
+    # non-negative, reproducible from its generator; and the spawned generator leaves its parent's stream alone
+    from imupipe.identify import _check_components, _child_rng, _default_T_grid, _pool, _sigma_deltas_at_k
+
+    truth = TRUTHS["white+gm+rw"]
+    tau, avar, edf = curves(truth, 10.0, 1, seed=5)
+    n = int(10.0 * 3600 * RATE)
+    t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
+    comps = _check_components(("white", "gauss_markov", "random_walk"), 1)
+    rest, no_gm = ("white", "gauss_markov"), ("white", "random_walk")
+    grid = _default_T_grid(t)
+    ms = np.rint(t * RATE).astype(np.int64)
+    args = (t, y, e, comps, rest, no_gm, 1, grid, grid, 2 * truth.random_walk, 20)
+    tail = ("correlated", None, cid, ms, np.array([n]), np.array([RATE]))
+    d1 = _sigma_deltas_at_k(*args, np.random.default_rng(8), *tail)
+    d2 = _sigma_deltas_at_k(*args, np.random.default_rng(8), *tail)
+    assert d1.shape == (20,) and np.all(np.isfinite(d1)) and np.all(d1 >= 0) and np.array_equal(d1, d2)
+    a, b = np.random.default_rng(11), np.random.default_rng(11)
+    _child_rng(a).random(5)
+    assert a.random() == b.random()
 
 
 def test_gm_sigma_profile_reaching_zero_is_one_sided():
@@ -251,6 +279,9 @@ def test_gm_sigma_profile_reaching_zero_is_one_sided():
     assert fit.params["gm_sigma_1"] > 0 and fit.gm_sigma_profile["lower"] == 0.0
     assert fit.intervals["gm_sigma_1"][0] == 0.0 and fit.intervals["gm_sigma_1"][1] > fit.params["gm_sigma_1"]
     assert fit.interval_kind["gm_sigma_1"].startswith("one-sided")
+    # no random walk fitted: no second calibration, the threshold is the fitted model's
+    prof = fit.gm_sigma_profile
+    assert np.isnan(prof["threshold_k_upper"]) and prof["threshold"] == prof["threshold_fitted"]
 
 
 def test_profile_interval_of_a_known_statistic():
