@@ -366,3 +366,19 @@ def test_a_replay_passed_only_by_its_allowance_is_flagged():
     assert replay_allowance_flags("gyro", contract) == []
     contract["verification"]["replay"].update(worst_ratio=3.0, passed=False)  # a failed replay is a FAIL elsewhere
     assert replay_allowance_flags("gyro", contract) == []
+
+
+def test_the_filter_to_use_comes_first_with_its_file_and_units():
+    """The summary's line for the filter to use: the KF file and the exported model's values in the spec sheet's
+    units and in SI with the unit named (an outside evaluation found neither on the first screen)."""
+    from imupipe.summary import _filter_line
+
+    contract = {"sensor": "gyro", "kf_file": "results/x/kf/s/gyro.yaml",
+                "model": {"white": 1.8147e-4, "gauss_markov": [{"sigma": 4.0e-6, "T": 500.0}], "random_walk": 0.0},
+                "model_spec_units": {"white": {"value": 0.6239, "unit": "deg/sqrt(h)"},
+                                     "gauss_markov": [{"sigma": {"value": 0.825, "unit": "deg/h"}}],
+                                     "random_walk": {"value": 0.0, "unit": "(deg/h)/sqrt(s)"}}}
+    line = _filter_line(contract)
+    assert "`results/x/kf/s/gyro.yaml`" in line and "0.6239 deg/sqrt(h) (0.0001815 rad/s/sqrt(Hz))" in line
+    assert "GM sigma 0.825 deg/h (4e-06 rad/s), T 500 s" in line and "random walk" not in line
+    assert _filter_line({"sensor": "gyro"}) is None

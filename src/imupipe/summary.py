@@ -315,24 +315,29 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
     """
     from imupipe.defaults import psd_window_step, unused_fraction
 
-    out, seen = [], set()
+    out, groups = [], {}
     for u in usage or []:
         if not isinstance(u, Mapping) or u.get("n_samples") is None or u.get("n_samples_used") is None:
             continue
         n, used = int(u["n_samples"]), int(u["n_samples_used"])
-        frac = unused_fraction(n, used)
-        key = (u.get("dataset"), n, used)
-        if frac <= UNUSED_RECORD_LIMIT or key in seen:
+        if unused_fraction(n, used) <= UNUSED_RECORD_LIMIT:
             continue
-        seen.add(key)
-        rate = float(u.get("rate_hz") or 1.0)
+        # one FLAG per shape of the shortfall (records of one length under one window and step), naming them all
+        key = (n, used, float(u.get("rate_hz") or 1.0), u.get("window_s"), u.get("step_s"))
+        ds = groups.setdefault(key, [])
+        if u.get("dataset", "-") not in ds:
+            ds.append(u.get("dataset", "-"))
+    for (n, used, rate, window_s, step_s), ds in groups.items():
+        frac = unused_fraction(n, used)
+        u = {"window_s": window_s, "step_s": step_s}
         hint = ""
         try:
             w, st = psd_window_step(n / rate, rate)
             hint = f"; e.g. psd.window_s: {w:g}, psd.step_s: {st:g} (or leave both unset: that rule is the default)"
         except ValueError:
             pass
-        out.append(Flag(sensor, "record partly unused", f"{u.get('dataset', '-')}/{sensor}",
+        where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
+        out.append(Flag(sensor, "record partly unused", where,
                         f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
                         f"record left out) with psd.window_s = {_num(u.get('window_s'), '{:g}')} s, psd.step_s = "
                         f"{_num(u.get('step_s'), '{:g}')} s: set a step that tiles the record{hint}"))
@@ -374,6 +379,37 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
             head = "- random walk: the data showed none (identification dropped it); the bound's K rests on the spec sheet alone"
         out.append(head + ("; the exported filter drops it (reduction above)" if dropped else ""))
     return out
+
+
+def _filter_line(bound: Mapping) -> str | None:
+    """The filter to use, first: the KF file and the exported model's values in the spec sheet's units and SI (the
+    contract's ``kf_file``, ``model_spec_units`` and ``model``; the table above is the bound before the verified
+    reduction). None when the contract has no exported model."""
+    from imupipe.units import SI_UNITS
+
+    m, mu = bound.get("model"), bound.get("model_spec_units")
+    if not isinstance(m, Mapping) or not isinstance(mu, Mapping):
+        return None
+    u = SI_UNITS.get(bound.get("sensor"), "u")
+    parts = []
+    w = mu.get("white") or {}
+    if m.get("white"):
+        parts.append(f"white noise N {_num(w.get('value'), '{:.4g}')} {w.get('unit', '')} ({_num(m['white'], '{:.4g}')} {u}/sqrt(Hz))")
+    for i, term in enumerate(m.get("gauss_markov") or []):
+        su = ((mu.get("gauss_markov") or [{}] * (i + 1))[i] or {}).get("sigma") or {}
+        parts.append(f"GM sigma {_num(su.get('value'), '{:.4g}')} {su.get('unit', '')} ({_num(term.get('sigma'), '{:.4g}')} {u}), "
+                     f"T {_num(term.get('T'), '{:.4g}')} s")
+    if m.get("random_walk"):
+        k = mu.get("random_walk") or {}
+        parts.append(f"random walk K {_num(k.get('value'), '{:.4g}')} {k.get('unit', '')} "
+                     f"({_num(m['random_walk'], '{:.4g}')} {u}/sqrt(s))")
+    for t in m.get("narrowband") or []:
+        if isinstance(t, Mapping) and t.get("sigma"):
+            parts.append(f"line at {_num(t.get('f0_hz'))} Hz")
+    where = f"`{bound['kf_file']}`" if bound.get("kf_file") else "the KF file"
+    return (f"- **the filter to use:** {where} (Phi, Qd, P0 at the verified rate): " + ("; ".join(parts) or "no noise "
+            "state") + " (the exported model, after the verified reduction; its initial bias below"
+            + ("; per axis where the axes differ: the table below" if bound.get("per_axis_models") else "") + ")")
 
 
 def _bias_lines(bound: Mapping) -> list[str]:
@@ -546,6 +582,9 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         if inband:
             # what the whole exported model does over the application band (imupipe.inband): beside the table
             lines += [f"- {inband}", ""]
+        use = _filter_line(bound) if bound else None
+        if use:
+            lines += [use, ""]
         if rows:
             gap = _spec_above_data(bound)
             if gap:
