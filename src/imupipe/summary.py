@@ -329,7 +329,6 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
             ds.append(u.get("dataset", "-"))
     for (n, used, rate, window_s, step_s), ds in groups.items():
         frac = unused_fraction(n, used)
-        u = {"window_s": window_s, "step_s": step_s}
         hint = ""
         try:
             w, st = psd_window_step(n / rate, rate)
@@ -339,8 +338,8 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
         where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
         out.append(Flag(sensor, "record partly unused", where,
                         f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
-                        f"record left out) with psd.window_s = {_num(u.get('window_s'), '{:g}')} s, psd.step_s = "
-                        f"{_num(u.get('step_s'), '{:g}')} s: set a step that tiles the record{hint}"))
+                        f"record left out) with psd.window_s = {_num(window_s, '{:g}')} s, psd.step_s = "
+                        f"{_num(step_s, '{:g}')} s: set a step that tiles the record{hint}"))
     return out
 
 
@@ -395,8 +394,9 @@ def _filter_line(bound: Mapping) -> str | None:
     w = mu.get("white") or {}
     if m.get("white"):
         parts.append(f"white noise N {_num(w.get('value'), '{:.4g}')} {w.get('unit', '')} ({_num(m['white'], '{:.4g}')} {u}/sqrt(Hz))")
+    gm_units = mu.get("gauss_markov") or []
     for i, term in enumerate(m.get("gauss_markov") or []):
-        su = ((mu.get("gauss_markov") or [{}] * (i + 1))[i] or {}).get("sigma") or {}
+        su = (gm_units[i] if i < len(gm_units) else {}).get("sigma") or {}
         parts.append(f"GM sigma {_num(su.get('value'), '{:.4g}')} {su.get('unit', '')} ({_num(term.get('sigma'), '{:.4g}')} {u}), "
                      f"T {_num(term.get('T'), '{:.4g}')} s")
     if m.get("random_walk"):

@@ -657,10 +657,10 @@ def integrity_contract(bound, allan=None, verification=None, export=None, interv
                                    "first_exceed_s": c["first_exceed_s"], "tolerance": c["tolerance"]})
     if intervals is not None:
         run.append("identification_intervals")
-        need = min_bootstrap(intervals.get("confidence", 0.95))
-        if int(intervals.get("n_boot") or 0) < need:
-            failed.append({"check": "identification_intervals", "n_boot": int(intervals.get("n_boot") or 0),
-                           "needed": need, "note": f"the identification ran with {int(intervals.get('n_boot') or 0)} "
+        need, n_boot = min_bootstrap(intervals.get("confidence", 0.95)), int(intervals.get("n_boot") or 0)
+        if n_boot < need:
+            failed.append({"check": "identification_intervals", "n_boot": n_boot,
+                           "needed": need, "note": f"the identification ran with {n_boot} "
                            f"bootstrap replicates (identify.n_boot; noise_model(n_boot=)): at least {need} place the "
                            "upper ends of its intervals, and so the upper envelope the verification checks against, "
                            "beyond the point fit"})

@@ -86,19 +86,15 @@ def refused_text(lines: dict, imu, source: str, notes=()) -> str:
     return "\n".join(out) + "\n"
 
 
-def band_of(kf: dict, path: str) -> tuple:
-    """The application band [1/horizon_s, filter_rate_hz/2] Hz of an exported KF model, from its export scope (the
-    horizon and the rate of the reference filter that verified it, as the verify rule had them; the KF file's own rate
-    where the scope names no verified rate)."""
+def band_of(kf: dict, path: str, update_rate_hz: float) -> tuple:
+    """Kalibr's band [1/horizon_s, update_rate_hz/2] Hz (imupipe.inband.application_band at the IMU's rate: Kalibr
+    runs its filter at update_rate), the horizon from the exported KF model's export scope."""
     from imupipe.inband import application_band
 
-    scope = kf.get("export") or {}
-    horizon = scope.get("horizon_s")
-    rate = scope.get("verified_filter_rate_hz") or scope.get("kf_rate_hz") or (1.0 / float(kf["dt_s"]) if kf.get("dt_s")
-                                                                              else None)
-    if not horizon or not rate:
-        raise ValueError(f"{path}: the export scope gives no horizon_s or filter rate: no application band for Kalibr")
-    return application_band(float(horizon), float(rate))
+    horizon = (kf.get("export") or {}).get("horizon_s")
+    if not horizon:
+        raise ValueError(f"{path}: the export scope gives no horizon_s: no band for Kalibr")
+    return application_band(float(horizon), float(update_rate_hz))
 
 
 def axis_models(kf: dict, path: str) -> dict:
@@ -166,7 +162,7 @@ def main(path_gyro: str, path_accel: str, path_id_gyro: str, path_id_accel: str,
     paths = dict(zip(kfs, (path_kf_gyro, path_kf_accel), strict=True))
     models = {s: axis_models(k, paths[s]) for s, k in kfs.items()}
     # Kalibr's filter runs at update_rate: the pair bounds the exported model from 1/horizon up to its Nyquist
-    band = (band_of(kfs["gyro"], path_kf_gyro)[0], 0.5 * rate)
+    band = band_of(kfs["gyro"], path_kf_gyro, rate)
     # Kalibr needs a positive bias random walk: an export without drift states takes the bound's (said so)
     for s in models:
         for ax in models[s]:
