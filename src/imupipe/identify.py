@@ -553,6 +553,35 @@ def _child_rng(rng):
         return rng
 
 
+def _replicates(bootstrap, model, mean, e, cid, ms, lengths, rates, n_boot, rng):
+    """The bootstrap's replicate Allan variances, one array per replicate (floored at 1e-300), drawn from `model`
+    (SI; its ``dt`` the first curve's sample interval when unset) with the estimator's mean `mean`: ``correlated``
+    (every replicate at once, with the exact correlation of the overlapping AV estimates, :func:`_correlated_draws`),
+    ``series`` (a simulated record per curve and replicate, its overlapping AV at the averaging factors `ms`), else
+    independent scaled chi-squared draws of `e` degrees of freedom. `cid` the curve of each point, `lengths` and
+    `rates` per curve (samples, Hz). One generator for the main bootstrap and the second calibration of a GM sigma's
+    profile in :func:`fit_allan`, so both draw alike from `rng`."""
+    if bootstrap in ("correlated", "series"):
+        sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rates[0]))
+    if bootstrap == "correlated":
+        draws = _correlated_draws(sim_model, mean, ms, cid, lengths, rates, int(n_boot), rng)
+    elif bootstrap == "series":
+        from imupipe.allan import overlapping_avar
+        from imupipe.simulate import simulate
+    for b in range(int(n_boot)):
+        if bootstrap == "correlated":
+            ystar = draws[b]
+        elif bootstrap == "series":
+            ystar = np.empty_like(mean)
+            for ci in range(int(cid.max()) + 1):
+                x = simulate(replace(sim_model, dt=1.0 / float(rates[ci])), int(lengths[ci]), float(rates[ci]), rng)
+                for j in np.flatnonzero(cid == ci):
+                    ystar[j] = overlapping_avar(x, float(rates[ci]), int(ms[j]))
+        else:
+            ystar = mean * rng.chisquare(e) / e
+        yield np.maximum(ystar, 1e-300)
+
+
 def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot, rng, bootstrap, dt, cid, ms,
                        lengths, rates):
     r"""The GM sigma's profile statistic over bootstrap replicates drawn from the fit with the random walk held
@@ -578,25 +607,7 @@ def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot
     model_k = _params_to_model(p_k, dt)
     mean = np.maximum(held.m, 1e-300)
     out = np.full(int(n_boot), np.nan)
-    if bootstrap in ("correlated", "series"):
-        sim_model = model_k if model_k.dt is not None else replace(model_k, dt=1.0 / float(rates[0]))
-    if bootstrap == "correlated":
-        ystar_all = _correlated_draws(sim_model, mean, ms, cid, lengths, rates, int(n_boot), rng)
-    elif bootstrap == "series":
-        from imupipe.allan import overlapping_avar
-        from imupipe.simulate import simulate
-    for b in range(int(n_boot)):
-        if bootstrap == "correlated":
-            ystar = ystar_all[b]
-        elif bootstrap == "series":
-            ystar = np.empty_like(y)
-            for ci in range(int(cid.max()) + 1):
-                x = simulate(replace(sim_model, dt=1.0 / float(rates[ci])), int(lengths[ci]), float(rates[ci]), rng)
-                for j in np.flatnonzero(cid == ci):
-                    ystar[j] = overlapping_avar(x, float(rates[ci]), int(ms[j]))
-        else:
-            ystar = mean * rng.chisquare(e) / e
-        ystar = np.maximum(ystar, 1e-300)
+    for b, ystar in enumerate(_replicates(bootstrap, model_k, mean, e, cid, ms, lengths, rates, n_boot, rng)):
         sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
         local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
         held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m)
@@ -1083,27 +1094,10 @@ def fit_allan(
     if n_boot > 0:
         # bootstrap grid: a little coarser than the fit's, same span
         bgrid = grid if grid.size <= 30 else np.logspace(math.log10(grid[0]), math.log10(grid[-1]), 30)
-        if bootstrap in ("correlated", "series"):
-            ms = np.rint(t * rates[cid]).astype(np.int64)
-            sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rates[0]))
-        if bootstrap == "series":
-            from imupipe.allan import overlapping_avar
-            from imupipe.simulate import simulate
-        elif bootstrap == "correlated":
-            ystar_all = _correlated_draws(sim_model, best.m, ms, cid, lengths, rates, int(n_boot), rng)
-        for b in range(int(n_boot)):
-            if bootstrap == "correlated":
-                ystar = ystar_all[b]
-            elif bootstrap == "series":
-                ystar = np.empty_like(y)
-                for ci in range(n_curves):
-                    sel = np.flatnonzero(cid == ci)
-                    x = simulate(replace(sim_model, dt=1.0 / float(rates[ci])), int(lengths[ci]), float(rates[ci]), rng)
-                    for k in sel:
-                        ystar[k] = overlapping_avar(x, float(rates[ci]), int(ms[k]))
-            else:
-                ystar = best.m * rng.chisquare(e) / e
-            ystar = np.maximum(ystar, 1e-300)
+        # per curve, for the correlated and series bootstraps: averaging factors, lengths (samples), rates (Hz)
+        per_curve = ((np.rint(t * rates[cid]).astype(np.int64), lengths, rates) if bootstrap != "chi2"
+                     else (None, None, None))
+        for b, ystar in enumerate(_replicates(bootstrap, model, best.m, e, cid, *per_curve, n_boot, rng)):
             sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
             chi2_boot[b] = sol.chi2
             pb = _solution_to_params(sol, comps, n_gm)
@@ -1176,9 +1170,7 @@ def fit_allan(
         if np.isfinite(k_up) and k_up > math.sqrt(k2_hat):
             k_cal = float(k_up)
             k_deltas_up = _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k_cal, int(n_boot),
-                                             _child_rng(rng), bootstrap, dt, cid, ms if bootstrap != "chi2" else None,
-                                             lengths if bootstrap != "chi2" else None,
-                                             rates if bootstrap != "chi2" else None)
+                                             _child_rng(rng), bootstrap, dt, cid, *per_curve)
             if np.isfinite(k_deltas_up).any():
                 threshold_k_upper = float(np.quantile(k_deltas_up[np.isfinite(k_deltas_up)], c))
         threshold = max(threshold_fitted, threshold_k_upper) if np.isfinite(threshold_k_upper) else threshold_fitted
