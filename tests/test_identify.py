@@ -112,6 +112,21 @@ class TestSlopeLine:
         sl = slope_line(av.tau.values, np.sqrt(av.avar.values))
         assert sl["white"] == pytest.approx(1e-3, rel=0.02)
 
+    def test_curve_at_the_readoff_tau_is_given_where_the_line_is_drawn_elsewhere(self):
+        # closed form: white N plus a GM (T = 1 s) whose AV dominates from ~0.1 s on; the point of slope
+        # closest to -1/2 is the GM's long-tau tail, so the line through it, read at 1 s, is far from the curve
+        from imupipe.models import NoiseModel
+
+        m = NoiseModel(white=1e-3, gauss_markov=((1e-2, 1.0),))
+        tau = np.geomspace(0.01, 1000.0, 61)
+        adev = np.sqrt(m.avar(tau))
+        sl = slope_line(tau, adev)
+        assert sl["tau_white"] > 100.0
+        # 1 s is a grid point, so the log-log interpolation is exact there
+        assert sl["adev_at_1s"] == pytest.approx(float(np.sqrt(m.avar(np.array([1.0]))[0])), rel=1e-12)
+        assert not 0.5 < sl["adev_at_1s"] / sl["white"] < 2.0
+        assert slope_line(tau[tau > 2.0], adev[tau > 2.0])["adev_at_1s"] is None
+
 
 def test_random_walk_profile_limit_brackets_its_threshold():
     # K's upper end: the largest k with Delta(k) = chi2(K held at k) - chi2(free) <= the bootstrap threshold;

@@ -1411,6 +1411,12 @@ def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:
     * Bias instability (flicker): :math:`B = \min \sigma / 0.664`, with
       :math:`0.664 = \sqrt{2\ln 2/\pi}`.
 
+    The lines are drawn through :math:`\tau_k` (``tau_white``, ``tau_random_walk``), which can be far from
+    the read-off tau: where the curve at 1 s (3 s) is not on the slope, the line's value there differs from
+    the curve's. So the curve itself at the read-off taus is given too, interpolated linearly in
+    :math:`(\log\tau, \log\sigma)` (None outside the curve): ``adev_at_1s`` (u; equal to N in u/sqrt(Hz)
+    where the -1/2 line holds at 1 s) and ``adev_at_3s`` (u; :math:`K = \sigma(3\,s)` there).
+
     Local slopes are centred differences of :math:`\log\sigma` against :math:`\log\tau`. A line
     is reported only if the closest slope is within `slope_tol` of its nominal value; otherwise
     the value is None.
@@ -1429,7 +1435,7 @@ def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:
     dict
         ``white`` (N, u/sqrt(Hz)), ``random_walk`` (K, u/sqrt(s)), ``flicker`` (B, u),
         ``tau_white``, ``slope_white``, ``tau_random_walk``, ``slope_random_walk``, ``tau_min``
-        (s), ``adev_min`` (u), ``method``.
+        (s), ``adev_min``, ``adev_at_1s``, ``adev_at_3s`` (u), ``method``.
     """
     t = np.asarray(tau, dtype=np.float64)
     s = np.asarray(adev, dtype=np.float64)
@@ -1440,7 +1446,12 @@ def slope_line(tau, adev, slope_tol: float = 0.25) -> dict:
     order = np.argsort(t)
     t, s = t[order], s[order]
     slope = np.gradient(np.log(s), np.log(t))
-    out = {"method": "slope lines (IEEE Std 952 Annex C): N at tau=1 s, K at tau=3 s, B=min(ADEV)/0.664"}
+    out = {"method": "slope lines (IEEE Std 952 Annex C): N from the -1/2 line through tau_white read at tau=1 s, "
+                     "K from the +1/2 line through tau_random_walk read at tau=3 s, B=min(ADEV)/0.664; "
+                     "adev_at_1s/adev_at_3s: the curve itself there"}
+    for name, at in (("adev_at_1s", 1.0), ("adev_at_3s", 3.0)):
+        inside = t[0] <= at <= t[-1]
+        out[name] = float(np.exp(np.interp(math.log(at), np.log(t), np.log(s)))) if inside else None
     i = int(np.argmin(np.abs(slope + 0.5)))
     if abs(slope[i] + 0.5) <= slope_tol:
         out.update(white=float(s[i] * math.sqrt(t[i])), tau_white=float(t[i]), slope_white=float(slope[i]))

@@ -831,7 +831,8 @@ def allan_readoffs(tau, avar) -> dict:
     -------
     dict
         ``white`` (N), ``flicker`` (B), ``random_walk`` (K), ``adev_min`` (u), ``tau_min`` (s), ``tau`` and
-        ``adev`` (the median curve read, u).
+        ``adev`` (the median curve read, u), ``tau_white`` and ``tau_random_walk`` (s, where the lines are
+        drawn through; None without the line).
     """
     from imupipe.identify import slope_line
 
@@ -842,7 +843,8 @@ def allan_readoffs(tau, avar) -> dict:
     ok = np.isfinite(adev) & (adev > 0) & (t > 0)
     sl = slope_line(t[ok], adev[ok])
     return {"white": sl["white"], "flicker": sl["flicker"], "random_walk": sl["random_walk"],
-            "adev_min": sl["adev_min"], "tau_min": sl["tau_min"], "tau": t[ok], "adev": adev[ok]}
+            "adev_min": sl["adev_min"], "tau_min": sl["tau_min"], "tau": t[ok], "adev": adev[ok],
+            "tau_white": sl["tau_white"], "tau_random_walk": sl["tau_random_walk"]}
 
 
 def plot_allan_deviation(tau, avar, *, sensor: str, labels=None, display_unit: str = "spec", title: str | None = None,
@@ -909,7 +911,8 @@ def plot_allan_deviation(tau, avar, *, sensor: str, labels=None, display_unit: s
         n_disp = float(from_si(ro["white"], n_u, "white", sensor, key="N"))
         shown["N"] = (n_disp, n_u)
         ax.plot(tt, ro["white"] * c / np.sqrt(tt), color="C0", lw=1.0, ls="--", zorder=3, gid="slope:-1/2",
-                label=f"−1/2 line: N = {_fmt(n_disp)} {n_u} (τ = 1 s)")
+                label=f"−1/2 line through τ = {_fmt(ro['tau_white'])} s: N = {_fmt(n_disp)} {n_u} "
+                      "(read at τ = 1 s)")
         ax.plot([1.0], [ro["white"] * c], "o", color="C0", ms=6, zorder=5, gid="readoff:N", label="_nolegend_")
     b_disp = float(from_si(ro["flicker"], b_u, "rate", sensor, key="B"))
     shown["B"] = (b_disp, b_u)
@@ -921,7 +924,9 @@ def plot_allan_deviation(tau, avar, *, sensor: str, labels=None, display_unit: s
         k_disp = float(from_si(ro["random_walk"], k_u, "random_walk", sensor, key="K"))
         shown["K"] = (k_disp, k_u)
         ax.plot(tt, ro["random_walk"] * c * np.sqrt(tt / 3.0), color="C2", lw=1.0, ls="--", zorder=3,
-                gid="slope:+1/2", label=f"+1/2 line: K = {_fmt(k_disp)} {k_u} (τ = 3 s)")
+                gid="slope:+1/2",
+                label=f"+1/2 line through τ = {_fmt(ro['tau_random_walk'])} s: K = {_fmt(k_disp)} {k_u} "
+                      "(read at τ = 3 s)")
         ax.plot([3.0], [ro["random_walk"] * c], "^", color="C2", ms=6, zorder=5, gid="readoff:K",
                 label="_nolegend_")
     lo = np.nanmin(adev[adev > 0]) if np.any(adev > 0) else 1.0
