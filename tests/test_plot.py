@@ -328,6 +328,11 @@ def test_inflation_steps_repeated_phases_and_dicts(psd_case):
     y = _by_gid(fig.axes[0], "phase:2").get_ydata()
     np.testing.assert_allclose(y, NoiseModel(white=4e-4, gauss_markov=((9e-5, 300.0),),
                                              random_walk=2e-6).psd(f[1:]), rtol=1e-12)
+    # in spec units (mg^2/Hz, imupipe.plot.SPEC_RATE_UNITS): the same curve / (9.80665e-3 m/s^2 per mg)^2
+    fig = plot_inflation_steps(f, curves, SPEC, [dict(zip(cols, r)) for r in rows], sensor="accel",
+                               display_unit="spec")
+    assert "(mg)^2/Hz" in fig.axes[0].get_ylabel()
+    np.testing.assert_allclose(_by_gid(fig.axes[0], "phase:2").get_ydata(), y / 9.80665e-3 ** 2, rtol=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -704,7 +704,7 @@ def _spread(ends, m):
 
 
 def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str, dt: float | None = None,
-                         title: str | None = None, max_phases: int = 6) -> "Figure":
+                         title: str | None = None, max_phases: int = 6, display_unit=None) -> "Figure":
     r"""The paper's hand inflation, step by step (paper Figure 8, Appendix A.2).
 
     Draws the sample PSDs (grey), the spec-sheet PSD (red) and the model PSD at the end of each
@@ -738,6 +738,9 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str,
         Figure title; default names the sensor and the procedure.
     max_phases : int, optional
         Most phase curves drawn (>= 2), the final model included. Default 6.
+    display_unit : None, "spec" or str, optional
+        PSD axis unit, as in :func:`plot_psd_bound`: None or ``"SI"`` (u^2/Hz), ``"spec"`` ((deg/h)^2/Hz or
+        ug^2/Hz) or a rate unit string.
 
     Returns
     -------
@@ -757,10 +760,12 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str,
         g = ((s, T),) + extra_gm if s > 0 else extra_gm
         return NoiseModel(white=N, gauss_markov=g, random_walk=K, dt=dt)
 
+    scale, unit = _psd_scale(display_unit, sensor)
     fig, axes = _new_figure()
     ax = axes[0, 0]
-    _draw_samples(ax, f, arr, None, "PSDs")
-    ax.plot(f, _model_psd(spec_model, f, dt), color=_SPEC_COLOUR, lw=2.0, zorder=3, gid="spec", label="spec sheet")
+    _draw_samples(ax, f, arr * scale, None, "PSDs")
+    ax.plot(f, scale * _model_psd(spec_model, f, dt), color=_SPEC_COLOUR, lw=2.0, zorder=3, gid="spec",
+            label="spec sheet")
     if int(max_phases) < 2:
         raise ValueError("max_phases must be >= 2")
     ends = _phase_ends(rows)
@@ -782,8 +787,8 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str,
     for j, (i, label) in enumerate(zip(ends, labels)):
         last = j == len(ends) - 1
         colour = cmap(0.1 + 0.8 * j / max(len(ends) - 1, 1))
-        ax.plot(f, _model_psd(model_of(rows[i]), f, dt), color=colour, lw=2.4 if last else 1.4, zorder=4 + j,
-                gid=f"phase:{j}", label=label)
+        ax.plot(f, scale * _model_psd(model_of(rows[i]), f, dt), color=colour, lw=2.4 if last else 1.4,
+                zorder=4 + j, gid=f"phase:{j}", label=label)
     n_steps = len(rows) - 1
     final = rows[-1][5]
     if title is None:
@@ -793,7 +798,7 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str,
     shown = "" if len(ends) == n_phases else f" ({len(ends)} shown)"
     _axes_title(ax, f"{n_steps} steps in {n_phases} phases{shown}, final margin {final:.3g}; model PSDs {conv}",
                 fontsize="small")
-    _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{PSD_UNITS[sensor]}]", legend_loc="lower left")
+    _finish_loglog(ax, "frequency [Hz]", f"two-sided PSD [{unit}]", legend_loc="lower left")
     return fig
 
 

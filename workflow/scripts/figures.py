@@ -89,7 +89,8 @@ def main(path_spectra, path_allan, path_identified, path_bound, path_spec, out_p
     history = [[p["parameter"], p["N"], p["sigma"], p["T"], p["K"], p["margin"]] for p in hand["phases"]] if hand else []
     curves = np.stack([sp.at("psd", *c.split("/")) for c in bound["curves"]])
     save_all(plot_inflation_steps(sp["frequency"], curves, spec_model, history, sensor=sensor, dt=dt,
-                                  title=f"{sensor}: the paper's hand inflation of {spec}, step by step"),
+                                  title=f"{sensor}: the paper's hand inflation of {spec}, step by step",
+                                  display_unit=shown),
              out_steps, copies, "inflation_steps")
     save_all(plot_allan_deviation(av["tau"], every_curve(av, "avar"), sensor=sensor, display_unit=units,
                                   title=f"{sensor}: Allan deviation with the N, B, K read-offs"),
