@@ -740,7 +740,7 @@ def plot_inflation_steps(frequency, curves, spec_model, history, *, sensor: str,
         Most phase curves drawn (>= 2), the final model included. Default 6.
     display_unit : None, "spec" or str, optional
         PSD axis unit, as in :func:`plot_psd_bound`: None or ``"SI"`` (u^2/Hz), ``"spec"`` ((deg/h)^2/Hz or
-        ug^2/Hz) or a rate unit string.
+        mg^2/Hz, :data:`SPEC_RATE_UNITS`) or a rate unit string.
 
     Returns
     -------
