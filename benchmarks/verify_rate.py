@@ -5,7 +5,9 @@ Closed form (imupipe.covariance via verify.covariance_analysis) beside the refer
 scaled by `--step-fraction` at rates >= 100 Hz) and its time scaled by the step count (it is linear in the
 number of steps); those rows say "estimated". The replay is not included (not yet vectorised).
 
-Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/verify_rate.py [--rates 1 100 1000]
+`--fix-rate` sets the fix rate (Hz; default: a fix at every filter step), as ``verify.fix_rate_hz`` does.
+
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/verify_rate.py [--rates 1 100 1000] [--fix-rate 1]
 """
 
 import argparse
@@ -24,21 +26,24 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--rates", type=float, nargs="+", default=[1.0, 100.0, 1000.0])
     ap.add_argument("--step-fraction", type=float, default=0.02)
+    ap.add_argument("--fix-rate", type=float, default=None, help="Hz (default: every filter step)")
     a = ap.parse_args()
-    print(f"{'sensor':6} {'rate_Hz':>8} {'steps':>9} {'closed_s':>9} {'step_loop_s':>12}  note")
+    print(f"{'sensor':6} {'rate_Hz':>8} {'fix_Hz':>7} {'steps':>9} {'closed_s':>9} {'step_loop_s':>12}  note")
     for sensor, m in MODELS.items():
         for r in a.rates:
-            sc = reference_scenario(sensor, rate_hz=r)
+            fr = a.fix_rate if a.fix_rate is not None and a.fix_rate <= r else None
+            sc = reference_scenario(sensor, rate_hz=r, fix_rate_hz=fr)
             t0 = time.perf_counter()
             v = covariance_analysis(m, m, sc)
             tc = time.perf_counter() - t0
             f = 1.0 if r < 100 else a.step_fraction
-            scs = reference_scenario(sensor, rate_hz=r, fix_s=600.0 * f, horizon_s=3600.0 * f)
+            scs = reference_scenario(sensor, rate_hz=r, fix_s=600.0 * f, horizon_s=3600.0 * f, fix_rate_hz=fr)
             t0 = time.perf_counter()
             covariance_analysis_steps(m, m, scs)
             ts = (time.perf_counter() - t0) * sc.n_steps / scs.n_steps
             note = "measured" if f == 1.0 else f"estimated from {scs.n_steps} steps"
-            print(f"{sensor:6} {r:8g} {sc.n_steps:9d} {tc:9.2f} {ts:12.1f}  {note}; worst ratio {v.worst_ratio:.6f}")
+            fix = "every" if fr is None else f"{fr:g}"
+            print(f"{sensor:6} {r:8g} {fix:>7} {sc.n_steps:9d} {tc:9.2f} {ts:12.1f}  {note}; worst ratio {v.worst_ratio:.6f}")
 
 
 if __name__ == "__main__":
