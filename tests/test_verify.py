@@ -16,6 +16,7 @@ from imupipe.verify import (
     reduce_by_integrity,
     reference_scenario,
     replay,
+    replay_steps,
     verify_model,
 )
 
@@ -76,6 +77,21 @@ class TestCovarianceAnalysis:
         r_small = replay(NoiseModel(white=0.5e-4, gauss_markov=((2e-5, 300.0),), random_walk=0.3e-6), list(rec),
                          10.0, sc)
         assert not r_small.passed
+
+    @pytest.mark.parametrize("rate,fix_rate,block", [(1.0, None, 4096), (10.0, None, 4096), (10.0, 2.0, 4096),
+                                                     (10.0, 2.0, 7), (10.0, None, 3)])
+    @pytest.mark.parametrize("sensor", ["accel", "gyro"])
+    def test_vectorised_replay_equals_the_step_loop(self, sensor, rate, fix_rate, block):
+        # the same sums in another order: relative differences of a few ulps times the steps a value accumulates
+        # (<= 3 600 here, so <= ~1e-12); 1e-10 leaves a margin of 100 and still catches any wrong term
+        rng = np.random.default_rng(11)
+        sc = reference_scenario(sensor, rate_hz=rate, fix_s=60.0, horizon_s=300.0, fix_rate_hz=fix_rate)
+        recs = [rng.normal(size=int(1500 * rate)) * 1e-3, np.cumsum(rng.normal(size=int(400 * rate))) * 1e-5]
+        model = NoiseModel(white=1e-3, gauss_markov=((5e-4, 30.0),), random_walk=1e-5)
+        a = replay(model, recs, rate, sc, block=block)
+        b = replay_steps(model, recs, rate, sc)
+        np.testing.assert_allclose(a.mse, b.mse, rtol=1e-10, atol=0)
+        assert a.details == b.details and a.worst_ratio == pytest.approx(b.worst_ratio, rel=1e-10)
 
     def test_replay_rejects_short_records(self):
         with pytest.raises(ValueError, match="at least"):

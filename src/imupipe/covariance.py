@@ -50,12 +50,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["quad_series", "power_and_sum", "filter_variance", "mismatched_mse", "augmented"]
+__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "augmented"]
 
 GAIN_RTOL = 1e-13
 
 
-def _row_powers(R0, M, count, block):
+def row_powers(R0, M, count, block):
     """Yield (start, G) with G[j] = R0 @ M^(start + j), shape (L, p, n), block after block."""
     R0 = np.atleast_2d(np.asarray(R0, dtype=float))
     L = max(1, min(block, count))
@@ -87,7 +87,7 @@ def quad_series(R0, M, C0, W, count, block=2048):
     R0 = np.atleast_2d(np.asarray(R0, dtype=float))
     out = np.empty((count, R0.shape[0]))
     acc = np.zeros(R0.shape[0])
-    for start, G in _row_powers(R0, M, count, block):
+    for start, G in row_powers(R0, M, count, block):
         c0 = np.einsum("jpa,ab,jpb->jp", G, C0, G, optimize=True)
         w = np.einsum("jpa,ab,jpb->jp", G, W, G, optimize=True)
         cs = np.cumsum(w, axis=0)
@@ -117,7 +117,7 @@ def power_and_sum(A, Q, m):
 
 def _rows(r, M, m):
     """(m, n) rows r M^s, s = 0..m-1."""
-    return np.concatenate([G[:, 0, :] for _, G in _row_powers(r, M, m, max(1, m))])
+    return np.concatenate([G[:, 0, :] for _, G in row_powers(r, M, m, max(1, m))])
 
 
 def _cycles(m, n_fix):

@@ -430,7 +430,7 @@ def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_r
 
 
 def replay(filter_model, records, rate_hz: float, scenario: Scenario | None = None, sensor: str = "accel",
-           stride_s: float | None = None, z: float = 2.0):
+           stride_s: float | None = None, z: float = 2.0, block: int = 4096):
     r"""Empirical MSE of the reference filter when windows of static records are the sensor error.
 
     Each record (rate error, u, at `rate_hz`) is block-averaged to the filter rate
@@ -443,6 +443,13 @@ def replay(filter_model, records, rate_hz: float, scenario: Scenario | None = No
 
     Sensor error integration over one step dt (block mean e_k): v_{k+1} = v_k - e_k dt,
     x_{k+1} = x_k + v_k dt - e_k dt^2/2 (accel); theta_{k+1} = theta_k - e_k dt (gyro).
+
+    No per-step loop (:func:`_replay_errors`): between two fixes (and over the outage) the estimate only
+    propagates, so its position component at j steps after the last update is :math:`\hat x_{last} \cdot g_j`
+    with :math:`g_j = e_0^T \Phi_f^j` (row powers by doubling, :func:`imupipe.covariance.row_powers`), and the
+    integrated sensor error is two cumulative sums of the block means; one Python iteration per fix, blocks of
+    steps over the outage. The windows are views of each record (no copies); the sums of squared errors are
+    accumulated record by record. :func:`replay_steps` is the step loop it reproduces (tests).
 
     Monte Carlo error: windows that do not overlap are treated as independent, so the number of
     independent windows is n_eff = (total decimated samples) / (window length) (overlapping windows
@@ -457,12 +464,122 @@ def replay(filter_model, records, rate_hz: float, scenario: Scenario | None = No
         Static records of one sensor type (any number of axes and datasets), SI rate units.
     rate_hz : float
         Sample rate of the records, Hz.
+    block : int, optional
+        Most steps computed at once (work arrays of windows x block floats). Default 4096.
 
     Returns
     -------
     Verification
         with ``details``: n_windows, n_eff, relative_standard_error.
     """
+    from imupipe.models import NoiseModel
+
+    sc = scenario if scenario is not None else reference_scenario(sensor)
+    Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
+    R = sc.sigma_fix**2
+    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    L = sc.n_steps
+    stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / sc.rate_hz) * sc.rate_hz)))
+    sq, W, total = np.zeros(L), 0, 0
+    for E, n in _replay_windows(records, rate_hz, sc.rate_hz, L, stride):
+        total += n
+        if E.shape[0]:
+            sq += _replay_errors(E, Pf, Hf, gains, sc, block)
+            W += E.shape[0]
+    if not W:
+        raise ValueError(f"replay needs records of at least {L / sc.rate_hz:g} s at the filter rate "
+                         f"(fix_s + horizon_s)")
+    mse_e = sq / W
+    # fix noise and initial kinematic error, exactly: a truth with no sensor error
+    mse_n = covariance_analysis(filter_model, NoiseModel(), sc).mse
+    n_eff = max(1.0, total / L)
+    rse = math.sqrt(2.0 / n_eff)
+    return _summary(sc, mse_e + mse_n, pvar, tol=z * rse,
+                    details={"method": "replay of static records", "n_windows": int(W), "n_eff": float(n_eff),
+                             "relative_standard_error": rse, "stride_s": stride / sc.rate_hz})
+
+
+def _replay_windows(records, rate_hz, filter_rate_hz, L, stride):
+    """Yield (windows, n) per record: the windows (W_r, L) of the record block-averaged to the filter rate with its
+    own mean removed, as a strided view (no copy), and its length n at the filter rate."""
+    from imupipe.spectra import decimate
+
+    for i, r in enumerate(records):
+        x = np.asarray(r, dtype=np.float64)
+        if x.ndim != 1 or x.size < 2:
+            raise ValueError(f"replay record {i} must be a 1-D series, got shape {x.shape}")
+        y, _ = decimate(x, rate_hz, filter_rate_hz) if abs(rate_hz - filter_rate_hz) > 1e-12 else (x, rate_hz)
+        y = y - y.mean()
+        if y.size < L:
+            yield np.empty((0, L)), y.size
+            continue
+        yield np.lib.stride_tricks.sliding_window_view(y, L)[::stride], y.size
+
+
+def _replay_errors(E, Phi_f, H_f, gains, sc, block: int = 4096):
+    r"""Sum over windows of the squared position error of the reference filter, per step, shape (L,).
+
+    `E` (W, L): sensor error per window and step (u). Integration as :func:`replay_steps`: accel
+    :math:`v_k = v_{k-1} - e_k dt`, :math:`x_k = x_{k-1} + v_{k-1} dt - e_k dt^2/2`; gyro
+    :math:`x_k = x_{k-1} - e_k dt`. The estimate after its last update :math:`\hat x_l` (step l) is, at step
+    k > l without a fix, :math:`\Phi_f^{k-l}\hat x_l`, whose position is :math:`\hat x_l \cdot g_{k-l}`; at a fix
+    step :math:`\hat x \leftarrow \hat x^- + (x_k - H_f\hat x^-) K_k`. The error is :math:`\hat x_k[0] - x_k`.
+    """
+    from imupipe.covariance import row_powers
+
+    W, L = E.shape
+    dt = sc.dt
+    nf = Phi_f.shape[0]
+    h = H_f[0]
+    fixes = [k for k, K in enumerate(gains) if K is not None] + [L - 1]
+    longest = max(np.diff([-1] + fixes).max(), 1)
+    span = min(block, int(longest))
+    # g_j = e_0^T Phi_f^j for j = 1..span (the rows after the last update), and Phi_f^j for the fix steps
+    G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, span, span))[1][:, 0, :]  # (span, nf): j = 1..span
+    powers = {}
+
+    def power(j):
+        if j not in powers:
+            powers[j] = np.linalg.matrix_power(Phi_f, j)
+        return powers[j]
+
+    sq = np.empty(L)
+    xh = np.zeros((W, nf))
+    pos, vel = np.zeros(W), np.zeros(W)
+    last, k0 = -1, 0  # the anchor (step whose estimate xh is held; -1: the start, xh = 0); the next step
+    while k0 < L:
+        nxt = next(f for f in fixes if f >= k0)
+        k1 = min(nxt + 1, last + 1 + span)  # up to the next fix, at most `span` steps after the last anchor
+        e = E[:, k0:k1]
+        cs = np.cumsum(e, axis=1)
+        if sc.sensor == "accel":
+            # x_k = x_{k0-1} + dt [(k-k0+1) v_{k0-1} - dt sum_{i=k0}^{k-1} cs_i] - dt^2 cs_k / 2
+            ccs = np.concatenate([np.zeros((W, 1)), np.cumsum(cs[:, :-1], axis=1)], axis=1)
+            steps = np.arange(1, k1 - k0 + 1)
+            x = pos[:, None] + dt * (steps * vel[:, None] - dt * ccs) - 0.5 * dt * dt * cs
+            vel = vel - dt * cs[:, -1]
+        else:
+            x = pos[:, None] - dt * cs
+        pos = x[:, -1]
+        est = xh @ G[k0 - last - 1:k1 - last - 1].T  # position estimate, (W, k1 - k0)
+        K = gains[k1 - 1]
+        if K is not None:
+            prior = xh @ power(k1 - 1 - last).T
+            xh = prior + np.outer(pos - prior @ h, K[:, 0])
+            est[:, -1] = xh[:, 0]
+            last = k1 - 1
+        elif k1 - 1 - last == span or k1 == L:
+            xh = xh @ power(k1 - 1 - last).T
+            last = k1 - 1
+        err = est - x
+        sq[k0:k1] = np.einsum("wk,wk->k", err, err)
+        k0 = k1
+    return sq
+
+
+def replay_steps(filter_model, records, rate_hz: float, scenario: Scenario | None = None, sensor: str = "accel",
+                 stride_s: float | None = None, z: float = 2.0):
+    """Reference step loop of :func:`replay` (one Python iteration per filter step, windows stacked; tests)."""
     from imupipe.models import NoiseModel
     from imupipe.spectra import decimate
 
