@@ -73,6 +73,7 @@ __all__ = [
     "state_space",
     "covariance_analysis",
     "covariance_analysis_steps",
+    "replay_steps",
     "monte_carlo",
     "replay",
     "verify_model",
