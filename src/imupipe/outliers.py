@@ -51,8 +51,9 @@ chain of the zero/non-zero differences [4]_). The minimum run length is the smal
           \quad \text{samples}
 
 and at least ``min_s`` seconds (1 s: ``ceil(min_s f_s)`` samples). p0 and q are estimated on the differences outside
-the spans found (a stuck half of the record would otherwise make q ~ 1 and hide itself), to a fixed point: start
-with the spans of at least ``ceil(min_s f_s)`` samples left out, recompute, repeat while r_min grows.
+the spans found (a stuck half of the record would otherwise make q ~ 1 and hide itself), to a fixed point from
+below: start with the runs of at least max(ceil(min_s f_s), 3) samples left out, recompute r_min from the runs
+kept, and repeat while r_min grows (each pass keeps more runs, so p0, q and r_min only grow).
 
 References
 ----------
@@ -387,7 +388,7 @@ def stuck_spans(x, rate_hz: float, min_s: float = 1.0, alpha: float = STUCK_ALPH
     starts, lengths = _zero_runs(x)  # lengths in zero differences
     nd = max(n - 1, 0)
     floor = stuck_min_run(n, 0.0, 0.0, rate_hz, min_s, alpha)
-    r_min, p0, q = floor, 0.0, 0.0
+    r_min, p0, q = max(floor, 3), 0.0, 0.0  # from 3 samples up: p0 first from the isolated zero differences
     for _ in range(64):  # r_min never decreases: a fixed point in a few passes
         live = lengths + 1 < r_min  # runs shorter than the current minimum: chance runs
         excluded = int(np.sum(lengths[~live] + 1))  # samples of the candidate spans
