@@ -115,3 +115,70 @@ def test_adis16405_counts(shared_data, rec):
     # measured: imu1 [1, 0, 0, 11, 16, 19], imu2 [0, 0, 0, 5, 49, 20]; well under 1e-4 of the samples
     assert all(c < 100 for c in counts)
     assert sum(counts[3:]) > 0
+
+
+# ---- stuck spans: runs of exactly repeated samples longer than chance allows (imupipe.outliers.stuck_spans) ----
+
+
+def _quantised(rng, n, step=0.3):
+    """Gaussian samples (sigma 1) rounded to `step` sigma: a live but coarsely quantised sensor."""
+    return np.round(rng.standard_normal(n) / step) * step
+
+
+def test_a_stuck_half_is_found_with_its_span_to_one_sample(rng):
+    from imupipe.outliers import stuck_spans
+
+    n, i0, i1 = 400_000, 100_000, 300_000  # samples 100000 .. 299999 stuck: half the record
+    x = _quantised(rng, n)
+    x[i0:i1] = x[i0]
+    out = stuck_spans(x, RATE)
+    assert out["n_stuck_spans"] == 1
+    (span,) = out["spans"]
+    assert span["start_s"] == pytest.approx(i0 / RATE, abs=1.0 / RATE)
+    assert span["stop_s"] == pytest.approx((i1 - 1) / RATE, abs=1.0 / RATE)
+    assert span["value"] == x[i0] and span["fraction"] == pytest.approx(0.5, abs=2.0 / n)
+    # p0 and q are those of the live half (stuck samples left out): about P(two samples in one 0.3-sigma bin)
+    assert out["p0"] < 0.15 and out["q"] < 0.15
+
+
+def test_stuck_spans_on_float_data_at_the_record_ends_and_a_constant_record(rng):
+    from imupipe.outliers import stuck_spans
+
+    x = simulate(MODEL, 50_000, RATE, rng)  # float64 noise: no zero difference by chance
+    x[-300:] = x[-300]  # the last 3 s
+    x[:150] = 0.25  # the first 1.5 s
+    spans = stuck_spans(x, RATE)["spans"]
+    assert [(s["start_s"], s["stop_s"]) for s in spans] == [(0.0, 1.49), (497.0, 499.99)]
+    assert [s["value"] for s in spans] == [0.25, x[-1]]
+    assert stuck_spans(x[200:10_000], RATE)["n_stuck_spans"] == 0  # live part only
+    const = stuck_spans(np.full(1000, 3.0), RATE)["spans"]
+    assert len(const) == 1 and const[0]["n_samples"] == 1000 and const[0]["fraction"] == 1.0
+    assert stuck_spans(x[:50], RATE)["n_stuck_spans"] == 0  # 0.5 s constant: shorter than the 1 s floor
+
+
+def test_the_minimum_run_is_the_smallest_with_fewer_than_alpha_chance_runs():
+    from imupipe.outliers import STUCK_ALPHA, stuck_min_run
+
+    n, p0, q = 1_000_000, 0.3, 0.35
+    r = stuck_min_run(n, p0, q, RATE, min_s=0.0)
+    expected = lambda r: (n - 1) * p0 * q ** (r - 2)  # noqa: E731 (module docstring)
+    assert expected(r) < STUCK_ALPHA <= expected(r - 1)
+    assert stuck_min_run(n, p0, q, RATE) == 100  # the 1 s floor at 100 Hz dominates here
+
+
+@pytest.mark.parametrize("correlated", [False, True])
+def test_quantised_live_records_give_no_stuck_span(rng, correlated):
+    # 1e6 samples at 0.3-sigma steps, white or AR(1) (phi = 0.9: runs of equal values longer than independent
+    # differences give): the derived minimum alone (no 1 s floor) allows 0.01 chance runs per record, so a span
+    # here is a Poisson(0.01) event (p = 0.01) or a wrong threshold
+    from scipy.signal import lfilter
+
+    from imupipe.outliers import stuck_spans
+
+    e = rng.standard_normal(1_000_000)
+    y = lfilter([1.0], [1.0, -0.9], e) * math.sqrt(1 - 0.81) if correlated else e
+    x = np.round(y / 0.3) * 0.3
+    out = stuck_spans(x, RATE, min_s=0.0)
+    assert out["n_stuck_spans"] == 0, out["spans"][:3]
+    assert out["min_run_samples"] < RATE  # the derivation, not the floor, decided
+    assert stuck_spans(x, RATE)["n_stuck_spans"] == 0

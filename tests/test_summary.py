@@ -382,3 +382,67 @@ def test_the_filter_to_use_comes_first_with_its_file_and_units():
     assert "`results/x/kf/s/gyro.yaml`" in line and "0.6239 deg/sqrt(h) (0.0001815 rad/s/sqrt(Hz))" in line
     assert "GM sigma 0.825 deg/h (4e-06 rad/s), T 500 s" in line and "random walk" not in line
     assert _filter_line({"sensor": "gyro"}) is None
+
+
+def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
+    """An outliers report with a stuck half (the stage script on a written series), merged by the summary script:
+    the FLAG names dataset/sensor/axis, the value in the sensor's unit, the span in seconds and its share of the
+    record, ahead of the same record's non-stationarity and line FLAGs, which point back at it."""
+    import importlib.util
+    from pathlib import Path
+
+    import numpy as np
+    import yaml
+
+    from imupipe.io import write_series
+
+    scripts = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
+
+    def script(name):
+        spec = importlib.util.spec_from_file_location(f"stage_{name}", scripts / f"{name}.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+
+    rng = np.random.default_rng(7)
+    x = np.round(rng.standard_normal(200_000) / 0.3) * 0.3 * 0.01
+    x[100_000:] = 0.021  # the second half stuck
+    series = tmp_path / "x.nc"
+    write_series(series, x, rate_hz=100.0, units="m/s^2", attrs={"dataset": "trial", "sensor": "accel", "axis": "x"})
+    report = tmp_path / "outliers.yaml"
+    script("outliers").main(path_series=str(series), policy="warn", k=7.0, window_samples=100, max_indices=10,
+                            path_report=str(report))
+    rep = yaml.safe_load(report.read_text())
+    assert rep["n_stuck_spans"] == 1 and rep["stuck_spans"][0]["start_s"] == pytest.approx(1000.0, abs=0.01)
+    entry = {}
+    summ = script("summary")
+    summ._merge_checks(entry, rep)
+    summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "x", "units": {"amplitude": "m/s^2"},
+                               "lines": [{"frequency_hz": 0.25, "amplitude": 1e-3, "peak_ratio": 40.0}]})
+    stat = {"curves": [{"dataset": "trial", "axis": "x", "stationary": False, "p_value": 1e-6, "test": "calibrated",
+                        "included": True}]}
+    text = render_summary({"accel": {"bound": {**_bound(), **entry}, "stationarity": stat}})
+    flag = ("- FLAG stuck channel [trial/accel/x]: constant at 0.021 m/s^2 from 1000 s to 1999.99 s "
+            "(50 % of the record)")
+    assert flag in text
+    checks = [ln for ln in text.splitlines() if ln.startswith("- FLAG") or ln.startswith("- FAIL")]
+    assert checks[0] == flag
+    stat_line = next(ln for ln in checks if ln.startswith("- FLAG stationarity [trial/accel/x]"))
+    line_line = next(ln for ln in checks if ln.startswith("- FLAG lines [trial/accel/x]"))
+    assert "stuck span" in stat_line and "stuck span" in line_line
+
+
+def test_a_clean_outliers_report_adds_no_flag():
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "stage_summary", Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "summary.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    entry = {}
+    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "n_outliers": 0, "stuck_spans": [],
+                              "n_stuck_spans": 0})
+    assert entry == {}
+    assert render_summary({"accel": {"bound": _bound(), "stationarity": STATIONARITY}}) == \
+        render_summary({"accel": {"bound": {**_bound(), **entry}, "stationarity": STATIONARITY}})

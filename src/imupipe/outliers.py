@@ -33,6 +33,28 @@ Policy (:func:`screen_outliers`)
   replacement value carries no noise, which under-states the variance of those samples by sigma^2 each: also
   count/L relative.
 
+Stuck spans (:func:`stuck_spans`)
+---------------------------------
+A channel that stops updating repeats one value exactly: a run of r identical samples (r - 1 consecutive zero
+differences). A quantised but live sensor also repeats values, by chance. With p0 the fraction of zero
+differences and q the probability that a zero difference follows a zero difference (q = p0 for independent
+differences; q > p0 when a slow signal spans few quantisation steps), the expected number of chance runs of at
+least r identical samples in a record of n samples is
+
+.. math:: E(r) \approx (n - 1)\, p_0\, q^{\,r-2} \qquad (= (n-1)\,p_0^{\,r-1} \text{ for } q = p_0)
+
+(a run starts at a given difference with probability p0 and continues with q per sample: a first-order Markov
+chain of the zero/non-zero differences [4]_). The minimum run length is the smallest r with
+:math:`E(r) < \alpha`, :math:`\alpha = 0.01` runs per record:
+
+.. math:: r_{\min} = \left\lfloor 2 + \frac{\ln\big((n-1)\,p_0/\alpha\big)}{\ln(1/q)} \right\rfloor + 1
+          \quad \text{samples}
+
+and at least ``min_s`` seconds (1 s: ``ceil(min_s f_s)`` samples). p0 and q are estimated on the differences outside
+the spans found (a stuck half of the record would otherwise make q ~ 1 and hide itself), to a fixed point from
+below: start with the runs of at least max(ceil(min_s f_s), 3) samples left out, recompute r_min from the runs
+kept, and repeat while r_min grows (each pass keeps more runs, so p0, q and r_min only grow).
+
 References
 ----------
 .. [1] F. R. Hampel, "The influence curve and its role in robust estimation", JASA 69 (1974) 383-393.
@@ -40,6 +62,8 @@ References
        (MAD consistency constant and efficiency).
 .. [3] C. Croux, P. J. Rousseeuw, "Time-efficient algorithms for two highly robust estimators of scale",
        Computational Statistics 1 (1992) 411-428 (small-sample correction of the MAD).
+.. [4] W. Feller, "An Introduction to Probability Theory and Its Applications", vol. 1, 3rd ed., Wiley (1968),
+       ch. XIII.7 (runs of successes: expected number of runs of a given length).
 """
 
 from __future__ import annotations
@@ -50,7 +74,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["OutlierReport", "hampel", "expected_false_count", "screen_outliers", "POLICIES", "MAD_TO_SIGMA"]
+__all__ = ["OutlierReport", "hampel", "expected_false_count", "screen_outliers", "stuck_spans", "stuck_min_run",
+           "POLICIES", "MAD_TO_SIGMA", "STUCK_ALPHA"]
 
 #: Consistency constant of the MAD for a Gaussian: sigma = 1.4826 MAD.
 MAD_TO_SIGMA = 1.482602218505602
@@ -287,3 +312,97 @@ def _mean_square_step(x: np.ndarray) -> float:
         d = np.diff(x[i : i + HAMPEL_BATCH + 1])
         total += float(np.dot(d, d))
     return total / (x.size - 1)
+
+
+#: Expected number of chance runs (of identical samples, on a live quantised sensor) per record that the stuck-span
+#: minimum length allows (module docstring).
+STUCK_ALPHA = 0.01
+
+
+def _zero_runs(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of exactly equal consecutive samples: (first sample index, number of zero differences) of each run.
+    A run of L zero differences holds L + 1 identical samples. NaN never equals NaN: NaNs form no run."""
+    if x.size < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    same = x[1:] == x[:-1]  # no float temporary: one byte per sample
+    edges = np.diff(same.view(np.int8), prepend=np.int8(0), append=np.int8(0))
+    starts = np.flatnonzero(edges == 1)
+    stops = np.flatnonzero(edges == -1)
+    return starts, stops - starts
+
+
+def stuck_min_run(n: int, p0: float, q: float, rate_hz: float, min_s: float = 1.0,
+                  alpha: float = STUCK_ALPHA) -> int:
+    """The minimum stuck run, samples: the smallest r with (n - 1) p0 q^(r - 2) < alpha, at least ceil(min_s f_s)
+    (module docstring).
+
+    Parameters
+    ----------
+    n : int
+        Samples in the record.
+    p0 : float
+        Fraction of zero differences (1).
+    q : float
+        P(zero difference | previous difference zero) (1).
+    rate_hz : float
+        Sampling rate f_s, Hz.
+    min_s : float
+        Shortest span reported, s.
+    alpha : float
+        Expected chance runs per record allowed (runs).
+    """
+    floor = max(2, math.ceil(float(min_s) * float(rate_hz) - 1e-9))
+    if n < 2 or p0 <= 0.0 or q <= 0.0:
+        return floor  # no zero difference or none following another: no run of 3 samples by chance
+    if q >= 1.0:
+        return max(floor, n + 1)  # every zero difference continues: no live estimate, no span
+    r = 2.0 + math.log((n - 1) * p0 / alpha) / math.log(1.0 / q)
+    return max(floor, int(math.floor(r)) + 1)
+
+
+def stuck_spans(x, rate_hz: float, min_s: float = 1.0, alpha: float = STUCK_ALPHA) -> dict:
+    """Spans where the channel repeats one value exactly for longer than chance allows (module docstring).
+
+    Parameters
+    ----------
+    x : array_like
+        Full-rate series, u.
+    rate_hz : float
+        Sampling rate f_s, Hz.
+    min_s : float
+        Shortest span reported, s (default 1 s).
+    alpha : float
+        Expected number of chance runs per record that the minimum length allows (default 0.01).
+
+    Returns
+    -------
+    dict
+        ``spans``: list of ``{start_s, stop_s, value, n_samples, fraction}`` (times of the first and the last
+        constant sample from the record's start, s; the repeated value, u; samples in the span; share of the
+        record's samples, 1); ``n_stuck_spans``; ``min_run_samples`` (r_min, samples), ``min_run_s`` (s);
+        ``p0`` and ``q`` (1) as estimated outside the spans.
+    """
+    x = np.asarray(x, dtype=np.float64).ravel()
+    n = x.size
+    rate_hz = float(rate_hz)
+    starts, lengths = _zero_runs(x)  # lengths in zero differences
+    nd = max(n - 1, 0)
+    floor = stuck_min_run(n, 0.0, 0.0, rate_hz, min_s, alpha)
+    r_min, p0, q = max(floor, 3), 0.0, 0.0  # from 3 samples up: p0 first from the isolated zero differences
+    for _ in range(64):  # r_min never decreases: a fixed point in a few passes
+        live = lengths + 1 < r_min  # runs shorter than the current minimum: chance runs
+        excluded = int(np.sum(lengths[~live] + 1))  # samples of the candidate spans
+        zeros = int(np.sum(lengths[live]))
+        pairs = int(np.sum(lengths[live] - 1))
+        p0 = zeros / max(nd - excluded, 1)
+        q = pairs / zeros if zeros else 0.0
+        new = stuck_min_run(n, p0, max(p0, q), rate_hz, min_s, alpha)
+        if new <= r_min:
+            break
+        r_min = new
+    hit = lengths + 1 >= r_min
+    spans = [{"start_s": float(s / rate_hz), "stop_s": float((s + L) / rate_hz), "value": float(x[s]),
+              "n_samples": int(L + 1), "fraction": float((L + 1) / n)}
+             for s, L in zip(starts[hit].tolist(), lengths[hit].tolist())]
+    return {"spans": spans, "n_stuck_spans": len(spans), "min_run_samples": int(r_min),
+            "min_run_s": float(r_min / rate_hz), "p0": float(p0), "q": float(q), "alpha": float(alpha)}

@@ -2,10 +2,10 @@
 
 Per sensor type: bounded yes/no and the margin (min over curves and frequencies of S_model/S_sample), the
 inflation table (spec sheet vs bound, in the spec sheet's units), the states the filter keeps and why, and
-every failed or flagged check (stationarity, fit adequacy, Allan-domain check, narrowband lines, outliers,
-gaps, verification) with where it is (dataset/axis, frequency, tau). Built from the per-sensor YAML files a
-run writes (the bound contract, the identification, the stationarity summary); keys that a run does not
-write are simply absent from the summary (every lookup is tolerant).
+every failed or flagged check (stuck channels first, then stationarity, fit adequacy, Allan-domain check,
+narrowband lines, outliers, gaps, verification) with where it is (dataset/axis, frequency, tau). Built from the
+per-sensor YAML files a run writes (the bound contract, the identification, the stationarity summary); keys that
+a run does not write are simply absent from the summary (every lookup is tolerant).
 
 Nothing here prints: :func:`render_summary` returns the text.
 """
@@ -50,7 +50,7 @@ class Flag:
     sensor : str
     check : str
         ``bound``, ``stationarity``, ``fit adequacy``, ``allan check``, ``lines``, ``outliers``, ``gaps``,
-        ``verification``, ``per-axis bound``, ``parameter on boundary``.
+        ``stuck channel``, ``verification``, ``per-axis bound``, ``parameter on boundary``.
     where : str
         Curve (dataset/axis), frequency or component.
     detail : str
@@ -165,6 +165,11 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     """
     out: list[Flag] = []
     bound, identify, stationarity = bound or {}, identify or {}, stationarity or {}
+    # a stuck channel first: it explains the non-stationarity and the lines the same record shows below
+    stuck = [_stuck_flag(sensor, it) for src in (bound, identify, stationarity)
+             for it in _items(src.get("stuck_spans")) if isinstance(it, Mapping)]
+    stuck_where = {f.where for f in stuck}
+    out += stuck
     if bound and bound.get("bounded") is False:
         out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
                         f"{_num(bound.get('margin_frequency_hz'))} Hz",
@@ -222,7 +227,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             inc = c.get("included")
             out.append(Flag(sensor, "stationarity", where,
                             f"non-stationary (p = {_num(c.get('p_value'))}, {c.get('test', 'test')})"
-                            + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")))
+                            + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
+                            + (STUCK_NOTE if where in stuck_where else "")))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
@@ -237,7 +243,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         for src in (identify, stationarity, bound):
             for it in _items(src.get(key)):
                 if isinstance(it, Mapping):
-                    out.append(_line_flag(sensor, it))
+                    f = _line_flag(sensor, it)
+                    out.append(Flag(f.sensor, f.check, f.where, f.detail + STUCK_NOTE) if f.where in stuck_where else f)
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
@@ -433,6 +440,24 @@ def _bias_lines(bound: Mapping) -> list[str]:
         out.append("  - the records cannot check this initial variance: set identify.max_bias_time_s (s) or a "
                    "spec sheet's turn_on_bias to state it")
     return out
+
+
+#: Added to a stationarity or lines FLAG of a record that holds a stuck span.
+STUCK_NOTE = "; this record holds a stuck span (stuck channel above): check it before this result"
+
+
+def _stuck_flag(sensor: str, it: Mapping) -> Flag:
+    """The FLAG of one stuck span (imupipe.outliers.stuck_spans): where (dataset/sensor/axis), the repeated value in
+    the sensor's unit (the outliers file's ``units``), its first and last sample's time from the record's start (s)
+    and its share of the record's samples (%)."""
+    units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
+    where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
+    unit = units.get("value")
+    frac = it.get("fraction")
+    return Flag(sensor, "stuck channel", where or str(it.get("curve", "-")),
+                f"constant at {_num(it.get('value'), '{:.6g}')}{f' {unit}' if unit else ''} from "
+                f"{_num(it.get('start_s'), '{:.6g}')} s to {_num(it.get('stop_s'), '{:.6g}')} s"
+                + (f" ({_num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
 
 
 def _line_flag(sensor: str, it: Mapping) -> Flag:

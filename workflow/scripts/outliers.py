@@ -4,7 +4,7 @@ a YAML report, and under `remove` the cleaned series (netCDF4 alone, no xarray).
 import logging
 
 from imupipe.io import read_series, run_job, write_series, write_yaml_atomic
-from imupipe.outliers import removal_effect, screen_outliers
+from imupipe.outliers import removal_effect, screen_outliers, stuck_spans
 
 EFFECT_NOTE = {
     "remove": "the cleaned series (outliers replaced by their block median) feeds allan, decimate and lines",
@@ -31,9 +31,20 @@ def main(path_series: str, policy: str, k: float, window_samples: int, max_indic
     out = {"dataset": attrs.get("dataset"), "sensor": attrs.get("sensor"), "axis": attrs.get("axis"),
            "series": path_series, "rate_hz": float(rate), **report.to_dict(max_indices=max_indices),
            "threshold": float(k), "effect": effect}
-    out["units"] = {**out["units"], "rate_hz": "Hz", "threshold": "robust standard deviations (1.4826 MAD)"}
+    stuck = stuck_spans(x, rate)  # on the record as read: a stuck stretch is no outlier, the rule leaves it
+    out["stuck_spans"] = stuck["spans"]
+    out["n_stuck_spans"] = stuck["n_stuck_spans"]
+    out["stuck_rule"] = (f"runs of >= {stuck['min_run_samples']} identical samples ({stuck['min_run_s']:g} s): "
+                         f"expected chance runs (n - 1) p0 q^(r - 2) < {stuck['alpha']:g} with p0 = {stuck['p0']:.4g}, "
+                         f"q = {stuck['q']:.4g}, and at least 1 s")
+    out["units"] = {**out["units"], "rate_hz": "Hz", "threshold": "robust standard deviations (1.4826 MAD)",
+                    "stuck_spans": {"start_s": "s from the record's start", "stop_s": "s from the record's start",
+                                    "value": units, "n_samples": "samples", "fraction": "of the record's samples"}}
     write_yaml_atomic(out, path_report, header=f"outliers of {label}: Hampel/MAD rule, policy {policy}")
     logging.info("%s: %d outlier(s) of %d samples (policy %s)", label, report.n_outliers, report.n_samples, policy)
+    for sp in stuck["spans"]:
+        logging.warning("%s: stuck channel, constant at %.6g %s from %.6g s to %.6g s (%.3g %% of the record)", label,
+                        sp["value"], units, sp["start_s"], sp["stop_s"], 100.0 * sp["fraction"])
     if path_cleaned is not None:
         attrs.pop("rate_hz", None)
         attrs["outliers_removed"] = int(report.n_outliers)

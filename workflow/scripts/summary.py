@@ -4,7 +4,7 @@ One section per spec sheet. The bound, identify and stationarity files of each s
 inflation table, the states kept and the checks (imupipe.summary.render_summary). Files of the other kinds
 (contract, verify, lines, outliers, ...: whatever the stage files list in SUMMARY_INPUTS) are matched to a sensor
 by their `sensor` key or file name and to a spec sheet by a folder of that name; their check keys (verified,
-failed_checks, lines, narrowband, excluded, outliers, gaps) join the sensor's checks. A file matched to no sensor
+failed_checks, lines, narrowband, excluded, outliers, gaps, stuck_spans) join the sensor's checks. A file matched to no sensor
 is listed with its path. A refused Kalibr export is flagged under "Exports"."""
 
 import logging
@@ -14,7 +14,7 @@ from pathlib import Path
 from imupipe.io import read_yaml, run_job, write_text_atomic
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
-CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps")
+CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans")
 
 
 def _sensor_spec(path: str, data, sensors: list, specs: list):
@@ -31,11 +31,13 @@ def _merge_checks(target: dict, data: dict) -> None:
             continue
         if key == "verified":
             target["verified"] = bool(target.get("verified", True)) and bool(data["verified"])
-        elif key == "lines" and isinstance(data[key], list):
-            # a lines file holds one dataset/sensor/axis and the units of its keys: each line carries them, so its
-            # FLAG names where it is and what unit its amplitude has
+        elif key in ("lines", "stuck_spans") and isinstance(data[key], list):
+            # a lines or outliers file holds one dataset/sensor/axis and the units of its keys: each line (stuck
+            # span) carries them, so its FLAG names where it is and what unit its amplitude (value) has
             tag = {k: data[k] for k in ("dataset", "sensor", "axis") if data.get(k) is not None}
             units = data.get("units") if isinstance(data.get("units"), dict) else {}
+            if key == "stuck_spans":
+                units = units.get("stuck_spans") if isinstance(units.get("stuck_spans"), dict) else {}
             items = [{**tag, **it, "units": units} if isinstance(it, dict) else it for it in data[key]]
             target[key] = (target[key] if isinstance(target.get(key), list) else []) + items
         elif isinstance(data[key], list) and isinstance(target.get(key), list):
