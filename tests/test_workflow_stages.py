@@ -413,8 +413,9 @@ class TestPerAxisExport:
 
 def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_replay_cannot_run(tiny_run):
     """verify.filter_rate_hz differing from application.rate_hz (the KF export's): a warning on the terminal at
-    start-up (the run goes on); a filter rate that does not divide decimate.rate_hz: refused before any job, naming
-    both keys (the verify job would otherwise stop mid-run on the replay)."""
+    start-up (the run goes on); a filter rate that does not divide the records' rate: refused before any job, naming
+    the key and the record (the verify job would otherwise stop mid-run on the replay); a filter faster than the
+    decimation: the replay reads the full-rate series."""
     work, config = tiny_run
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())  # the defaults the tiny config keeps
     for key, value in yaml.safe_load(config.read_text()).items():
@@ -430,8 +431,15 @@ def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_re
     faster = _changed(work, config, "fast_verify", verify={"filter_rate_hz": base * 3})
     proc = snakemake(work, "-n", config=faster, check=False)
     assert proc.returncode != 0
-    assert (f"verify.filter_rate_hz = {base * 3} Hz must divide decimate.rate_hz = {cfg['decimate']['rate_hz']} Hz"
+    rate = cfg["simulation"]["rate_hz"]
+    assert (f"record rate {rate:g} Hz is not a whole multiple of verify.filter_rate_hz = {base * 3} Hz"
             in proc.stdout + proc.stderr)
+    # 10 Hz on the 20 Hz records decimated to 1 Hz for the bound: the verify jobs read the full-rate series
+    fast = _changed(work, config, "fast_filter", verify={"filter_rate_hz": rate / 2},
+                    application={"rate_hz": rate / 2})
+    proc = snakemake(work, "-n", "--forcerun", "verify", "--verbose", config=fast)
+    verify_inputs = proc.stdout.split("rule verify:", 1)[1].split("output:", 1)[0]
+    assert "/series/" in verify_inputs and "/decimated/" not in verify_inputs, verify_inputs
     # a fix rate that is not a whole fraction of the filter rate: refused before any job, naming both keys
     odd_fix = _changed(work, config, "odd_fix", verify={"fix_rate_hz": base / 2.5})
     proc = snakemake(work, "-n", config=odd_fix, check=False)

@@ -1,5 +1,5 @@
 """Verification of one spec sheet's bound of one sensor type (rule verify): imupipe.stages.verify on the bound
-file and the decimated records of the included curves (stacked spectra file). Writes the report (SI) and the
+file and the included curves' records (stacked spectra file), block-averaged to the reference filter's rate. Writes the report (SI) and the
 figure sqrt(P) against the true / empirical RMS error of the exported model."""
 
 import math
@@ -13,6 +13,7 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
          max_bias_time_s: float | None = None, fix_rate_hz: float | None = None) -> None:
     from imupipe.io import read_series
     from imupipe.merge import Stacked
+    from imupipe.spectra import decimate
     from imupipe.plot import plot_verification, save_figure
     from imupipe.specsheet import load_spec
     from imupipe.stages.verify import HEADER, records_at_one_rate, verify_sensor
@@ -23,8 +24,10 @@ def main(path_bound: str, path_spectra: str, path_spec: str, path_truth, records
     for path in records:
         y, r, at = read_series(path)
         if (label := f"{at.get('dataset')}/{at.get('axis')}") in included:
-            series[label] = (y, r)
-    series, rate = records_at_one_rate(series)  # one decimated rate, or an error naming the record
+            # block-averaged to the filter rate on reading (one full-rate record in memory at a time)
+            series[label] = decimate(y, r, filter_rate_hz) if r > filter_rate_hz * (1 + 1e-9) else (y, r)
+        del y
+    series, rate = records_at_one_rate(series)  # one rate, or an error naming the record
     report, checks = verify_sensor(
         read_yaml(path_bound), sensor, spec=sheet.models[sensor], records=series, rate_hz=rate,
         truth=load_spec(path_truth).models[sensor] if path_truth else None,
