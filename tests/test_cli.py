@@ -191,7 +191,6 @@ def test_run_options_after_the_config_are_imupipes_and_after_dashes_snakemakes(m
 
     calls = []
     monkeypatch.setattr(cli, "_call", lambda cmd, env=None: calls.append(cmd) or 0)
-    monkeypatch.setattr(cli, "_print_summary", lambda results: calls.append(("summary", results)))
     assert main(["run", str(TINY), "--cores", "3", "--directory", str(tmp_path), "--", "--keep-going"]) == 0
     cmd = calls[0]
     assert cmd[cmd.index("--cores") + 1] == "3"

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from imupipe.kf import continuous_model, discretize, export_kf, initial_covariance, kalibr_yaml
+from imupipe.kf import continuous_model, discretize, export_kf, initial_covariance
 from imupipe.models import NoiseModel
 
 # STIM-300-like accelerometer (paper Table 2, inflated column, in SI): N from 0.0425 m/s/sqrt(h)
@@ -145,21 +145,6 @@ class TestExport:
         assert back["discrete_noise"]["gauss_markov"][0]["phi"] == pytest.approx(math.exp(-0.01 / T_ACC))
         assert back["state_units"] == ["m", "m/s", "m/s^2", "m/s^2", "1"]
 
-    def test_kalibr(self, accel):
-        gyro = NoiseModel(white=4.4e-5, random_walk=2e-7)
-        d = kalibr_yaml(gyro, accel, rate_hz=125.0)
-        assert d["update_rate"] == 125.0
-        assert d["gyroscope_noise_density"] == 4.4e-5
-        assert d["gyroscope_random_walk"] == 2e-7
-        assert d["accelerometer_noise_density"] == N_ACC
-        k_eff = math.sqrt(K_ACC**2 + 2 * SIGMA_ACC**2 / T_ACC)
-        assert d["accelerometer_random_walk"] == pytest.approx(k_eff, rel=1e-15)
-        # the folded random walk bounds GM + random walk in PSD at every frequency
-        f = np.logspace(-7, 3, 2000)
-        folded = NoiseModel(random_walk=k_eff).psd(f)
-        assert np.all(folded >= NoiseModel(gauss_markov=accel.gauss_markov, random_walk=K_ACC).psd(f))
-        with pytest.warns(UserWarning, match="no longer bounds"):
-            kalibr_yaml(gyro, accel, 125.0, fold_gm=False)
 
 
 def test_discretize_stiff_gm_matches_the_closed_form():

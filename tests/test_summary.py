@@ -2,7 +2,7 @@
 
 import pytest
 
-from imupipe.summary import flags_of, render_summary, write_summary
+from imupipe.summary import flags_of, render_summary
 
 
 def _bound(bounded=True, margin=1.0, **extra):
@@ -88,12 +88,6 @@ def test_missing_keys_are_tolerated_and_nothing_is_invented():
     text = render_summary({"accel": {}})
     assert "## accel: no bound" in text
     assert "FAIL" not in text and "FLAG" not in text
-
-
-def test_write_summary(tmp_path):
-    path = tmp_path / "summary.md"
-    text = write_summary({"gyro": {"bound": _bound()}}, path)
-    assert path.read_text() == text
 
 
 @pytest.mark.parametrize("on_fail_included, phrase", [(False, "excluded from the bound"), (True, "kept in the bound")])

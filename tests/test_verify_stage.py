@@ -8,7 +8,8 @@ import pytest
 
 from imupipe.bound import upper_envelope_from_identification
 from imupipe.models import NoiseModel
-from imupipe.verify import line_policy_from_files, verification_stage
+from imupipe.lines import line_policy_from_files
+from imupipe.verify import verification_stage
 
 
 def test_upper_envelope_from_an_identify_file_closed_form():

@@ -313,10 +313,10 @@ class TestPerAxisIdentification:
 
 
 class TestDominatingModel:
-    """identify.dominating_model: the envelope the bound reads when the axes are identified apart."""
+    """models.dominating_model: the envelope the bound reads when the axes are identified apart."""
 
     def test_dominates_every_model_and_touches_the_extremes(self):
-        from imupipe.identify import dominating_model
+        from imupipe.models import dominating_model
         from imupipe.models import NoiseModel
 
         models = [NoiseModel(white=1e-3, gauss_markov=((2e-4, 10.0),), random_walk=1e-6),
@@ -334,7 +334,7 @@ class TestDominatingModel:
         assert s * s / T == pytest.approx(max(2e-4**2 / 10.0, 1e-4**2 / 300.0), rel=1e-12)
 
     def test_one_model_is_its_own_envelope(self):
-        from imupipe.identify import dominating_model
+        from imupipe.models import dominating_model
         from imupipe.models import NoiseModel
 
         m = NoiseModel(white=1e-3, gauss_markov=((2e-4, 10.0), (1e-4, 500.0)), random_walk=1e-6)

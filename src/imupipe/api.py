@@ -289,7 +289,7 @@ def noise_model(
     lines_policy : {None, "model", "exclude", "keep"}, optional
         Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
         `lines_resolution_hz`, Hz, `lines_alpha` and `lines_floor_window_bins`) and apply the policy
-        (:func:`imupipe.verify.line_policy_from_files`) over the whole decimated band (default None: no search;
+        (:func:`imupipe.lines.line_policy_from_files`) over the whole decimated band (default None: no search;
         the workflow's default is ``model``).
     fix_s : float, optional
         Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's

@@ -451,17 +451,6 @@ def _call(cmd: Sequence[str], env: dict) -> int:
     return rc
 
 
-def _print_summary(results: Path) -> None:
-    """Print the run's summary: ``summary.md`` where the workflow wrote one, else rendered from its files."""
-    from imupipe.summary import summarise_run
-
-    written = sorted(results.rglob("summary.md")) if results.is_dir() else []
-    text = "\n".join(p.read_text() for p in written) if written else summarise_run(results) if results.is_dir() else ""
-    if text:
-        print()
-        print(text.rstrip())
-
-
 def _parser() -> argparse.ArgumentParser:
     from imupipe import __version__
 

@@ -58,7 +58,6 @@ __all__ = [
     "discretize",
     "initial_covariance",
     "export_kf",
-    "kalibr_yaml",
 ]
 
 _RATE_UNIT = SI_UNITS
@@ -417,54 +416,6 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
             "unit": u,
         },
         "notes": notes,
-    }
-
-
-def kalibr_yaml(gyro_model, accel_model, rate_hz: float, rostopic: str = "/imu0", fold_gm: bool = True) -> dict:
-    r"""Kalibr ``imu.yaml`` entries (white noise density and bias random walk, SI).
-
-    Kalibr's IMU model has two terms per sensor: ``*_noise_density`` = :math:`N` (rad/s/sqrt(Hz),
-    m/s^2/sqrt(Hz)) and ``*_random_walk`` = :math:`K` (rad/s^2/sqrt(Hz) = rad/s/sqrt(s),
-    m/s^3/sqrt(Hz)). It has no GM state; with `fold_gm` each GM term is folded into the random walk
-    conservatively: a random walk with :math:`K'^2 = 2\sigma^2/T` has PSD
-    :math:`(2\sigma^2/T)/(2\pi f)^2 \ge 2\sigma^2 T/(1 + (2\pi f T)^2)` at every :math:`f > 0`,
-    so :math:`K_{eff} = \sqrt{K^2 + \sum_i 2\sigma_i^2/T_i}` bounds GM + random walk in PSD.
-
-    Parameters
-    ----------
-    gyro_model, accel_model : imupipe.models.NoiseModel
-        SI models (rad/s and m/s^2).
-    rate_hz : float
-        IMU update rate, Hz.
-    rostopic : str, optional
-        Default ``"/imu0"``.
-    fold_gm : bool, optional
-        Fold GM terms into the random walk as above (default True). False ignores them (warns:
-        not a bound).
-
-    Returns
-    -------
-    dict
-        ``rostopic``, ``update_rate``, ``accelerometer_noise_density``,
-        ``accelerometer_random_walk``, ``gyroscope_noise_density``, ``gyroscope_random_walk``.
-    """
-
-    def k_eff(m, name):
-        if not m.gauss_markov:
-            return float(m.random_walk)
-        if fold_gm:
-            return float(math.sqrt(m.random_walk**2 + sum(2 * s**2 / T for s, T in m.gauss_markov)))
-        warnings.warn(f"{name} GM terms are dropped from the Kalibr model: it no longer bounds the data",
-                      UserWarning, stacklevel=3)
-        return float(m.random_walk)
-
-    return {
-        "rostopic": rostopic,
-        "update_rate": float(rate_hz),
-        "accelerometer_noise_density": float(accel_model.white),
-        "accelerometer_random_walk": k_eff(accel_model, "accelerometer"),
-        "gyroscope_noise_density": float(gyro_model.white),
-        "gyroscope_random_walk": k_eff(gyro_model, "gyroscope"),
     }
 
 

@@ -86,6 +86,7 @@ import numpy as np
 
 __all__ = [
     "Line",
+    "line_policy_from_files",
     "LineSearch",
     "LinePolicy",
     "find_lines",
@@ -613,3 +614,38 @@ def line_policy(lines, dt: float, application_band_hz, policy: str = "model", fr
                 rec.update(action="exclude", reason=reason)
         decisions.append(rec)
     return LinePolicy(policy=policy, narrowband=tuple(nb), exclude=tuple(ex), decisions=tuple(decisions))
+
+
+def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model", application_band_hz=None):
+    """:func:`line_policy` of every line in lines files (the workflow's per-axis lines YAMLs).
+
+    Parameters
+    ----------
+    docs : mapping of str to dict
+        File name -> content (:meth:`imupipe.lines.LineSearch.to_dict`: a ``lines`` list of
+        :class:`imupipe.lines.Line` fields).
+    dt : float
+        Decimated sample interval, s.
+    frequency : array_like, optional
+        Decimated PSD frequency grid, Hz.
+    policy : {"model", "exclude", "keep"}
+    application_band_hz : (float, float) or None
+        Band of the decimated spectrum the filter is sensitive to, Hz; None: all of it, [0, 1/(2 dt)].
+
+    Returns
+    -------
+    imupipe.lines.LinePolicy or None
+        None when `docs` is empty (no lines stage).
+    """
+    if not docs:
+        return None
+    lines = []
+    for name, doc in docs.items():
+        if not isinstance(doc, dict) or "lines" not in doc or not isinstance(doc["lines"], (list, type(None))):
+            raise ValueError(f"{name}: expected a lines file with a 'lines' list (LineSearch.to_dict())")
+        try:
+            lines += [Line(**d) for d in doc.get("lines") or ()]
+        except TypeError as exc:
+            raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
+    band = application_band_hz if application_band_hz is not None else (0.0, 0.5 / float(dt))
+    return line_policy(lines, float(dt), band, policy=policy, frequency=frequency)

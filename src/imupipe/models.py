@@ -45,7 +45,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["NoiseModel", "gm_avar", "narrowband_avar", "narrowband_psd", "expm1x", "FLICKER_AV", "COMPONENTS"]
+__all__ = ["NoiseModel", "dominating_model", "gm_avar", "narrowband_avar", "narrowband_psd", "expm1x", "FLICKER_AV", "COMPONENTS"]
 
 #: Allan variance of flicker noise of coefficient B is FLICKER_AV * B^2 (ADEV = 0.664 B).
 FLICKER_AV = 2.0 * math.log(2.0) / math.pi
@@ -548,3 +548,51 @@ class NoiseModel:
         if self.dt is not None:
             parts.append(f"dt={self.dt:.6g}")
         return "NoiseModel(" + ", ".join(parts) + ")"
+
+
+def dominating_model(models):
+    r"""The componentwise upper envelope of several noise models: one model whose PSD is >= each model's PSD at
+    every frequency (for the upper envelope of curves identified separately, e.g. per axis).
+
+    White N, flicker B, random walk K and quantization Q: the largest. Gauss-Markov terms, matched by rank of T
+    (index i over the models, models with fewer terms contribute nothing to that index): the tightest single GM
+    dominating all terms i. A GM (sigma_m, T_m) dominates (sigma, T) at every frequency iff
+    :math:`\sigma_m^2 T_m \ge \sigma^2 T` (f -> 0) and :math:`\sigma_m^2/T_m \ge \sigma^2/T` (f -> inf) (from the
+    two-sided PSD :math:`2\sigma^2 T/(1 + (2\pi f T)^2)`), so with :math:`A = \max \sigma^2 T` and
+    :math:`B = \max \sigma^2/T`: :math:`T_m = \sqrt{A/B}`, :math:`\sigma_m^2 = \sqrt{A B}`. Each component of
+    the result dominates the same component of every model, so the sum dominates every model's PSD
+    (docs/method.md, "The bound"). Narrowband terms are not combined (ValueError if any model has one).
+
+    Parameters
+    ----------
+    models : sequence of imupipe.models.NoiseModel
+        SI models (same sensor type).
+
+    Returns
+    -------
+    imupipe.models.NoiseModel
+        SI; dt of the first model.
+    """
+    models = list(models)
+    if not models:
+        raise ValueError("dominating_model: no model given")
+    if any(getattr(m, "narrowband", ()) for m in models):
+        raise ValueError("dominating_model: narrowband terms are not combined")
+    n_gm = max(len(m.gauss_markov) for m in models)
+    gm = []
+    for i in range(n_gm):
+        terms = [sorted(m.gauss_markov, key=lambda st: st[1])[i] for m in models if len(m.gauss_markov) > i]
+        terms = [(float(s), float(T)) for s, T in terms if s > 0 and T > 0]
+        if not terms:
+            continue
+        a = max(s * s * T for s, T in terms)
+        b = max(s * s / T for s, T in terms)
+        gm.append((math.sqrt(math.sqrt(a * b)), math.sqrt(a / b)))
+    return NoiseModel(
+        white=max(float(m.white) for m in models),
+        gauss_markov=tuple(gm),
+        random_walk=max(float(m.random_walk) for m in models),
+        flicker=max(float(m.flicker) for m in models),
+        quantization=max(float(getattr(m, "quantization", 0.0) or 0.0) for m in models),
+        dt=models[0].dt,
+    )

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["Flag", "discover_run", "flags_of", "psd_usage_flags", "load_sensor_files", "markdown_to_html", "render_summary",
-           "sensors_from_paths", "summarise_run", "write_summary"]
+           "summarise_run"]
 
 
 #: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
@@ -685,22 +685,6 @@ def load_sensor_files(bound: str | Path | None = None, identify: str | Path | No
         if path is not None and Path(path).exists():
             out[key] = read_yaml(path)
     return out
-
-
-def write_summary(runs: Mapping[str, Mapping[str, Any]], path: str | Path, *, title: str = "imupipe run summary"
-                  ) -> str:
-    """Render the summary, write it to `path` atomically and return the text."""
-    from imupipe.io import write_text_atomic
-
-    text = render_summary(runs, title=title)
-    write_text_atomic(text, path)
-    return text
-
-
-def sensors_from_paths(sensors: Sequence[str], bounds: Sequence[str], identify: Sequence[str],
-                       stationarity: Sequence[str]) -> dict:
-    """Sensor -> files dict from parallel lists of paths (the order of `sensors`)."""
-    return {s: load_sensor_files(b, i, st) for s, b, i, st in zip(sensors, bounds, identify, stationarity, strict=True)}
 
 
 def discover_run(results: str | Path) -> dict:

@@ -209,11 +209,6 @@ def _shared(st, sf):
     return tuple((i, sf.index(s)) for i, s in enumerate(st) if s in ("x", "v", "theta") and s in sf)
 
 
-def _kin_index(states):
-    """Indices of the kinematic states (x, v or theta) in a state list."""
-    return [i for i, s in enumerate(states) if s in ("x", "v", "theta")]
-
-
 @dataclass
 class Verification:
     """Result of :func:`covariance_analysis` / :func:`replay` (SI).
@@ -805,43 +800,6 @@ def verification_report(bound_model, sensor: str, spec=None, upper=None, truth=N
                                    rate_hz=rate_hz, fix_s=fix_s, horizon_s=horizon_s, sigma_fix=sigma_fix,
                                    filter_rate_hz=filter_rate_hz, reduce=reduce, **kw)
     return report
-
-
-def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model", application_band_hz=None):
-    """:func:`imupipe.lines.line_policy` of every line in lines files (the workflow's per-axis lines YAMLs).
-
-    Parameters
-    ----------
-    docs : mapping of str to dict
-        File name -> content (:meth:`imupipe.lines.LineSearch.to_dict`: a ``lines`` list of
-        :class:`imupipe.lines.Line` fields).
-    dt : float
-        Decimated sample interval, s.
-    frequency : array_like, optional
-        Decimated PSD frequency grid, Hz.
-    policy : {"model", "exclude", "keep"}
-    application_band_hz : (float, float) or None
-        Band of the decimated spectrum the filter is sensitive to, Hz; None: all of it, [0, 1/(2 dt)].
-
-    Returns
-    -------
-    imupipe.lines.LinePolicy or None
-        None when `docs` is empty (no lines stage).
-    """
-    if not docs:
-        return None
-    from imupipe.lines import Line, line_policy
-
-    lines = []
-    for name, doc in docs.items():
-        if not isinstance(doc, dict) or "lines" not in doc or not isinstance(doc["lines"], (list, type(None))):
-            raise ValueError(f"{name}: expected a lines file with a 'lines' list (LineSearch.to_dict())")
-        try:
-            lines += [Line(**d) for d in doc.get("lines") or ()]
-        except TypeError as exc:
-            raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
-    band = application_band_hz if application_band_hz is not None else (0.0, 0.5 / float(dt))
-    return line_policy(lines, float(dt), band, policy=policy, frequency=frequency)
 
 
 def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth=None, records=None,

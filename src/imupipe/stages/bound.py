@@ -4,7 +4,7 @@ Over every included curve's two-sided PSD (decimated, interval ``dt``), the spec
 bin down to :math:`0.01/h` (h = ``horizon_s``, verify.fix_s + application.horizon_s), the identified upper
 envelope (:func:`imupipe.bound.upper_envelope_from_identification` of the identify record), restricted to the
 components the identification kept: :func:`imupipe.bound.bound_psd`, the sensor's spectral lines entering
-through its line policy (:func:`imupipe.verify.line_policy_from_files`). Then the Allan-domain check of the
+through its line policy (:func:`imupipe.lines.line_policy_from_files`). Then the Allan-domain check of the
 bound's kept components against the sample AVs' lower limits over :math:`[1/f_{app}, h]`
 (:func:`imupipe.bound.check_allan`); when the identification's pooling test says the axes differ, a bounding
 model per axis (:func:`imupipe.bound.bound_by_axis`, each with that axis's envelope, lines and Allan check);
@@ -111,7 +111,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
                                upper_envelope_from_identification)
     from imupipe.io import plain
     from imupipe.models import NoiseModel
-    from imupipe.verify import line_policy_from_files
+    from imupipe.lines import line_policy_from_files
 
     f = np.asarray(frequency, dtype=np.float64)
     curves = {k: np.asarray(v) for k, v in psd.items()}
@@ -216,7 +216,7 @@ def axis_bound_stage(frequency, psd, edf, label: str, spec_model, identified: di
     arguments as :func:`bound_sensor`'s."""
     from imupipe.bound import bound_psd, upper_envelope_from_identification
     from imupipe.io import plain
-    from imupipe.verify import line_policy_from_files
+    from imupipe.lines import line_policy_from_files
 
     f = np.asarray(frequency, dtype=np.float64)
     pol = line_policy_from_files(dict(lines or {}), dt, f, line_policy, application_band_hz)

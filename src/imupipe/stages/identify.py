@@ -12,7 +12,7 @@ From the Allan-variance curves of every included axis of every record (each at i
    Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
 5. the test whether the curves may be pooled (:func:`imupipe.identify.pooling_test`) and, where not, one
    identification per axis by the same rule, the envelope the bound reads then dominating the pooled and every
-   per-axis envelope (:func:`imupipe.identify.dominating_model`);
+   per-axis envelope (:func:`imupipe.models.dominating_model`);
 6. slope-line readings (:func:`imupipe.identify.slope_line`) and, for simulated data, the truth beside the fit.
 
 Plain values in (:class:`Curve` tuples, the config's numbers, the truth as a
@@ -159,7 +159,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     fit's bootstrap and refit (the pooling test's is :data:`SEED_POOLING`).
 
     Raises ValueError when `curves` is empty."""
-    from imupipe.identify import dominating_model, fit_allan, pooling_test, select_components, slope_line
+    from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
+    from imupipe.models import dominating_model
     from imupipe.models import NoiseModel
 
     curves = [Curve(*c) for c in curves]
