@@ -224,7 +224,7 @@ class TestWhiteNoiseInflation:
 
 class TestSmoothed:
     def test_bands_match_spectra(self, gyro_curves):
-        from imupipe.bound import _band_groups, _group_mean
+        from imupipe.bound.engine import _band_groups, _group_mean
 
         f, curves, edf = gyro_curves
         bands = smooth_log_bands(f, curves, 10, edf=edf, taper="hann")
@@ -242,7 +242,7 @@ class TestSmoothed:
         assert r.model.white < gyro_bound.model.white  # less periodogram scatter at high frequency
 
     def test_min_edf_merges_low_bands(self, gyro_curves):
-        from imupipe.bound import _band_groups
+        from imupipe.bound.engine import _band_groups
 
         f, _, edf = gyro_curves
         starts, counts, gedf = _band_groups(f[1:], 10, edf[1:], "hann", 20.0)
@@ -354,7 +354,7 @@ def test_dominance_reduction_keeps_the_lp_optimum(rng):
     # implied by a kept one
     from scipy.optimize import linprog
 
-    from imupipe.bound import _undominated
+    from imupipe.bound.engine import _undominated
     from imupipe.models import NoiseModel
 
     f = np.linspace(1e-4, 0.5, 5000)

@@ -12,7 +12,7 @@ Nothing here prints: :func:`render_summary` returns the text.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any

@@ -95,44 +95,17 @@ References
 
 Package layout (issue 18): :mod:`~imupipe.bound.engine` (the LP), :mod:`~imupipe.bound.paper` (the hand
 inflation), :mod:`~imupipe.bound.allan_check` (Allan-domain checks, upper envelope), :mod:`~imupipe.bound.report`
-(:class:`BoundResult`). Every name stays importable from ``imupipe.bound``.
+(:class:`BoundResult`). Every public name stays importable from ``imupipe.bound``; private names stay
+in their home submodule.
 """
 
 from imupipe.bound.report import (  # noqa: F401
     BoundResult,
-    _inflation,
 )
 from imupipe.bound.engine import (  # noqa: F401
     BOUND_COMPONENTS,
     DEFAULT_MIN_EDF,
     MODES,
-    _DIRECT_LP_ROWS,
-    _EPS_BOUND,
-    _LPSolution,
-    _Problem,
-    _T_XATOL,
-    _all_frequency_margin,
-    _apply_exclude,
-    _band_groups,
-    _bin_r,
-    _constraint_matrix,
-    _curves_to_array,
-    _default_T_grid,
-    _evaluate,
-    _group_mean,
-    _highs_min,
-    _log_weights,
-    _normalise_keep,
-    _prepare,
-    _profile_T,
-    _quiet_highs,
-    _result,
-    _setup_all_frequency,
-    _solve_lp,
-    _spec_components,
-    _undominated,
-    _upper_psd,
-    _x_to_model,
     bound_psd,
     looseness,
     margin,
