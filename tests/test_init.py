@@ -134,3 +134,20 @@ def test_existing_files_kept_unless_force(record, tmp_path, capsys):
     assert "not overwritten (--force" in capsys.readouterr().err and cfg.read_text() == "# mine\n"
     assert _init(tmp_path, record, "--spec", SPEC, "--force") == 0
     assert "window_s" in cfg.read_text()
+
+
+def test_r_file_columns_guessed_units_left_to_fill(tmp_path, capsys):
+    """An ADIS16405-like .rda (column names 'Gyro. X' ..., rate in the freq attribute, no units in the file)."""
+    from test_readers import write_r_matrix
+
+    names = [f"{s}. {a}" for s in ("Gyro", "Accel") for a in "XYZ"]
+    matrix = 1e-3 * np.random.default_rng(5).standard_normal((4000, 6))
+    path = write_r_matrix(tmp_path / "imu.rda", matrix, names, freq=2.0)
+    assert main(["init", str(path), "--spec", str(SPEC), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "imu: gyro_unit" in out and "imu: accel_unit" in out and "gyro_x (column" not in out
+    rows = [ln.split("\t") for ln in (tmp_path / "o" / "datasets.tsv").read_text().splitlines() if ln[0] != "#"]
+    row = dict(zip(rows[0], rows[1]))
+    assert (row["format"], row["rate_hz"], row["gyro_x"], row["accel_z"]) == ("rdata", "2", "Gyro. X", "Accel. Z")
+    c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
+    assert c["psd"]["window_s"] == 500.0 and c["application"]["horizon_s"] == 500.0  # 2000 s: T/4, T/4

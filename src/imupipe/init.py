@@ -143,7 +143,19 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None) -> RecordIn
 
     path = Path(path)
     fmt = format_of(path, "auto")
-    meta = probe(path, fmt, rate_hz)
+    if fmt == "rdata":  # no index: the column names first, then a probe of the channels guessed from them
+        from imupipe.readers.rdata import rdata_columns
+
+        names = rdata_columns(path)
+        guessed = guess_channels(names)[0]
+        if not guessed:
+            raise ValueError(f"{path}: no gyro / accel column recognised among {', '.join(map(repr, names))}: "
+                             "write its dataset-sheet row by hand (config/README.md)")
+        # (R files are read in full, converted with a unit: SI stands in, the rate and length do not depend on it)
+        meta = probe(path, fmt, rate_hz, channels=guessed, units={"gyro": "rad/s", "accel": "m/s^2"})
+        meta = type(meta)(**{**meta.__dict__, "channels": tuple(names)})
+    else:
+        meta = probe(path, fmt, rate_hz)
     row = {"dataset": dataset, "path": str(path), "format": fmt, "rate_hz": ""}
     todo: list[str] = []
     if fmt == "rosbag":  # sensor_msgs/Imu: the reader's default fields, SI by the message definition
