@@ -151,3 +151,46 @@ def test_r_file_columns_guessed_units_left_to_fill(tmp_path, capsys):
     assert (row["format"], row["rate_hz"], row["gyro_x"], row["accel_z"]) == ("rdata", "2", "Gyro. X", "Accel. Z")
     c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
     assert c["psd"]["window_s"] == 500.0 and c["application"]["horizon_s"] == 500.0  # 2000 s: T/4, T/4
+
+
+def test_ros_bag_and_netcdf_rows(tmp_path, capsys):
+    """A ROS 1 bag (sensor_msgs/Imu: SI, fields by default, rate from the stamps) and a netCDF file whose
+    variables carry their units (``from_file``), 1200 s at 2 Hz each."""
+    pytest.importorskip("rosbags")
+    from test_readers import TestRosbag
+    from test_readers_faults import write_nc
+
+    n, rate = 2400, 2.0
+    rng = np.random.default_rng(9)
+    data = {(s, a): 1e-3 * rng.standard_normal(n) + (9.81 if (s, a) == ("accel", "z") else 0.0)
+            for s in ("gyro", "accel") for a in "xyz"}
+    bag = TestRosbag.write(tmp_path / "bench.bag", data, 10**18 + np.arange(n) * 500_000_000, "ros1")
+    table = np.column_stack([np.arange(n) / rate] + [data[(s, a)] for s in ("gyro", "accel") for a in "xyz"])
+    nc = write_nc(tmp_path / "lab.nc", table, units={"gyro": "rad/s", "accel": "m/s^2"})
+    assert main(["init", str(bag), str(nc), "--spec", str(SPEC), "--out", str(tmp_path / "o")]) == 0
+    assert "FILL_ME" not in capsys.readouterr().out
+    rows = [ln.split("\t") for ln in (tmp_path / "o" / "datasets.tsv").read_text().splitlines() if ln[0] != "#"]
+    bag_row, nc_row = (dict(zip(rows[0], r)) for r in rows[1:])
+    assert (bag_row["format"], bag_row["rate_hz"], bag_row["gyro_unit"], bag_row["gyro_x"]) == ("rosbag", "2",
+                                                                                                "rad/s", "")
+    assert (nc_row["format"], nc_row["rate_hz"], nc_row["gyro_unit"], nc_row["gyro_x"], nc_row["time_column"]) == (
+        "netcdf", "2", "from_file", "wx", "t")
+    c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
+    assert (c["psd"]["window_s"], c["psd"]["step_s"], c["application"]["horizon_s"]) == (300.0, 150.0, 300.0)
+    assert check_config(tmp_path / "o" / "config.yaml")
+
+
+def test_ambiguous_time_unit_refused_then_given(tmp_path, capsys):
+    """Stamps 0.5 apart are 2 Hz in s or 2 kHz in ms: refused naming --time-unit, accepted with it."""
+    path = tmp_path / "slow.csv"
+    n = 2400
+    table = np.column_stack([np.arange(n) * 0.5, 1e-3 * np.random.default_rng(2).standard_normal((n, 3))])
+    np.savetxt(path, table, delimiter=",", header="t,wx,wy,wz", comments="", fmt="%.6f")
+    assert main(["init", str(path), "--spec", str(SPEC), "--out", str(tmp_path / "o")]) == 1
+    assert "--time-unit" in capsys.readouterr().err and not (tmp_path / "o").exists()
+    assert main(["init", str(path), "--spec", str(SPEC), "--out", str(tmp_path / "o"), "--time-unit", "s"]) == 0
+    text = (tmp_path / "o" / "datasets.tsv").read_text()
+    out = capsys.readouterr().out
+    assert "\t2\t" in text and "gyro_unit" in out and "no accel column recognised" in out
+    assert "accel_x (column" not in out  # left out, not a cell to fill
+    assert yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())["sensors"] == ["gyro"]

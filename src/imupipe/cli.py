@@ -7,7 +7,7 @@
                        [--time-column C] [--time-unit U] [--variable V] [--topic T] [--plot OUT] [--si]
     imupipe check CONFIG [--directory D] [--no-dry-run] [--read]
     imupipe summary [RESULTS] [--markdown OUT] [--html OUT] [--quiet]
-    imupipe init DATA... --spec SPEC [--out DIR] [--rate-hz R] [--force]
+    imupipe init DATA... --spec SPEC [--out DIR] [--rate-hz R] [--time-unit U] [--force]
 
 ``run`` runs the Snakemake workflow of this checkout through the snakemake command line; ``allan`` prints
 the Allan deviation of every channel of one file, read with :func:`imupipe.readers.read_dataset` (and
@@ -454,7 +454,7 @@ def _call(cmd: Sequence[str], env: dict) -> int:
 
 
 def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = ".", *, rate_hz: float | None = None,
-               force: bool = False) -> tuple[Path, Path, list[str]]:
+               time_unit: str | None = None, force: bool = False) -> tuple[Path, Path, list[str]]:
     """Write ``OUT/datasets.tsv`` and ``OUT/config.yaml`` for the records `data` and the spec sheet `spec`.
 
     Every record is probed (:func:`imupipe.init.inspect_record`), the settings derived
@@ -503,7 +503,7 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
             name, i = f"{base}_{i}", i + 1
         names.add(name)
         validate_dataset_name(name)
-        rec = inspect_record(path.resolve(), name, rate_hz)
+        rec = inspect_record(path.resolve(), name, rate_hz, time_unit)
         records.append(rec)
     sensors = [s for s in ("gyro", "accel")
                if any(r.format == "rosbag" or r.row.get(f"{s}_x") not in (None, "", "FILL_ME") for r in records)]
@@ -517,11 +517,14 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
     text = config_text(run_name, str(sheet.resolve()), str(spec_abs.parent), spec_abs.stem, sensors, settings)
     write_text_atomic(sheet_text(records), sheet)
     write_text_atomic(text, cfg)
+    for note in (t for r in records for t in r.notes):
+        print(f"note: {note}")
     return sheet, cfg, [t for r in records for t in r.todo]
 
 
 def _cmd_init(args) -> int:
-    sheet, cfg, todo = init_files(args.data, args.spec, args.out, rate_hz=args.rate_hz, force=args.force)
+    sheet, cfg, todo = init_files(args.data, args.spec, args.out, rate_hz=args.rate_hz, time_unit=args.time_unit,
+                                 force=args.force)
     print(f"wrote {sheet}\nwrote {cfg}")
     if todo:
         print(f"fill in {len(todo)} cell(s) marked FILL_ME in {sheet} first:")
@@ -583,6 +586,8 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--spec", required=True, help="spec sheet YAML of the IMU (config/specs/*.yaml for examples)")
     i.add_argument("--out", default=".", help="folder of datasets.tsv and config.yaml (default: .)")
     i.add_argument("--rate-hz", type=float, help="sample rate, Hz, of records without timestamps or a stored rate")
+    i.add_argument("--time-unit", help="unit of the records' time column: s, ms, us, ns (default: from its name, the "
+                   "file, or the stamps' spacing)")
     i.add_argument("--force", action="store_true", help="overwrite existing datasets.tsv / config.yaml")
     i.set_defaults(func=_cmd_init)
 

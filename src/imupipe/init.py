@@ -129,15 +129,21 @@ class RecordInfo:
     n_samples: int
     duration_s: float
     row: dict
-    todo: list[str] = field(default_factory=list)
+    todo: list[str] = field(default_factory=list)  #: cells written as PLACEHOLDER, with what they need
+    notes: list[str] = field(default_factory=list)  #: what was left out (a sensor without columns)
 
 
-def inspect_record(path, dataset: str, rate_hz: float | None = None) -> RecordInfo:
+def inspect_record(path, dataset: str, rate_hz: float | None = None, time_unit: str | None = None) -> RecordInfo:
     """Probe one record and fill its dataset-sheet row (placeholders where nothing could be guessed).
+
+    `rate_hz` (Hz) and `time_unit` (s, ms, us, ns) are the user's, for records that do not state them; a time
+    column's unit is otherwise taken from its name (``t [ms]``, ``time_s``), a netCDF ``units`` attribute or the
+    stamps' spacing (:func:`imupipe.readers.timeunit.infer_time_unit`, as ``imupipe allan`` does).
 
     Raises :class:`imupipe.readers.DataError` for a missing file or unknown format, ValueError for a record
     whose rate is known neither from the file, its timestamps nor `rate_hz`.
     """
+    time_unit_given = time_unit
     from imupipe.readers import FROM_FILE, format_of, probe
     from imupipe.readers.timeunit import infer_time_unit
 
@@ -164,7 +170,11 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None) -> RecordIn
         channels, units, time_column, time_unit = guess_channels(meta.channels)
         if fmt == "netcdf":
             units = {s: units.get(s, FROM_FILE) for s in _SENSORS}
-    if time_column is not None and fmt != "rosbag":
+    time_unit = time_unit_given or time_unit
+    if time_column is not None and fmt == "netcdf" and time_unit is None:  # the variable's units attribute
+        meta = probe(path, fmt, rate_hz, time_column=time_column)
+        row["time_column"] = time_column
+    elif time_column is not None and fmt != "rosbag":
         if time_unit is None:  # not in its name: from the stamps' spacing (as 'imupipe allan' does)
             as_s = probe(path, fmt, rate_hz, time_column=time_column, time_unit="s")
             if as_s.rate_hz:
@@ -175,7 +185,14 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None) -> RecordIn
     if not meta.rate_hz:
         raise ValueError(f"{path}: sample rate unknown (no timestamps or rate in the file): give --rate-hz")
     row["rate_hz"] = f"{meta.rate_hz:.12g}"
+    have = set(_SENSORS) if fmt == "rosbag" else {s for s in _SENSORS if any(f"{s}_{a}" in channels for a in _AXES)}
+    notes = []
     for s in _SENSORS:
+        if have and s not in have:  # the other sensor's columns were found: this one is absent from the record
+            row.update({f"{s}_unit": "", **{f"{s}_{a}": "" for a in _AXES}})
+            notes.append(f"{dataset}: no {s} column recognised among {', '.join(meta.channels)}: {s} left out "
+                         f"(fill {s}_unit and {s}_x .. {s}_z to add it)")
+            continue
         row[f"{s}_unit"] = units.get(s, PLACEHOLDER)
         if s not in units:
             todo.append(f"{dataset}: {s}_unit (the unit of the {s} samples as stored, e.g. "
@@ -190,7 +207,7 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None) -> RecordIn
                 todo.append(f"{dataset}: {s}_{a} (column not guessed from the header"
                             + (f" {', '.join(meta.channels)})" if meta.channels else "; the file has no header)"))
     return RecordInfo(dataset, path, fmt, float(meta.rate_hz), meta.rate_from, int(meta.n_samples),
-                      float(meta.duration_s), row, todo)
+                      float(meta.duration_s), row, todo, notes)
 
 
 def welch_unused(n: int, nperseg: int, step: int) -> int:
@@ -261,6 +278,7 @@ def sheet_text(records: list[RecordInfo]) -> str:
     if todo:
         lines.append(f"# replace every {PLACEHOLDER} below before running:")
         lines += [f"#   {t}" for t in todo]
+    lines += [f"# {t}" for r in records for t in r.notes]
     lines.append("\t".join(_SHEET_COLUMNS))
     lines += ["\t".join(str(r.row.get(c, "")) for c in _SHEET_COLUMNS) for r in records]
     return "\n".join(lines) + "\n"
