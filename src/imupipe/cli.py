@@ -7,6 +7,7 @@
                        [--time-column C] [--time-unit U] [--variable V] [--topic T] [--plot OUT] [--si]
     imupipe check CONFIG [--directory D] [--no-dry-run] [--read]
     imupipe summary [RESULTS] [--markdown OUT] [--html OUT] [--quiet]
+    imupipe init DATA... --spec SPEC [--out DIR] [--rate-hz R] [--time-unit U] [--force]
 
 ``run`` runs the Snakemake workflow of this checkout through the snakemake command line; ``allan`` prints
 the Allan deviation of every channel of one file, read with :func:`imupipe.readers.read_dataset` (and
@@ -14,7 +15,8 @@ writes a figure with ``--plot``, format from the file name: .png, .svg, .pdf); `
 config, its dataset sheet and its spec sheets without running anything (and, unless ``--no-dry-run``,
 asks Snakemake for a dry run of the DAG; with ``--read`` it also reads every record as a run would,
 :func:`read_records`); ``summary`` prints (and writes) the run summary of a finished run
-(:mod:`imupipe.summary`).
+(:mod:`imupipe.summary`); ``init`` writes a dataset sheet and a partial config fitted to a user's records
+(:func:`init_files`, rules in :mod:`imupipe.init`).
 
 Exit status: 0 on success, 1 on an input error (one line ``imupipe: error: ...`` on stderr), the
 snakemake status for ``run``.
@@ -30,7 +32,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["main", "checkout_root", "check_config", "read_records", "allan_table"]
+__all__ = ["main", "checkout_root", "check_config", "read_records", "allan_table", "init_files"]
 
 
 def checkout_root() -> Path:
@@ -451,6 +453,90 @@ def _call(cmd: Sequence[str], env: dict) -> int:
     return rc
 
 
+def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = ".", *, rate_hz: float | None = None,
+               time_unit: str | None = None, force: bool = False) -> tuple[Path, Path, list[str]]:
+    """Write ``OUT/datasets.tsv`` and ``OUT/config.yaml`` for the records `data` and the spec sheet `spec`.
+
+    Every record is probed (:func:`imupipe.init.inspect_record`), the settings derived
+    (:func:`imupipe.init.derive_settings`: decimation, PSD window / step leaving at most 10 % of the shortest
+    record unused, application rate and horizon; the rules in :mod:`imupipe.init`), then both files are written.
+    Paths in the files are absolute (the workflow reads them relative to the checkout). Nothing is written when a
+    check fails.
+
+    Returns
+    -------
+    (sheet path, config path, list of the cells the user must fill)
+
+    Raises
+    ------
+    ValueError
+        Naming the file: a missing record or spec sheet, an unknown format, a spec sheet without a section for a
+        sensor, a record too short, an existing output without `force`.
+    """
+    from imupipe.init import config_text, derive_settings, inspect_record, sheet_text
+    from imupipe.io import write_text_atomic
+    from imupipe.readers import validate_dataset_name
+    from imupipe.specsheet import load_spec
+
+    out = Path(out)
+    sheet, cfg = out / "datasets.tsv", out / "config.yaml"
+    if not force:
+        exist = [str(p) for p in (sheet, cfg) if p.exists()]
+        if exist:
+            raise ValueError(f"{', '.join(exist)} already exist(s): not overwritten (--force to replace)")
+    spec = Path(spec)
+    if not spec.is_file():
+        raise ValueError(f"--spec {spec}: spec sheet not found")
+    if spec.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"--spec {spec}: expected a spec sheet .yaml (config/specs/ has examples)")
+    model = load_spec(spec)
+    if not data:
+        raise ValueError("no record given (imupipe init DATA... --spec SPEC)")
+    records, names = [], set()
+    for path in data:
+        path = Path(path)
+        if not path.exists():
+            raise ValueError(f"{path}: record not found")
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.stem if path.is_file() else path.name).strip("._") or "record"
+        base, i = name, 2
+        while name in names:
+            name, i = f"{base}_{i}", i + 1
+        names.add(name)
+        validate_dataset_name(name)
+        rec = inspect_record(path.resolve(), name, rate_hz, time_unit)
+        records.append(rec)
+    sensors = [s for s in ("gyro", "accel")
+               if any(r.format == "rosbag" or r.row.get(f"{s}_x") not in (None, "", "FILL_ME") for r in records)]
+    sensors = sensors or ["gyro", "accel"]
+    missing = [s for s in sensors if s not in model.models]
+    if missing:
+        raise ValueError(f"--spec {spec}: no section for {', '.join(missing)} (the records have {', '.join(sensors)})")
+    settings = derive_settings(records)
+    run_name = re.sub(r"[^A-Za-z0-9_.-]+", "_", out.resolve().name).strip("._") or "mydata"
+    spec_abs = spec.resolve()
+    text = config_text(run_name, str(sheet.resolve()), str(spec_abs.parent), spec_abs.stem, sensors, settings)
+    write_text_atomic(sheet_text(records), sheet)
+    write_text_atomic(text, cfg)
+    for note in (t for r in records for t in r.notes):
+        print(f"note: {note}")
+    return sheet, cfg, [t for r in records for t in r.todo]
+
+
+def _cmd_init(args) -> int:
+    sheet, cfg, todo = init_files(args.data, args.spec, args.out, rate_hz=args.rate_hz, time_unit=args.time_unit,
+                                 force=args.force)
+    print(f"wrote {sheet}\nwrote {cfg}")
+    if todo:
+        print(f"fill in {len(todo)} cell(s) marked FILL_ME in {sheet} first:")
+        for t in todo:
+            print(f"  {t}")
+        print(f"then: imupipe check {cfg} --read")
+    else:
+        print(f"next: imupipe check {cfg} --read   (optional: reads every record as the run will)")
+    print(f"next: imupipe run {cfg}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     from imupipe import __version__
 
@@ -494,6 +580,16 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--html", help="also write it as an HTML page (tables rendered)")
     m.add_argument("--quiet", action="store_true", help="do not print it")
     m.set_defaults(func=_cmd_summary)
+
+    i = sub.add_parser("init", help="write a dataset sheet and a config fitted to your records")
+    i.add_argument("data", nargs="+", help="records (any format 'imupipe allan' reads)")
+    i.add_argument("--spec", required=True, help="spec sheet YAML of the IMU (config/specs/*.yaml for examples)")
+    i.add_argument("--out", default=".", help="folder of datasets.tsv and config.yaml (default: .)")
+    i.add_argument("--rate-hz", type=float, help="sample rate, Hz, of records without timestamps or a stored rate")
+    i.add_argument("--time-unit", help="unit of the records' time column: s, ms, us, ns (default: from its name, the "
+                   "file, or the stamps' spacing)")
+    i.add_argument("--force", action="store_true", help="overwrite existing datasets.tsv / config.yaml")
+    i.set_defaults(func=_cmd_init)
 
     c = sub.add_parser("check", help="validate a config, its dataset sheet and spec sheets without running")
     c.add_argument("config")

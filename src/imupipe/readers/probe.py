@@ -76,6 +76,7 @@ def probe(
     variable: str | None = None,
     topic: str | None = None,
     channels: Any = None,
+    units: Any = None,
     dataset: str | None = None,
     **ignored: Any,
 ) -> Probe:
@@ -83,8 +84,9 @@ def probe(
 
     Parameters
     ----------
-    path, format, rate_hz, time_column, time_unit, delimiter, variable, topic, channels
-        As :func:`~imupipe.readers.read_dataset`; other keyword arguments of it are accepted and ignored.
+    path, format, rate_hz, time_column, time_unit, delimiter, variable, topic, channels, units
+        As :func:`~imupipe.readers.read_dataset` (`units` is used by R files only, which are read in full); other
+        keyword arguments of it are accepted and ignored.
     dataset : str, optional
         Name carried into the result (for messages).
 
@@ -162,7 +164,8 @@ def probe(
         n, t_span, names = _probe_bag(path, topic, where)
         time_unit = "s"
     else:  # rdata: no index; parse it
-        rec = read_dataset(path, fmt, rate_hz, channels, time_column=time_column, time_unit=time_unit, variable=variable)
+        rec = read_dataset(path, fmt, rate_hz, channels, units, time_column=time_column, time_unit=time_unit,
+                           variable=variable)
         return Probe(str(path), fmt, rec.rate_hz, "sheet" if rate_hz else "file", rec.n_samples, rec.duration_s,
                      tuple(f"{k[0]}_{k[1]}" for k in rec), st.st_size, st.st_mtime_ns, dataset)
     rate, rate_from = (float(rate_hz), "sheet") if rate_hz is not None else (file_rate, "file" if file_rate else "")

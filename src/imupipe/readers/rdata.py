@@ -55,7 +55,9 @@ def _r_numeric(obj, where, name) -> np.ndarray:
     raise DataError(f"{where}: R column {name!r} is of type {kind}, not numeric")
 
 
-def _load_rdata(path, specs, variable, time_column, time_unit, where) -> _Raw:
+def _r_table(path, variable, where):
+    """(object, its attributes, column names or None, column count, numeric columns by index, object name) of the
+    R matrix / data.frame / named list in `path` (object `variable` of an .rda)."""
     import rdata
     try:
         parsed = rdata.parser.parse_file(path)
@@ -107,6 +109,17 @@ def _load_rdata(path, specs, variable, time_column, time_unit, where) -> _Raw:
             f"{where}: R object {variable or ''!r} of type {kind} is neither a numeric matrix nor a "
             "data.frame / named list of numeric columns"
         )
+    return obj, attrs, names, ncol, columns, variable
+
+
+def rdata_columns(path, variable=None) -> tuple[str, ...]:
+    """Column names of the R matrix / data.frame of `path` (``()`` for a matrix without names); parses the file."""
+    names = _r_table(path, variable, str(path))[2]
+    return tuple(names or ())
+
+
+def _load_rdata(path, specs, variable, time_column, time_unit, where) -> _Raw:
+    obj, attrs, names, ncol, columns, variable = _r_table(path, variable, where)
     if specs is None:
         if names is None:
             raise DataError(

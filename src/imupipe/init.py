@@ -1,0 +1,315 @@
+r"""A first dataset sheet and config for a user's own records (``imupipe init``).
+
+Each record is probed with :func:`imupipe.readers.probe` (header, row count, rate; no second reader), its
+format named by :func:`imupipe.readers.format_of`. From the probes the settings that must fit the records are
+derived, each by a stated rule (:func:`derive_settings`):
+
+- ``decimate.rate_hz`` :math:`f_d`: block-average decimation needs an integer ratio ``rate / f_d`` for every
+  record (:func:`imupipe.readers.check_against_config`), so :math:`f_d = \gcd(f_1, \dots, f_n, f_0)`, the
+  greatest common divisor (of the rates as fractions) of the record rates and :math:`f_0` = 1 Hz the default
+  (paper: 1 Hz): 1 Hz for integer rates, 0.5 Hz for 12.5 Hz records.
+- ``psd.window_s`` :math:`W` and ``psd.step_s`` :math:`S`: :func:`imupipe.defaults.psd_window_step` on the
+  shortest record :math:`T_{min}` (``W = min(floor(T f_d / 4) / f_d, 7 h)``, ``S = W / 2``), the rule the workflow
+  applies to unset keys, written out. With :math:`N` decimated samples, :math:`n_w = W f_d`, :math:`n_s = S f_d`,
+  Welch uses :math:`K = \lfloor (N - n_w)/n_s \rfloor + 1` segments and leaves :math:`u = N - (K-1) n_s - n_w`
+  samples unused. When :math:`u / N > 0.10` (only records longer than 4 x 7 h, where W is capped), the step is
+  shortened so that the segments tile the record: :math:`K' = \lceil (N - n_w) / (n_w/2) \rceil + 1`,
+  :math:`n_s' = \lfloor (N - n_w)/(K' - 1) \rfloor`, leaving fewer than :math:`K' - 1` samples.
+- ``application.rate_hz`` = ``verify.filter_rate_hz`` = :math:`f_d`: the application band
+  ``[1/horizon_s, rate_hz / 2]`` then lies inside the band of the decimated spectra the bound is fitted on
+  (``[1/W, f_d/2]``), and the verification replay reads the decimated series (a divisor of every record rate).
+- ``application.horizon_s`` :math:`H = \min(H_0, W, T_{min} - F)` (``H_0`` = 3600 s the default, ``F`` =
+  ``verify.fix_s``), down to a whole decimated sample: the band bottom ``1/H`` is not below the lowest PSD
+  frequency ``1/W`` the records measure, and one fix period plus one outage fits in the shortest record (the
+  replay of :func:`imupipe.verify` needs records of at least ``fix_s + horizon_s``).
+
+Column names gyro_x .. accel_z are guessed from the header (:func:`guess_channels`); units from a bracketed
+suffix (``gx [deg/s]``), the file's attribute (netCDF: ``from_file``) or the format (ROS ``sensor_msgs/Imu``:
+SI). What cannot be guessed is written as the placeholder :data:`PLACEHOLDER`, which the reader refuses, and
+listed for the user.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from fractions import Fraction
+from pathlib import Path
+
+from imupipe.defaults import DEFAULTS, PSD_MAX_WINDOW_S, psd_window_step
+
+__all__ = ["PLACEHOLDER", "MAX_UNUSED_FRACTION", "RecordInfo", "Settings", "inspect_record", "guess_channels",
+           "derive_settings", "welch_unused", "sheet_text", "config_text"]
+
+#: Value of a sheet cell the user must fill (the reader refuses it as an unknown unit / column).
+PLACEHOLDER = "FILL_ME"
+#: Largest share of the shortest record the PSD segments may leave unused.
+MAX_UNUSED_FRACTION = 0.10
+#: Default verify.fix_s (s) the horizon rule subtracts.
+_FIX_S = float(DEFAULTS["verify.fix_s"])
+
+_SENSORS, _AXES = ("gyro", "accel"), ("x", "y", "z")
+_GYRO = r"(?:gyro(?:scope)?|gyr|g|w|omega|angular_velocity|ang_vel|angvel|rate)"
+_ACCEL = r"(?:accel(?:erometer|eration)?|acc|a|f|linear_acceleration|lin_acc)"
+_TIME = {"t", "time", "timestamp", "stamp"}
+_TIME_SUFFIX = {"s": "s", "sec": "s", "ms": "ms", "us": "us", "ns": "ns"}
+_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]+?)\s*[\])]\s*$")
+
+
+def _split_unit(name: str) -> tuple[str, str | None]:
+    """(name without a bracketed unit suffix, the unit or None): ``"gx [deg/s]"`` -> ``("gx", "deg/s")``."""
+    m = _UNIT_SUFFIX.match(name)
+    return (m.group(1), m.group(2)) if m else (name, None)
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"_+", "_", re.sub(r"[^0-9a-z]+", "_", name.lower())).strip("_")
+
+
+def guess_channels(names) -> tuple[dict[str, str], dict[str, str], str | None, str | None]:
+    """Guess the columns of gyro_x .. accel_z, the units and the time column from header names.
+
+    A name (lower-cased, punctuation to ``_``, a bracketed unit suffix removed) matches gyro axis ``a`` when it
+    is ``<gyro word>[_]a`` (gyro, gyr, g, w, omega, angular_velocity, rate) and accel axis ``a`` for
+    ``<accel word>[_]a`` (accel, acc, a, f, linear_acceleration); a time column is t, time, timestamp, stamp.
+    A sensor's unit is guessed only when its three columns carry the same bracketed unit and
+    :func:`imupipe.units.rate_factor` accepts it for that sensor.
+
+    Returns
+    -------
+    channels : dict
+        ``{"gyro_x": column, ...}`` for the channels found (each column at most once).
+    units : dict
+        ``{sensor: unit}`` for the sensors whose unit was guessed.
+    time_column : str or None
+    time_unit : str or None
+        Of the time column, when its name states it (``t [s]``, ``time_ms``).
+    """
+    from imupipe.units import rate_factor
+
+    channels, suffix, time_column, time_unit = {}, {}, None, None
+    pats = {s: re.compile(rf"^{p}_?([xyz])$") for s, p in (("gyro", _GYRO), ("accel", _ACCEL))}
+    for name in names:
+        base, unit = _split_unit(str(name))
+        key = _norm(base)
+        stem, _, tail = key.rpartition("_")
+        if time_column is None and (key in _TIME or (stem in _TIME and tail in _TIME_SUFFIX)):
+            time_column = str(name)
+            time_unit = _TIME_SUFFIX.get(tail if stem in _TIME else str(unit).strip().lower())
+            continue
+        for s, pat in pats.items():
+            m = pat.match(key)
+            if m and f"{s}_{m.group(1)}" not in channels:
+                channels[f"{s}_{m.group(1)}"] = str(name)
+                suffix[f"{s}_{m.group(1)}"] = unit
+                break
+    units = {}
+    for s in _SENSORS:
+        found = {suffix.get(f"{s}_{a}") for a in _AXES if f"{s}_{a}" in channels}
+        if len(found) == 1 and None not in found:
+            unit = found.pop()
+            try:
+                rate_factor(unit, s)
+            except Exception:  # noqa: BLE001 (not a unit of this sensor: left for the user)
+                continue
+            units[s] = unit
+    return channels, units, time_column, time_unit
+
+
+@dataclass
+class RecordInfo:
+    """What :func:`inspect_record` found out about one record (rate Hz, duration s)."""
+
+    dataset: str
+    path: Path
+    format: str
+    rate_hz: float
+    rate_from: str
+    n_samples: int
+    duration_s: float
+    row: dict
+    todo: list[str] = field(default_factory=list)  #: cells written as PLACEHOLDER, with what they need
+    notes: list[str] = field(default_factory=list)  #: what was left out (a sensor without columns)
+
+
+def inspect_record(path, dataset: str, rate_hz: float | None = None, time_unit: str | None = None) -> RecordInfo:
+    """Probe one record and fill its dataset-sheet row (placeholders where nothing could be guessed).
+
+    `rate_hz` (Hz) and `time_unit` (s, ms, us, ns) are the user's, for records that do not state them; a time
+    column's unit is otherwise taken from its name (``t [ms]``, ``time_s``), a netCDF ``units`` attribute or the
+    stamps' spacing (:func:`imupipe.readers.timeunit.infer_time_unit`, as ``imupipe allan`` does).
+
+    Raises :class:`imupipe.readers.DataError` for a missing file or unknown format, ValueError for a record
+    whose rate is known neither from the file, its timestamps nor `rate_hz`.
+    """
+    time_unit_given = time_unit
+    from imupipe.readers import FROM_FILE, format_of, probe
+    from imupipe.readers.timeunit import infer_time_unit
+
+    path = Path(path)
+    fmt = format_of(path, "auto")
+    if fmt == "rdata":  # no index: the column names first, then a probe of the channels guessed from them
+        from imupipe.readers.rdata import rdata_columns
+
+        names = rdata_columns(path)
+        guessed = guess_channels(names)[0]
+        if not guessed:
+            raise ValueError(f"{path}: no gyro / accel column recognised among {', '.join(map(repr, names))}: "
+                             "write its dataset-sheet row by hand (config/README.md)")
+        # (R files are read in full, converted with a unit: SI stands in, the rate and length do not depend on it)
+        meta = probe(path, fmt, rate_hz, channels=guessed, units={"gyro": "rad/s", "accel": "m/s^2"})
+        meta = type(meta)(**{**meta.__dict__, "channels": tuple(names)})
+    else:
+        meta = probe(path, fmt, rate_hz)
+    row = {"dataset": dataset, "path": str(path), "format": fmt, "rate_hz": ""}
+    todo: list[str] = []
+    if fmt == "rosbag":  # sensor_msgs/Imu: the reader's default fields, SI by the message definition
+        channels, units, time_column, time_unit = {}, {"gyro": "rad/s", "accel": "m/s^2"}, None, None
+    else:
+        channels, units, time_column, time_unit = guess_channels(meta.channels)
+        if fmt == "netcdf":
+            units = {s: units.get(s, FROM_FILE) for s in _SENSORS}
+    time_unit = time_unit_given or time_unit
+    if time_column is not None and fmt == "netcdf" and time_unit is None:  # the variable's units attribute
+        meta = probe(path, fmt, rate_hz, time_column=time_column)
+        row["time_column"] = time_column
+    elif time_column is not None and fmt != "rosbag":
+        if time_unit is None:  # not in its name: from the stamps' spacing (as 'imupipe allan' does)
+            as_s = probe(path, fmt, rate_hz, time_column=time_column, time_unit="s")
+            if as_s.rate_hz:
+                time_unit, _ = infer_time_unit(1.0 / as_s.rate_hz, rate_hz, where=str(path))
+        if time_unit is not None:
+            meta = probe(path, fmt, rate_hz, time_column=time_column, time_unit=time_unit)
+            row["time_column"], row["time_unit"] = time_column, time_unit
+    if not meta.rate_hz:
+        raise ValueError(f"{path}: sample rate unknown (no timestamps or rate in the file): give --rate-hz")
+    row["rate_hz"] = f"{meta.rate_hz:.12g}"
+    have = set(_SENSORS) if fmt == "rosbag" else {s for s in _SENSORS if any(f"{s}_{a}" in channels for a in _AXES)}
+    notes = []
+    for s in _SENSORS:
+        if have and s not in have:  # the other sensor's columns were found: this one is absent from the record
+            row.update({f"{s}_unit": "", **{f"{s}_{a}": "" for a in _AXES}})
+            notes.append(f"{dataset}: no {s} column recognised among {', '.join(meta.channels)}: {s} left out "
+                         f"(fill {s}_unit and {s}_x .. {s}_z to add it)")
+            continue
+        row[f"{s}_unit"] = units.get(s, PLACEHOLDER)
+        if s not in units:
+            todo.append(f"{dataset}: {s}_unit (the unit of the {s} samples as stored, e.g. "
+                        + ("deg/s or rad/s)" if s == "gyro" else "g or m/s^2)"))
+        for a in _AXES:
+            if fmt == "rosbag":
+                row[f"{s}_{a}"] = ""
+            elif f"{s}_{a}" in channels:
+                row[f"{s}_{a}"] = channels[f"{s}_{a}"]
+            else:
+                row[f"{s}_{a}"] = PLACEHOLDER
+                todo.append(f"{dataset}: {s}_{a} (column not guessed from the header"
+                            + (f" {', '.join(meta.channels)})" if meta.channels else "; the file has no header)"))
+    return RecordInfo(dataset, path, fmt, float(meta.rate_hz), meta.rate_from, int(meta.n_samples),
+                      float(meta.duration_s), row, todo, notes)
+
+
+def welch_unused(n: int, nperseg: int, step: int) -> int:
+    """Samples of an `n`-sample record left after the last Welch segment: ``n - (K - 1) step - nperseg``."""
+    k = (n - nperseg) // step + 1
+    return n - (k - 1) * step - nperseg
+
+
+@dataclass
+class Settings:
+    """The derived config values (module docstring: the rules) and the numbers they came from."""
+
+    decimate_rate_hz: float
+    window_s: float
+    step_s: float
+    horizon_s: float
+    shortest_s: float
+    unused: dict[str, float]
+
+
+def _rate_gcd(rates) -> Fraction:
+    fr = [Fraction(r).limit_denominator(1000) for r in rates]
+    num = math.gcd(*(f.numerator for f in fr))
+    den = math.lcm(*(f.denominator for f in fr))
+    return Fraction(num, den)
+
+
+def derive_settings(records: list[RecordInfo]) -> Settings:
+    """decimate.rate_hz, psd.window_s / step_s and application.horizon_s that fit `records` (module docstring).
+
+    Raises ValueError when the shortest record cannot hold one fix period (verify.fix_s) plus an outage.
+    """
+    from imupipe.readers import check_against_config
+
+    f0 = float(DEFAULTS["decimate.rate_hz"])
+    g = _rate_gcd([r.rate_hz for r in records])
+    fd = float(_rate_gcd([g, f0]))
+    shortest = min(records, key=lambda r: r.duration_s)
+    n_min = math.floor(shortest.n_samples / round(shortest.rate_hz / fd))  # decimated samples (block averages)
+    window, step = psd_window_step(n_min / fd, fd)
+    nw, ns = round(window * fd), round(step * fd)
+    if welch_unused(n_min, nw, ns) > MAX_UNUSED_FRACTION * n_min:
+        k = math.ceil((n_min - nw) / (nw / 2)) + 1
+        ns = (n_min - nw) // (k - 1)
+        step = ns / fd
+    h0 = float(DEFAULTS["application.horizon_s"])
+    horizon = math.floor(min(h0, window, n_min / fd - _FIX_S) * fd) / fd
+    if horizon * fd < 2:
+        raise ValueError(f"{shortest.path}: {shortest.duration_s:g} s is too short for the verification: one fix "
+                         f"period (verify.fix_s = {_FIX_S:g} s) and an outage of at least 2 samples must fit")
+    unused = {}
+    for r in records:
+        n = math.floor(r.n_samples / round(r.rate_hz / fd))
+        check_against_config({"rate_hz": r.rate_hz, "n_samples": r.n_samples, "duration_s": r.duration_s},
+                             window_s=window, decimate_rate_hz=fd, n_segments=2, dataset=r.dataset)
+        unused[r.dataset] = welch_unused(n, nw, ns) / n
+    return Settings(fd, float(window), float(step), float(horizon), shortest.duration_s, unused)
+
+
+_SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", "gyro_x", "gyro_y", "gyro_z",
+                  "accel_x", "accel_y", "accel_z", "time_column", "time_unit"]
+
+
+def sheet_text(records: list[RecordInfo]) -> str:
+    """The dataset sheet (TSV; ``#`` lines are comments) of `records`, placeholders listed on top."""
+    todo = [t for r in records for t in r.todo]
+    lines = ["# dataset sheet written by 'imupipe init' (columns: config/README.md, docs/inputs.md)"]
+    if todo:
+        lines.append(f"# replace every {PLACEHOLDER} below before running:")
+        lines += [f"#   {t}" for t in todo]
+    lines += [f"# {t}" for r in records for t in r.notes]
+    lines.append("\t".join(_SHEET_COLUMNS))
+    lines += ["\t".join(str(r.row.get(c, "")) for c in _SHEET_COLUMNS) for r in records]
+    return "\n".join(lines) + "\n"
+
+
+def config_text(name: str, sheet: str, spec_dir: str, spec: str, sensors: list[str], s: Settings) -> str:
+    """The partial config (merged over config/config.yaml by the workflow), every derived value with its rule."""
+    worst = max(s.unused.values())
+    return f"""\
+# Written by 'imupipe init': a partial config, merged over config/config.yaml (every other key keeps its
+# default there). Each value below is derived from the records by the rule in its comment (imupipe.init).
+name: {name}
+datasets: {sheet}
+simulation: null
+sensors: [{', '.join(sensors)}]
+spec_dir: {spec_dir}
+specs: [{spec}]
+decimate:
+  # greatest common divisor of the record rates and the default 1 Hz (integer block-average ratio)
+  rate_hz: {s.decimate_rate_hz!r}
+psd:
+  # W = min(floor(T f / 4) / f, 7 h), T = {s.shortest_s:.6g} s the shortest record, f = decimate.rate_hz
+  window_s: {s.window_s!r}
+  # S = W / 2 (shortened to tile the record when that left more than 10 % unused); unused: {worst:.2%} at most
+  step_s: {s.step_s!r}
+application:
+  # = decimate.rate_hz: the band [1/horizon_s, rate_hz/2] inside the decimated spectra's [1/W, f/2]
+  rate_hz: {s.decimate_rate_hz!r}
+  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/horizon not below the lowest PSD
+  # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
+  horizon_s: {s.horizon_s!r}
+verify:
+  filter_rate_hz: {s.decimate_rate_hz!r}   # = application.rate_hz (the exported model is the verified one)
+"""
