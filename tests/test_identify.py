@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from imupipe import identify
+from imupipe.identify import basis, bootstrap, intervals
 from imupipe.allan import allan_variance
 from imupipe.identify import fit_allan, select_components, slope_line
 from imupipe.models import NoiseModel
@@ -131,7 +132,7 @@ class TestSlopeLine:
 def test_random_walk_profile_limit_brackets_its_threshold():
     # K's upper end: the largest k with Delta(k) = chi2(K held at k) - chi2(free) <= the bootstrap threshold;
     # the bisection returns the upper end of a 2 % bracket, so Delta crosses the threshold inside it
-    from imupipe.identify import _check_components, _profile
+    from imupipe.identify.basis import _check_components, _profile
 
     truth = TRUTHS["white+gm+rw"]
     tau, avar, edf = curves(truth, 2.0, 1, seed=5)
@@ -155,7 +156,7 @@ def test_gm_T_profile_limits_bracket_their_threshold():
     # T's interval: the hull of the percentile interval and {T : Delta(T) = chi2(T held) - chi2(free) <= the
     # bootstrap threshold}; each profile end is the outside end of a 2 % bisection bracket, so Delta crosses the
     # threshold inside it
-    from imupipe.identify import _check_components, _solve_fixed
+    from imupipe.identify.basis import _check_components, _solve_fixed
 
     truth = TRUTHS["white+gm+rw"]
     tau, avar, edf = curves(truth, 10.0, 1, seed=5)  # 10 h: T = 300 s bounded on both sides
@@ -188,13 +189,13 @@ def test_gm_T_profile_open_end_is_one_sided(monkeypatch):
         d = np.log(T[0] / 10.0) ** 2
         return SimpleNamespace(chi2=d if T[0] <= 10.0 else min(d, 0.9))
 
-    monkeypatch.setattr(identify, "_solve_fixed", solve)
+    monkeypatch.setattr(intervals, "_solve_fixed", solve)
     grid = np.array([1.0, 10.0, 100.0, 1000.0])
     chis = np.array([np.log(0.1) ** 2, 0.0, 0.9, 0.9])
-    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, chis, 0.0, 1.0)
+    lo, hi, lo_open, hi_open = intervals._gm_T_profile_limits(None, None, None, (), grid, chis, 0.0, 1.0)
     assert hi == np.inf and hi_open and not lo_open
     assert 10.0 / np.e / 1.02 <= lo < 10.0 / np.e
-    lo, hi, lo_open, hi_open = identify._gm_T_profile_limits(None, None, None, (), grid, np.full(4, 0.5), 0.0, 1.0)
+    lo, hi, lo_open, hi_open = intervals._gm_T_profile_limits(None, None, None, (), grid, np.full(4, 0.5), 0.0, 1.0)
     assert (lo, hi, lo_open, hi_open) == (0.0, np.inf, True, True)
 
 
@@ -203,7 +204,7 @@ def test_white_profile_interval_brackets_its_threshold():
     # N's interval: the hull of the percentile interval and {n : Delta(n) <= the bootstrap threshold}, Delta(n) =
     # chi2(N held at n, the GM time constants held at the free fit's) - chi2(free); each end is the outside end of
     # a bisection bracket of 1e-4 N, so Delta crosses the threshold inside it
-    from imupipe.identify import _check_components, _solve_fixed
+    from imupipe.identify.basis import _check_components, _solve_fixed
 
     truth = TRUTHS["white+gm"]
     tau, avar, edf = curves(truth, 10.0, 1, seed=8)
@@ -230,7 +231,8 @@ def test_gm_sigma_profile_interval_brackets_its_threshold():
     # a single GM's sigma interval is its profile interval {s : Delta(s) <= the bootstrap threshold}, Delta(s) =
     # chi2(sigma held at s, T and every other coefficient refitted) - chi2(free); each end the outside end of a
     # bisection bracket of 1e-3 sigma, so Delta crosses the threshold inside it; the percentile ends are kept
-    from imupipe.identify import _check_components, _gm_sigma_held
+    from imupipe.identify.basis import _check_components
+    from imupipe.identify.intervals import _gm_sigma_held
 
     truth = TRUTHS["white+gm+rw"]
     tau, avar, edf = curves(truth, 10.0, 1, seed=5)
@@ -263,7 +265,9 @@ def test_gm_sigma_profile_interval_brackets_its_threshold():
 def test_gm_sigma_second_calibration_under_k_upper():
     # the statistic drawn under the fit with K held at k (helper of the second calibration): finite,
     # non-negative, reproducible from its generator; and the spawned generator leaves its parent's stream alone
-    from imupipe.identify import _check_components, _child_rng, _default_T_grid, _pool, _sigma_deltas_at_k
+    from imupipe.identify.basis import _check_components, _default_T_grid, _pool
+    from imupipe.identify.bootstrap import _child_rng
+    from imupipe.identify.intervals import _sigma_deltas_at_k
 
     truth = TRUTHS["white+gm+rw"]
     tau, avar, edf = curves(truth, 10.0, 1, seed=5)
@@ -302,7 +306,7 @@ def test_gm_sigma_profile_reaching_zero_is_one_sided():
 def test_profile_interval_of_a_known_statistic():
     # Delta(x) = ((x - 5) / 0.5)^2, threshold 4: the set is [4, 6]; each end is returned as the outside end of a
     # bracket of at most rtol * x_hat = 5e-4; a set reaching 0 gives the lower end 0, one that never closes inf
-    from imupipe.identify import _profile_interval
+    from imupipe.identify.intervals import _profile_interval
 
     lo, hi = _profile_interval(lambda x: ((x - 5.0) / 0.5) ** 2, 5.0, 4.0, step=0.01)
     assert 4.0 - 5e-4 <= lo < 4.0 and 6.0 < hi <= 6.0 + 5e-4
@@ -312,7 +316,7 @@ def test_profile_interval_of_a_known_statistic():
 # ---------------------------------------------------------------------------------------------
 # the compiled re-weighted NNLS against scipy.optimize.nnls, and its optimality conditions
 # ---------------------------------------------------------------------------------------------
-needs_kernel = pytest.mark.skipif(identify._kernels is None, reason="imupipe._kernels not built")
+needs_kernel = pytest.mark.skipif(basis._kernels is None, reason="imupipe._kernels not built")
 EPS = np.finfo(np.float64).eps
 
 
@@ -329,7 +333,7 @@ def av_problem(seed, n_tau=40, components=("white", "gauss_markov", "random_walk
 
 
 def weighted_problem(A, y, edf, m):
-    """The last pass's NNLS: unit-norm columns B, target b, column norms (identify._wnnls)."""
+    """The last pass's NNLS: unit-norm columns B, target b, column norms (basis._wnnls)."""
     w = np.sqrt(edf / 2.0) / m
     Aw = A * w[:, None]
     col = np.linalg.norm(Aw, axis=0)
@@ -353,8 +357,8 @@ class TestWnnlsKernel:
     def test_converged_fit_matches_scipy_to_rounding(self, seed):
         # run both to the fixed point (rtol 1e-13): the models differ by the rounding of a least-squares solve
         A, y, edf = av_problem(seed)
-        pc, mc, cc = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
-        ps, ms, cs = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="scipy")
+        pc, mc, cc = basis._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
+        ps, ms, cs = basis._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="scipy")
         bound = ls_rounding_bound(A, y, edf, ms, ps)
         assert np.max(np.abs(mc - ms) / ms) <= bound
         assert abs(cc - cs) <= bound * cs
@@ -365,8 +369,8 @@ class TestWnnlsKernel:
         # at the default rtol the two may stop one pass apart where rounding puts the last change at rtol;
         # the models then differ by at most that pass's move, < rtol (relative)
         A, y, edf = av_problem(seed)
-        _, mc, cc = identify._wnnls(A, y, edf, backend="c")
-        _, ms, cs = identify._wnnls(A, y, edf, backend="scipy")
+        _, mc, cc = basis._wnnls(A, y, edf, backend="c")
+        _, ms, cs = basis._wnnls(A, y, edf, backend="scipy")
         assert np.max(np.abs(mc - ms) / ms) < 1e-6
         assert cc == pytest.approx(cs, rel=4e-6)  # chi2 = sum nu/2 r^2 with r ~ O(1): relative moves ~ 2 rtol
 
@@ -376,7 +380,7 @@ class TestWnnlsKernel:
         # g = B^T (b - B x) is ~0 on the positive coefficients and <= 0 on the zero ones, to the rounding of
         # a solve on unit columns (eps cond(B) ||b|| sqrt(n))
         A, y, edf = av_problem(seed)
-        p, m, _ = identify._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
+        p, m, _ = basis._wnnls(A, y, edf, n_iter=300, rtol=1e-13, backend="c")
         B, b, col = weighted_problem(A, y, edf, m)
         x = p * col
         g = B.T @ (b - B @ x)
@@ -394,16 +398,16 @@ class TestWnnlsKernel:
             n = A2.shape[0]
             y2, e2, o2 = y[:n], edf[:n], off[:n]
             kw = dict(n_iter=300, rtol=1e-13, offset=o2, m0=1.1 * y2)
-            _, mc, cc = identify._wnnls(A2, y2, e2, backend="c", **kw)
-            _, ms, cs = identify._wnnls(A2, y2, e2, backend="scipy", **kw)
-            p0, m0, _ = identify._wnnls(A[:n], y2, e2, backend="scipy", **kw)
+            _, mc, cc = basis._wnnls(A2, y2, e2, backend="c", **kw)
+            _, ms, cs = basis._wnnls(A2, y2, e2, backend="scipy", **kw)
+            p0, m0, _ = basis._wnnls(A[:n], y2, e2, backend="scipy", **kw)
             bound = ls_rounding_bound(A[:n], y2, e2, m0, p0, offset=o2)
             assert np.max(np.abs(mc - ms) / ms) <= bound
             assert abs(cc - cs) <= bound * cs
 
     def test_bad_buffers_are_refused(self):
         A, y, edf = av_problem(1)
-        k = identify._kernels
+        k = basis._kernels
         with pytest.raises(ValueError, match="len"):
             k.wnnls(A, y, edf, None, None, 30, 1e-6, np.empty(A.shape[1] + 1), np.empty(y.size))
         with pytest.raises(TypeError, match="float64"):
@@ -450,10 +454,10 @@ class TestDifferentRecords:
         # the crash of the issue: ragged lists reached np.asarray(edf) ("setting an array element with a sequence")
         a = record_av(TRUTHS["white+gm"], 0.5, 10.0, 44)
         b = record_av(TRUTHS["white+gm"], 1.0, 10.0, 45)
-        t, y, e, cid = identify._pool([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], return_curve=True)
+        t, y, e, cid = basis._pool([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], return_curve=True)
         assert t.size == a[0].size + b[0].size and np.array_equal(np.bincount(cid), [a[0].size, b[0].size])
         with pytest.raises(ValueError, match="do not match"):
-            identify._pool([a[0], b[0][:-1]], [a[1], b[1]], [a[2], b[2]])
+            basis._pool([a[0], b[0][:-1]], [a[1], b[1]], [a[2], b[2]])
 
 
 class TestAdequacy:
@@ -509,7 +513,7 @@ class TestAdequacy:
             ms = np.rint(t * RATE).astype(np.int64)
             m = np.asarray(truth.avar(t), dtype=float)
             model = NoiseModel(white=truth.white, gauss_markov=truth.gauss_markov, dt=1 / RATE)
-            vals.append(identify._chi2_covariance(y, m, model, ms, np.zeros(t.size, int), np.array([n]),
+            vals.append(bootstrap._chi2_covariance(y, m, model, ms, np.zeros(t.size, int), np.array([n]),
                                                   np.array([RATE])))
             n_pts = t.size
         assert abs(np.mean(vals) - n_pts) < 4 * np.sqrt(2 * n_pts / 40)
@@ -664,7 +668,8 @@ class TestSelectedRefit:
         # unbounded: it moved a T to 4e-4 s (such a GM is white noise, AV 2 sigma^2 T / tau), the null matched
         # the white noise (max z 1.24), and the selection dropped a white noise that is 98 % of the AV at
         # tau = 0.1 s (5 of 200 records of that seed).
-        from imupipe.identify import _SUBSTITUTES, _profile
+        from imupipe.identify.basis import _profile
+        from imupipe.identify.select import _SUBSTITUTES
 
         tau = 0.1 * 2.0 ** np.arange(17)
         avar = np.array([1.0003439406373745e-05, 5.033128339070816e-06, 2.5596773294795876e-06,

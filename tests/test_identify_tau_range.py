@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from imupipe.identify import _default_T_grid, fit_allan
+from imupipe.identify import fit_allan
+from imupipe.identify.basis import _default_T_grid
 
 
 def test_grid_floor_is_min_samples_times_dt():
