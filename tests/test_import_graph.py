@@ -260,3 +260,48 @@ def test_smk_scan_reads_a_rule_file_import():
     text = "rule a:\n    run:\n        from imupipe.io import (\n            plain,\n            _hidden)\n"
     stmts = [textwrap.dedent(m).strip() for m in _SMK_IMPORT.findall(text)]
     assert [d for s in stmts for _, d, _ in private_uses(ast.parse(s))] == ["imupipe.io._hidden"]
+
+
+#: Longest function (lines from its first decorator or ``def`` to its last line, docstring included) and longest
+#: module (lines) allowed in src/imupipe: a function over this does several jobs, a module over this several
+#: topics (issue 30's limits; split into named steps or modules).
+MAX_FUNCTION_LINES, MAX_MODULE_LINES = 150, 1300
+
+
+def sizes(root: Path = PACKAGE) -> tuple[list[str], list[str]]:
+    """(functions over MAX_FUNCTION_LINES, modules over MAX_MODULE_LINES) of the Python files under `root`, each
+    as ``path:line name (n lines)``; nested functions and methods count on their own."""
+    long_functions, long_modules = [], []
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_text()
+        n = len(text.splitlines())
+        where = path.relative_to(root.parent) if root == PACKAGE else path.name
+        if n > MAX_MODULE_LINES:
+            long_modules.append(f"{where} ({n} lines)")
+        for node in ast.walk(ast.parse(text, filename=str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+                length = node.end_lineno - first + 1
+                if length > MAX_FUNCTION_LINES:
+                    long_functions.append(f"{where}:{node.lineno} {node.name} ({length} lines)")
+    return long_functions, long_modules
+
+
+def test_no_function_or_module_over_the_limits():
+    long_functions, long_modules = sizes()
+    assert not long_functions, f"functions over {MAX_FUNCTION_LINES} lines:\n" + "\n".join(long_functions)
+    assert not long_modules, f"modules over {MAX_MODULE_LINES} lines:\n" + "\n".join(long_modules)
+
+
+def test_sizes_counts_docstrings_decorators_and_nesting(tmp_path):
+    # a 151-line function (decorator and docstring included) and a nested one over the limit are found; a
+    # 150-line one is not (guards against a check that passes by reading nothing)
+    body = "\n".join(f"    x{k} = {k}" for k in range(MAX_FUNCTION_LINES - 3))
+    (tmp_path / "ok.py").write_text(f'def ok():\n    """doc"""\n{body}\n    return 0\n')
+    (tmp_path / "long.py").write_text(f'@staticmethod\ndef long():\n    """doc"""\n{body}\n    return 0\n')
+    inner = "\n".join(f"        y{k} = {k}" for k in range(MAX_FUNCTION_LINES))
+    (tmp_path / "nested.py").write_text(f"def outer():\n    def inner():\n{inner}\n    return inner\n")
+    (tmp_path / "big.py").write_text("x = 0\n" * (MAX_MODULE_LINES + 1))
+    long_functions, long_modules = sizes(tmp_path)
+    assert sorted(f.split(" ")[1] for f in long_functions) == ["inner", "long", "outer"]
+    assert long_modules == [f"big.py ({MAX_MODULE_LINES + 1} lines)"]

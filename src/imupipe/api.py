@@ -209,48 +209,23 @@ def _truth_of(truth, sensor):
 
 
 def noise_model(
-    curves: Mapping[str, Sequence[float]],
-    rate_hz: float,
-    sensor: str,
-    spec,
-    *,
-    decimate_hz: float = _D["decimate.rate_hz"],
-    window_s: float | None = None,
-    step_s: float | None = None,
-    taper: str = _D["psd.taper"],
-    detrend: str = _D["psd.detrend"],
-    psd_confidence: float = _D["psd.confidence"],
-    taus=_D["allan.taus"],
-    allan_confidence: float = _D["allan.confidence"],
-    components: Sequence[str] = tuple(_D["identify.components"]),
-    n_gm: int = _D["identify.n_gm"],
-    n_boot: int = _D["identify.n_boot"],
-    fit_confidence: float = _D["identify.confidence"],
-    significance: float = _D["identify.significance"],
-    relevance: float = _D["identify.relevance"],
-    adequacy_level: float = _D["identify.adequacy_level"],
-    pooling_level: float = _D["identify.pooling_level"],
-    pooling_n_boot: int = _D["identify.pooling_n_boot"],
-    fit_tau_min_samples: float | None = None,
-    max_bias_time_s: float | None = None,
-    application_rate_hz: float = _D["application.rate_hz"],
-    horizon_s: float = _D["application.horizon_s"],
-    mode: str = _D["bound.mode"],
-    bound_confidence: float = _D["bound.confidence"],
-    bands_per_decade: int = _D["bound.bands_per_decade"],
-    seed: int = 20211,
-    lines_policy: str | None = None,
-    lines_resolution_hz: float = _D["lines.resolution_hz"],
-    lines_alpha: float = _D["lines.alpha"],
-    lines_floor_window_bins: int = _D["lines.floor_window_bins"],
-    fix_s: float = _D["verify.fix_s"],
-    verify: bool = True,
-    sigma_fix: float | None = None,
-    filter_rate_hz: float = _D["verify.filter_rate_hz"],
-    fix_rate_hz: float | None = None,
-    reduce: bool = _D["verify.reduce"],
-    replay_z: float = _D["verify.replay_z"],
-    truth=None,
+    curves: Mapping[str, Sequence[float]], rate_hz: float, sensor: str, spec, *,
+    decimate_hz: float = _D["decimate.rate_hz"], window_s: float | None = None, step_s: float | None = None,
+    taper: str = _D["psd.taper"], detrend: str = _D["psd.detrend"], psd_confidence: float = _D["psd.confidence"],
+    taus=_D["allan.taus"], allan_confidence: float = _D["allan.confidence"],
+    components: Sequence[str] = tuple(_D["identify.components"]), n_gm: int = _D["identify.n_gm"],
+    n_boot: int = _D["identify.n_boot"], fit_confidence: float = _D["identify.confidence"],
+    significance: float = _D["identify.significance"], relevance: float = _D["identify.relevance"],
+    adequacy_level: float = _D["identify.adequacy_level"], pooling_level: float = _D["identify.pooling_level"],
+    pooling_n_boot: int = _D["identify.pooling_n_boot"], fit_tau_min_samples: float | None = None,
+    max_bias_time_s: float | None = None, application_rate_hz: float = _D["application.rate_hz"],
+    horizon_s: float = _D["application.horizon_s"], mode: str = _D["bound.mode"],
+    bound_confidence: float = _D["bound.confidence"], bands_per_decade: int = _D["bound.bands_per_decade"],
+    seed: int = 20211, lines_policy: str | None = None, lines_resolution_hz: float = _D["lines.resolution_hz"],
+    lines_alpha: float = _D["lines.alpha"], lines_floor_window_bins: int = _D["lines.floor_window_bins"],
+    fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
+    filter_rate_hz: float = _D["verify.filter_rate_hz"], fix_rate_hz: float | None = None,
+    reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -320,15 +295,54 @@ def noise_model(
         unknown sensor, or a spec sheet without that sensor; with `verify`, no decimated record as long as
         ``fix_s + horizon_s`` (the replay's window, as in the workflow's verify stage).
     """
-    from imupipe.allan import allan_variance
-    from imupipe.spectra import decimate, psd
     from imupipe.specsheet import display_units
     from imupipe.stages.bound import bound_sensor
-    from imupipe.stages.contract import contract_stage
-    from imupipe.stages.identify import Curve, identify_sensor
-    from imupipe.stages.kf import exported_kf, kf_stage
-    from imupipe.stages.verify import verify_sensor
+    from imupipe.stages.identify import identify_sensor
 
+    spec_sheet = _checked_inputs(curves, rate_hz, sensor, spec)
+    rate = float(rate_hz)
+    window_s, step_s = _psd_window(curves, rate, decimate_hz, window_s, step_s)
+    allan, spectra, decimated = _per_curve_estimates(curves, rate, sensor, decimate_hz, window_s, step_s, taper,
+                                                     detrend, psd_confidence, taus, allan_confidence)
+    # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
+    true_model = _truth_of(truth, sensor)
+    ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
+                            n_gm=n_gm, n_boot=n_boot, confidence=fit_confidence, significance=significance,
+                            relevance=relevance, rate_hz=application_rate_hz, horizon_s=horizon_s,
+                            adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
+                            envelope_horizon_s=fix_s + horizon_s, fit_tau_min_samples=fit_tau_min_samples,
+                            truth=true_model, seed=seed)
+    # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
+    f, dt, first = _stacked_spectra(spectra, decimate_hz)
+    lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
+                                                      lines_floor_window_bins)
+    with _no_stdout_fd():
+        bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
+                             {k: sp["edf"].values for k, sp in spectra.items()}, spec_sheet.models[sensor],
+                             ident.record, dt=dt, sensor=sensor, mode=mode, n_gm=n_gm, confidence=bound_confidence,
+                             bands_per_decade=bands_per_decade, horizon_s=fix_s + horizon_s,
+                             application_rate_hz=application_rate_hz, taper=first.attrs.get("taper", taper),
+                             allan=_stacked_allan(allan), lines=lines, line_policy=lines_policy or "model",
+                             spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
+    # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
+    if sigma_fix is None:
+        sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
+    kf_dt = 1.0 / float(application_rate_hz)
+    verification, contract, kf = _verified_kf(
+        bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, horizon_s, sigma_fix, filter_rate_hz, reduce,
+        replay_z, max_bias_time_s, fix_rate_hz, application_rate_hz, kf_dt, verify)
+    return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
+                            selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
+                            decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
+                            upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
+                            verification=verification, contract=contract,
+                            records={"identify": ident.record, "bound": bound.record, "verify": verification,
+                                     "contract": contract})
+
+
+def _checked_inputs(curves, rate_hz, sensor, spec):
+    """The spec sheet of :func:`noise_model` after its arguments' checks (sensor, rate, curves given, the sheet's
+    section of the sensor)."""
     if sensor not in ("gyro", "accel"):
         raise ValueError(f"sensor: expected 'gyro' or 'accel', got {sensor!r}")
     if not (float(rate_hz) > 0):
@@ -338,24 +352,38 @@ def noise_model(
     spec_sheet = _spec_of(spec)
     if sensor not in spec_sheet.models:
         raise ValueError(f"spec {spec_sheet.name!r}: no '{sensor}' section")
-    rate = float(rate_hz)
+    return spec_sheet
+
+
+def _psd_window(curves, rate: float, decimate_hz: float, window_s, step_s):
+    """The Welch window and step, s: those given, else the workflow's rule for an unset ``psd.window_s`` /
+    ``psd.step_s`` (:func:`imupipe.defaults.psd_window_step`) on the shortest curve."""
+    if window_s is not None and step_s is not None:
+        return window_s, step_s
+    from imupipe.defaults import psd_window_step
+
+    for label, x in curves.items():
+        if np.ndim(x) != 1:
+            raise ValueError(f"curves[{label!r}]: expected a 1-D record, got shape {np.shape(x)}")
+    label, n_min = min(((k, np.asarray(x).size) for k, x in curves.items()), key=lambda kv: kv[1])
+    try:
+        rule_w, rule_s = psd_window_step(n_min / rate, decimate_hz)
+    except ValueError as exc:
+        raise ValueError(f"curves[{label!r}]: {exc}") from exc
+    window_s = rule_w if window_s is None else window_s
+    step_s = (rule_s if window_s == rule_w else window_s / 2.0) if step_s is None else step_s
+    return window_s, step_s
+
+
+def _per_curve_estimates(curves, rate: float, sensor: str, decimate_hz, window_s, step_s, taper, detrend,
+                         psd_confidence, taus, allan_confidence):
+    """Per curve (the rules allan, decimate, psd): the overlapping Allan variance of the full-rate record, its
+    block average to `decimate_hz` and that's two-sided Welch PSD. Returns (allan, spectra, decimated) by label."""
+    from imupipe.allan import allan_variance
+    from imupipe.spectra import decimate, psd
     from imupipe.units import SI_UNITS
 
     units = SI_UNITS[sensor]
-
-    if window_s is None or step_s is None:
-        from imupipe.defaults import psd_window_step
-
-        for label, x in curves.items():
-            if np.ndim(x) != 1:
-                raise ValueError(f"curves[{label!r}]: expected a 1-D record, got shape {np.shape(x)}")
-        label, n_min = min(((k, np.asarray(x).size) for k, x in curves.items()), key=lambda kv: kv[1])
-        try:
-            rule_w, rule_s = psd_window_step(n_min / rate, decimate_hz)
-        except ValueError as exc:
-            raise ValueError(f"curves[{label!r}]: {exc}") from exc
-        window_s = rule_w if window_s is None else window_s
-        step_s = (rule_s if window_s == rule_w else window_s / 2.0) if step_s is None else step_s
     allan, spectra, decimated = {}, {}, {}
     for label, x in curves.items():
         x = np.asarray(x, dtype=np.float64)
@@ -368,60 +396,68 @@ def noise_model(
         allan[label] = allan_variance(x, rate, taus=taus, confidence=allan_confidence, units=units)
         spectra[label] = psd(y, new_rate, window_s=window_s, step_s=step_s, taper=taper,
                              detrend=None if detrend == "none" else detrend, confidence=psd_confidence, units=units)
+    return allan, spectra, decimated
 
-    # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
-    ident_curves = []
+
+def _identification_curves(curves, allan, rate: float) -> list:
+    """The identification's :class:`imupipe.stages.identify.Curve` of every curve, NaN entries removed (as the
+    stacked Allan file gives them)."""
+    from imupipe.stages.identify import Curve
+
+    out = []
     for label, x in curves.items():
         av = allan[label]
         a, e = av["avar"].values, av["edf"].values
         ok = np.isfinite(a) & np.isfinite(e)
-        ident_curves.append(Curve(label, av["tau"].values[ok], a[ok], e[ok], int(np.asarray(x).size), rate,
-                                  label.rsplit("/", 1)[-1]))
-    true_model = _truth_of(truth, sensor)
-    ident = identify_sensor(ident_curves, sensor=sensor, components=list(components), n_gm=n_gm, n_boot=n_boot,
-                            confidence=fit_confidence, significance=significance, relevance=relevance,
-                            rate_hz=application_rate_hz, horizon_s=horizon_s, adequacy_level=adequacy_level,
-                            pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
-                            envelope_horizon_s=fix_s + horizon_s, fit_tau_min_samples=fit_tau_min_samples,
-                            truth=true_model, seed=seed)
+        out.append(Curve(label, av["tau"].values[ok], a[ok], e[ok], int(np.asarray(x).size), rate,
+                         label.rsplit("/", 1)[-1]))
+    return out
 
-    # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
+
+def _stacked_spectra(spectra, decimate_hz: float):
+    """(frequency grid, Hz; decimated sample interval, s; the first curve's spectrum) of the curves' PSDs, which
+    must share one grid (as in the stacked spectra file)."""
     first = next(iter(spectra.values()))
     f = first["frequency"].values
     for label, sp in spectra.items():
         if sp["frequency"].size != f.size:
             raise ValueError(f"curves[{label!r}]: its PSD has {sp['frequency'].size} bins, the first curve's "
                              f"{f.size}: give records whose decimated length covers the same windows")
-    dt = 1.0 / float(first.attrs.get("rate_hz", decimate_hz))
+    return f, 1.0 / float(first.attrs.get("rate_hz", decimate_hz)), first
+
+
+def _stacked_allan(allan):
+    """(tau grid, s; label -> (AV u^2, edf)) on the union of the curves' taus (the stacked Allan file's outer
+    join), NaN where a curve has no value."""
     tau = np.unique(np.concatenate([av["tau"].values for av in allan.values()]))
     allan_curves = {}
-    for label, av in allan.items():  # on the union of the taus (the stack's outer join), NaN where a curve has none
+    for label, av in allan.items():
         at = np.searchsorted(tau, av["tau"].values)
         allan_curves[label] = tuple(np.full(tau.shape, np.nan) for _ in range(2))
         allan_curves[label][0][at], allan_curves[label][1][at] = av["avar"].values, av["edf"].values
-    lines = {}
-    if lines_policy is not None:
-        from imupipe.lines import find_lines
+    return tau, allan_curves
 
-        lines = {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=lines_resolution_hz,
-                                   alpha=lines_alpha, floor_window_bins=lines_floor_window_bins, units=units,
-                                   label=label).to_dict()
-                 for label, x in curves.items()}
-    with _no_stdout_fd():
-        bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
-                             {k: sp["edf"].values for k, sp in spectra.items()}, spec_sheet.models[sensor],
-                             ident.record, dt=dt, sensor=sensor, mode=mode, n_gm=n_gm, confidence=bound_confidence,
-                             bands_per_decade=bands_per_decade, horizon_s=fix_s + horizon_s,
-                             application_rate_hz=application_rate_hz, taper=first.attrs.get("taper", taper),
-                             allan=(tau, allan_curves), lines=lines, line_policy=lines_policy or "model",
-                             spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
 
-    # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
-    if sigma_fix is None:
-        sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
-    kf_dt = 1.0 / float(application_rate_hz)
+def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_window_bins) -> dict:
+    """The lines file of every full-rate curve (rule lines: :func:`imupipe.lines.find_lines`), by label."""
+    from imupipe.lines import find_lines
+    from imupipe.units import SI_UNITS
+
+    return {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=resolution_hz, alpha=alpha,
+                              floor_window_bins=floor_window_bins, units=SI_UNITS[sensor], label=label).to_dict()
+            for label, x in curves.items()}
+
+
+def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, horizon_s, sigma_fix, filter_rate_hz,
+                 reduce, replay_z, max_bias_time_s, fix_rate_hz, application_rate_hz, kf_dt, verify):
+    """The rules verify, contract and kf on the bound (:class:`imupipe.stages.bound.BoundStage`): (verification,
+    contract, KF file's content); without `verify`, (None, None, the KF matrices of the bound's model unreduced,
+    its bias started where the verification would start it)."""
+    from imupipe.stages.contract import contract_stage
+    from imupipe.stages.kf import exported_kf, kf_stage
+    from imupipe.stages.verify import verify_sensor
+
     turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
-    verification = contract = None
     if verify:
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
                                      rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
@@ -432,20 +468,14 @@ def noise_model(
                                   on_failure="warn", kf_rate_hz=application_rate_hz, horizon_s=horizon_s,
                                   filter_rate_hz=filter_rate_hz)
         kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=horizon_s, sensor=sensor)
-    else:  # the bound's model unreduced, its bias started where the verification would start it
-        from imupipe.biasinit import bias_initialisation
-        from imupipe.stages.verify import model_of
+        return verification, contract, kf
+    from imupipe.biasinit import bias_initialisation
+    from imupipe.stages.verify import model_of
 
-        m = model_of(bound.record["bound"])
-        record_s = max(y.size for y in decimated.values()) * dt
-        bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
-                                   record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
-        kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
-            "p0_random_walk": bias.p0(m, fix_s + horizon_s)}}, kf_dt, sensor)
-    return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
-                            selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
-                            decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
-                            upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
-                            verification=verification, contract=contract,
-                            records={"identify": ident.record, "bound": bound.record, "verify": verification,
-                                     "contract": contract})
+    m = model_of(bound.record["bound"])
+    record_s = max(y.size for y in decimated.values()) * dt
+    bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
+                               record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
+    kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
+        "p0_random_walk": bias.p0(m, fix_s + horizon_s)}}, kf_dt, sensor)
+    return None, None, kf

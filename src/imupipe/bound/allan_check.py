@@ -456,8 +456,6 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         [{curve, tau_s, ratio}], tau_band_s: [lo, hi], outside_band: {n_compared, worst_ratio, curve, tau_s}};
         ``passed``: no shortfall anywhere in the band.
     """
-    from imupipe.models import FLICKER_AV
-
     t = np.asarray(tau, dtype=np.float64)
     good = np.isfinite(t) & (t > 0)
     t = t[good]
@@ -477,43 +475,55 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         raise ValueError(f"check_allan: the tau band needs 0 <= tau_min_s < horizon_s, got [{tau_min_s}, {horizon_s}] s")
     band = (t >= t_lo * (1 - 1e-12)) & (t <= t_hi)  # 1e-12: a tau of exactly one filter step is in the band
 
-    def gm_av(model):
-        return _gm_terms_avar(model, t)
+    comps = _component_checks(b, i, kept, t, band)
+    total = _total_check(b, t, good, band, (t_lo, t_hi), sample_avar, sample_edf, labels, confidence)
+    passed = all(v["status"] != "shortfall" for v in comps.values()) and total["passed"] is not False
+    return {"components": comps, "total": total, "passed": bool(passed), "confidence": float(confidence),
+            "units": "tau s; ratios of Allan variances (dimensionless)"}
 
-    def compare(av_b, av_i, what, sel=None):
-        """Worst AV ratio bound/identified over the application band (`sel` narrows it further); the worst
-        ratio outside the band is reported with it and fails nothing, as for the total check."""
-        sel = np.ones_like(t, dtype=bool) if sel is None else sel
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r_all = np.where(sel & (av_i > 0), av_b / av_i, np.inf)
-        r = np.where(band, r_all, np.inf)
-        k = int(np.argmin(r))
-        if not np.isfinite(r[k]):
-            out = {"status": "ok", "margin": None, "tau_s": None,
-                   "reason": f"bound {what}: no tau of the application band to compare"}
-        else:
-            ok = bool(r[k] >= 1 - _EPS_BOUND)
-            out = {"status": "ok" if ok else "shortfall", "margin": float(r[k]), "tau_s": float(t[k]),
-                   "reason": f"bound {what}: min AV ratio {r[k]:.4g} at tau = {t[k]:.4g} s"}
-        r_out = np.where(band, np.inf, r_all)
-        j = int(np.argmin(r_out))
-        if np.isfinite(r_out[j]) and r_out[j] < 1 - _EPS_BOUND:
-            out["outside_band"] = {"margin": float(r_out[j]), "tau_s": float(t[j]),
-                                   "note": "tau outside the application band: reported, not a failure"}
-            out["reason"] += f"; outside the band {r_out[j]:.4g} at tau = {t[j]:.4g} s (not a failure)"
-        return out
+
+def _compare(t, band, av_b, av_i, what, sel=None):
+    """Worst AV ratio bound/identified over the application band `band` (a mask of the taus `t`, s; `sel`
+    narrows it further) for :func:`check_allan`; the worst ratio outside the band is reported with it and fails
+    nothing, as for the total check."""
+    sel = np.ones_like(t, dtype=bool) if sel is None else sel
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_all = np.where(sel & (av_i > 0), av_b / av_i, np.inf)
+    r = np.where(band, r_all, np.inf)
+    k = int(np.argmin(r))
+    if not np.isfinite(r[k]):
+        out = {"status": "ok", "margin": None, "tau_s": None,
+               "reason": f"bound {what}: no tau of the application band to compare"}
+    else:
+        ok = bool(r[k] >= 1 - _EPS_BOUND)
+        out = {"status": "ok" if ok else "shortfall", "margin": float(r[k]), "tau_s": float(t[k]),
+               "reason": f"bound {what}: min AV ratio {r[k]:.4g} at tau = {t[k]:.4g} s"}
+    r_out = np.where(band, np.inf, r_all)
+    j = int(np.argmin(r_out))
+    if np.isfinite(r_out[j]) and r_out[j] < 1 - _EPS_BOUND:
+        out["outside_band"] = {"margin": float(r_out[j]), "tau_s": float(t[j]),
+                               "note": "tau outside the application band: reported, not a failure"}
+        out["reason"] += f"; outside the band {r_out[j]:.4g} at tau = {t[j]:.4g} s (not a failure)"
+    return out
+
+
+def _component_checks(b, i, kept, t, band) -> dict:
+    """Item 1 of :func:`check_allan`: each kept component of the identified model `i` against its
+    representation in the bound `b` over the taus `t` (s) of the band mask `band`, and the bound's components
+    without a counterpart."""
+    from imupipe.models import FLICKER_AV
 
     comps = {}
     if "white" in kept:
-        comps["white"] = compare(np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t, "white vs white")
+        comps["white"] = _compare(t, band, np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t, "white vs white")
     if "random_walk" in kept:
-        comps["random_walk"] = compare(b.random_walk**2 * t / 3, i.random_walk**2 * t / 3, "random walk vs random walk")
+        comps["random_walk"] = _compare(t, band, b.random_walk**2 * t / 3, i.random_walk**2 * t / 3, "random walk vs random walk")
     if "gauss_markov" in kept:
-        comps["gauss_markov"] = compare(gm_av(b), gm_av(i), "GM vs GM")
+        comps["gauss_markov"] = _compare(t, band, _gm_terms_avar(b, t), _gm_terms_avar(i, t), "GM vs GM")
         if comps["gauss_markov"]["status"] == "shortfall":
             # a short-T identified GM (T below the bound's resolution) is white noise to the bound: its
             # representation there is GM + white, as for flicker
-            alt = compare(gm_av(b) + b.white**2 / t, gm_av(i), "GM + white vs GM")
+            alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t, _gm_terms_avar(i, t), "GM + white vs GM")
             if alt["status"] == "ok":
                 alt["reason"] += (" (the bound's GM alone falls short at short tau, where the identified GM "
                                   "acts as white noise and the bound's white noise represents it)")
@@ -522,7 +532,7 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
                 # a long-T identified GM rises like a random walk for tau < T: a random walk with
                 # K^2 >= 2 sigma^2 / T dominates that GM's PSD at every frequency (docs/method.md, section
                 # "Allan-domain check"), so the bound may carry it by its random walk
-                alt = compare(gm_av(b) + b.white**2 / t + b.random_walk**2 * t / 3, gm_av(i),
+                alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t + b.random_walk**2 * t / 3, _gm_terms_avar(i, t),
                               "GM + white + random walk vs GM")
                 if alt["status"] == "ok":
                     alt["reason"] += (" (the bound's GM alone falls short where the identified GM's AV still "
@@ -530,17 +540,17 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
                     comps["gauss_markov"] = alt
     if "flicker" in kept:
         fl = np.full_like(t, FLICKER_AV * i.flicker**2)
-        others = [np.full_like(t, i.white**2) / t, i.random_walk**2 * t / 3, gm_av(i)]
+        others = [np.full_like(t, i.white**2) / t, i.random_walk**2 * t / 3, _gm_terms_avar(i, t)]
         sel = fl > np.max(np.stack(others), axis=0)
         if not np.any(sel):
             comps["flicker"] = {"status": "no counterpart", "margin": None, "tau_s": None,
                                 "reason": "identified flicker is never the largest AV term: covered by the others"}
         else:
-            comps["flicker"] = compare(gm_av(b) + b.white**2 / t, fl, "GM + white vs flicker", sel)
+            comps["flicker"] = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t, fl, "GM + white vs flicker", sel)
             if comps["flicker"]["status"] == "shortfall" and b.random_walk > 0:
                 # the LP may represent the long-tau end of a flicker plateau by its random walk (both rise
                 # above the GM's decay there): the representation is then GM + white + random walk
-                alt = compare(gm_av(b) + b.white**2 / t + b.random_walk**2 * t / 3, fl,
+                alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t + b.random_walk**2 * t / 3, fl,
                               "GM + white + random walk vs flicker", sel)
                 if alt["status"] == "ok":
                     alt["reason"] += (" (GM + white alone falls short at long tau, where the bound's random "
@@ -555,6 +565,14 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
         if getattr(i, c, 0.0) > 0:
             comps[c] = {"status": "not a state", "margin": None, "tau_s": None,
                         "reason": f"{c} is not a Kalman-filter state; its AV is covered by the total check"}
+    return comps
+
+
+def _total_check(b, t, good, band, tau_band, sample_avar, sample_edf, labels, confidence) -> dict:
+    """Item 2 of :func:`check_allan`: the bound `b`'s total AV against the lower confidence limit of every
+    sample AV (columns `good` of the tau grid; `t` the good taus, s) inside the band mask `band`, Bonferroni
+    over the points compared; the worst ratio outside the band reported."""
+    t_lo, t_hi = tau_band
     total = {"passed": None, "worst_ratio": None, "curve": None, "tau_s": None, "n_compared": 0, "shortfalls": [],
              "tau_band_s": [t_lo, t_hi], "outside_band": None}
     if sample_avar is not None:
@@ -590,9 +608,7 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
             total["outside_band"] = {"n_compared": int(out_sel.sum()), "worst_ratio": float(r[c, k]),
                                      "curve": str(lab[c]), "tau_s": float(t[k]),
                                      "note": "taus outside the application band: reported, not a failure"}
-    passed = all(v["status"] != "shortfall" for v in comps.values()) and total["passed"] is not False
-    return {"components": comps, "total": total, "passed": bool(passed), "confidence": float(confidence),
-            "units": "tau s; ratios of Allan variances (dimensionless)"}
+    return total
 
 
 def upper_envelope_from_identification(identified: dict, horizon_s: float | None = None):

@@ -896,6 +896,23 @@ def bound_psd(
                     n_tests, exclude=exclude)
     allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
+    prob.narrowband = _narrowband_of(narrowband)
+    grid = _T_grid_of(prob, T_grid)
+    extra_T = [T for _, T in spec_model.gauss_markov] if spec_model is not None else []
+    n_gm = int(n_gm)
+    model, comps, decisions, prof, n_lp = _fit_components(prob, spec_model, keep, n_gm, grid, extra_T,
+                                                         add_threshold, dt, allf)
+    details = dict(prob.details)
+    details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
+                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
+                   narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
+                               for sg, f0, z in model.narrowband])
+    return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
+                   T_profile=prof, n_lp=n_lp, details=details)
+
+
+def _narrowband_of(narrowband) -> tuple:
+    """The narrowband lines of :func:`bound_psd` as (f0 Hz, zeta) pairs, checked (f0 > 0, 0 < zeta < 1)."""
     nb = []
     for item in narrowband or ():
         try:
@@ -905,7 +922,12 @@ def bound_psd(
         if not (f0 > 0 and 0 < z < 1):
             raise ValueError(f"narrowband line needs f0_hz > 0 and zeta in (0, 1), got ({f0}, {z})")
         nb.append((f0, z))
-    prob.narrowband = tuple(nb)
+    return tuple(nb)
+
+
+def _T_grid_of(prob, T_grid) -> np.ndarray:
+    """The GM time constants :func:`bound_psd` profiles, s: `T_grid`, or the default span at 10 (or `T_grid`, an
+    int) points per decade."""
     if T_grid is None:
         grid = _default_T_grid(prob)
     elif np.ndim(T_grid) == 0:  # points per decade of the default span
@@ -914,8 +936,14 @@ def bound_psd(
         grid = np.asarray(T_grid, dtype=np.float64)
     if grid.size == 0 or np.any(grid <= 0):
         raise ValueError("T_grid must hold positive time constants (s)")
-    extra_T = [T for _, T in spec_model.gauss_markov] if spec_model is not None else []
-    n_gm = int(n_gm)
+    return grid
+
+
+def _fit_components(prob, spec_model, keep, n_gm: int, grid, extra_T, add_threshold: float, dt, allf):
+    """The components of :func:`bound_psd`'s model and its LP solution: `keep`'s (plus what the all-frequency bound
+    requires), or the spec's, each of white, GM and random walk it lacks added when it lowers the looseness by more
+    than `add_threshold`; the zero model when every target is zero. Returns (model, components, decisions,
+    T profile, number of LPs)."""
     decisions = {}
     n_lp = 0
 
@@ -978,13 +1006,7 @@ def bound_psd(
                     decisions[cand] = (f"not in the spec and not needed by the data "
                                        f"(looseness gain {gain:.3g} <= {add_threshold:g})")
         model, _ = _x_to_model(sol, dt, prob.narrowband)
-    details = dict(prob.details)
-    details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
-                   dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
-                   narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
-                               for sg, f0, z in model.narrowband])
-    return _result(prob, model, spec_model, t0, mode=mode, components=list(comps), decisions=decisions,
-                   T_profile=prof, n_lp=n_lp, details=details)
+    return model, comps, decisions, prof, n_lp
 
 
 def margin(model, frequency, curves, dt: float | None = None):

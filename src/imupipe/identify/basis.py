@@ -200,15 +200,14 @@ def _wnnls(A, y, edf, n_iter=30, rtol=1e-6, m0=None, offset=None, backend="auto"
     given value), zero by default. Returns ``(p, m, chi2)`` with the Pearson statistic
     :math:`\chi^2 = \sum \tfrac{\nu_k}{2} ((y_k - m_k)/m_k)^2`.
 
-    The iteration stops once the model moves by less than `rtol` (relative) at every tau. At 1e-6 the
-    default run's pooled fits agree with a 1e-9 stop to 1e-6 relative and their bootstrap replicates to
-    1.4e-4 at most (a parameter near zero), far inside the parameters' statistical uncertainty, for a
-    fifth less time.
+    The iteration stops once the model moves by less than `rtol` (relative) at every tau; the default 1e-6
+    moves the fitted parameters far less than their statistical uncertainty (the comparison with a 1e-9
+    stop: docs/performance.md).
 
     `backend`: ``"c"`` (``imupipe._kernels.wnnls``: the same iteration, each NNLS by Lawson & Hanson's
     active-set method on Householder QR, 1974, ch. 23), ``"scipy"`` (:func:`scipy.optimize.nnls` per pass)
-    or ``"auto"`` (the kernel when built). The fits of a job call this ~10^4 times on a few dozen taus and
-    3-5 columns, where the Python path spends ~0.4 ms per call around ~0.05 ms of solving; the kernel's
+    or ``"auto"`` (the kernel when built). The fits of a job call this some 10^4 times on a few dozen taus and
+    3-5 columns, where the Python path's overhead dominates the solving (docs/performance.md); the kernel's
     results agree with it to rounding amplified by the conditioning, or within `rtol` where rounding moves
     the stopping pass (tested).
     """

@@ -154,7 +154,7 @@ def select_components(
     """
     # scipy.special, not scipy.stats (same functions, 0.5 s less of import): -ndtri(p) is the
     # standard normal upper quantile norm.isf(p), chdtri(df, p) the chi-squared one chi2.isf(p, df)
-    from scipy.special import chdtri, ndtri
+    from scipy.special import ndtri
 
     t, y, e = _pool(tau, avar, edf)
     model = fit.model
@@ -169,15 +169,7 @@ def select_components(
     # Bonferroni over the AV points and over the components tested
     zcrit = float(-ndtri(significance / (t.size * n_tested)))
 
-    if band_hz is not None:
-        f_lo, f_hi = (float(band_hz[0]), float(band_hz[1]))
-    elif rate_hz is not None or horizon_s is not None:
-        f_hi = float(rate_hz) / 2.0 if rate_hz is not None else 0.5 / float(t.min())
-        f_lo = 1.0 / float(horizon_s) if horizon_s is not None else 0.5 / float(t.max())
-    else:
-        f_lo = f_hi = None
-    if f_lo is not None and not (0 < f_lo < f_hi):
-        raise ValueError(f"band must satisfy 0 < f_lo < f_hi, got ({f_lo}, {f_hi})")
+    f_lo, f_hi = _band_of(band_hz, rate_hz, horizon_s, t)
     if f_lo is not None:
         tb = np.logspace(math.log10(0.5 / f_hi), math.log10(0.5 / f_lo), 200)
         m_band = np.asarray(model.avar(tb), dtype=np.float64)
@@ -190,33 +182,7 @@ def select_components(
                 reasons[c] = "fitted coefficient is zero"
                 details[c] = {"z": 0.0}
             continue
-        removed = (c,) + _SUBSTITUTES.get(c, ())
-        comps = tuple(x for x in fit.components if x not in removed)
-        d_chi2 = chi2_crit = None
-        lr_shows = False
-        if comps:
-            n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
-            grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
-            if c == "random_walk":
-                # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
-                # below the longest tau, so a +1/2 slope there counts as random-walk evidence
-                grid = grid[grid <= t.max() / 8.0]
-                if grid.size == 0:
-                    comps = tuple(x for x in comps if x != "gauss_markov")
-            elif c == "white":
-                # nor mimic white noise at the short end: a GM with T well below tau has AV 2 sigma^2 T/tau,
-                # a -1/2 slope; its T stays three octaves above the shortest tau
-                grid = grid[grid >= 8.0 * t.min()]
-                if grid.size == 0:
-                    comps = tuple(x for x in comps if x != "gauss_markov")
-            alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
-            m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
-            if lr_test:
-                d_chi2 = float(alt.chi2 - fit.chi2)
-                chi2_crit = float(chdtri(n_removed, significance / n_tested))
-                lr_shows = bool(d_chi2 > chi2_crit)
-        else:
-            m_null = np.zeros_like(m)
+        m_null, d_chi2, chi2_crit, lr_shows = _null_fit(fit, c, t, y, e, m, lr_test, significance, n_tested)
         # the part of the component the other components cannot absorb, against the AV's spread
         z = np.abs(m - m_null) / sd
         k = int(np.argmax(z))
@@ -238,14 +204,7 @@ def select_components(
                if d_chi2 is not None else "")
             + (f", band share {share:.3g}" if share is not None else "")
         )
-        if c in _DATA_ONLY:
-            keep, reason = data, _DATA_ONLY[c][0 if data else 1]
-        elif data and relevant:
-            keep, reason = True, "kept: significant in the AV and relevant in the band"
-        elif not data:
-            keep, reason = False, "dropped: not significant against the AV confidence"
-        else:
-            keep, reason = False, f"dropped: below {relevance:g} of the model AV inside the band"
+        keep, reason = _decision(c, data, relevant, relevance)
         (kept if keep else dropped).append(c)
         reasons[c] = f"{reason}; {why}"
     if "flicker" in kept:
@@ -262,12 +221,78 @@ def select_components(
     }
 
 
+def _band_of(band_hz, rate_hz, horizon_s, t):
+    """(f_lo, f_hi) of the application band, Hz (helper of :func:`select_components`): `band_hz`, or from the
+    filter rate (f_hi = rate/2; default the shortest tau's 1/(2 tau)) and the horizon (f_lo = 1/horizon; default
+    the longest tau's 1/(2 tau)); (None, None) without any of them."""
+    if band_hz is not None:
+        f_lo, f_hi = (float(band_hz[0]), float(band_hz[1]))
+    elif rate_hz is not None or horizon_s is not None:
+        f_hi = float(rate_hz) / 2.0 if rate_hz is not None else 0.5 / float(t.min())
+        f_lo = 1.0 / float(horizon_s) if horizon_s is not None else 0.5 / float(t.max())
+    else:
+        f_lo = f_hi = None
+    if f_lo is not None and not (0 < f_lo < f_hi):
+        raise ValueError(f"band must satisfy 0 < f_lo < f_hi, got ({f_lo}, {f_hi})")
+    return f_lo, f_hi
+
+
+def _null_fit(fit: AllanFit, c: str, t, y, e, m, lr_test: bool, significance: float, n_tested: int):
+    r"""The refit without component `c` (and what substitutes for it, :data:`_SUBSTITUTES`) of
+    :func:`select_components`: its AV at `t` (u^2; zero when nothing is left) and, with `lr_test`, its chi-squared
+    rise over `fit` against :math:`\chi^2_{d}(1-\alpha/J)`. Returns (m_null, delta_chi2, critical, shows)."""
+    from scipy.special import chdtri
+
+    removed = (c,) + _SUBSTITUTES.get(c, ())
+    comps = tuple(x for x in fit.components if x not in removed)
+    d_chi2 = chi2_crit = None
+    lr_shows = False
+    if comps:
+        n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
+        grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
+        if c == "random_walk":
+            # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
+            # below the longest tau, so a +1/2 slope there counts as random-walk evidence
+            grid = grid[grid <= t.max() / 8.0]
+            if grid.size == 0:
+                comps = tuple(x for x in comps if x != "gauss_markov")
+        elif c == "white":
+            # nor mimic white noise at the short end: a GM with T well below tau has AV 2 sigma^2 T/tau,
+            # a -1/2 slope; its T stays three octaves above the shortest tau
+            grid = grid[grid >= 8.0 * t.min()]
+            if grid.size == 0:
+                comps = tuple(x for x in comps if x != "gauss_markov")
+        alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
+        m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
+        if lr_test:
+            d_chi2 = float(alt.chi2 - fit.chi2)
+            chi2_crit = float(chdtri(n_removed, significance / n_tested))
+            lr_shows = bool(d_chi2 > chi2_crit)
+    else:
+        m_null = np.zeros_like(m)
+    return m_null, d_chi2, chi2_crit, lr_shows
+
+
+def _decision(c: str, data: bool, relevant: bool, relevance: float):
+    """(keep, reason) of component `c` given the data tests (`data`) and the band test (`relevant`): white noise
+    and the random walk on the data alone (:data:`_DATA_ONLY`), the others on both."""
+    if c in _DATA_ONLY:
+        keep, reason = data, _DATA_ONLY[c][0 if data else 1]
+    elif data and relevant:
+        keep, reason = True, "kept: significant in the AV and relevant in the band"
+    elif not data:
+        keep, reason = False, "dropped: not significant against the AV confidence"
+    else:
+        keep, reason = False, f"dropped: below {relevance:g} of the model AV inside the band"
+    return keep, reason
+
+
 def refit_selected(fit: AllanFit, selection: dict, tau, avar, edf, **fit_kwargs) -> AllanFit:
     r"""The selected model refitted: :func:`fit_allan` on the same data with only the components
     :func:`select_components` kept, attached to `fit` as ``fit.selected`` (an :class:`AllanFit`) and returned.
 
     The parameters to report and bound are this refit's, not the full fit's: in the full fit quantization
-    and a short-T GM absorb part of the white noise (N biased low by 0.1-0.2 %, intervals that under-cover);
+    and a short-T GM absorb part of the white noise (N biased low, intervals that under-cover: docs/performance.md);
     dropped components no longer take a share of the AV. Flicker, when kept, stays a component of the refit
     (the bound represents it). The GM count is the full fit's when ``gauss_markov`` is kept.
 
@@ -285,8 +310,8 @@ def refit_selected(fit: AllanFit, selection: dict, tau, avar, edf, **fit_kwargs)
 
     A random walk the selection dropped (the data do not show it) is not thereby absent: with a bootstrap,
     the refit also carries ``random_walk`` = 0 with the interval [0, upper], the upper limit of the fit with
-    the random walk (its profile limit), flagged ``on_boundary``: the integrity side for the bound. Measured:
-    a MEMS truth with K = 2e-6 m/s^2/sqrt(s) under two GMs (10 h at 10 Hz) had K dropped in 99 % of records.
+    the random walk (its profile limit), flagged ``on_boundary``: the integrity side for the bound (a small K
+    under two GMs is dropped in most records of a few hours: docs/performance.md).
 
     Returns
     -------
@@ -343,18 +368,15 @@ def _hull_gm_intervals(sel: AllanFit, with_rw: AllanFit) -> None:
 
     A GM and a random walk trade off in records of a few hours: without the random walk the GM absorbs its rise
     (a longer T, a larger sigma), and the refit's intervals, conditional on K = 0, can exclude the truth
-    (measured: a tactical gyro truth with K > 0, 10 h at 10 Hz, K dropped in about 10 % of the records, GM T
-    and sigma missed in most of those). The fit with the random walk contains both models (K >= 0), so:
+    (docs/performance.md). The fit with the random walk contains both models (K >= 0), so:
 
     * a single GM's time constant and sigma, whose intervals there are (or include) profile intervals (test
       inversion in the larger model, calibrated whichever model holds), are taken from the fit with the random
-      walk (measured, development seeds: with the random walk dropped the refit's own sigma interval missed the
-      tactical truth in all 19 of 200 records, above it; the hull with the larger fit's percentile interval in
-      5 of them, its lower end just above the truth; that fit's profile interval in none);
+      walk (with the random walk dropped the refit's own sigma interval, and less often its hull with the larger
+      fit's percentile interval, missed the truth above it; that fit's profile interval did not);
     * a percentile-only interval (the GM intervals of two GM terms) is the hull of the two: the percentile
-      interval of the larger model is centred on an estimate the random walk pulls low when the truth has none
-      (measured: GM sigma covered 0.85 of 100 white + GM records without a random walk, 0.90 for the refit's
-      own), the refit's on one pushed high when it has one.
+      interval of the larger model is centred on an estimate the random walk pulls low when the truth has none,
+      the refit's on one pushed high when it has one (the coverage of each: docs/performance.md).
     """
     def hull(dst, src, name):
         """`dst[name]` replaced by the rule above from `src`; True when it changed."""

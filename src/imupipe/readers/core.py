@@ -132,27 +132,13 @@ def read_dataset_row(
 
 
 def read_dataset(
-    path: str | Path,
-    format: str = "auto",
-    rate_hz: float | None = None,
-    channels: Mapping[Any, Any] | None = None,
-    units: Mapping[Any, Any] | None = None,
-    *,
-    time_column: str | int | None = None,
-    time_unit: str | None = None,
-    delimiter: str | None = None,
-    variable: str | None = None,
-    topic: str | None = None,
-    axis_map: str | Mapping[str, str] | None = None,
-    gap_policy: str = "fail",
-    min_duration_s: float | None = None,
-    rate_rtol: float = 0.01,
-    gap_factor: float = 1.5,
-    fill_max_samples: int | None = None,
-    fill_max_s: float | None = None,
-    long_gap_policy: str = "fail",
-    fill_max_fraction: float = DEFAULT_FILL_MAX_FRACTION,
-    min_duration_key: str = "min_duration_s",
+    path: str | Path, format: str = "auto", rate_hz: float | None = None, channels: Mapping[Any, Any] | None = None,
+    units: Mapping[Any, Any] | None = None, *, time_column: str | int | None = None, time_unit: str | None = None,
+    delimiter: str | None = None, variable: str | None = None, topic: str | None = None,
+    axis_map: str | Mapping[str, str] | None = None, gap_policy: str = "fail", min_duration_s: float | None = None,
+    rate_rtol: float = 0.01, gap_factor: float = 1.5, fill_max_samples: int | None = None,
+    fill_max_s: float | None = None, long_gap_policy: str = "fail",
+    fill_max_fraction: float = DEFAULT_FILL_MAX_FRACTION, min_duration_key: str = "min_duration_s",
 ) -> Recording:
     r"""Read, convert to SI and validate one static IMU record.
 
@@ -262,6 +248,62 @@ def read_dataset(
     path = Path(path)
     where = str(path)
     fmt = _format_of(path, format)
+    _check_arguments(where, gap_policy, long_gap_policy, fill_max_samples, fill_max_s, fill_max_fraction, rate_hz,
+                     min_duration_s)
+    before = check_file(path, fmt)
+    specs = _normalise_channels(channels)
+    _check_specs(specs, where)
+    sheet_units = _normalise_units(units)
+    amap = parse_axis_map(axis_map)
+    _check_sheet_units(specs, sheet_units, where)
+    raw = _load(fmt, path, specs, delimiter, variable, topic, time_column, time_unit, where, before)
+    row_text = _RowText(raw)
+    n = _check_samples(raw, where, row_text)
+    rate, segments, filled = _rate_and_segments(
+        raw, n, fmt, rate_hz, time_unit, gap_policy, long_gap_policy, fill_max_samples, fill_max_s, fill_max_fraction,
+        rate_rtol, gap_factor, where, row_text)
+    selected = max(range(len(segments)), key=lambda i: segments[i].n)
+    seg = segments[selected]
+    _check_duration(raw, seg, len(segments), rate, min_duration_s, min_duration_key, where)
+    si, file_units = _to_si(raw, sheet_units, where, row_text)
+    mapped, columns, mapped_units = _apply_axis_map(si, file_units, raw, amap, axis_map, where)
+    keys = [(s, a) for s in SENSORS for a in AXES if (s, a) in mapped]
+    full = {k: mapped[k] for k in keys}
+    if len(segments) > 1:
+        chans = {k: v[seg.start : seg.stop] for k, v in full.items()}
+    else:
+        chans, full = full, {}
+    detail = raw.detail or (f"variable {variable!r}" if fmt in ("npz", "netcdf") and variable else "")
+    source = f"{where} ({fmt}{', ' + detail if detail else ''})"
+    return Recording(channels=chans, rate_hz=float(rate), source=source, units={k: SI_UNITS[k[0]] for k in keys},
+                     file_units={k: mapped_units[k] for k in keys}, columns={k: columns[k] for k in keys},
+                     segments=tuple(segments), selected=selected, filled=filled, _full=full)
+
+
+class _RowText:
+    """Where row `row` of the record is, for error messages (helper of :func:`read_dataset`): its 0-based row,
+    the line of a text file, and after gap filling (``file_row``: filled row -> file row, -1 for an inserted
+    sample) the row of the file or that it was inserted."""
+
+    def __init__(self, raw: _Raw) -> None:
+        self.raw = raw
+        self.file_row: Callable[[int], int] | None = None
+
+    def __call__(self, row: int) -> str:
+        if self.file_row is not None:
+            in_file = self.file_row(row)
+            if in_file < 0:
+                return f"row {row} of the gap-filled record (an inserted sample)"
+            row = in_file
+        text = f"row {row} (0-based)"
+        if self.raw.line_of_row is not None:
+            text += f", line {self.raw.line_of_row(row)}"
+        return text
+
+
+def _check_arguments(where, gap_policy, long_gap_policy, fill_max_samples, fill_max_s, fill_max_fraction, rate_hz,
+                     min_duration_s) -> None:
+    """:class:`DataError` naming the file (`where`) and the argument of :func:`read_dataset` out of its range."""
     if gap_policy not in GAP_POLICIES:
         raise DataError(f"{where}: gap_policy {gap_policy!r} not one of {GAP_POLICIES}")
     if long_gap_policy not in ("fail", "split"):
@@ -277,8 +319,10 @@ def read_dataset(
         raise DataError(f"{where}: rate_hz = {rate_hz!r}; expected a positive number of Hz")
     if min_duration_s is not None and not (min_duration_s >= 0):
         raise DataError(f"{where}: min_duration_s = {min_duration_s!r}; expected a non-negative number of s")
-    before = check_file(path, fmt)
-    specs = _normalise_channels(channels)
+
+
+def _check_specs(specs, where) -> None:
+    """The channel columns of :func:`read_dataset`: at least one, no column named twice."""
     if specs is not None and not specs:
         raise DataError(f"{where}: no channel given (all of gyro_x ... accel_z are empty)")
     if specs is not None:
@@ -290,13 +334,19 @@ def read_dataset(
                     f"{where}: {_chname(other)} and {_chname(key)} both name column {spec!r}; expected one column "
                     "per channel (a duplicated or mistyped dataset-sheet column?)"
                 )
-    sheet_units = _normalise_units(units)
-    amap = parse_axis_map(axis_map)
-    if specs is not None:  # units known from the sheet are checked before reading a large file
+
+
+def _check_sheet_units(specs, sheet_units, where) -> None:
+    """The sheet's units of the channels read, checked before a large file is read."""
+    if specs is not None:
         for key in specs:
             if sheet_units.get(key) is not None and sheet_units[key] != FROM_FILE:
                 _unit_factor(sheet_units[key], key[0], f"{where}: {key[0]}_unit")
 
+
+def _load(fmt, path, specs, delimiter, variable, topic, time_column, time_unit, where, before) -> _Raw:
+    """The channels (and timestamps) of `path` in file units by the reader of format `fmt`; a file changed while
+    it was read (against `before`, :func:`imupipe.readers.checks.check_file`) is named as such."""
     try:
         if fmt == "csv":
             raw = _load_text(path, specs, delimiter, time_column, time_unit, where)
@@ -319,20 +369,11 @@ def read_dataset(
             raise changed from exc
         raise
     check_unchanged(path, before)
-    file_row = None  # filled record row -> file row (-1: inserted), after gap filling
+    return raw
 
-    def row_text(row: int) -> str:
-        if file_row is not None:
-            in_file = file_row(row)
-            if in_file < 0:
-                return f"row {row} of the gap-filled record (an inserted sample)"
-            row = in_file
-        text = f"row {row} (0-based)"
-        if raw.line_of_row is not None:
-            text += f", line {raw.line_of_row(row)}"
-        return text
 
-    # --- samples ---------------------------------------------------------------------------
+def _check_samples(raw: _Raw, where, row_text) -> int:
+    """The number of samples, every channel (and the timestamps) of that length and every sample finite."""
     lengths = {len(v) for v in raw.data.values()} | ({len(raw.time)} if raw.time is not None else set())
     if len(lengths) != 1:
         detail = ", ".join(f"{_chname(k)}: {len(v)}" for k, v in raw.data.items())
@@ -350,8 +391,14 @@ def read_dataset(
                 f"{where}: {_chname(key)} (column {raw.names[key]}) has a non-finite sample ({float(x[row])}) at "
                 f"{row_text(row)}; {int(np.count_nonzero(~finite))} in all"
             )
+    return n
 
-    # --- rate and timestamps -----------------------------------------------------------------
+
+def _rate_and_segments(raw, n, fmt, rate_hz, time_unit, gap_policy, long_gap_policy, fill_max_samples, fill_max_s,
+                       fill_max_fraction, rate_rtol, gap_factor, where, row_text):
+    """The record's rate (Hz), its contiguous segments and the gaps filled (:func:`read_dataset`'s timestamp
+    steps: the sheet's rate against the file's, gap filling per `gap_policy`, the timestamp checks); frees
+    ``raw.time`` once checked. `row_text` learns the filled-to-file row map."""
     rate = rate_hz
     if raw.file_rate is not None and rate_hz is not None:
         if abs(raw.file_rate - rate_hz) > rate_rtol * rate_hz:
@@ -379,10 +426,9 @@ def read_dataset(
                 max_missing = int(math.floor(fill_max_s * guess))
             else:
                 max_missing = DEFAULT_FILL_MAX_SAMPLES
-            filled, file_row = _fill_gaps(
+            filled, row_text.file_row = _fill_gaps(
                 raw, rate, rate_hz, rate_rtol, gap_factor, max_missing, fill_max_fraction, where, row_text, stamp_unit
             )
-            n = len(raw.time)
         policy = long_gap_policy
     elif raw.time is None and gap_policy == "fill":
         pass  # no timestamps: no gaps to see
@@ -391,13 +437,14 @@ def read_dataset(
         raw.time = None  # checked: its memory is free for the unit conversion below
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
-    selected = max(range(len(segments)), key=lambda i: segments[i].n)
-    seg = segments[selected]
+    return rate, segments, filled
 
-    # --- duration and constant channels --------------------------------------------------------
+
+def _check_duration(raw, seg, n_segments, rate, min_duration_s, min_duration_key, where) -> None:
+    """The selected segment `seg` lasts at least `min_duration_s` s and no channel is constant on it."""
     duration = seg.n / rate
     if min_duration_s is not None and duration < min_duration_s:
-        part = "longest contiguous segment" if len(segments) > 1 else "record"
+        part = "longest contiguous segment" if n_segments > 1 else "record"
         raise DataError(
             f"{where}: {part} lasts {duration:.6g} s ({seg.n} samples at {rate:g} Hz), shorter than the "
             f"{min_duration_s:g} s needed ({min_duration_key})"
@@ -410,7 +457,10 @@ def read_dataset(
                 "samples): a dead or saturated channel, or the wrong column"
             )
 
-    # --- units, SI, axis map -----------------------------------------------------------------
+
+def _to_si(raw, sheet_units, where, row_text):
+    """Every channel in SI (rad/s, m/s^2) from the sheet's unit or the file's (which must agree where both are
+    given), its values checked; returns (channels, unit each was read in)."""
     si: dict[Key, np.ndarray] = {}
     file_units: dict[Key, str] = {}
     for key, x in raw.data.items():
@@ -453,7 +503,12 @@ def read_dataset(
         si[key] = x * factor if factor != 1.0 else (x if x.flags.writeable else np.array(x, dtype=np.float64))
         file_units[key] = unit
         check_values(si[key], sensor, f"{_chname(key)} (column {raw.names[key]})", where, row_text)
+    return si, file_units
 
+
+def _apply_axis_map(si, file_units, raw, amap, axis_map, where):
+    """The channels, their column names and file units under the axis map `amap` (body axis <- signed file
+    axis; all three axes of a sensor needed unless it is the identity)."""
     mapped: dict[Key, np.ndarray] = {}
     columns: dict[Key, str] = {}
     mapped_units: dict[Key, str] = {}
@@ -474,26 +529,7 @@ def read_dataset(
             mapped[(sensor, a)] = -x if sign < 0 else x
             columns[(sensor, a)] = ("-" if sign < 0 else "") + raw.names[(sensor, src)]
             mapped_units[(sensor, a)] = file_units[(sensor, src)]
-    keys = [(s, a) for s in SENSORS for a in AXES if (s, a) in mapped]
-    full = {k: mapped[k] for k in keys}
-    if len(segments) > 1:
-        chans = {k: v[seg.start : seg.stop] for k, v in full.items()}
-    else:
-        chans, full = full, {}
-    detail = raw.detail or (f"variable {variable!r}" if fmt in ("npz", "netcdf") and variable else "")
-    source = f"{where} ({fmt}{', ' + detail if detail else ''})"
-    return Recording(
-        channels=chans,
-        rate_hz=float(rate),
-        source=source,
-        units={k: SI_UNITS[k[0]] for k in keys},
-        file_units={k: mapped_units[k] for k in keys},
-        columns={k: columns[k] for k in keys},
-        segments=tuple(segments),
-        selected=selected,
-        filled=filled,
-        _full=full,
-    )
+    return mapped, columns, mapped_units
 
 
 def format_of(path: str | Path, format: str | None = "auto") -> str:
