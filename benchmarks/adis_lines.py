@@ -80,23 +80,23 @@ def main(argv=None):
             sp = psd(y, 1.0, window_s=3600.0, step_s=1800.0)
             f, edf = sp["frequency"].values, sp["edf"].values
             curves.append(sp["psd"].values)
-        fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=a.n_boot, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
+        fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=a.n_boot, confidence=0.95, rng=20211, dt=0.01, record_rate_hz=100.0,
                         n_samples=ns)
-        sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-        up = upper_envelope(fit, sel, horizon_s=1200.0)
+        sel = select_components(fit, taus, avs, edfs, filter_rate_hz=100.0, outage_s=600.0)
+        up = upper_envelope(fit, sel, span_s=1200.0)
         print(f"{sensor}: lines per curve {n_lines}: "
               + ", ".join(f"{ln.frequency_hz:.4f} Hz (amp {ln.amplitude:.3g}, zeta {ln.zeta:.3g})"
                           for ln in lines[:6]) + (" ..." if len(lines) > 6 else ""))
         for policy in a.policies.split(","):
             pol = line_policy(lines, 1.0, (0.0, a.band_hz), policy, frequency=f)
-            b = bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, edf=edf, horizon_s=1200.0, upper_model=up,
+            b = bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, edf=edf, span_s=1200.0, upper_model=up,
                           **pol.bound_kwargs())
             ver = None
             if not a.no_verify:
                 sc = reference_scenario(sensor, horizon_s=600.0)
                 ver = verify_model(b.model, sensor, upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)
             al = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs),
-                             sample_edf=np.array(edfs), horizon_s=600.0)
+                             sample_edf=np.array(edfs), span_s=600.0)
             rows.append((sensor, policy, b.inflation["N"], sum(s > 0 for s, _, _ in b.model.narrowband), b.margin,
                          b.bounded, al["passed"],
                          None if ver is None else ver["passed"],

@@ -36,11 +36,11 @@ truth = NoiseModel(white=2.909e-5, gauss_markov=((4.848e-6, 200.0),), random_wal
 rng = np.random.default_rng(12345)
 avs = [allan_variance(simulate(truth, n, rate, rng), rate, taus="octave") for _ in range(3)]
 t, y, e = [a.tau.values for a in avs], [a.avar.values for a in avs], [a.edf.values for a in avs]
-kw = dict(n_boot=100, confidence=0.95, dt=1.0 / rate, rate=[rate] * 3, n_samples=[n] * 3)
+kw = dict(n_boot=100, confidence=0.95, dt=1.0 / rate, record_rate_hz=[rate] * 3, n_samples=[n] * 3)
 t0, c0 = time.perf_counter(), time.process_time()
 fit = fit_allan(t, y, e, components=("white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"),
                 n_gm=1, rng=20211, **kw)
-sel = select_components(fit, t, y, e, rate_hz=1.0, horizon_s=3600.0)
+sel = select_components(fit, t, y, e, filter_rate_hz=1.0, outage_s=3600.0)
 rep = refit_selected(fit, sel, t, y, e, rng=20211, **kw)
 print(time.perf_counter() - t0, time.process_time() - c0, sel["kept"], rep.intervals.get("gm_T_1"))
 """

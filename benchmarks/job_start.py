@@ -36,22 +36,22 @@ JOBS = {
                      "av = allan_variance_labelled(x, 1.0, units='rad/s')\n"
                      "t, a, e = (np.asarray(av.coords['tau'][0]), *(np.asarray(av.data_vars[k][0]) for k in ('avar', 'edf')))\n"
                      "ok = np.isfinite(a) & np.isfinite(e)\n"
-                     "fit = fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, rate=1.0, n_samples=[x.size])\n"
+                     "fit = fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, record_rate_hz=1.0, n_samples=[x.size])\n"
                      "kw = {'paper': False} if 'paper' in inspect.signature(calibrated_stationarity).parameters else {}\n"
                      "calibrated_stationarity(x, 1.0, fit.model, n_sim=19, **kw)\n"),
     "identify": ("from imupipe.identify import fit_allan, select_components\nfrom imupipe.allan import allan_variance_labelled\n"
                  "av = allan_variance_labelled(x, 1.0, units='rad/s')\n"
                  "t, a, e = (np.asarray(av.coords['tau'][0]), *(np.asarray(av.data_vars[k][0]) for k in ('avar', 'edf')))\n"
                  "ok = np.isfinite(a) & np.isfinite(e)\n"
-                 "fit = fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, rate=1.0, n_samples=[x.size])\n"
-                 "select_components(fit, [t[ok]], [a[ok]], [e[ok]], rate_hz=1.0, horizon_s=600.0)\n"),
+                 "fit = fit_allan([t[ok]], [a[ok]], [e[ok]], n_gm=1, n_boot=0, dt=1.0, record_rate_hz=1.0, n_samples=[x.size])\n"
+                 "select_components(fit, [t[ok]], [a[ok]], [e[ok]], filter_rate_hz=1.0, outage_s=600.0)\n"),
     "bound_axis": ("from imupipe.bound import bound_psd\nfrom imupipe.specsheet import load_spec\n"
                    "f = np.arange(1, 901) / 1800.0  # a PSD as the job reads it from its file\n"
                    "e = np.full(f.size, 2.0)\n"
                    "s = NoiseModel(white=1e-4).psd_sampled(f, 1.0) * np.random.default_rng(2).chisquare(2, f.size) / 2\n"
                    f"spec = load_spec({str(SPEC)!r}).models['gyro']\n"
                    "bound_psd(f, {'a/x': s}, spec, dt=1.0, edf=e, keep=['white', 'gauss_markov', 'random_walk'],"
-                   " T_grid=4, horizon_s=1200.0)\n"),
+                   " T_grid=4, span_s=1200.0)\n"),
     "kf": "from imupipe.kf import export_kf\nexport_kf(NoiseModel(white=1e-4, gauss_markov=((2e-5, 300.0),)), 1.0, sensor='gyro')\n",
 }
 HEAVY = ("scipy.optimize", "scipy.stats", "scipy.special", "scipy.signal", "scipy.linalg", "xarray")

@@ -20,7 +20,7 @@ DURATION_S = 3600.0
 TRUTH = NoiseModel(white=1.0e-4, gauss_markov=((2.0e-5, 300.0),), random_walk=5.0e-8)  # rad/s
 SETTINGS = dict(window_s=1200.0, step_s=600.0)
 BOOT = dict(n_boot=20)  # the reference computation below uses 20 replicates (the API default is 100)
-HORIZON = dict(horizon_s=600.0)  # the reference computation below uses a 600 s horizon; the API default is 3600 s
+HORIZON = dict(outage_s=600.0)  # the reference computation below uses a 600 s outage; the API default is 3600 s
 
 
 @pytest.fixture(scope="module")
@@ -75,8 +75,8 @@ def workflow(records, tmp_path_factory):
     ident = identification_stage(
         curves_of(Stacked(tmp / "allan.nc")), sensor="gyro",
         components=["white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"], n_gm=1, n_boot=20,
-        confidence=0.95, significance=0.05, relevance=0.05, rate_hz=1.0, horizon_s=600.0,
-        envelope_horizon_s=600.0 + 600.0)
+        confidence=0.95, significance=0.05, relevance=0.05, filter_rate_hz=1.0, outage_s=600.0,
+        span_s=600.0 + 600.0)
     write_yaml_atomic(ident, tmp / "identify.yaml")
     identify = read_yaml(tmp / "identify.yaml")
 
@@ -88,7 +88,7 @@ def workflow(records, tmp_path_factory):
         sp["frequency"], {f"{d}/{a}": sp.at("psd", d, a) for d, a in inc},
         {f"{d}/{a}": sp.at("edf", d, a) for d, a in inc}, spec.models["gyro"], identify,
         dt=1.0 / float(sp.attrs["rate_hz"]), sensor="gyro", mode="raw", n_gm=1, confidence=0.95, bands_per_decade=10,
-        horizon_s=600.0 + 600.0, application_rate_hz=1.0, taper=sp.attrs.get("taper", "hann"),
+        span_s=600.0 + 600.0, filter_rate_hz=1.0, taper=sp.attrs.get("taper", "hann"),
         allan=(al["tau"], {f"{d}/{a}": (al.at("avar", d, a), al.at("edf", d, a)) for d, a in al.curves(True)}),
         spec_name=spec.name)
     write_yaml_atomic(bound_doc, tmp / "bound.yaml")
@@ -158,7 +158,7 @@ def test_library_call_prints_nothing_on_stdout():
             "from imupipe.simulate import simulate; "
             "x = simulate(NoiseModel(white=1e-4), 20000, 10.0, rng=1); "
             f"r = noise_model({{'a/x': x}}, 10.0, 'gyro', {str(SPEC)!r}, window_s=1200.0, step_s=600.0, "
-            "horizon_s=600.0)")  # the verification replays fix_s + horizon_s = 1200 s of the 2000 s record
+            "outage_s=600.0)")  # the verification replays fix_s + outage_s = 1200 s of the 2000 s record
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == ""

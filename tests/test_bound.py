@@ -388,7 +388,7 @@ class TestAllFrequencies:
         # its PSD is >= the spec's at 1e-7 Hz (far below the lowest bin, 2.5e-4 Hz)
         f, c = self.white_curves()
         spec = NoiseModel(white=1e-3, random_walk=1e-5)
-        r = bound_psd(f, c, spec, dt=1.0, keep=("white",), horizon_s=4200.0)
+        r = bound_psd(f, c, spec, dt=1.0, keep=("white",), span_s=4200.0)
         assert r.model.random_walk >= spec.random_walk * (1 - 1e-9)
         assert "required by the all-frequency bound" in r.decisions["random_walk"]
         assert r.model.psd(np.array([1e-7]))[0] >= spec.psd(np.array([1e-7]))[0] * (1 - 1e-9)
@@ -397,7 +397,7 @@ class TestAllFrequencies:
     def test_upper_envelope_random_walk_is_kept(self):
         f, c = self.white_curves()
         up = NoiseModel(white=1e-3, random_walk=3e-6)
-        r = bound_psd(f, c, NoiseModel(white=1e-3), dt=1.0, keep=("white",), upper_model=up, horizon_s=4200.0)
+        r = bound_psd(f, c, NoiseModel(white=1e-3), dt=1.0, keep=("white",), upper_model=up, span_s=4200.0)
         assert r.model.random_walk >= 3e-6 * (1 - 1e-9)
         assert r.details["all_frequency"]["K_upper"] == pytest.approx(3e-6)
 
@@ -407,13 +407,13 @@ class TestAllFrequencies:
         f, c = self.white_curves()
         spec = NoiseModel(white=1e-3)
         up = NoiseModel(white=1e-3, gauss_markov=((1e-4, 1e5),))
-        r = bound_psd(f, c, spec, dt=1.0, horizon_s=4200.0, upper_model=up, keep=("white", "gauss_markov"))
+        r = bound_psd(f, c, spec, dt=1.0, span_s=4200.0, upper_model=up, keep=("white", "gauss_markov"))
         lo = r.details["all_frequency"]["f_floor_hz"]
         assert lo == pytest.approx(0.01 / 4200.0)
         g = np.logspace(math.log10(lo), -3, 50)
         assert np.all(r.model.psd(g) >= up.psd(g) * (1 - 1e-6))
         # without the envelope the same data give a bound far below that GM there (the rows are what holds it)
-        r0 = bound_psd(f, c, spec, dt=1.0, horizon_s=4200.0, keep=("white", "gauss_markov"))
+        r0 = bound_psd(f, c, spec, dt=1.0, span_s=4200.0, keep=("white", "gauss_markov"))
         assert np.min(r0.model.psd(g) / up.psd(g)) < 0.5
 
     def test_envelope_above_the_sampled_band(self):
@@ -430,7 +430,7 @@ class TestAllFrequencies:
         truth = NoiseModel(white=6e-4, gauss_markov=((0.02, 0.285),))
         c = np.asarray(truth.psd_sampled(np.maximum(f, f[1]), 1.0))[None, :]
         up = NoiseModel(white=7.6e-4, gauss_markov=((0.02, 0.285),))
-        kw = dict(dt=1.0, keep=("white", "gauss_markov"), horizon_s=1200.0, upper_model=up)
+        kw = dict(dt=1.0, keep=("white", "gauss_markov"), span_s=1200.0, upper_model=up)
         r = bound_psd(f, c, None, **kw)
         r0 = bound_psd(f, c, None, upper_band="below", **kw)
         g = np.logspace(math.log10(0.5), 4, 200)
@@ -512,15 +512,15 @@ class TestCheckAllan:
         # the total check: a sample AV whose lower limit (edf 1000) lies above the bound at long tau
         av = ident.avar(self.TAU)[None, :]
         rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=1000.0,
-                          labels=["d1/x"], horizon_s=1e4)
+                          labels=["d1/x"], span_s=1e4)
         assert not rep["passed"] and rep["total"]["curve"] == "d1/x" and rep["total"]["worst_ratio"] < 1
         assert rep["total"]["tau_s"] == pytest.approx(self.TAU[-1])
         # a sample AV 1.5x the bound's: with edf 1000 its Bonferroni lower limit (30 taus, 95 %) is ~1.25x the
         # bound's (a shortfall); with edf 2 the limit is 1.5 x 2/chi2_2(1 - 0.05/30) = 0.23x (chance, no shortfall)
         av = 1.5 * bound.avar(self.TAU)[None, :]
-        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=1000.0, horizon_s=1e4)
+        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=1000.0, span_s=1e4)
         assert not rep["total"]["passed"] and len(rep["total"]["shortfalls"]) == self.TAU.size
-        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=2.0, horizon_s=1e4)
+        rep = check_allan(bound, ident, self.TAU, kept=["white"], sample_avar=av, sample_edf=2.0, span_s=1e4)
         assert rep["passed"] and rep["total"]["worst_ratio"] == pytest.approx(12.82 / 2 / 1.5, rel=0.01)
 
 
@@ -536,23 +536,23 @@ class TestCheckAllan:
         tau = np.logspace(-2, 3, 26)  # 0.01 s .. 1000 s
         av = bound.avar(tau) * np.where(tau < 1.0, 1.5, 0.5)  # above the bound below 1 s only
         rep = check_allan(bound, ident, tau, kept=["white"], sample_avar=av[None, :], sample_edf=1000.0,
-                          labels=["d1/z"], horizon_s=1200.0, tau_min_s=1.0)
+                          labels=["d1/z"], span_s=1200.0, tau_min_s=1.0)
         tot = rep["total"]
         assert rep["passed"] and tot["passed"] and tot["tau_band_s"] == [1.0, 1200.0]
         assert tot["n_compared"] == int(np.sum(tau >= 1.0 - 1e-12))
         assert tot["outside_band"]["worst_ratio"] < 1 and tot["outside_band"]["tau_s"] < 1.0
         # the same check with the band from 0.01 s (a 100 Hz filter): the short-tau shortfall fails it
         rep = check_allan(bound, ident, tau, kept=["white"], sample_avar=av[None, :], sample_edf=1000.0,
-                          labels=["d1/z"], horizon_s=1200.0, tau_min_s=0.01)
+                          labels=["d1/z"], span_s=1200.0, tau_min_s=0.01)
         assert not rep["passed"] and rep["total"]["curve"] == "d1/z" and rep["total"]["tau_s"] < 1.0
         # a bound too small INSIDE the band fails whatever the band's lower end
         small = NoiseModel(white=0.5e-4)
         rep = check_allan(small, ident, tau, kept=["white"], sample_avar=bound.avar(tau)[None, :],
-                          sample_edf=1000.0, labels=["d1/x"], horizon_s=1200.0, tau_min_s=1.0)
+                          sample_edf=1000.0, labels=["d1/x"], span_s=1200.0, tau_min_s=1.0)
         assert not rep["passed"] and rep["total"]["tau_s"] >= 1.0
         assert len(rep["total"]["shortfalls"]) == rep["total"]["n_compared"]
         with pytest.raises(ValueError, match="tau band"):
-            check_allan(bound, ident, tau, sample_avar=av[None, :], horizon_s=1.0, tau_min_s=2.0)
+            check_allan(bound, ident, tau, sample_avar=av[None, :], span_s=1.0, tau_min_s=2.0)
 
     def test_component_check_restricted_to_the_application_band(self):
         """Component against component over the same band as the total check. A GM's AV is about
@@ -565,11 +565,11 @@ class TestCheckAllan:
         ident = NoiseModel(white=1e-4, gauss_markov=((1e-4, 1000.0),))
         bound = NoiseModel(white=1e-4, gauss_markov=((1e-4, 100.0),))
         tau = np.logspace(-1, 4, 26)
-        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], horizon_s=50.0, tau_min_s=1.0)
+        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], span_s=50.0, tau_min_s=1.0)
         gm = rep["components"]["gauss_markov"]
         assert gm["status"] == "ok" and rep["passed"]
         assert gm["outside_band"]["margin"] < 1 and gm["outside_band"]["tau_s"] > 50.0
-        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], horizon_s=5000.0, tau_min_s=1.0)
+        rep = check_allan(bound, ident, tau, kept=["white", "gauss_markov"], span_s=5000.0, tau_min_s=1.0)
         gm = rep["components"]["gauss_markov"]
         assert gm["status"] == "shortfall" and not rep["passed"] and 50.0 < gm["tau_s"] <= 5000.0
 
@@ -585,7 +585,7 @@ class TestCheckAllan:
         k = np.sqrt(2 * sigma**2 / T)
         ident = NoiseModel(white=1e-5, gauss_markov=((sigma, T),))
         tau = np.logspace(0, np.log10(3600.0), 20)
-        kw = dict(kept=["white", "gauss_markov"], horizon_s=3600.0, tau_min_s=1.0)
+        kw = dict(kept=["white", "gauss_markov"], span_s=3600.0, tau_min_s=1.0)
         short = ((1e-6, 10.0),)
         rep = check_allan(NoiseModel(white=1e-5, gauss_markov=short, random_walk=k), ident, tau, **kw)
         gm = rep["components"]["gauss_markov"]
@@ -616,7 +616,7 @@ class TestPerAxis:
         spec = NoiseModel(white=0.5e-3)
         ups = {ax: NoiseModel(white=N) for ax, N in dens.items()}
         per = bound_by_axis(f, curves, spec, upper_models=ups, edf={k: edf for k in curves}, dt=1.0,
-                            keep=("white",), horizon_s=4200.0)
+                            keep=("white",), span_s=4200.0)
         assert list(per) == ["x", "y", "z"]
         for ax, (labels, res) in per.items():
             assert labels == [f"d1/{ax}", f"d2/{ax}"]
@@ -625,7 +625,7 @@ class TestPerAxis:
             assert res.model.white >= max(spec.white, ups[ax].white) * (1 - 1e-9)
         assert per["z"][1].model.white / per["x"][1].model.white > 1.39
         assert margin(per["x"][1].model, f, np.array([curves["d1/z"], curves["d2/z"]]), dt=1.0)[0] < 1
-        glob = bound_psd(f, np.array(list(curves.values())), spec, dt=1.0, keep=("white",), horizon_s=4200.0)
+        glob = bound_psd(f, np.array(list(curves.values())), spec, dt=1.0, keep=("white",), span_s=4200.0)
         assert glob.model.white == pytest.approx(max(r.model.white for _, r in per.values()), rel=1e-6)
         with pytest.raises(ValueError, match="dataset/axis"):
             curves_by_axis(["no-axis"])
@@ -763,7 +763,7 @@ class TestUpperEnvelopeOpenInterval:
                                          "gm_T_1": (20.0, math.inf)},
                               T_grid=np.logspace(-2, 2, 33))
         # the single box GM (max_box_ratio = inf; by default a box of ratio > 10 is split, checked below)
-        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H, max_box_ratio=math.inf)
+        env = upper_envelope(fit, ["white", "gauss_markov"], span_s=H, max_box_ratio=math.inf)
         # closed at c = max(100 s searched, H / (2 pi) = 573 s): T_m = sqrt(20 c), sigma_m = s (c / 20)^(1/4)
         c = H / (2.0 * np.pi)
         ((s_m, T_m),) = env.gauss_markov
@@ -780,7 +780,7 @@ class TestUpperEnvelopeOpenInterval:
         # has PSD s^2/(2 pi f) = 2 s^2 c, above the box's 2 s^2 c / (1 + (2 pi f)^2 20 c)
         assert self.shortfall(env, s, T, np.array([0.5 / H]), white=1.1e-3) < 1.0
         # without a horizon: c = the longest T searched, dominated from 1/(2 pi 100 s) on only
-        split = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=H)
+        split = upper_envelope(fit, ["white", "gauss_markov"], span_s=H)
         assert len(split.gauss_markov) == 2  # c / 20 s = 28.6: two sub-boxes of ratio 5.3
         assert self.shortfall(split, s, T, f, white=1.1e-3) >= 1 - 1e-12
         env0 = upper_envelope(fit, ["white", "gauss_markov"], max_box_ratio=math.inf)
@@ -800,7 +800,7 @@ class TestUpperEnvelopeOpenInterval:
                               intervals={"white": (3.09e-3, N_up), "gm_sigma_1": (0.0221, s),
                                          "gm_T_1": (0.0, 0.0133)},
                               T_grid=np.logspace(-2, 2.8, 40))
-        env = upper_envelope(fit, ["white", "gauss_markov"], horizon_s=1200.0)
+        env = upper_envelope(fit, ["white", "gauss_markov"], span_s=1200.0)
         ((s_m, T_m),) = env.gauss_markov
         assert T_m == pytest.approx(math.sqrt(a * 0.0133), rel=1e-14)
         assert env.white**2 - N_up**2 == pytest.approx(SHORT_T_WHITE_FACTOR * s * s * a, rel=1e-9)
@@ -841,7 +841,7 @@ class TestUpperEnvelopeOpenInterval:
                                T_grid=np.array([0.01, 100.0]))
         # the selected refit's, its open upper end (null in YAML) read as inf, the file's horizon
         assert upper_envelope_from_identification(ident) == upper_envelope(view, ["white", "gauss_markov"],
-                                                                           horizon_s=1200.0)
+                                                                           span_s=1200.0)
         assert upper_envelope_from_identification(ident).gauss_markov[0][1] == pytest.approx(
             math.sqrt(20.0 * 1200.0 / (2 * np.pi)), rel=1e-14)
 

@@ -75,8 +75,8 @@ def coverage(case, n_records, hours=10.0, seed=0, n_boot=100):
         av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
         t, y, e = av.tau.values, av.avar.values, av.edf.values
         full = fit_allan(t, y, e, components=COMPONENTS, n_gm=n_gm, n_boot=0)
-        sel = select_components(full, t, y, e, rate_hz=1.0, horizon_s=3600.0)
-        rep = refit_selected(full, sel, t, y, e, n_boot=n_boot, confidence=LEVEL, rng=rng, rate=RATE, n_samples=n)
+        sel = select_components(full, t, y, e, filter_rate_hz=1.0, outage_s=3600.0)
+        rep = refit_selected(full, sel, t, y, e, n_boot=n_boot, confidence=LEVEL, rng=rng, record_rate_hz=RATE, n_samples=n)
         for k, v in true.items():
             hits[k] += covered(rep, k, v)
             one_sided[k] += bool(rep.on_boundary.get(k, True)

@@ -45,7 +45,7 @@ class TestFitAllan:
         truth = TRUTHS["white+gm"]
         tau, avar, edf = curves(truth, 10.0, 3, seed=12)
         fit = fit_allan(tau, avar, edf, n_boot=0)
-        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
         assert "random_walk" not in sel["kept"]
         assert sel["reduced_model"] is True
         assert "white" in sel["kept"]
@@ -64,7 +64,7 @@ class TestFitAllan:
             av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
             fits.append(fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=0).params["white"])
         boot = fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=B, rng=rng,
-                         rate=RATE, n_samples=n)
+                         record_rate_hz=RATE, n_samples=n)
         ratio = np.std(boot.bootstrap[:, boot.param_names.index("white")], ddof=1) / np.std(fits, ddof=1)
         se = np.hypot(1 / np.sqrt(2 * (R - 1)), 1 / np.sqrt(2 * (B - 1)))
         assert abs(np.log(ratio)) < 3.5 * se
@@ -89,7 +89,7 @@ class TestFitAllan:
         for _ in range(R):
             av = allan_variance(simulate(truth, n, RATE, rng), RATE, taus="octave")
             fit = fit_allan(av.tau.values, av.avar.values, av.edf.values, components=comps, n_boot=100, rng=rng,
-                            confidence=level, rate=RATE, n_samples=n)
+                            confidence=level, record_rate_hz=RATE, n_samples=n)
             for k, v in true.items():
                 lo, hi = fit.intervals[k]
                 hits[k] += bool(lo <= v <= hi)
@@ -138,7 +138,7 @@ def test_random_walk_profile_limit_brackets_its_threshold():
     tau, avar, edf = curves(truth, 2.0, 1, seed=5)
     n = int(2.0 * 3600 * RATE)
     comps = ("white", "gauss_markov", "random_walk")
-    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, record_rate_hz=RATE, n_samples=n)
     prof = fit.random_walk_profile
     assert prof["threshold"] > 0 and prof["upper"] >= fit.params["random_walk"]
     assert fit.intervals["random_walk"][1] == max(prof["upper"], prof["percentile_upper"])
@@ -162,7 +162,7 @@ def test_gm_T_profile_limits_bracket_their_threshold():
     tau, avar, edf = curves(truth, 10.0, 1, seed=5)  # 10 h: T = 300 s bounded on both sides
     n = int(10.0 * 3600 * RATE)
     comps = ("white", "gauss_markov", "random_walk")
-    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, record_rate_hz=RATE, n_samples=n)
     prof = fit.gm_T_profile
     T_hat = fit.params["gm_T_1"]
     assert prof["threshold"] > 0 and prof["lower"] < T_hat < prof["upper"]
@@ -210,7 +210,7 @@ def test_white_profile_interval_brackets_its_threshold():
     tau, avar, edf = curves(truth, 10.0, 1, seed=8)
     n = int(10.0 * 3600 * RATE)
     comps = ("white", "gauss_markov")
-    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=4, confidence=0.9, rate=RATE, n_samples=n)
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=4, confidence=0.9, record_rate_hz=RATE, n_samples=n)
     prof, N = fit.white_profile, fit.params["white"]
     assert prof["threshold"] > 0 and prof["lower"] < N < prof["upper"]
     assert fit.intervals["white"] == (min(prof["lower"], prof["percentile_lower"]),
@@ -238,7 +238,7 @@ def test_gm_sigma_profile_interval_brackets_its_threshold():
     tau, avar, edf = curves(truth, 10.0, 1, seed=5)
     n = int(10.0 * 3600 * RATE)
     comps = ("white", "gauss_markov", "random_walk")
-    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, rate=RATE, n_samples=n)
+    fit = fit_allan(tau, avar, edf, components=comps, n_boot=40, rng=3, confidence=0.9, record_rate_hz=RATE, n_samples=n)
     prof, s_hat = fit.gm_sigma_profile, fit.params["gm_sigma_1"]
     assert prof["threshold"] > 0 and prof["lower"] < s_hat < prof["upper"]
     assert fit.intervals["gm_sigma_1"] == (prof["lower"], prof["upper"])
@@ -294,7 +294,7 @@ def test_gm_sigma_profile_reaching_zero_is_one_sided():
     tau, avar, edf = curves(truth, 2.0, 1, seed=3)
     n = int(2.0 * 3600 * RATE)
     fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_boot=30, rng=1, confidence=0.9,
-                    rate=RATE, n_samples=n)
+                    record_rate_hz=RATE, n_samples=n)
     assert fit.params["gm_sigma_1"] > 0 and fit.gm_sigma_profile["lower"] == 0.0
     assert fit.intervals["gm_sigma_1"][0] == 0.0 and fit.intervals["gm_sigma_1"][1] > fit.params["gm_sigma_1"]
     assert fit.interval_kind["gm_sigma_1"].startswith("one-sided")
@@ -438,7 +438,7 @@ class TestDifferentRecords:
         b = record_av(truth, 1.5, 12.5, 42)
         assert a[0].size != b[0].size
         fit = fit_allan([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], components=COMPS3, n_boot=30,
-                        rate=[10.0, 12.5], n_samples=[a[3], b[3]], rng=1)
+                        record_rate_hz=[10.0, 12.5], n_samples=[a[3], b[3]], rng=1)
         assert fit.model.white == pytest.approx(truth.white, rel=0.015)
         assert fit.n_points == a[0].size + b[0].size
         lo, hi = fit.intervals["white"]
@@ -447,7 +447,7 @@ class TestDifferentRecords:
     def test_rates_per_curve_checked(self):
         a = record_av(TRUTHS["white+gm"], 0.2, 10.0, 43)
         with pytest.raises(ValueError, match="one value per pooled curve"):
-            fit_allan([a[0]] * 3, [a[1]] * 3, [a[2]] * 3, components=COMPS3, n_boot=5, rate=[10.0, 10.0],
+            fit_allan([a[0]] * 3, [a[1]] * 3, [a[2]] * 3, components=COMPS3, n_boot=5, record_rate_hz=[10.0, 10.0],
                       n_samples=a[3], rng=1)
 
     def test_ragged_edf_lists(self):
@@ -464,7 +464,7 @@ class TestAdequacy:
     def test_correct_model_adequate_and_intervals_untouched(self):
         truth = TRUTHS["white+gm"]
         t, y, e, n = record_av(truth, 2.0, RATE, 51)
-        kw = dict(components=COMPS3, n_boot=60, rate=RATE, n_samples=n)
+        kw = dict(components=COMPS3, n_boot=60, record_rate_hz=RATE, n_samples=n)
         fit = fit_allan(t, y, e, rng=5, **kw)
         ad = fit.to_dict()["adequacy"]
         assert set(ad) >= {"chi2", "dof", "chi2_per_dof", "p_value", "adequate"}
@@ -481,7 +481,7 @@ class TestAdequacy:
         rng = np.random.default_rng(52)
         x = simulate(truth, n, RATE, rng) + 4 * truth.white * np.sin(2 * np.pi * 0.05 * np.arange(n) / RATE)
         av = allan_variance(x, RATE, taus="octave")
-        kw = dict(components=COMPS3, n_boot=60, rate=RATE, n_samples=n)
+        kw = dict(components=COMPS3, n_boot=60, record_rate_hz=RATE, n_samples=n)
         fit = fit_allan(av.tau.values, av.avar.values, av.edf.values, rng=6, **kw)
         raw = fit_allan(av.tau.values, av.avar.values, av.edf.values, rng=6, adequacy_level=0.0, **kw)
         ad = fit.adequacy
@@ -498,7 +498,7 @@ class TestAdequacy:
     def test_without_bootstrap_covariance_statistic(self):
         truth = TRUTHS["white+gm"]
         t, y, e, n = record_av(truth, 2.0, RATE, 53)
-        fit = fit_allan(t, y, e, components=COMPS3, n_boot=0, rate=RATE, n_samples=n)
+        fit = fit_allan(t, y, e, components=COMPS3, n_boot=0, record_rate_hz=RATE, n_samples=n)
         assert fit.adequacy["method"].startswith("covariance") and fit.adequacy["chi2_covariance"] > 0
         bare = fit_allan(t, y, e, components=COMPS3, n_boot=0)
         assert bare.adequacy["method"].startswith("independent")
@@ -526,7 +526,7 @@ class TestBoundary:
         truth = NoiseModel(white=8.333e-4, gauss_markov=((3e-3, 0.3),))
         t, y, e, n = record_av(truth, 1.0, RATE, 61)
         grid = np.logspace(np.log10(2.0), 3, 20)
-        fit = fit_allan(t, y, e, components=("white", "gauss_markov"), T_grid=grid, n_boot=30, rate=RATE,
+        fit = fit_allan(t, y, e, components=("white", "gauss_markov"), T_grid=grid, n_boot=30, record_rate_hz=RATE,
                         n_samples=n, rng=2)
         assert fit.params["gm_T_1"] == pytest.approx(grid[0], rel=1e-3)
         assert fit.on_boundary["gm_T_1"] and not fit.on_boundary["white"]
@@ -589,7 +589,7 @@ class TestPooling:
         base = TRUTHS["white+gm"]
         high = NoiseModel(white=1.4 * base.white, gauss_markov=base.gauss_markov)
         cs = [record_av(base, 1.0, 10.0, 71), record_av(base, 1.0, 10.0, 72), record_av(base, 1.0, 12.5, 73)]
-        kw = dict(rate=[10.0, 10.0, 12.5], n_samples=[c[3] for c in cs], n_boot=19, level=0.05, rng=3,
+        kw = dict(record_rate_hz=[10.0, 10.0, 12.5], n_samples=[c[3] for c in cs], n_boot=19, level=0.05, rng=3,
                   labels=["a/x", "a/y", "b/z"])
         same = pooling_test([c[0] for c in cs], [c[1] for c in cs], [c[2] for c in cs], **kw)
         assert same["consistent"] and same["p_value"] > 0.05
@@ -609,8 +609,8 @@ class TestSelectedRefit:
         tau, avar, edf = curves(truth, 2.0, 2, seed=81)
         n = int(2.0 * 3600 * RATE)
         fit = fit_allan(tau, avar, edf, n_boot=0)
-        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
-        ref = refit_selected(fit, sel, tau, avar, edf, n_boot=20, rate=RATE, n_samples=n, rng=4)
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
+        ref = refit_selected(fit, sel, tau, avar, edf, n_boot=20, record_rate_hz=RATE, n_samples=n, rng=4)
         assert fit.selected is ref and set(ref.components) == set(sel["kept"])
         assert "quantization" not in ref.params or "quantization" in sel["kept"]
         assert "selected" in fit.to_dict() and fit.to_dict()["selected"]["components"] == list(ref.components)
@@ -626,9 +626,9 @@ class TestSelectedRefit:
         tau, avar, edf = curves(truth, 2.0, 1, seed=83)
         n = int(2.0 * 3600 * RATE)
         fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov", "random_walk"), n_boot=0)
-        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
         assert "random_walk" not in sel["kept"] and "gauss_markov" in sel["kept"]
-        kw = dict(n_boot=30, rate=RATE, n_samples=n, rng=6, confidence=0.9)
+        kw = dict(n_boot=30, record_rate_hz=RATE, n_samples=n, rng=6, confidence=0.9)
         ref = refit_selected(fit, sel, tau, avar, edf, **kw)
         kept = tuple(c for c in COMPONENTS if c in sel["kept"])
         # the same calls refit_selected makes (an integer rng: every fit draws the same replicates)
@@ -657,7 +657,7 @@ class TestSelectedRefit:
         truth = NoiseModel(white=4.363e-5, gauss_markov=((7.272e-6, 300.0), (3e-6, 30.0)), random_walk=9.696e-8)
         tau, avar, edf = curves(truth, 2.0, 1, seed=82)
         fit = fit_allan(tau, avar, edf, n_gm=2, n_boot=0)
-        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
         assert "white" in sel["kept"]
 
     def test_two_gm_white_test_null_keeps_its_time_constants_in_range(self):
@@ -689,14 +689,14 @@ class TestSelectedRefit:
         alt, _ = _profile(tau, avar, edf, null_comps, 2, grid)
         assert grid[0] * (1 - 1e-9) <= min(alt.T) and max(alt.T) <= grid[-1] * (1 + 1e-9), alt.T
         assert min(fit.params[f"gm_T_{i}"] for i in (1, 2)) >= fit.T_grid.min() * (1 - 1e-9)
-        sel = select_components(fit, tau, avar, edf, rate_hz=1.0, horizon_s=3600.0)
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
         assert "white" in sel["kept"] and sel["details"]["white"]["shown_by_z"], sel["reasons"]["white"]
 
 
 def test_conservative_end_is_the_upper_end():
     truth = TRUTHS["white+gm+rw"]
     t, y, e, n = record_av(truth, 1.0, RATE, 91)
-    fit = fit_allan(t, y, e, components=COMPS3, n_boot=30, rate=RATE, n_samples=n, rng=9)
+    fit = fit_allan(t, y, e, components=COMPS3, n_boot=30, record_rate_hz=RATE, n_samples=n, rng=9)
     cons = fit.conservative()
     assert "gm_T_1" not in cons
     for k, v in cons.items():
@@ -725,12 +725,12 @@ def test_adis16405_gyro_adequacy_and_pooling(shared_data):
     y = [c.avar.values[np.isfinite(c.avar.values)] for c in curves_]
     e = [c.edf.values[np.isfinite(c.avar.values)] for c in curves_]
     n = x.shape[0]
-    fit = fit_allan(t, y, e, components=COMPS3, n_boot=19, rate=100.0, n_samples=n, rng=1)
+    fit = fit_allan(t, y, e, components=COMPS3, n_boot=19, record_rate_hz=100.0, n_samples=n, rng=1)
     assert not fit.adequacy["adequate"] and fit.adequacy["chi2_per_dof"] > 100
     lo, hi = fit.intervals["white"]
     assert (hi - lo) / fit.params["white"] > 0.05  # not the +-0.15 % of an unflagged fit
     assert any("does not describe the data" in s for s in fit.notes)
-    pt = pooling_test(t, y, e, components=COMPS3, rate=100.0, n_samples=[n] * 3, labels=["x", "y", "z"],
+    pt = pooling_test(t, y, e, components=COMPS3, record_rate_hz=100.0, n_samples=[n] * 3, labels=["x", "y", "z"],
                       n_boot=19, level=0.05, rng=2)
     assert not pt["consistent"]
     N = {c["label"]: c["params"]["white"] for c in pt["per_curve"]}
@@ -778,7 +778,7 @@ def test_gm_sigma_profile_is_not_used_when_T_sits_on_a_search_end():
         truth = NoiseModel(white=3e-4, gauss_markov=((3e-3, T),))
         tau, avar, edf = curves(truth, 2.0, 1, seed=7)
         fit = fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_boot=30, rng=1, confidence=0.9,
-                        rate=RATE, n_samples=int(2.0 * 3600 * RATE))
+                        record_rate_hz=RATE, n_samples=int(2.0 * 3600 * RATE))
         prof = fit.gm_sigma_profile
         assert fit.on_boundary["gm_T_1"] is on_end and prof["used"] is (not on_end), (T, fit.params, prof)
         lo, hi = fit.intervals["gm_sigma_1"]

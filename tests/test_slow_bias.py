@@ -50,7 +50,7 @@ def run_case(sensor: str, factor: float, n_data: int, scale: float, seed: int) -
     X = simulate(truth, int(RECORD_S * RATE_HZ), RATE_HZ, rng=np.random.default_rng(seed), n_records=n_data)
     curves = {f"d{i}/x": X[i] for i in range(n_data)}
     res = noise_model(curves, RATE_HZ, sensor, spec_of(sensor, truth, scale), window_s=25200.0, step_s=36000.0,
-                      horizon_s=HORIZON_S, fix_s=FIX_S)  # the workflow's defaults: n_boot 100
+                      outage_s=HORIZON_S, fix_s=FIX_S)  # the workflow's defaults: n_boot 100
     ver = res.verification
     checks = ver["verification"]["checks"]
     bounded = res.bounded  # the contract's verdict: every check passed, the verification included

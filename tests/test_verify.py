@@ -110,7 +110,7 @@ class TestReductionAndContract:
     def test_contract_bounded_means_verified(self):
         f = np.linspace(0, 0.5, 101)
         curves = np.full((1, 101), TRUTH.white**2)
-        b = bound_psd(f, curves, TRUTH, dt=1.0, horizon_s=4200.0)
+        b = bound_psd(f, curves, TRUTH, dt=1.0, span_s=4200.0)
         ok = {"accel": verify_model(b.model, truth=TRUTH)}
         c = integrity_contract(b, verification=ok)
         assert c["bounded"] and c["verified"] and c["failed_checks"] == []
@@ -170,11 +170,11 @@ def pipeline(truth, spec, n_data, seed, hours=10.0, rate=10.0, n_boot=50, mode="
         sp = psd(y, 1.0)
         f, edf = sp["frequency"].values, sp["edf"].values
         curves.append(sp["psd"].values)
-    fit = fit_allan(taus, avs, edfs, n_gm=n_gm, n_boot=n_boot, confidence=0.9, rng=seed, dt=1 / rate, rate=rate,
+    fit = fit_allan(taus, avs, edfs, n_gm=n_gm, n_boot=n_boot, confidence=0.9, rng=seed, dt=1 / rate, record_rate_hz=rate,
                     n_samples=ns)
-    sel = select_components(fit, taus, avs, edfs, rate_hz=1.0, horizon_s=3600.0)
-    up = upper_envelope(fit, sel, horizon_s=4200.0)
-    b = bound_psd(f, np.array(curves), spec, dt=1.0, mode=mode, keep=sel, horizon_s=4200.0, upper_model=up,
+    sel = select_components(fit, taus, avs, edfs, filter_rate_hz=1.0, outage_s=3600.0)
+    up = upper_envelope(fit, sel, span_s=4200.0)
+    b = bound_psd(f, np.array(curves), spec, dt=1.0, mode=mode, keep=sel, span_s=4200.0, upper_model=up,
                   edf=edf, n_gm=n_gm)
     return fit, sel, up, b, (taus, avs, edfs)
 
@@ -201,7 +201,7 @@ def test_default_bound_verifies_and_the_unflated_spec_fails(name, n_data, seed):
     # the Allan check has no real shortfall (component-wise on kept components; total against lower limits)
     taus, avs, edfs = av
     rep = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
-                      horizon_s=3600.0, confidence=0.95)
+                      span_s=3600.0, confidence=0.95)
     assert rep["total"]["passed"], rep["total"]
 
 

@@ -43,18 +43,18 @@ def test_adis16405_bound_verifies_and_the_spec_sheet_fails_on_replay(shared_data
         sp = psd(y, 1.0, window_s=3600.0, step_s=1800.0)  # the shipped adis16405 config's PSD windows
         f, edf = sp["frequency"].values, sp["edf"].values
         curves.append(sp["psd"].values)
-    fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
+    fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, record_rate_hz=100.0,
                     n_samples=ns)
-    sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-    up = upper_envelope(fit, sel, horizon_s=1200.0)
-    b = bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, horizon_s=1200.0, upper_model=up, edf=edf)
+    sel = select_components(fit, taus, avs, edfs, filter_rate_hz=100.0, outage_s=600.0)
+    up = upper_envelope(fit, sel, span_s=1200.0)
+    b = bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, span_s=1200.0, upper_model=up, edf=edf)
     assert b.model.white >= max(up.white, spec.white) * (1 - 1e-9)
     g = np.logspace(-1, 3, 200)  # 0.1 Hz .. 1 kHz, across and above the decimated band
     assert np.all(b.model.psd(g) >= up.psd(g) * (1 - 1e-9))
     sc = reference_scenario(sensor, horizon_s=600.0)
     ver = {sensor: verify_model(b.model, sensor, upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)}
     al = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
-                     horizon_s=1200.0, tau_min_s=0.01)
+                     span_s=1200.0, tau_min_s=0.01)
     assert al["total"]["tau_band_s"] == [0.01, 1200.0]
     contract = integrity_contract(b, al, ver)
     assert contract["bounded"], contract["failed_checks"]
@@ -102,14 +102,14 @@ def test_adis16405_accel_line_modelled_removes_the_inflation_and_verifies(shared
         sp = psd(y, 1.0, window_s=3600.0, step_s=1800.0)
         f, edf = sp["frequency"].values, sp["edf"].values
         curves.append(sp["psd"].values)
-    fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, rate=100.0,
+    fit = fit_allan(taus, avs, edfs, n_gm=1, n_boot=100, confidence=0.95, rng=20211, dt=0.01, record_rate_hz=100.0,
                     n_samples=[x.size for x in series])
-    sel = select_components(fit, taus, avs, edfs, rate_hz=100.0, horizon_s=600.0)
-    up = upper_envelope(fit, sel, horizon_s=1200.0)
+    sel = select_components(fit, taus, avs, edfs, filter_rate_hz=100.0, outage_s=600.0)
+    up = upper_envelope(fit, sel, span_s=1200.0)
 
     def bound(policy):
         pol = line_policy(lines, 1.0, (0.0, 0.1), policy, frequency=f)
-        return bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, edf=edf, horizon_s=1200.0, upper_model=up,
+        return bound_psd(f, np.array(curves), spec, dt=1.0, keep=sel, edf=edf, span_s=1200.0, upper_model=up,
                          **pol.bound_kwargs())
 
     keep, model, excl = bound("keep"), bound("model"), bound("exclude")
@@ -124,7 +124,7 @@ def test_adis16405_accel_line_modelled_removes_the_inflation_and_verifies(shared
     ver = verify_model(model.model, "accel", upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)
     assert ver["passed"], ver["checks"]
     al = check_allan(model.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
-                     horizon_s=1200.0, tau_min_s=0.01)
+                     span_s=1200.0, tau_min_s=0.01)
     # the bound's total AV covers every sample AV (lower confidence limits, application band)
     assert al["total"]["passed"], al["total"]
     # and each kept component is covered by its representation in the bound (flicker by GM + white + random walk

@@ -269,8 +269,8 @@ class TestRecordsOfDifferentLengthAndRate:
             n_boot=idn["n_boot"], confidence=idn["confidence"], significance=idn["significance"],
             relevance=idn["relevance"], adequacy_level=idn.get("adequacy_level", 0.01),
             pooling_level=idn.get("pooling_level", 0.01), pooling_n_boot=idn.get("pooling_n_boot", 99),
-            rate_hz=cfg["application"]["rate_hz"], horizon_s=cfg["application"]["horizon_s"], truth=None,
-            envelope_horizon_s=float(cfg["verify"]["fix_s"]) + float(cfg["application"]["horizon_s"]),
+            filter_rate_hz=cfg["application"]["rate_hz"], outage_s=cfg["application"]["horizon_s"], truth=None,
+            span_s=float(cfg["verify"]["fix_s"]) + float(cfg["application"]["horizon_s"]),
             path_out=str(again), sensor="gyro")
         assert again.read_bytes() == (res / "identify/gyro.yaml").read_bytes()
 
@@ -299,7 +299,7 @@ class TestPerAxisIdentification:
         ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
         tau, avar, edf = av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok]
         curves = [("d/x", tau, avar, edf, n, rate, "x")]
-        kw = dict(n_boot=20, confidence=0.95, dt=1.0 / rate, rate=[rate], n_samples=[n])
+        kw = dict(n_boot=20, confidence=0.95, dt=1.0 / rate, record_rate_hz=[rate], n_samples=[n])
         full = fit_allan([tau], [avar], [edf], components=("white", "gauss_markov", "random_walk"), n_gm=1,
                          rng=1, **{**kw, "n_boot": 0})
         selection = {"kept": ["white", "gauss_markov"], "dropped": ["random_walk"]}
@@ -365,7 +365,7 @@ class TestPerAxisExport:
             for ax, N in (("x", 1e-4), ("z", 2e-4)):
                 ds = psd(N * rng.standard_normal(7200), 1.0, window_s=3600.0, step_s=3600.0)
                 f, curves[f"{d}/{ax}"] = ds.frequency.values, ds.psd.values
-        kw = dict(dt=1.0, keep=("white",), horizon_s=180.0)
+        kw = dict(dt=1.0, keep=("white",), span_s=180.0)
         glob = bound_psd(f, np.array(list(curves.values())), spec, **kw)
         per = bound_by_axis(f, curves, spec, **kw)
         ok_allan = {"components": {}, "total": {"passed": True}, "passed": True}

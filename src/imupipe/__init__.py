@@ -6,7 +6,7 @@ Public API (imported lazily so that workflow jobs pay only for what they use)::
     imupipe.psd(x, rate, ...)                                           # xarray.Dataset, two-sided
     imupipe.NoiseModel(white=N, gauss_markov=[(sigma, T)], random_walk=K, ...)
     imupipe.units                                                       # spec-sheet units <-> SI
-    imupipe.noise_model(curves, rate_hz, sensor, spec)                  # identification + bound + KF, one call
+    imupipe.noise_model(curves, record_rate_hz, sensor, spec)           # identification + bound + KF, one call
 
 Command line: ``imupipe run|allan|check`` (:mod:`imupipe.cli`), also ``python -m imupipe``.
 """

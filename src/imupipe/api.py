@@ -8,7 +8,7 @@ then, over every curve of the sensor type, the identification (:func:`imupipe.st
 pooled Allan-variance fit, model selection for the application band, refit of the selected components, their
 upper envelope with the random walk capped by the Allan variances, the pooling test and per-axis fits); the
 all-frequency PSD bound against the spec sheet (:func:`imupipe.stages.bound.bound_sensor`: the kept
-components, the identified envelope imposed below the lowest bin down to the outage horizon, the lines'
+components, the identified envelope imposed below the lowest bin down to a hundredth of 1/(fix + outage), the lines'
 policy, the Allan check, per-axis models when the axes differ); the verification in the reference scenario
 (:func:`imupipe.stages.verify.verify_sensor`: covariance analysis, replay of the decimated records, reduction
 by integrity); the contract (:func:`imupipe.stages.contract.contract_stage`); and the Kalman-filter matrices
@@ -23,7 +23,7 @@ Example
 >>> import numpy as np, imupipe.api as api                                      # doctest: +SKIP
 >>> rng = np.random.default_rng(1)
 >>> curves = {"rec1/x": 4.4e-5 * np.sqrt(20.0) * rng.standard_normal(20 * 5400)}  # rad/s at 20 Hz
->>> res = api.noise_model(curves, rate_hz=20.0, sensor="gyro", spec="config/specs/stim300.yaml")
+>>> res = api.noise_model(curves, record_rate_hz=20.0, sensor="gyro", spec="config/specs/stim300.yaml")
 >>> res.bounded, res.bound.model.white
 """
 
@@ -67,7 +67,7 @@ class NoiseModelResult:
         Curve label -> ``xarray.Dataset`` of :func:`imupipe.allan_variance` (full rate).
     spectra : dict
         Curve label -> ``xarray.Dataset`` of :func:`imupipe.psd` (decimated, two-sided).
-    rate_hz, decimate_hz, kf_dt_s : float
+    record_rate_hz, decimate_hz, kf_dt_s : float
         Record rate (Hz), decimated rate (Hz), filter step (s).
     selected : imupipe.identify.AllanFit
         :func:`imupipe.identify.refit_selected`: the fit of the kept components only (the workflow's
@@ -98,7 +98,7 @@ class NoiseModelResult:
     kf: dict
     allan: dict = field(repr=False)
     spectra: dict = field(repr=False)
-    rate_hz: float = 0.0
+    record_rate_hz: float = 0.0
     decimate_hz: float = 1.0
     kf_dt_s: float = 1.0
     selected: Any = None
@@ -134,7 +134,7 @@ class NoiseModelResult:
         out = {
             "sensor": self.sensor,
             "spec_name": self.spec_name,
-            "rate_hz": float(self.rate_hz),
+            "rate_hz": float(self.record_rate_hz),
             "decimate_hz": float(self.decimate_hz),
             "curves": list(self.allan),
             "bound": self.bound.to_dict(sensor=self.sensor),
@@ -209,7 +209,7 @@ def _truth_of(truth, sensor):
 
 
 def noise_model(
-    curves: Mapping[str, Sequence[float]], rate_hz: float, sensor: str, spec, *,
+    curves: Mapping[str, Sequence[float]], record_rate_hz: float, sensor: str, spec, *,
     decimate_hz: float = _D["decimate.rate_hz"], window_s: float | None = None, step_s: float | None = None,
     taper: str = _D["psd.taper"], detrend: str = _D["psd.detrend"], psd_confidence: float = _D["psd.confidence"],
     taus=_D["allan.taus"], allan_confidence: float = _D["allan.confidence"],
@@ -218,13 +218,13 @@ def noise_model(
     significance: float = _D["identify.significance"], relevance: float = _D["identify.relevance"],
     adequacy_level: float = _D["identify.adequacy_level"], pooling_level: float = _D["identify.pooling_level"],
     pooling_n_boot: int = _D["identify.pooling_n_boot"], fit_tau_min_samples: float | None = None,
-    max_bias_time_s: float | None = None, application_rate_hz: float = _D["application.rate_hz"],
-    horizon_s: float = _D["application.horizon_s"], mode: str = _D["bound.mode"],
+    max_bias_time_s: float | None = None, filter_rate_hz: float = _D["application.rate_hz"],
+    outage_s: float = _D["application.horizon_s"], mode: str = _D["bound.mode"],
     bound_confidence: float = _D["bound.confidence"], bands_per_decade: int = _D["bound.bands_per_decade"],
     seed: int = 20211, lines_policy: str | None = None, lines_resolution_hz: float = _D["lines.resolution_hz"],
     lines_alpha: float = _D["lines.alpha"], lines_floor_window_bins: int = _D["lines.floor_window_bins"],
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
-    filter_rate_hz: float = _D["verify.filter_rate_hz"], fix_rate_hz: float | None = None,
+    fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
@@ -233,8 +233,8 @@ def noise_model(
     ----------
     curves : mapping of str to array_like
         Curve label (e.g. ``"lab1/x"``) -> 1-D static record of one axis, in SI (rad/s for a gyro,
-        m/s^2 for an accelerometer; a constant offset such as gravity is harmless), sampled at `rate_hz`.
-    rate_hz : float
+        m/s^2 for an accelerometer; a constant offset such as gravity is harmless), sampled at `record_rate_hz`.
+    record_rate_hz : float
         Sample rate of every record, Hz.
     sensor : {"gyro", "accel"}
         Sensor type (selects the spec sheet's section).
@@ -254,9 +254,10 @@ def noise_model(
         contract fails its ``identification_intervals`` check: the envelope is then the point fit.
     max_bias_time_s : float, optional
         Longest bias time constant admitted, s (``identify.max_bias_time_s``; None: the verification's rule).
-    application_rate_hz : float, optional
-        Filter rate, Hz (default 1.0): the KF step is 1/application_rate_hz, and with `horizon_s` (s,
-        default 3600, the workflow's) it sets the band the selection keeps components for.
+    filter_rate_hz, outage_s : float, optional
+        The filter's update rate, Hz (``application.filter_rate_hz``, default 1.0: the KF step is its inverse, the
+        reference filter of the verification runs at it) and the outage it must coast through, s
+        (``application.outage_s``, default 3600); together they set the band the selection keeps components for.
     mode, bound_confidence, bands_per_decade :
         :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
     seed : int, optional
@@ -268,17 +269,14 @@ def noise_model(
         the workflow's default is ``model``).
     fix_s : float, optional
         Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's
-        all-frequency horizon is ``fix_s + horizon_s``.
+        all-frequency span is ``fix_s + outage_s``.
     verify, sigma_fix, reduce, replay_z :
         Run the verification stage on the bound (:func:`imupipe.stages.verify.verify_sensor`: the covariance
         checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
         True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
         default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
-        `filter_rate_hz`: the reference filter's rate, Hz (``verify.filter_rate_hz``, default 1.0); the contract
-        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's; `fix_rate_hz`:
-        the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the KF file's
-        matrices of the model the verification
-        exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
+        `fix_rate_hz`: the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the
+        KF file's matrices of the model the verification exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
         unreduced, its P0 of p from :meth:`imupipe.biasinit.BiasInitialisation.p0`.
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
@@ -293,14 +291,14 @@ def noise_model(
     ValueError
         No curves, a curve that is not 1-D or too short for one PSD window, a non-positive rate, an
         unknown sensor, or a spec sheet without that sensor; with `verify`, no decimated record as long as
-        ``fix_s + horizon_s`` (the replay's window, as in the workflow's verify stage).
+        ``fix_s + outage_s`` (the replay's window, as in the workflow's verify stage).
     """
     from imupipe.specsheet import display_units
     from imupipe.stages.bound import bound_sensor
     from imupipe.stages.identify import identify_sensor
 
-    spec_sheet = _checked_inputs(curves, rate_hz, sensor, spec)
-    rate = float(rate_hz)
+    spec_sheet = _checked_inputs(curves, record_rate_hz, sensor, spec)
+    rate = float(record_rate_hz)
     window_s, step_s = _psd_window(curves, rate, decimate_hz, window_s, step_s)
     allan, spectra, decimated = _per_curve_estimates(curves, rate, sensor, decimate_hz, window_s, step_s, taper,
                                                      detrend, psd_confidence, taus, allan_confidence)
@@ -308,9 +306,9 @@ def noise_model(
     true_model = _truth_of(truth, sensor)
     ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
                             n_gm=n_gm, n_boot=n_boot, confidence=fit_confidence, significance=significance,
-                            relevance=relevance, rate_hz=application_rate_hz, horizon_s=horizon_s,
+                            relevance=relevance, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                             adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
-                            envelope_horizon_s=fix_s + horizon_s, fit_tau_min_samples=fit_tau_min_samples,
+                            span_s=fix_s + outage_s, fit_tau_min_samples=fit_tau_min_samples,
                             truth=true_model, seed=seed)
     # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
@@ -320,19 +318,19 @@ def noise_model(
         bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
                              {k: sp["edf"].values for k, sp in spectra.items()}, spec_sheet.models[sensor],
                              ident.record, dt=dt, sensor=sensor, mode=mode, n_gm=n_gm, confidence=bound_confidence,
-                             bands_per_decade=bands_per_decade, horizon_s=fix_s + horizon_s,
-                             application_rate_hz=application_rate_hz, taper=first.attrs.get("taper", taper),
+                             bands_per_decade=bands_per_decade, span_s=fix_s + outage_s,
+                             filter_rate_hz=filter_rate_hz, taper=first.attrs.get("taper", taper),
                              allan=_stacked_allan(allan), lines=lines, line_policy=lines_policy or "model",
                              spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
     # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
     if sigma_fix is None:
         sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
-    kf_dt = 1.0 / float(application_rate_hz)
+    kf_dt = 1.0 / float(filter_rate_hz)
     verification, contract, kf = _verified_kf(
-        bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, horizon_s, sigma_fix, filter_rate_hz, reduce,
-        replay_z, max_bias_time_s, fix_rate_hz, application_rate_hz, kf_dt, verify)
+        bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, outage_s, sigma_fix, filter_rate_hz, reduce,
+        replay_z, max_bias_time_s, fix_rate_hz, kf_dt, verify)
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
-                            selection=ident.selection, kf=kf, allan=allan, spectra=spectra, rate_hz=rate,
+                            selection=ident.selection, kf=kf, allan=allan, spectra=spectra, record_rate_hz=rate,
                             decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
                             verification=verification, contract=contract,
@@ -340,13 +338,13 @@ def noise_model(
                                      "contract": contract})
 
 
-def _checked_inputs(curves, rate_hz, sensor, spec):
+def _checked_inputs(curves, record_rate_hz, sensor, spec):
     """The spec sheet of :func:`noise_model` after its arguments' checks (sensor, rate, curves given, the sheet's
     section of the sensor)."""
     if sensor not in ("gyro", "accel"):
         raise ValueError(f"sensor: expected 'gyro' or 'accel', got {sensor!r}")
-    if not (float(rate_hz) > 0):
-        raise ValueError(f"rate_hz: expected a positive sample rate in Hz, got {rate_hz!r}")
+    if not (float(record_rate_hz) > 0):
+        raise ValueError(f"record_rate_hz: expected a positive sample rate in Hz, got {record_rate_hz!r}")
     if not curves:
         raise ValueError("curves: no record given (expected label -> 1-D array)")
     spec_sheet = _spec_of(spec)
@@ -448,8 +446,8 @@ def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_wind
             for label, x in curves.items()}
 
 
-def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, horizon_s, sigma_fix, filter_rate_hz,
-                 reduce, replay_z, max_bias_time_s, fix_rate_hz, application_rate_hz, kf_dt, verify):
+def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, outage_s, sigma_fix, filter_rate_hz,
+                 reduce, replay_z, max_bias_time_s, fix_rate_hz, kf_dt, verify):
     """The rules verify, contract and kf on the bound (:class:`imupipe.stages.bound.BoundStage`): (verification,
     contract, KF file's content); without `verify`, (None, None, the KF matrices of the bound's model unreduced,
     its bias started where the verification would start it)."""
@@ -461,13 +459,13 @@ def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, ho
     if verify:
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
                                      rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
-                                     horizon_s=horizon_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
+                                     horizon_s=outage_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
                                      reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
                                      fix_rate_hz=fix_rate_hz)[0]
         contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
-                                  on_failure="warn", kf_rate_hz=application_rate_hz, horizon_s=horizon_s,
+                                  on_failure="warn", kf_rate_hz=filter_rate_hz, horizon_s=outage_s,
                                   filter_rate_hz=filter_rate_hz)
-        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=horizon_s, sensor=sensor)
+        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=outage_s, sensor=sensor)
         return verification, contract, kf
     from imupipe.biasinit import bias_initialisation
     from imupipe.stages.verify import model_of
@@ -475,7 +473,7 @@ def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, ho
     m = model_of(bound.record["bound"])
     record_s = max(y.size for y in decimated.values()) * dt
     bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
-                               record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + horizon_s)
+                               record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s)
     kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
-        "p0_random_walk": bias.p0(m, fix_s + horizon_s)}}, kf_dt, sensor)
+        "p0_random_walk": bias.p0(m, fix_s + outage_s)}}, kf_dt, sensor)
     return None, None, kf

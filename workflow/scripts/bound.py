@@ -22,7 +22,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     allan = (al["tau"], {f"{d}/{a}": (al.at("avar", d, a), al.at("edf", d, a)) for d, a in al.curves(True)})
     out = bound_stage(sp["frequency"], psd, edf, spec.models[sensor], read_yaml(path_identified),
                       dt=1.0 / float(sp.attrs["rate_hz"]), sensor=sensor, mode=mode, n_gm=n_gm, confidence=confidence,
-                      bands_per_decade=bands_per_decade, horizon_s=horizon_s, application_rate_hz=application_rate_hz,
+                      bands_per_decade=bands_per_decade, span_s=horizon_s, filter_rate_hz=application_rate_hz,
                       taper=sp.attrs.get("taper", "hann"), allan=allan,
                       lines={f"{Path(p).parent.parent.name}/{Path(p).stem}": read_yaml(p) for p in lines},
                       line_policy=lines_params["policy"][sensor],

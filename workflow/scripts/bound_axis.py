@@ -21,7 +21,7 @@ def main(path_psd: str, path_identified: str, path_spec: str, mode: str, n_gm: i
     ((d, a),) = sp.curves()
     out = axis_bound_stage(sp["frequency"], sp.at("psd", d, a), sp.at("edf", d, a), f"{d}/{a}", spec.models[sensor],
                            read_yaml(path_identified), dt=1.0 / float(sp.attrs["rate_hz"]), sensor=sensor, mode=mode,
-                           n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, horizon_s=horizon_s,
+                           n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, span_s=horizon_s,
                            taper=sp.attrs.get("taper", "hann"),
                            # results/<name>/lines/{dataset}/{sensor}/{axis}.yaml by label dataset/axis
                            lines={f"{Path(p).parent.parent.name}/{Path(p).stem}": read_yaml(p) for p in lines},

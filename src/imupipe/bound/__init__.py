@@ -48,10 +48,10 @@ error over a long outage there. So the LP also holds, with continuous PSDs,
 * :math:`f \to \infty`: :math:`N_m \ge \max(N_{spec}, N_{up})` (only white noise remains there; :math:`N_{up}`
   with ``upper_band="all"``).
 
-The floor is :math:`f_{floor} = 0.01/H` for the horizon :math:`H` (``horizon_s``: fix period plus
+The floor is :math:`f_{floor} = 0.01/H` for the span :math:`H` (``span_s``: fix period plus
 outage; without it :math:`f_1/100`, and never above :math:`f_1/10`). Why it is enough: over a window of
 length :math:`H`, a component at :math:`f \ll 1/H` changes by a fraction :math:`\sim 2\pi f H` of its
-amplitude, so a PSD shortfall below :math:`0.01/H` reaches the error variance over the horizon weighted by
+amplitude, so a PSD shortfall below :math:`0.01/H` reaches the error variance over the span weighted by
 :math:`(2\pi f H)^2 < 4\cdot 10^{-3}` (for white-, GM- and flicker-like shapes; the :math:`1/f^2`
 random walk, which is not integrable there, is covered exactly by its asymptote). A spec (or identified)
 flicker :math:`B^2/(2\pi f)` is therefore bounded down to the floor by whatever the LP chooses (GM,

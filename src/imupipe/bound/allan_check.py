@@ -204,7 +204,7 @@ SHORT_T_WHITE_FACTOR = _short_T_white_factor()
 
 
 def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_search=None,
-                    horizon_s: float | None = None) -> tuple:
+                    span_s: float | None = None) -> tuple:
     r"""A single GM plus a white-noise addition that dominate, in PSD, every GM of the box
     :math:`\sigma \le \sigma_{up}`, :math:`T_{lo} \le T' \le T_{hi}`, including a box left open at either end.
 
@@ -222,12 +222,12 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
     **Open upper end** (:math:`T_{hi} = \infty`: the data do not bound T above within the search). No finite
     model dominates every such GM at every frequency (at a fixed f the supremum over T is
     :math:`s^2/\omega`, reached at :math:`T = 1/\omega`). The box is closed at
-    :math:`c = \max(T, T_{search,max}, h/(2\pi))`, h = `horizon_s`: for :math:`T' > c` and
+    :math:`c = \max(T, T_{search,max}, h/(2\pi))`, h = `span_s`: for :math:`T' > c` and
     :math:`\omega \ge 1/c`, :math:`\partial S/\partial T' = 2 s^2 (1 - \omega^2 T'^2)/(1 + \omega^2 T'^2)^2 < 0`
     (:math:`\omega T' > \omega c \ge 1`), so :math:`S(\omega; T') \le S(\omega; c) \le S_{box}(\omega)`.
     With :math:`c \ge h/(2\pi)` that holds for every :math:`f \ge 1/h`, the slowest frequency a filter run
     over h seconds resolves; below 1/h nothing is claimed (:math:`c = h` would only give it from
-    :math:`1/(2\pi h)` on, at :math:`2\pi` times the low-frequency level). Without `horizon_s`,
+    :math:`1/(2\pi h)` on, at :math:`2\pi` times the low-frequency level). Without `span_s`,
     :math:`c = \max(T, T_{search,max})` and the envelope dominates for :math:`f \ge 1/(2\pi c)` only.
 
     **Open lower end** (:math:`T_{lo} = 0`: the data do not bound T below). Split at
@@ -255,7 +255,7 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
         interval on that side (the estimate is used, the box is then closed there at T).
     T_search : tuple of float, optional
         (shortest, longest) time constant the fit searched (s).
-    horizon_s : float, optional
+    span_s : float, optional
         Horizon h (s) from which on (f >= 1/h) an open upper end is covered.
 
     Returns
@@ -264,19 +264,19 @@ def gm_box_envelope(sigma_up: float, T: float, T_lo: float, T_hi: float, T_searc
         ``(sigma_m (u), T_m (s), W (u^2/Hz, two-sided white-noise addition), lower_open, upper_open)``.
     """
     s = float(sigma_up)
-    a, c, w, lower_open, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, horizon_s)
+    a, c, w, lower_open, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
     return s * (c / a) ** 0.25, math.sqrt(a * c), w * s * s, lower_open, upper_open
 
 
-def _gm_box_ends(T, T_lo, T_hi, T_search=None, horizon_s=None) -> tuple:
+def _gm_box_ends(T, T_lo, T_hi, T_search=None, span_s=None) -> tuple:
     """The closed box [a, c] (s) of :func:`gm_box_envelope` (an open end closed as its docstring derives), the
     white-noise addition per unit sigma_up^2 that covers the T below an open lower end (kappa a, s; 0 when closed)
     and whether each end was open: ``(a, c, w, lower_open, upper_open)``."""
     T = float(T)
     if not (T > 0 and math.isfinite(T)):
         raise ValueError(f"gm_box_envelope: T must be a positive finite time constant (s), got {T!r}")
-    if horizon_s is not None and not (float(horizon_s) > 0 and math.isfinite(float(horizon_s))):
-        raise ValueError(f"gm_box_envelope: horizon_s must be a positive number of seconds, got {horizon_s!r}")
+    if span_s is not None and not (float(span_s) > 0 and math.isfinite(float(span_s))):
+        raise ValueError(f"gm_box_envelope: span_s must be a positive number of seconds, got {span_s!r}")
     t_min, t_max = (T, T) if T_search is None else (min(float(T_search[0]), T), max(float(T_search[1]), T))
     lower_open, upper_open = T_lo == 0.0, T_hi == math.inf
     if lower_open:
@@ -284,7 +284,7 @@ def _gm_box_ends(T, T_lo, T_hi, T_search=None, horizon_s=None) -> tuple:
     else:
         a = min(T, float(T_lo)) if math.isfinite(T_lo) and T_lo > 0 else T
     if upper_open:
-        c = max(t_max, float(horizon_s) / (2.0 * math.pi) if horizon_s is not None else 0.0)
+        c = max(t_max, float(span_s) / (2.0 * math.pi) if span_s is not None else 0.0)
     else:
         c = max(T, float(T_hi)) if math.isfinite(T_hi) and T_hi > 0 else T
     return a, max(c, a), SHORT_T_WHITE_FACTOR * a if lower_open else 0.0, lower_open, upper_open
@@ -322,7 +322,7 @@ def split_gm_box(sigma_up: float, a: float, c: float, max_ratio: float = BOX_SPL
 
 
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
-                   horizon_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO):
+                   span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -332,7 +332,7 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
     :math:`\sigma_m^2 = \sigma_{up}^2 \sqrt{T_{hi}/T_{lo}}` (a GM dominates another iff
     :math:`\sigma_m^2 T_m \ge \sigma^2 T` and :math:`\sigma_m^2/T_m \ge \sigma^2/T`). A T interval left open
     by the data (``T_lo = 0`` or ``T_hi = inf``, ``interval_kind`` "one-sided") is not replaced by the
-    estimate: an open upper end is closed at :math:`\max(T_{search,max}, h/(2\pi))` (h = `horizon_s`), which
+    estimate: an open upper end is closed at :math:`\max(T_{search,max}, h/(2\pi))` (h = `span_s`), which
     dominates every longer T for :math:`f \ge 1/h`; an open lower end is closed at the shortest T searched
     and every shorter T is covered by white noise :math:`0.1349\,\sigma_{up}^2 T_{search,min}` added to
     :math:`N_{up}^2` (:func:`gm_box_envelope`, with the proofs). A box wider than `max_box_ratio` in T is
@@ -361,9 +361,9 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
         estimates and would turn the bound into a useless one; the statistical ends are limits
         conditional on the fitted model. The bound file flags an inadequate fit in either case, and the
         replay of the records in the verification stage is the model-free check over the horizon.
-    horizon_s : float, optional
-        The window a filter must be right over, s (the bound's horizon, fix period plus outage): a GM whose T
-        interval is open above is dominated for f >= 1/horizon_s. Default: only for f >= 1/(2 pi T_max), T_max
+    span_s : float, optional
+        The window a filter must be right over, s (fix period plus outage): a GM whose T
+        interval is open above is dominated for f >= 1/span_s. Default: only for f >= 1/(2 pi T_max), T_max
         the longest T searched.
     max_box_ratio : float, optional
         Largest T_hi/T_lo of one envelope GM term (:func:`split_gm_box`). Default :data:`BOX_SPLIT_RATIO` (10).
@@ -407,7 +407,7 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 T_lo, T_hi = (float(v) for v in iv.get(f"gm_T_{i}", (float("nan"), float("nan"))))
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
-                a, c, w, _, _ = _gm_box_ends(T, T_lo, T_hi, T_search, horizon_s)
+                a, c, w, _, _ = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
                 # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
                 # over a box of several decades is far above every GM of it in between
                 gm.extend(split_gm_box(s, a, c, max_box_ratio))
@@ -425,7 +425,7 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
 
 
 def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None, sample_edf=None, labels=None,
-                horizon_s: float | None = None, confidence: float = 0.95, tau_min_s: float | None = None) -> dict:
+                span_s: float | None = None, confidence: float = 0.95, tau_min_s: float | None = None) -> dict:
     r"""Allan-domain check that distinguishes a real shortfall from a component without counterpart.
 
     1. Component against component, **kept components only** (`kept`, e.g. the ``select_components``
@@ -442,7 +442,7 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
     2. Total AV against every sample AV: the bound's total AV :math:`\sigma^2_b(\tau)` must reach the
        lower confidence limit of each sample AV, :math:`\hat\sigma^2 \nu/\chi^2_\nu(1-\alpha/M)` (level
        `confidence`, Bonferroni over the M curves x taus compared), over the application band
-       `tau_min_s` :math:`\le \tau \le` `horizon_s` (`tau_min_s` = 1/application.rate_hz: the filter never
+       `tau_min_s` :math:`\le \tau \le` `span_s` (`tau_min_s` = 1/application.filter_rate_hz: the filter never
        averages over less than one step, and a model is not claimed for what it does not use).
        A sample AV below the bound's by chance is not a shortfall; one whose lower limit is above it is.
        Ratios outside the band are reported (``outside_band``: the worst one, with its curve and tau) but
@@ -470,9 +470,9 @@ def check_allan(bound_model, identified_model, tau, kept=None, sample_avar=None,
     b = bound_model
 
     t_lo = float(tau_min_s) if tau_min_s is not None else 0.0
-    t_hi = float(horizon_s) if horizon_s is not None else math.inf
+    t_hi = float(span_s) if span_s is not None else math.inf
     if not (t_lo >= 0 and t_hi > t_lo):
-        raise ValueError(f"check_allan: the tau band needs 0 <= tau_min_s < horizon_s, got [{tau_min_s}, {horizon_s}] s")
+        raise ValueError(f"check_allan: the tau band needs 0 <= tau_min_s < span_s, got [{tau_min_s}, {span_s}] s")
     band = (t >= t_lo * (1 - 1e-12)) & (t <= t_hi)  # 1e-12: a tau of exactly one filter step is in the band
 
     comps = _component_checks(b, i, kept, t, band)
@@ -515,9 +515,11 @@ def _component_checks(b, i, kept, t, band) -> dict:
 
     comps = {}
     if "white" in kept:
-        comps["white"] = _compare(t, band, np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t, "white vs white")
+        comps["white"] = _compare(t, band, np.full_like(t, b.white**2) / t, np.full_like(t, i.white**2) / t,
+                                  "white vs white")
     if "random_walk" in kept:
-        comps["random_walk"] = _compare(t, band, b.random_walk**2 * t / 3, i.random_walk**2 * t / 3, "random walk vs random walk")
+        comps["random_walk"] = _compare(t, band, b.random_walk**2 * t / 3, i.random_walk**2 * t / 3,
+                                        "random walk vs random walk")
     if "gauss_markov" in kept:
         comps["gauss_markov"] = _compare(t, band, _gm_terms_avar(b, t), _gm_terms_avar(i, t), "GM vs GM")
         if comps["gauss_markov"]["status"] == "shortfall":
@@ -532,7 +534,8 @@ def _component_checks(b, i, kept, t, band) -> dict:
                 # a long-T identified GM rises like a random walk for tau < T: a random walk with
                 # K^2 >= 2 sigma^2 / T dominates that GM's PSD at every frequency (docs/method.md, section
                 # "Allan-domain check"), so the bound may carry it by its random walk
-                alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t + b.random_walk**2 * t / 3, _gm_terms_avar(i, t),
+                alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t + b.random_walk**2 * t / 3,
+                               _gm_terms_avar(i, t),
                               "GM + white + random walk vs GM")
                 if alt["status"] == "ok":
                     alt["reason"] += (" (the bound's GM alone falls short where the identified GM's AV still "
@@ -611,7 +614,7 @@ def _total_check(b, t, good, band, tau_band, sample_avar, sample_edf, labels, co
     return total
 
 
-def upper_envelope_from_identification(identified: dict, horizon_s: float | None = None):
+def upper_envelope_from_identification(identified: dict, span_s: float | None = None):
     """The identified upper confidence envelope (SI :class:`imupipe.models.NoiseModel`) of an identify file.
 
     Parameters
@@ -623,8 +626,8 @@ def upper_envelope_from_identification(identified: dict, horizon_s: float | None
         :meth:`imupipe.identify.AllanFit.to_dict` writes them, None for NaN or an open end) and
         ``selection.kept``, from which :func:`upper_envelope` rebuilds the envelope with the same rule as the
         identification (open T ends included; without the curves, no :func:`random_walk_cap`).
-    horizon_s : float, optional
-        For the rebuild: the horizon of :func:`upper_envelope`; default the file's ``upper_envelope_horizon_s``.
+    span_s : float, optional
+        For the rebuild: the span of :func:`upper_envelope` (s); default the file's ``upper_envelope_horizon_s``.
 
     Raises
     ------
@@ -658,6 +661,6 @@ def upper_envelope_from_identification(identified: dict, horizon_s: float | None
         random_walk_profile={k: num(v) for k, v in (fit.get("random_walk_profile") or {}).items()},
         T_grid=np.asarray(fit.get("T_search_s") or [], dtype=float),
     )
-    if horizon_s is None:
-        horizon_s = identified.get("upper_envelope_horizon_s")
-    return upper_envelope(view, (identified.get("selection") or {}).get("kept"), horizon_s=horizon_s)
+    if span_s is None:
+        span_s = identified.get("upper_envelope_horizon_s")
+    return upper_envelope(view, (identified.get("selection") or {}).get("kept"), span_s=span_s)

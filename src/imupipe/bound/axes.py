@@ -60,7 +60,7 @@ def bound_by_axis(frequency, curves: dict, spec_model=None, upper_models: dict |
         Axis -> the ``exclude``/``narrowband`` keyword arguments of that axis's line policy
         (:meth:`imupipe.lines.LinePolicy.bound_kwargs`).
     **kwargs
-        Every other :func:`imupipe.bound.bound_psd` argument (dt, mode, n_gm, keep, horizon_s, ...), the same
+        Every other :func:`imupipe.bound.bound_psd` argument (dt, mode, n_gm, keep, span_s, ...), the same
         for every axis.
 
     Returns

@@ -661,11 +661,11 @@ def _upper_psd(model, f):
     return np.zeros_like(f) if model is None else np.asarray(model.psd(f), dtype=np.float64)
 
 
-def _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, per_decade=10, upper_band="all"):
+def _setup_all_frequency(prob, spec_model, upper_model, span_s, f_floor_hz, per_decade=10, upper_band="all"):
     """Fill the all-frequency rows of `prob` (module docstring, "Bound over all frequencies")."""
     f_min = float(prob.f.min())
     if f_floor_hz is None:
-        f_floor_hz = 0.01 / float(horizon_s) if horizon_s else f_min / 100.0
+        f_floor_hz = 0.01 / float(span_s) if span_s else f_min / 100.0
     f_floor_hz = min(float(f_floor_hz), f_min / 10.0)
     n = max(2, int(math.ceil(math.log10(f_min / f_floor_hz) * per_decade)) + 1)
     lo_f = np.logspace(math.log10(f_floor_hz), math.log10(f_min), n)[:-1]
@@ -802,7 +802,7 @@ def bound_psd(
     min_edf="auto",
     add_threshold: float = 0.05,
     n_tests: int | None = None,
-    horizon_s: float | None = None,
+    span_s: float | None = None,
     upper_model=None,
     f_floor_hz: float | None = None,
     exclude=(),
@@ -877,6 +877,9 @@ def bound_psd(
         Relative looseness gain required to add a component the spec lacks. Default 0.05.
     n_tests : int, optional
         Multiplicity of the confidence mode. Default: number of (curve, band) pairs.
+    span_s : float, optional
+        Fix period plus outage, s: below the lowest bin the bound holds down to 0.01/span_s (module docstring,
+        "all-frequency bound"). Default None: down to a hundredth of the lowest bin.
 
     Returns
     -------
@@ -894,7 +897,7 @@ def bound_psd(
         min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests, exclude=exclude)
-    allf = _setup_all_frequency(prob, spec_model, upper_model, horizon_s, f_floor_hz, upper_band=upper_band)
+    allf = _setup_all_frequency(prob, spec_model, upper_model, span_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     prob.narrowband = _narrowband_of(narrowband)
     grid = _T_grid_of(prob, T_grid)

@@ -27,7 +27,7 @@ Parametric bootstrap, refitting each replicate (T profile included); intervals a
 replicate generator must keep that:
 
 * ``"correlated"`` (default): the exact covariance of the overlapping estimates under the
-  fitted model (:func:`imupipe.avcov.avar_covariance`, records of `n_samples` at `rate`), drawn
+  fitted model (:func:`imupipe.avcov.avar_covariance`, records of `n_samples` at `record_rate_hz`), drawn
   with chi-squared marginals through a Gaussian copula
   (:func:`imupipe.avcov.correlated_replicates`). Milliseconds per replicate.
 * ``"series"``: whole records simulated from the fitted model and their AV recomputed (the
@@ -310,7 +310,7 @@ def fit_allan(
     rng=None,
     dt: float | None = None,
     bootstrap: str = "correlated",
-    rate: float | None = None,
+    record_rate_hz: float | None = None,
     n_samples=None,
     adequacy_level: float = 0.01,
     T_min_samples: float | None = None,
@@ -346,7 +346,7 @@ def fit_allan(
         Sample interval, s, stored in the returned model (needed by quantization's PSD).
     bootstrap : {"correlated", "series", "chi2"}, optional
         Replicate generator (module docstring). Default ``"correlated"``.
-    rate : float or sequence of float, optional
+    record_rate_hz : float or sequence of float, optional
         Sampling rate of the records the AVs come from, Hz, one for all curves or one per pooled curve
         (records of different rates pool: each curve's averaging factors are tau * its rate); needed by
         ``correlated`` and ``series`` and by the covariance adequacy statistic.
@@ -372,7 +372,7 @@ def fit_allan(
     """
     t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
     comps = _check_components(components, n_gm)
-    records = _records(cid, bootstrap, n_boot, rate, n_samples)
+    records = _records(cid, bootstrap, n_boot, record_rate_hz, n_samples)
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
     grid = _T_search(t, comps, T_grid, T_min_samples, dt)
     best, profile = _profile(t, y, e, comps, n_gm, grid)
@@ -462,24 +462,24 @@ class _Replicated:
     per_curve: tuple = (None, None, None)
 
 
-def _records(cid, bootstrap: str, n_boot: int, rate, n_samples):
-    """(lengths in samples, rates in Hz) of the pooled curves, one each, or None when `rate` or `n_samples` is not
-    given; checks `bootstrap` and that the correlated and series bootstraps have positive rates and lengths."""
+def _records(cid, bootstrap: str, n_boot: int, record_rate_hz, n_samples):
+    """(lengths in samples, rates in Hz) of the pooled curves, one each, or None when `record_rate_hz` or
+    `n_samples` is not given; checks `bootstrap` and that the correlated and series bootstraps have positive rates and lengths."""
     if bootstrap not in ("correlated", "chi2", "series"):
         raise ValueError(f"bootstrap must be 'correlated', 'chi2' or 'series', got {bootstrap!r}")
     needed = bootstrap in ("correlated", "series") and n_boot > 0
-    if needed and (rate is None or n_samples is None):
+    if needed and (record_rate_hz is None or n_samples is None):
         raise ValueError(
             f"the {bootstrap} bootstrap needs the records' rate (Hz) and n_samples (per curve): pass "
-            "rate= and n_samples= (allan_variance(...).attrs 'rate_hz' and 'n_samples'), or n_boot=0"
+            "record_rate_hz= and n_samples= (allan_variance(...).attrs 'rate_hz' and 'n_samples'), or n_boot=0"
         )
-    if rate is None or n_samples is None:
+    if record_rate_hz is None or n_samples is None:
         return None
     n_curves = int(cid.max()) + 1
     lengths = _per_curve(n_samples, n_curves, "n_samples", np.int64)
-    rates = _per_curve(rate, n_curves, "rate", np.float64)
+    rates = _per_curve(record_rate_hz, n_curves, "record_rate_hz", np.float64)
     if needed and (np.any(~np.isfinite(rates) | (rates <= 0)) or np.any(lengths < 2)):
-        raise ValueError(f"rate (Hz) must be positive and n_samples >= 2 per curve, got {rates}, {lengths}")
+        raise ValueError(f"record_rate_hz (Hz) must be positive and n_samples >= 2 per curve, got {rates}, {lengths}")
     return lengths, rates
 
 

@@ -19,7 +19,7 @@ def pooling_test(
     edf,
     components=("white", "gauss_markov", "random_walk"),
     n_gm: int = 1,
-    rate=None,
+    record_rate_hz=None,
     n_samples=None,
     labels=None,
     n_boot: int = 99,
@@ -51,7 +51,7 @@ def pooling_test(
     tau, avar, edf : sequences of array_like
         One curve each (different lengths allowed), s, u^2, 1.
     components, n_gm, T_grid : as :func:`fit_allan`.
-    rate : float or sequence of float
+    record_rate_hz : float or sequence of float
         Sampling rate of each curve's record, Hz.
     n_samples : int or sequence of int
         Record length of each curve, samples.
@@ -74,10 +74,10 @@ def pooling_test(
     """
     t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
     n_curves = int(cid.max()) + 1
-    if rate is None or n_samples is None:
-        raise ValueError("pooling_test needs rate= (Hz) and n_samples= per curve (the bootstrap draws each "
+    if record_rate_hz is None or n_samples is None:
+        raise ValueError("pooling_test needs record_rate_hz= (Hz) and n_samples= per curve (the bootstrap draws each "
                          "curve with its own record length and rate)")
-    rates = _per_curve(rate, n_curves, "rate", np.float64)
+    rates = _per_curve(record_rate_hz, n_curves, "record_rate_hz", np.float64)
     lengths = _per_curve(n_samples, n_curves, "n_samples", np.int64)
     labels = [f"curve_{i}" for i in range(n_curves)] if labels is None else [str(v) for v in labels]
     if len(labels) != n_curves:

@@ -78,8 +78,8 @@ def select_components(
     avar,
     edf,
     band_hz=None,
-    rate_hz: float | None = None,
-    horizon_s: float | None = None,
+    filter_rate_hz: float | None = None,
+    outage_s: float | None = None,
     significance: float = 0.05,
     relevance: float = 0.05,
     lr_test: bool = True,
@@ -115,7 +115,7 @@ def select_components(
     `relevance` of the model AV, :math:`\max_{\tau \in [\tau_a, \tau_b]} \sigma_c^2/\sigma^2 \ge`
     `relevance`, with :math:`\tau_a = 1/(2 f_{hi})` and :math:`\tau_b = 1/(2 f_{lo})` (the AV at
     :math:`\tau` responds mostly to :math:`f \approx 1/(2\tau)`). The band is `band_hz`, or
-    :math:`(1/\text{horizon}, \text{rate}/2)` from the filter rate and horizon; without either, every
+    :math:`(1/\text{outage}, \text{filter rate}/2)` from the filter rate and the outage; without either, every
     component is taken as relevant.
 
     Decision: keep = data test and band test, except the random walk, which is kept whenever the data
@@ -130,11 +130,10 @@ def select_components(
         The AV data of the fit (pooled the same way), s, u^2, 1.
     band_hz : tuple of float, optional
         (f_lo, f_hi) of the application, Hz.
-    rate_hz : float, optional
-        Filter rate, Hz (f_hi = rate_hz/2) when `band_hz` is not given.
-    horizon_s : float, optional
-        Filter horizon (longest interval the filter must propagate without aiding), s
-        (f_lo = 1/horizon_s).
+    filter_rate_hz : float, optional
+        The filter's update rate, Hz (f_hi = filter_rate_hz/2) when `band_hz` is not given.
+    outage_s : float, optional
+        The outage (longest interval the filter must propagate without aiding), s (f_lo = 1/outage_s).
     significance : float, optional
         Family-wise level :math:`\alpha`. Default 0.05.
     relevance : float, optional
@@ -169,7 +168,7 @@ def select_components(
     # Bonferroni over the AV points and over the components tested
     zcrit = float(-ndtri(significance / (t.size * n_tested)))
 
-    f_lo, f_hi = _band_of(band_hz, rate_hz, horizon_s, t)
+    f_lo, f_hi = _band_of(band_hz, filter_rate_hz, outage_s, t)
     if f_lo is not None:
         tb = np.logspace(math.log10(0.5 / f_hi), math.log10(0.5 / f_lo), 200)
         m_band = np.asarray(model.avar(tb), dtype=np.float64)
@@ -221,15 +220,15 @@ def select_components(
     }
 
 
-def _band_of(band_hz, rate_hz, horizon_s, t):
+def _band_of(band_hz, filter_rate_hz, outage_s, t):
     """(f_lo, f_hi) of the application band, Hz (helper of :func:`select_components`): `band_hz`, or from the
-    filter rate (f_hi = rate/2; default the shortest tau's 1/(2 tau)) and the horizon (f_lo = 1/horizon; default
-    the longest tau's 1/(2 tau)); (None, None) without any of them."""
+    filter rate (f_hi = filter_rate_hz/2; default the shortest tau's 1/(2 tau)) and the outage (f_lo = 1/outage_s;
+    default the longest tau's 1/(2 tau)); (None, None) without any of them."""
     if band_hz is not None:
         f_lo, f_hi = (float(band_hz[0]), float(band_hz[1]))
-    elif rate_hz is not None or horizon_s is not None:
-        f_hi = float(rate_hz) / 2.0 if rate_hz is not None else 0.5 / float(t.min())
-        f_lo = 1.0 / float(horizon_s) if horizon_s is not None else 0.5 / float(t.max())
+    elif filter_rate_hz is not None or outage_s is not None:
+        f_hi = float(filter_rate_hz) / 2.0 if filter_rate_hz is not None else 0.5 / float(t.min())
+        f_lo = 1.0 / float(outage_s) if outage_s is not None else 0.5 / float(t.max())
     else:
         f_lo = f_hi = None
     if f_lo is not None and not (0 < f_lo < f_hi):
@@ -305,7 +304,7 @@ def refit_selected(fit: AllanFit, selection: dict, tau, avar, edf, **fit_kwargs)
     tau, avar, edf : array_like or sequences
         The data of `fit`.
     **fit_kwargs
-        Passed to :func:`fit_allan` (``n_boot``, ``confidence``, ``rng``, ``rate``, ``n_samples``, ``dt``,
+        Passed to :func:`fit_allan` (``n_boot``, ``confidence``, ``rng``, ``record_rate_hz``, ``n_samples``, ``dt``,
         ``T_grid``, ...); ``components`` and ``n_gm`` are set here. Default ``confidence`` that of `fit`.
 
     A random walk the selection dropped (the data do not show it) is not thereby absent: with a bootstrap,

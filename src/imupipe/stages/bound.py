@@ -1,7 +1,7 @@
 r"""The global bound of one sensor type against one spec sheet (rule ``bound``; :func:`imupipe.api.noise_model`).
 
 Over every included curve's two-sided PSD (decimated, interval ``dt``), the spec sheet and, below the lowest
-bin down to :math:`0.01/h` (h = ``horizon_s``, verify.fix_s + application.horizon_s), the identified upper
+bin down to :math:`0.01/h` (h = ``span_s``: fix period + outage, verify.fix_s + application.outage_s), the identified upper
 envelope (:func:`imupipe.bound.upper_envelope_from_identification` of the identify record), restricted to the
 components the identification kept: :func:`imupipe.bound.bound_psd`, the sensor's spectral lines entering
 through its line policy (:func:`imupipe.lines.line_policy_from_files`). Then the Allan-domain check of the
@@ -43,7 +43,7 @@ bound_spec_units: the same in the spec sheet's units. inflation: bound/spec per 
 margin: min over curves and frequencies of S_model/S_sample (>= 1 when psd_bounded), margin_curve: where.
 all_frequency_margin: min of S_model/max(S_spec, S_upper) below the lowest bin (frequency 0: K asymptote, inf: N).
 upper_envelope: the identified model at its upper confidence limits (SI), imposed at every frequency.
-allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.rate_hz, horizon] s.
+allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.filter_rate_hz, horizon_s] s.
 per_axis_models: present when the pooling test rejected one model for all axes: per axis, the bound of that axis's
 curves (same fields as the global bound, SI), its envelope and Allan check; null when the axes are pooled."""
 
@@ -73,8 +73,8 @@ def _axis_of(label: str) -> str:
 
 
 def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: dict, *, dt: float, sensor: str,
-                 mode: str, n_gm: int, confidence: float, bands_per_decade: int, horizon_s: float,
-                 application_rate_hz: float = 1.0, taper: str = "hann", allan=None, lines: Mapping | None = None,
+                 mode: str, n_gm: int, confidence: float, bands_per_decade: int, span_s: float,
+                 filter_rate_hz: float = 1.0, taper: str = "hann", allan=None, lines: Mapping | None = None,
                  line_policy: str = "model", application_band_hz=None, axis_bounds=(), compare_paper: bool = False,
                  spec_units=None, spec_name: str = "", spec_file: str | None = None) -> BoundStage:
     """The bound of one sensor type (module docstring).
@@ -91,7 +91,8 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
         The identification record (:func:`imupipe.stages.identify.identification_stage`, or its file).
     dt : float
         Decimated sample interval, s. `mode`, `n_gm`, `confidence`, `bands_per_decade`: ``bound.*``;
-        `horizon_s`: s, the all-frequency horizon; `application_rate_hz`: Hz, the Allan check's shortest tau is
+        `span_s`: s, fix period + outage (the all-frequency bound's reach, written as ``horizon_s``);
+        `filter_rate_hz`: Hz, the filter's update rate: the Allan check's shortest tau is
         its inverse; `taper`: the PSD's window.
     allan : (tau, mapping of str to (avar, edf)) or None
         The stacked Allan grid (s) and each included curve's AV (u^2, NaN where a curve has no value) and edf;
@@ -122,7 +123,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     pol = line_policy_from_files(lines, dt, f, line_policy, application_band_hz)
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(list(edf_of.values())), keep=kept,
-                       taper=taper, horizon_s=horizon_s, upper_model=upper,
+                       taper=taper, span_s=span_s, upper_model=upper,
                        **(pol.bound_kwargs() if pol is not None else {}))
     logging.info("bound %s: margin %.4g (%s), all-frequency margin %.4g, looseness %.4g, %d LPs in %.3g s",
                  result.model, result.margin, result.margin_curve, result.allf_margin, result.looseness,
@@ -131,12 +132,12 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     body["psd_bounded"] = body.pop("bounded")
     body.pop("solve_time_s", None)  # wall clock: in the log, not in the file (identical runs, identical files)
     out = {"spec_name": spec_name, "spec_file": spec_file, "sensor": sensor, "dt_s": dt,
-           "horizon_s": float(horizon_s), "n_curves": len(curves), "curves": list(curves),
+           "horizon_s": float(span_s), "n_curves": len(curves), "curves": list(curves),
            "states_kept_by_identification": kept, **body,
            "upper_envelope": upper.to_dict(),
            "identification_intervals": identified.get("intervals_bootstrap"),
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
-    tau_min_s = 1.0 / float(application_rate_hz)
+    tau_min_s = 1.0 / float(filter_rate_hz)
     labels, avars, edfs = [], [], []
     if allan is not None:
         tau, per_curve = allan
@@ -146,7 +147,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             edfs.append(e)
         checked = check_allan(result.model, NoiseModel.from_dict(identified["model"]), tau, kept=kept,
                               sample_avar=np.array(avars), sample_edf=np.array(edfs), labels=labels,
-                              horizon_s=horizon_s, tau_min_s=tau_min_s)
+                              span_s=span_s, tau_min_s=tau_min_s)
         out["allan_check"] = plain(checked)
         out["allan_check_passed"] = bool(checked["passed"])
     # per-axis models where the pooling test says the axes differ (docs/method.md, "Per-axis models")
@@ -164,7 +165,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
         per = bound_by_axis(f, curves, spec_model, upper_models=uppers, edf=edf_of,
                             line_kwargs={ax: kw for ax, (kw, _) in line_kw.items()}, dt=dt, mode=mode, n_gm=n_gm,
                             confidence=confidence, bands_per_decade=bands_per_decade, keep=kept, taper=taper,
-                            horizon_s=horizon_s)
+                            span_s=span_s)
         out["per_axis_models"] = {}
         for ax, (labs, res) in per.items():
             if ax not in axes_fit:
@@ -180,7 +181,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
                 sel = [labels.index(lab) for lab in labs if lab in labels]
                 al_ax = check_allan(res.model, NoiseModel.from_dict(axes_fit[ax]["model"]), allan[0], kept=kept,
                                     sample_avar=np.array(avars)[sel], sample_edf=np.array(edfs)[sel],
-                                    labels=[labels[j] for j in sel], horizon_s=horizon_s, tau_min_s=tau_min_s)
+                                    labels=[labels[j] for j in sel], span_s=span_s, tau_min_s=tau_min_s)
                 entry |= {"allan_check": plain(al_ax), "allan_check_passed": bool(al_ax["passed"])}
             out["per_axis_models"][ax] = entry
             logging.info("per-axis bound %s: %s, margin %.4g, all-frequency margin %.4g", ax, res.model, res.margin,
@@ -206,13 +207,13 @@ def bound_stage(frequency, psd: Mapping, edf: Mapping, spec_model, identified: d
 
 
 def axis_bound_stage(frequency, psd, edf, label: str, spec_model, identified: dict, *, dt: float, sensor: str,
-                     mode: str, n_gm: int, confidence: float, bands_per_decade: int, horizon_s: float,
+                     mode: str, n_gm: int, confidence: float, bands_per_decade: int, span_s: float,
                      taper: str = "hann", lines: Mapping | None = None, line_policy: str = "model",
                      application_band_hz=None, spec_units=None, spec_name: str = "") -> dict:
     """The per-axis bound file's content (YAML-ready, SI) of the curve `label` (its two-sided `psd`, u^2/Hz, and
     `edf` on `frequency`, Hz): :func:`imupipe.bound.bound_psd` of the components the pooled identification kept,
     on :data:`AXIS_T_PER_DECADE`, over all frequencies (spec sheet and the identified upper envelope below the
-    lowest bin, down to 0.01/`horizon_s`), with the line policy of `lines` (label -> lines file). The other
+    lowest bin, down to 0.01/`span_s`), with the line policy of `lines` (label -> lines file). The other
     arguments as :func:`bound_sensor`'s."""
     from imupipe.bound import bound_psd, upper_envelope_from_identification
     from imupipe.io import plain
@@ -222,13 +223,13 @@ def axis_bound_stage(frequency, psd, edf, label: str, spec_model, identified: di
     pol = line_policy_from_files(dict(lines or {}), dt, f, line_policy, application_band_hz)
     result = bound_psd(f, {label: np.asarray(psd)}, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=edf, taper=taper, keep=identified["selection"]["kept"],
-                       T_grid=AXIS_T_PER_DECADE, horizon_s=horizon_s,
+                       T_grid=AXIS_T_PER_DECADE, span_s=span_s,
                        upper_model=upper_envelope_from_identification(identified),
                        **(pol.bound_kwargs() if pol is not None else {}))
     logging.info("bound of %s: margin %.4g, %d LPs in %.3g s", label, result.margin, result.n_lp, result.solve_time_s)
     body = result.to_dict(spec_units=spec_units, sensor=sensor)
     body["psd_bounded"] = body.pop("bounded")
     body.pop("solve_time_s", None)  # wall clock: in the log only
-    return plain({"spec_name": spec_name, "curve": label, "sensor": sensor, "dt_s": dt, "horizon_s": float(horizon_s),
+    return plain({"spec_name": spec_name, "curve": label, "sensor": sensor, "dt_s": dt, "horizon_s": float(span_s),
                   **body, "lines": pol.to_dict() if pol is not None
                   else {"policy": None, "note": "no lines files (lines stage not run)"}})

@@ -8,7 +8,7 @@ From the Allan-variance curves of every included axis of every record (each at i
    keeps its upper limit, the GM intervals their hull with the fit with a random walk): the parameters to
    report and bound;
 4. its upper confidence envelope (:func:`imupipe.bound.upper_envelope`; a GM time constant the data leave
-   open covered for :math:`f \ge 1/h`, h = ``envelope_horizon_s``), the random walk at most what the curves'
+   open covered for :math:`f \ge 1/h`, h = ``span_s``: fix period + outage), the random walk at most what the curves'
    Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
 5. the test whether the curves may be pooled (:func:`imupipe.identify.pooling_test`) and, where not, one
    identification per axis by the same rule, the envelope the bound reads then dominating the pooled and every
@@ -54,7 +54,7 @@ class Curve(NamedTuple):
     avar: Any
     edf: Any
     n_samples: int
-    rate_hz: float
+    record_rate_hz: float
     axis: str
 
 
@@ -83,17 +83,17 @@ def curves_of(av) -> list[Curve]:
     return out
 
 
-def envelope(fit, kept, curves, confidence: float, horizon_s: float):
+def envelope(fit, kept, curves, confidence: float, span_s: float):
     """The upper confidence envelope of the kept components of `fit` (:func:`imupipe.bound.upper_envelope`; a
-    GM time constant the data leave open covered for f >= 1/horizon_s, horizon_s in s), its random walk at most
-    what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap` at `confidence`)."""
+    GM time constant the data leave open covered for f >= 1/span_s, span_s in s: fix period + outage), its random
+    walk at most what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap` at `confidence`)."""
     from imupipe.bound import random_walk_cap, upper_envelope
 
     cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
-    return upper_envelope(fit, kept, random_walk_cap=cap, horizon_s=horizon_s)
+    return upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
 
 
-def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, horizon_s: float,
+def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, span_s: float,
                           seed: int = SEED_FIT):
     """The selected refit of `fit` on `curves` (:func:`imupipe.identify.refit_selected`: a random walk the
     selection dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its
@@ -103,7 +103,7 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
 
     taus, avars, edfs = ([c[i] for c in curves] for i in (1, 2, 3))
     selected = refit_selected(fit, selection, taus, avars, edfs, rng=seed, **fit_kw)
-    return selected, envelope(selected, list(selection["kept"]), curves, confidence, horizon_s)
+    return selected, envelope(selected, list(selection["kept"]), curves, confidence, span_s)
 
 
 def envelope_ratio(env: dict, model) -> dict:
@@ -118,7 +118,7 @@ def envelope_ratio(env: dict, model) -> dict:
     return {k: (float(out[k] / est[k]) if est[k] > 0 else None) for k in out if out[k] > 0 or est[k] > 0}
 
 
-def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed):
+def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed):
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry."""
@@ -127,11 +127,11 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, se
     per_axis = {}
     for axis in sorted({c[6] for c in curves}):
         ax_curves = [c for c in curves if c[6] == axis]
-        kw = {**fit_kw, "rate": [c[5] for c in ax_curves], "n_samples": [c[4] for c in ax_curves],
+        kw = {**fit_kw, "record_rate_hz": [c[5] for c in ax_curves], "n_samples": [c[4] for c in ax_curves],
               "dt": 1.0 / ax_curves[0][5]}
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
                          components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
-        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, env_h, seed=seed)
+        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
                           "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
@@ -146,17 +146,18 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, se
 
 
 def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, confidence: float,
-                    significance: float, relevance: float, rate_hz: float, horizon_s: float,
+                    significance: float, relevance: float, filter_rate_hz: float, outage_s: float,
                     adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
-                    envelope_horizon_s: float | None = None, fit_tau_min_samples: float | None = None,
+                    span_s: float | None = None, fit_tau_min_samples: float | None = None,
                     truth=None, seed: int = SEED_FIT) -> Identification:
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
     `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
-    `fit_tau_min_samples`), the application's `rate_hz` (Hz) and `horizon_s` (s) for the selection, and
-    `envelope_horizon_s` (s; the window the bound must hold over, verify.fix_s + application.horizon_s;
-    default `horizon_s`). `truth`: the simulation's :class:`~imupipe.models.NoiseModel` or None. `seed`: of the
-    fit's bootstrap and refit (the pooling test's is :data:`SEED_POOLING`).
+    `fit_tau_min_samples`), the filter's update rate `filter_rate_hz` (Hz) and the outage `outage_s` (s) for the
+    selection, and `span_s` (s; fix period + outage, the window the bound must hold over, written as
+    ``upper_envelope_horizon_s``; default `outage_s`). `truth`: the simulation's
+    :class:`~imupipe.models.NoiseModel` or None. `seed`: of the fit's bootstrap and refit (the pooling test's is
+    :data:`SEED_POOLING`).
 
     Raises ValueError when `curves` is empty."""
     from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
@@ -168,18 +169,18 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         raise ValueError("identification: no included curve")
     labels = [c.label for c in curves]
     taus, avars, edfs = [c.tau for c in curves], [c.avar for c in curves], [c.edf for c in curves]
-    ns, rates = [c.n_samples for c in curves], [c.rate_hz for c in curves]
+    ns, rates = [c.n_samples for c in curves], [c.record_rate_hz for c in curves]
     components = list(components)
-    fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], rate=rates, n_samples=ns,
+    fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], record_rate_hz=rates, n_samples=ns,
                   adequacy_level=adequacy_level, T_min_samples=fit_tau_min_samples)
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=seed, **fit_kw)
-    selection = select_components(fit, taus, avars, edfs, rate_hz=rate_hz, horizon_s=horizon_s,
+    selection = select_components(fit, taus, avars, edfs, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                                   significance=significance, relevance=relevance)
     kept = list(selection["kept"])
     logging.info("kept %s; dropped %s", kept, selection["dropped"])
-    env_h = float(envelope_horizon_s if envelope_horizon_s is not None else horizon_s)
-    selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, env_h, seed=seed)
-    pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, rate=rates, n_samples=ns,
+    span = float(span_s if span_s is not None else outage_s)
+    selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, span, seed=seed)
+    pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, record_rate_hz=rates, n_samples=ns,
                            labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
     logging.info("pooling: %s", pooling["note"])
 
@@ -202,13 +203,13 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "conservative": selected.to_dict()["conservative"],
         "pooling": pooling,
         "upper_envelope_model": env.to_dict(),
-        "upper_envelope_horizon_s": env_h,
+        "upper_envelope_horizon_s": span,
         "slope_line": {},
     }
     band = out["selection"]["band_hz"]
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
     if not pooling["consistent"]:
-        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, env_h, seed)
+        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed)
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
