@@ -1,8 +1,8 @@
 r"""The global bound of one sensor type against one spec sheet (rule ``bound``; :func:`imupipe.api.noise_model`).
 
 Over every included curve's two-sided PSD (decimated, interval ``dt``), the spec sheet and, below the lowest
-bin down to :math:`0.01/h` (h = ``span_s``: fix period + outage, verify.fix_s + application.outage_s), the identified upper
-envelope (:func:`imupipe.bound.upper_envelope_from_identification` of the identify record), restricted to the
+bin down to :math:`0.01/h` (h = ``span_s``: fix period + outage, verify.fix_s + application.outage_s), the
+identified upper envelope (:func:`imupipe.bound.upper_envelope_from_identification` of the identify record), restricted to the
 components the identification kept: :func:`imupipe.bound.bound_psd`, the sensor's spectral lines entering
 through its line policy (:func:`imupipe.lines.line_policy_from_files`). Then the Allan-domain check of the
 bound's kept components against the sample AVs' lower limits over :math:`[1/f_{app}, h]`
