@@ -17,8 +17,8 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "identify.significance": "significance", "identify.relevance": "relevance",
            "identify.adequacy_level": "adequacy_level", "identify.pooling_level": "pooling_level",
            "identify.pooling_n_boot": "pooling_n_boot", "identify.n_boot": "n_boot", "verify.reduce": "reduce", "verify.replay_z": "replay_z",
-           "verify.filter_rate_hz": "filter_rate_hz", "lines.floor_window_bins": "lines_floor_window_bins",
-           "application.rate_hz": "application_rate_hz", "application.horizon_s": "horizon_s",
+           "lines.floor_window_bins": "lines_floor_window_bins",
+           "application.filter_rate_hz": "application_rate_hz", "application.outage_s": "horizon_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}
 
