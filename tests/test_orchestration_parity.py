@@ -93,11 +93,11 @@ def both(request):
         significance=idn["significance"], relevance=idn["relevance"], adequacy_level=idn["adequacy_level"],
         pooling_level=idn["pooling_level"], pooling_n_boot=idn["pooling_n_boot"],
         fit_tau_min_samples=idn.get("fit_tau_min_samples"), max_bias_time_s=idn.get("max_bias_time_s"),
-        application_rate_hz=app["rate_hz"], horizon_s=app["horizon_s"],
+        application_rate_hz=app["filter_rate_hz"], horizon_s=app["outage_s"],
         mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
         lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
         lines_alpha=cfg["lines"]["alpha"], lines_floor_window_bins=cfg["lines"]["floor_window_bins"],
-        fix_s=ver["fix_s"], filter_rate_hz=ver["filter_rate_hz"], fix_rate_hz=ver.get("fix_rate_hz"),
+        fix_s=ver["fix_s"], filter_rate_hz=app["filter_rate_hz"], fix_rate_hz=ver.get("fix_rate_hz"),
         sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"], reduce=ver["reduce"],
         replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"] if cfg.get("simulation") else None)
     files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),
