@@ -179,7 +179,8 @@ def test_datasets_of_a_sheet_paths_relative_to_the_working_directory(tmp_path, m
     work.mkdir()
     monkeypatch.chdir(work)
     cfg = {"datasets": "s.tsv", "simulation": None}
-    assert rc.datasets_of(cfg, tmp_path, "results/x", SHEET_SCHEMA.parent)["lab1"]["path"] == os.path.join("..", "data", "lab1.csv")
+    rows = rc.datasets_of(cfg, tmp_path, "results/x", SHEET_SCHEMA.parent)
+    assert rows["lab1"]["path"] == os.path.join("..", "data", "lab1.csv")
 
 
 # ---------------------------------------------------------------------------------------------------------

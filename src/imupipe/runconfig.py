@@ -23,7 +23,8 @@ from fnmatch import fnmatch
 from pathlib import Path
 
 __all__ = ["AXES", "RENAMED_KEYS", "axes_of", "check_cross_keys", "check_records", "check_specs", "datasets_of",
-           "divides", "ingest_rule_groups", "lines_params", "load_config", "merged_config", "read_sheet", "refuse_renamed_keys",
+           "divides", "ingest_rule_groups", "lines_params", "load_config", "merged_config", "read_sheet",
+           "refuse_renamed_keys",
            "remove_stale", "replay_from_decimated", "repo_path", "sheet_column", "simulated_datasets",
            "simulation_seeds", "span_s", "spec_path", "summary_text", "validate_schema"]
 

@@ -209,7 +209,8 @@ def ingest_mem_mb(wildcards, input):
     written (measured 109 MB at 10 h, 217 MB at 40 h, 125 Hz); text, R and bag records: 100 MB + 2 x the file."""
     fmt = str(DATASETS[wildcards.dataset].get("format", "auto")).lower()
     suffix = Path(DATASETS[wildcards.dataset]["path"]).suffix.lower()
-    if SIMULATION or fmt in ("netcdf", "nc", "npy", "npz") or (fmt == "auto" and suffix in (".nc", ".nc4", ".cdf", ".npy", ".npz")):
+    by_channel = fmt in ("netcdf", "nc", "npy", "npz") or (fmt == "auto" and suffix in (".nc", ".nc4", ".cdf", ".npy", ".npz"))
+    if SIMULATION or by_channel:
         return int(100 + 3.5 * input.size_mb / max(1, len(channels_of(wildcards.dataset))))
     return int(100 + 2 * input.size_mb)
 

@@ -9,8 +9,8 @@ channels the dataset sheet names (or all three axes of a sensor naming none) are
 
 Each output carries the gap fill of its record (attrs ``n_filled``: gaps filled, ``filled_rows``: the 0-based
 file rows before each filled gap, comma separated; docs/inputs.md, "Timestamps and gaps"). The record length
-against psd.window_s is checked once, at start-up (imupipe.runconfig.check_records): ingest takes no analysis setting, so a change
-of another section does not re-run it.
+against psd.window_s is checked once, at start-up (imupipe.runconfig.check_records): ingest takes no analysis
+setting, so a change of another section does not re-run it.
 
 A dataset with all three accel axes is checked for gravity after its channels are written
 (readers.check_gravity: |mean specific force| within 0.9 .. 1.1 g0, else the job fails and Snakemake removes

@@ -1,25 +1,25 @@
 """The Kalibr export of one spec sheet (rule ``kalibr``): ``imu.yaml`` from the gyro and accel bounds, the exported KF
 models, the identify files and the contracts (:mod:`imupipe.kalibr`).
 
-Kalibr imu.yaml from the gyro and accel bounds (rule kalibr), imupipe.kalibr.
-
-update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, else refused with
-each dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the
-identify files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities the
-smallest Kalibr pair (white noise, random walk) whose PSD bounds the exported model's over the application band
+update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, else refused with each
+dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the identify
+files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities
+the smallest Kalibr pair (white noise, random walk) whose PSD bounds the exported model's over the application band
 [1/horizon_s, update_rate/2] (imupipe.kalibr.kalibr_pair: an LP; per axis when the KF file has per-axis models, the
-largest of each, the comment naming the axis), and the comment block the rule, the exported model's effective in-band
-inflation against the spec sheet (the contract's inband_inflation) and the ratio to the identified model's pair.
+largest of each, the comment naming the axis), and the comment block the rule, the exported model's effective
+in-band inflation against the spec sheet (the contract's inband_inflation) and the ratio to the identified model's
+pair.
 
 The values follow the exported Kalman-filter model (kf/{spec}/{sensor}.yaml: the bound after the verified
 reduction), so the two files never disagree. One exception: an export without any bias-drift state (the verified
 reduction dropped every GM and random walk) takes the bound's drift terms, as Kalibr needs a positive random walk
 (imupipe.kalibr.with_bias_drift, stated in the comment block); a bound without any is refused. When the KF export
 keeps no line state (none in the bound, or the verified reduction dropped every one), the two-term values are
-derived from the exported model, with its reduction and the horizon it holds for in the comment block. An exported model holding a narrowband line state (sigma > 0) is
-refused: the file then holds no Kalibr field (Kalibr fails on it rather than using values that do not bound near the
-line), only `refused: true`, the reason and those lines, and the two-term values without the line as commented-out
-lines for a user who accepts the under-statement knowingly. The run summary flags it.
+derived from the exported model, with its reduction and the horizon it holds for in the comment block. An exported
+model holding a narrowband line state (sigma > 0) is refused: the file then holds no Kalibr field (Kalibr fails on
+it rather than using values that do not bound near the line), only `refused: true`, the reason and those lines, and
+the two-term values without the line as commented-out lines for a user who accepts the under-statement knowingly.
+The run summary flags it.
 
 Plain values in (the files' dicts, the dataset sheet's rates and topics), the file's text out
 (:func:`kalibr_stage`).
@@ -143,7 +143,9 @@ def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rat
     `topics` {dataset: topic or None} from the dataset sheet; `kf_paths` the KF files' paths (named in messages).
     A refused export (rates that differ, no bias drift, a line state) is a file with ``refused: true`` and the
     reason, logged as a warning; the run goes on."""
-    from imupipe.kalibr import dataset_rates, imu_rate, kalibr_imu, kalibr_text, model_of_bound, rostopic_of, with_bias_drift
+    from imupipe.kalibr import (
+        dataset_rates, imu_rate, kalibr_imu, kalibr_text, model_of_bound, rostopic_of, with_bias_drift,
+    )
     from imupipe.models import NoiseModel
 
     # the identified model the inflation factors compare with: the selected model refitted (kept components)
