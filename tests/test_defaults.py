@@ -42,6 +42,9 @@ def test_api_defaults_are_the_table():
         got = params[arg].default
         assert (list(got) if isinstance(got, tuple) else got) == DEFAULTS[key], key
     assert params["window_s"].default is None and params["step_s"].default is None
+    # the verification's reference filter runs at the one filter rate (verify.filter_rate_hz is no config key)
+    assert params["filter_rate_hz"].default == DEFAULTS["application.filter_rate_hz"]
+    assert "verify.filter_rate_hz" not in DEFAULTS
 
 
 def test_psd_rule_two_hours_and_long_records():

@@ -299,8 +299,8 @@ def noise_model(
         checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
         True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
         default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
-        `filter_rate_hz`: the reference filter's rate, Hz (``verify.filter_rate_hz``, default 1.0); the contract
-        flags one that differs from `application_rate_hz` (the KF export's), as the workflow's; `fix_rate_hz`:
+        `filter_rate_hz`: the reference filter's rate, Hz (the workflow runs it at ``application.filter_rate_hz``,
+        default 1.0); the contract flags one that differs from `application_rate_hz` (the KF export's); `fix_rate_hz`:
         the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the KF file's
         matrices of the model the verification
         exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
