@@ -487,3 +487,46 @@ def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_d
     summary = render_summary({"gyro": {"bound": con}})
     assert f"- the table above: {scope['statement']}" in summary
     assert "- the table above" not in render_summary({"gyro": {"bound": whole}})
+
+
+# -------------------------------------------------------------------------------------------------
+# stage functions of the thin scripts, without a run
+
+
+def test_stationarity_summary_stage_applies_on_fail():
+    from imupipe.stages.stationarity import summary_stage
+
+    def verdict(axis, ok):
+        return {"dataset": "a", "axis": axis, "stationary": ok, "p_value": 0.5 if ok else 0.001, "test": "calibrated",
+                "paper": {"stationary": ok}}
+
+    both = [verdict("x", True), verdict("y", False)]
+    warn = summary_stage(both, "warn", "gyro")
+    assert [c["included"] for c in warn["curves"]] == [True, True] and warn["n_non_stationary"] == 1
+    assert [c["included"] for c in summary_stage(both, "exclude", "gyro")["curves"]] == [True, False]
+    with pytest.raises(ValueError, match=r"stationarity.on_fail = fail\): a/gyro/y \(p = 0.001\)"):
+        summary_stage(both, "fail", "gyro")
+    with pytest.raises(ValueError, match="every gyro record failed the stationarity test and on_fail = exclude"):
+        summary_stage([verdict("y", False)], "exclude", "gyro")
+
+
+def test_tables_stage_of_the_spec_sheet_itself_gives_ratio_one():
+    # a bound equal to the spec sheet's own model: every parameter's bound/spec ratio is 1 (printed to 4 digits)
+    import csv
+    import io
+
+    from imupipe.specsheet import load_spec
+    from imupipe.stages.tables import tables_stage
+
+    spec = load_spec(ROOT / "config" / "specs" / "stim300.yaml")
+    bounds = {}
+    for sensor, m in spec.models.items():
+        bounds[sensor] = {"bound": {"white": m.white, "random_walk": m.random_walk,
+                                    "gauss_markov": [{"sigma": s, "T": t} for s, t in m.gauss_markov]},
+                          "mode": "raw", "margin": 1.25, "psd_bounded": True}
+    out = tables_stage(spec, bounds)
+    rows = list(csv.DictReader(io.StringIO(out["csv"])))
+    assert rows and {r["sensor"] for r in rows} == set(spec.models)
+    assert len(rows) == 8 and all(abs(float(r["ratio"]) - 1.0) < 1e-12 for r in rows)  # N, GM sigma, T, K of each
+    assert out["markdown"].startswith(f"# {spec.name}: spec sheet vs bound (raw mode)")
+    assert "<table" in out["html"] and "gyro 1.25" in out["markdown"]
