@@ -27,7 +27,6 @@ configfile: "config/config.yaml"
 
 
 include: "workflow/rules/common.smk"
-include: "workflow/rules/product_common.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/outliers.smk"
 include: "workflow/rules/lines.smk"

@@ -50,7 +50,7 @@ def measure(duration_h: float, rate_hz: float, work: Path) -> dict:
 
     name = f"mem{duration_h:g}h"
     work.mkdir(parents=True, exist_ok=True)
-    cfg = {"name": name, "simulation": {"n_datasets": 1, "duration_h": float(duration_h), "rate_hz": float(rate_hz)}}
+    cfg = {"name": name, "simulation": {"n_datasets": 1, "duration_h": float(duration_h), "record_rate_hz": float(rate_hz)}}
     if duration_h < 10.0:  # the default Welch window (7 h, step 10 h) needs a 7 h record: scaled down with it
         cfg["psd"] = {"window_s": 0.7 * duration_h * 3600.0, "step_s": duration_h * 3600.0}
     cfgfile = work / f"{name}.yaml"

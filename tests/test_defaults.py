@@ -18,7 +18,7 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "identify.adequacy_level": "adequacy_level", "identify.pooling_level": "pooling_level",
            "identify.pooling_n_boot": "pooling_n_boot", "identify.n_boot": "n_boot", "verify.reduce": "reduce", "verify.replay_z": "replay_z",
            "lines.floor_window_bins": "lines_floor_window_bins",
-           "application.rate_hz": "filter_rate_hz", "application.horizon_s": "outage_s",
+           "application.filter_rate_hz": "filter_rate_hz", "application.outage_s": "outage_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}
 
@@ -43,6 +43,9 @@ def test_api_defaults_are_the_table():
         got = params[arg].default
         assert (list(got) if isinstance(got, tuple) else got) == DEFAULTS[key], key
     assert params["window_s"].default is None and params["step_s"].default is None
+    # the verification's reference filter runs at the one filter rate (verify.filter_rate_hz is no config key)
+    assert params["filter_rate_hz"].default == DEFAULTS["application.filter_rate_hz"]
+    assert "verify.filter_rate_hz" not in DEFAULTS
 
 
 def test_psd_rule_two_hours_and_long_records():

@@ -31,7 +31,7 @@ LAYERS = [
     {"__init__", "_kernels", "units", "io", "labelled", "search", "defaults"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
      "summary"},
-    {"avcov", "specsheet", "init"},
+    {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},
     {"verify", "plot"},

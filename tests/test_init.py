@@ -53,9 +53,9 @@ def test_init_writes_a_sheet_and_a_config_that_validate(record, tmp_path, capsys
     assert any("1 rows, every file present" in ln for ln in lines)
     c = yaml.safe_load(cfg.read_text())
     assert c["specs"] == ["stim300"] and c["simulation"] is None
-    # the rule: 2 h at 1 Hz -> W = 1800 s, S = 900 s, horizon = min(3600, W, T - fix_s) = 1800 s
+    # the rule: 2 h at 1 Hz -> W = 1800 s, S = 900 s, outage = min(3600, W, T - fix_s) = 1800 s
     assert (c["decimate"]["rate_hz"], c["psd"]["window_s"], c["psd"]["step_s"]) == (1.0, 1800.0, 900.0)
-    assert c["application"] == {"rate_hz": 1.0, "horizon_s": 1800.0} and c["verify"]["filter_rate_hz"] == 1.0
+    assert c["application"] == {"filter_rate_hz": 1.0, "outage_s": 1800.0} and "verify" not in c
     n = int(HOURS * 3600 * c["decimate"]["rate_hz"])
     assert welch_unused(n, 1800, 900) <= MAX_UNUSED_FRACTION * n
     for key in ("window_s", "step_s"):  # every derived value carries its rule as a comment
@@ -100,7 +100,7 @@ def test_psd_step_leaves_at_most_ten_percent_unused(hours):
     nd = n // 100
     nw, ns = round(s.window_s), round(s.step_s)
     assert ns <= nw / 2 and welch_unused(nd, nw, ns) <= MAX_UNUSED_FRACTION * nd
-    assert s.horizon_s <= min(3600.0, s.window_s, nd - 600.0)
+    assert s.outage_s <= min(3600.0, s.window_s, nd - 600.0)
     assert math.isclose(s.unused["r"], welch_unused(nd, nw, ns) / nd)
 
 
@@ -150,7 +150,7 @@ def test_r_file_columns_guessed_units_left_to_fill(tmp_path, capsys):
     row = dict(zip(rows[0], rows[1]))
     assert (row["format"], row["rate_hz"], row["gyro_x"], row["accel_z"]) == ("rdata", "2", "Gyro. X", "Accel. Z")
     c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
-    assert c["psd"]["window_s"] == 500.0 and c["application"]["horizon_s"] == 500.0  # 2000 s: T/4, T/4
+    assert c["psd"]["window_s"] == 500.0 and c["application"]["outage_s"] == 500.0  # 2000 s: T/4, T/4
 
 
 def test_ros_bag_and_netcdf_rows(tmp_path, capsys):
@@ -176,7 +176,7 @@ def test_ros_bag_and_netcdf_rows(tmp_path, capsys):
     assert (nc_row["format"], nc_row["rate_hz"], nc_row["gyro_unit"], nc_row["gyro_x"], nc_row["time_column"]) == (
         "netcdf", "2", "from_file", "wx", "t")
     c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
-    assert (c["psd"]["window_s"], c["psd"]["step_s"], c["application"]["horizon_s"]) == (300.0, 150.0, 300.0)
+    assert (c["psd"]["window_s"], c["psd"]["step_s"], c["application"]["outage_s"]) == (300.0, 150.0, 300.0)
     assert check_config(tmp_path / "o" / "config.yaml")
 
 

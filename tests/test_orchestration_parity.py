@@ -93,7 +93,7 @@ def both(request):
         significance=idn["significance"], relevance=idn["relevance"], adequacy_level=idn["adequacy_level"],
         pooling_level=idn["pooling_level"], pooling_n_boot=idn["pooling_n_boot"],
         fit_tau_min_samples=idn.get("fit_tau_min_samples"), max_bias_time_s=idn.get("max_bias_time_s"),
-        filter_rate_hz=app["rate_hz"], outage_s=app["horizon_s"],
+        filter_rate_hz=app["filter_rate_hz"], outage_s=app["outage_s"],
         mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
         lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
         lines_alpha=cfg["lines"]["alpha"], lines_floor_window_bins=cfg["lines"]["floor_window_bins"],

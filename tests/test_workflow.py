@@ -142,7 +142,7 @@ class TestCaching:
     AFTER_IDENTIFY = {"identify"} | AFTER_BOUND
     AFTER_VERDICTS = {"stationarity_summary", "stack"} | AFTER_IDENTIFY
     SECTIONS = {
-        # 2 Hz: an integer ratio to the tiny records' 20 Hz, and a multiple of verify.filter_rate_hz (1 Hz)
+        # 2 Hz: an integer ratio to the tiny records' 20 Hz, and a multiple of application.filter_rate_hz (1 Hz)
         "decimate": ({"rate_hz": 2.0}, {"decimate", "psd", "stationarity"} | AFTER_VERDICTS),
         "psd": ({"window_s": 1200.0}, {"psd", "stack"} | AFTER_BOUND),
         "allan": ({"confidence": 0.9}, {"allan", "stationarity"} | AFTER_VERDICTS),
@@ -150,7 +150,7 @@ class TestCaching:
         "stationarity_on_fail": ({"on_fail": "exclude"}, AFTER_VERDICTS),
         "identify": ({"relevance": 0.1}, AFTER_IDENTIFY),
         "bound": ({"mode": "smoothed"}, AFTER_BOUND),
-        "application": ({"horizon_s": 1200.0}, AFTER_IDENTIFY),
+        "application": ({"outage_s": 1200.0}, AFTER_IDENTIFY),
         # the Kalibr file follows the exported (verified, possibly reduced) KF model
         "verify": ({"replay_z": 3.0}, {"verify", "contract", "kf", "kalibr", "integrity", "summary", "report_file",
                                        "all"}),
@@ -199,7 +199,7 @@ class TestCaching:
         # a --configfile naming one key keeps every other key of config/config.yaml
         partial = tmp_path / "partial.yaml"
         # (8 h: the default psd.window_s, 7 h, is checked against the record at start-up)
-        partial.write_text("name: partial\nsimulation: {n_datasets: 1, duration_h: 8.0, rate_hz: 10.0,"
+        partial.write_text("name: partial\nsimulation: {n_datasets: 1, duration_h: 8.0, record_rate_hz: 10.0,"
                            " truth: config/truth/stim300_like.yaml, seed: 1}\n")
         jobs = dry_run_jobs(tmp_path, config=partial)
         assert jobs["simulate"] == 1 and jobs["allan"] == 6 and jobs["bound"] == 2, jobs

@@ -543,7 +543,7 @@ def test_decimation_ratio_and_segments_name_their_keys(startup_work):
     # 700 s decimated to 0.1 Hz: 70 samples, fewer than 3 per segment for 100 segments (the schema's maximum)
     _csv(startup_work / "data_faults" / "s700.csv", _table(7)[:7000])
     proc, out = _startup(startup_work, "segs", rows=[_row("s700", "data_faults/s700.csv")], stationarity__n_segments=100,
-                         decimate__rate_hz=0.1, verify__filter_rate_hz=0.1)
+                         decimate__rate_hz=0.1, application__filter_rate_hz=0.1)
     assert proc.returncode == 1
     assert "dataset 's700': 70 decimated samples" in out
     assert "for config key stationarity.n_segments = 100 (need >= 3 per segment" in out

@@ -269,8 +269,8 @@ class TestRecordsOfDifferentLengthAndRate:
             n_boot=idn["n_boot"], confidence=idn["confidence"], significance=idn["significance"],
             relevance=idn["relevance"], adequacy_level=idn.get("adequacy_level", 0.01),
             pooling_level=idn.get("pooling_level", 0.01), pooling_n_boot=idn.get("pooling_n_boot", 99),
-            filter_rate_hz=cfg["application"]["rate_hz"], outage_s=cfg["application"]["horizon_s"], truth=None,
-            span_s=float(cfg["verify"]["fix_s"]) + float(cfg["application"]["horizon_s"]),
+            filter_rate_hz=cfg["application"]["filter_rate_hz"], outage_s=cfg["application"]["outage_s"], truth=None,
+            span_s=float(cfg["verify"]["fix_s"]) + float(cfg["application"]["outage_s"]),
             path_out=str(again), sensor="gyro")
         assert again.read_bytes() == (res / "identify/gyro.yaml").read_bytes()
 
@@ -411,32 +411,27 @@ class TestPerAxisExport:
         assert per["x"][1].model.white < 0.75 * glob.model.white
 
 
-def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_replay_cannot_run(tiny_run):
-    """verify.filter_rate_hz differing from application.rate_hz (the KF export's): a warning on the terminal at
-    start-up (the run goes on); a filter rate that does not divide the records' rate: refused before any job, naming
-    the key and the record (the verify job would otherwise stop mid-run on the replay); a filter faster than the
-    decimation: the replay reads the full-rate series."""
+def test_start_up_refuses_a_filter_rate_the_replay_cannot_run_and_the_renamed_keys(tiny_run):
+    """The verification runs at application.filter_rate_hz (one filter rate: no warning of two rates any more); a
+    filter rate that does not divide the records' rate: refused before any job, naming the key and the record (the
+    verify job would otherwise stop mid-run on the replay); a filter faster than the decimation: the replay reads
+    the full-rate series; a renamed key: refused naming the new one."""
     work, config = tiny_run
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())  # the defaults the tiny config keeps
     for key, value in yaml.safe_load(config.read_text()).items():
         cfg[key] = {**cfg[key], **value} if isinstance(value, dict) and isinstance(cfg.get(key), dict) else value
-    base = cfg["application"]["rate_hz"]
-    assert cfg["verify"]["filter_rate_hz"] == base == cfg["decimate"]["rate_hz"]  # the tiny run's rates agree
+    base = cfg["application"]["filter_rate_hz"]
+    assert base == cfg["decimate"]["rate_hz"]  # the tiny run's rates agree
     same = snakemake(work, "-n", config=config)
-    assert "verify.filter_rate_hz" not in same.stderr
-    slower = _changed(work, config, "slow_verify", verify={"filter_rate_hz": base / 2})
-    proc = snakemake(work, "-n", config=slower)
-    assert (f"imupipe warning: verify.filter_rate_hz = {base / 2} Hz differs from application.rate_hz = {base} Hz"
-            in proc.stderr)
-    faster = _changed(work, config, "fast_verify", verify={"filter_rate_hz": base * 3})
+    assert "imupipe warning" not in same.stderr
+    faster = _changed(work, config, "fast_verify", application={"filter_rate_hz": base * 3})
     proc = snakemake(work, "-n", config=faster, check=False)
     assert proc.returncode != 0
-    rate = cfg["simulation"]["rate_hz"]
-    assert (f"record rate {rate:g} Hz is not a whole multiple of verify.filter_rate_hz = {base * 3} Hz"
+    rate = cfg["simulation"]["record_rate_hz"]
+    assert (f"record rate {rate:g} Hz is not a whole multiple of application.filter_rate_hz = {base * 3} Hz"
             in proc.stdout + proc.stderr)
     # 10 Hz on the 20 Hz records decimated to 1 Hz for the bound: the verify jobs read the full-rate series
-    fast = _changed(work, config, "fast_filter", verify={"filter_rate_hz": rate / 2},
-                    application={"rate_hz": rate / 2})
+    fast = _changed(work, config, "fast_filter", application={"filter_rate_hz": rate / 2})
     proc = snakemake(work, "-n", "--forcerun", "verify", "--verbose", config=fast)
     verify_inputs = proc.stdout.split("rule verify:", 1)[1].split("output:", 1)[0]
     assert "/series/" in verify_inputs and "/decimated/" not in verify_inputs, verify_inputs
@@ -444,8 +439,12 @@ def test_start_up_warns_of_a_verification_at_another_rate_and_refuses_one_the_re
     odd_fix = _changed(work, config, "odd_fix", verify={"fix_rate_hz": base / 2.5})
     proc = snakemake(work, "-n", config=odd_fix, check=False)
     assert proc.returncode != 0
-    assert (f"verify.fix_rate_hz = {base / 2.5} Hz must divide verify.filter_rate_hz = {base} Hz"
+    assert (f"verify.fix_rate_hz = {base / 2.5} Hz must divide application.filter_rate_hz = {base} Hz"
             in proc.stdout + proc.stderr)
+    # the old keys: refused by name at start-up, the new key suggested
+    old = _changed(work, config, "old_keys", verify={"filter_rate_hz": base})
+    proc = snakemake(work, "-n", config=old, check=False)
+    assert proc.returncode != 0 and "verify.filter_rate_hz is no longer a key" in proc.stdout + proc.stderr
 
 
 def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_dropped(tmp_path):
@@ -488,3 +487,46 @@ def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_d
     summary = render_summary({"gyro": {"bound": con}})
     assert f"- the table above: {scope['statement']}" in summary
     assert "- the table above" not in render_summary({"gyro": {"bound": whole}})
+
+
+# -------------------------------------------------------------------------------------------------
+# stage functions of the thin scripts, without a run
+
+
+def test_stationarity_summary_stage_applies_on_fail():
+    from imupipe.stages.stationarity import summary_stage
+
+    def verdict(axis, ok):
+        return {"dataset": "a", "axis": axis, "stationary": ok, "p_value": 0.5 if ok else 0.001, "test": "calibrated",
+                "paper": {"stationary": ok}}
+
+    both = [verdict("x", True), verdict("y", False)]
+    warn = summary_stage(both, "warn", "gyro")
+    assert [c["included"] for c in warn["curves"]] == [True, True] and warn["n_non_stationary"] == 1
+    assert [c["included"] for c in summary_stage(both, "exclude", "gyro")["curves"]] == [True, False]
+    with pytest.raises(ValueError, match=r"stationarity.on_fail = fail\): a/gyro/y \(p = 0.001\)"):
+        summary_stage(both, "fail", "gyro")
+    with pytest.raises(ValueError, match="every gyro record failed the stationarity test and on_fail = exclude"):
+        summary_stage([verdict("y", False)], "exclude", "gyro")
+
+
+def test_tables_stage_of_the_spec_sheet_itself_gives_ratio_one():
+    # a bound equal to the spec sheet's own model: every parameter's bound/spec ratio is 1 (printed to 4 digits)
+    import csv
+    import io
+
+    from imupipe.specsheet import load_spec
+    from imupipe.stages.tables import tables_stage
+
+    spec = load_spec(ROOT / "config" / "specs" / "stim300.yaml")
+    bounds = {}
+    for sensor, m in spec.models.items():
+        bounds[sensor] = {"bound": {"white": m.white, "random_walk": m.random_walk,
+                                    "gauss_markov": [{"sigma": s, "T": t} for s, t in m.gauss_markov]},
+                          "mode": "raw", "margin": 1.25, "psd_bounded": True}
+    out = tables_stage(spec, bounds)
+    rows = list(csv.DictReader(io.StringIO(out["csv"])))
+    assert rows and {r["sensor"] for r in rows} == set(spec.models)
+    assert len(rows) == 8 and all(abs(float(r["ratio"]) - 1.0) < 1e-12 for r in rows)  # N, GM sigma, T, K of each
+    assert out["markdown"].startswith(f"# {spec.name}: spec sheet vs bound (raw mode)")
+    assert "<table" in out["html"] and "gyro 1.25" in out["markdown"]

@@ -73,16 +73,16 @@ def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_exported_kf_mode
     path = work / RES / "kf" / "stim300" / "kalibr_imu.yaml"
     k = read_kalibr(path)
     text = path.read_text()
-    # update_rate is the IMU sample rate of the simulation (20 Hz), not application.rate_hz (1 Hz)
+    # update_rate is the IMU sample rate of the simulation (20 Hz), not application.filter_rate_hz (1 Hz)
     cfg = yaml.safe_load(config.read_text())
-    assert k["update_rate"] == cfg["simulation"]["rate_hz"] != cfg["application"]["rate_hz"]
+    assert k["update_rate"] == cfg["simulation"]["record_rate_hz"] != cfg["application"]["filter_rate_hz"]
     assert k["rostopic"] == "/imu0"  # simulated data name no topic: Kalibr's default
     from imupipe.kalibr import kalibr_pair, model_of_kf
 
     for prefix, sensor in (("gyroscope", "gyro"), ("accelerometer", "accel")):
         kf = _read(work, f"{RES}/kf/stim300/{sensor}.yaml")
-        # Kalibr's band: 1/horizon_s to half its update_rate (its filter runs at the IMU's rate)
-        band = (1.0 / cfg["application"]["horizon_s"], 0.5 * k["update_rate"])
+        # Kalibr's band: 1/outage_s to half its update_rate (its filter runs at the IMU's rate)
+        band = (1.0 / cfg["application"]["outage_s"], 0.5 * k["update_rate"])
         # continuous-time densities of the exported KF model (the bound after the verified reduction): the smallest
         # pair whose PSD bounds the model's over that band (imupipe.kalibr.kalibr_pair); 7 digits
         pair = kalibr_pair(model_of_kf(kf), band)

@@ -71,13 +71,15 @@ def _snakemake_cmd(config: Path, cores: int | None, directory: Path | None, extr
 
 
 def check_config(config: str | Path) -> list[str]:
-    """Validate a config, its dataset sheet and spec sheets without running the workflow.
+    """Validate a config, its dataset sheet and spec sheets without running the workflow, with the workflow's own
+    start-up code (:mod:`imupipe.runconfig`).
 
-    Checks: the config is a YAML mapping; every spec sheet ``{spec_dir}/{name}.yaml`` of ``specs`` parses
-    (:func:`imupipe.specsheet.load_spec`: every value with a known unit) and has a section for every sensor
-    of ``sensors``; the dataset sheet (when ``datasets`` is not null) exists, each row converts to reader
-    arguments (:func:`imupipe.readers.sheet_row_to_kwargs`) and names an existing file. Paths are relative
-    to the checkout (as in the workflow).
+    Checks: the config is a YAML mapping without a renamed key (:func:`imupipe.runconfig.merged_config`, merged
+    over config/config.yaml); every spec sheet ``{spec_dir}/{name}.yaml`` of ``specs`` parses and has a section
+    for every sensor of ``sensors`` (:func:`imupipe.runconfig.check_specs`); the dataset sheet (when ``datasets``
+    is not null) parses as the workflow parses it (:func:`imupipe.runconfig.read_sheet`) and each row names an
+    existing file; then the config schema and the checks across keys. Paths are relative to the checkout (as in
+    the workflow).
 
     Returns
     -------
@@ -89,45 +91,31 @@ def check_config(config: str | Path) -> list[str]:
     ValueError
         The first problem, naming the file and key / row.
     """
-    from imupipe.specsheet import load_spec
+    from imupipe import runconfig as rc
+    from imupipe.io import read_yaml
+    from imupipe.readers import check_file, sheet_row_to_kwargs
 
     config = Path(config)
-    root, given, cfg = _merged_config(config)
+    if not config.is_file():
+        raise ValueError(f"{config}: config file not found")
+    given = read_yaml(config)
+    root = _root()
+    cfg = rc.merged_config(given, root, where=str(config))
     done = [f"config {config}: YAML mapping with {len(given)} keys"
-            + (" (the others from config/config.yaml)" if cfg is not given else "")]
-    sensors = cfg.get("sensors") or ["gyro", "accel"]
-    spec_dir = root / str(cfg.get("spec_dir", "config/specs"))
-    specs = cfg.get("specs") or []
-    if not specs:
-        raise ValueError(f"{config}: key 'specs' is empty (expected names of {spec_dir}/<name>.yaml)")
-    for name in specs:
-        path = spec_dir / f"{name}.yaml"
-        if not path.is_file():
-            raise ValueError(f"{config}: specs lists {name!r} but {path} does not exist")
-        spec = load_spec(path)
-        missing = [s for s in sensors if s not in spec.models]
-        if missing:
-            raise ValueError(f"{path}: no section for {', '.join(missing)} (the config's sensors: {sensors})")
-        done.append(f"spec sheet {path.name}: {spec.name}, sensors {', '.join(sensors)}")
-    sheet = cfg.get("datasets")
-    if sheet:
-        from imupipe.readers import check_file, sheet_row_to_kwargs
-
-        sheet_path = root / str(sheet)
+            + (" (the others from config/config.yaml)" if (root / "config" / "config.yaml").is_file() else "")]
+    if not cfg.get("specs"):
+        raise ValueError(f"{config}: key 'specs' is empty (expected names of {cfg.get('spec_dir')}/<name>.yaml)")
+    cfg.setdefault("sensors", ["gyro", "accel"])
+    for sheet in rc.check_specs(cfg, root):
+        done.append(f"spec sheet {Path(sheet.path).name}: {sheet.name}, sensors {', '.join(cfg['sensors'])}")
+    if cfg.get("datasets"):
+        sheet_path = root / str(cfg["datasets"])
         if not sheet_path.is_file():
-            raise ValueError(f"{config}: datasets = {sheet!r} but {sheet_path} does not exist")
-        from imupipe.readers import check_sheet_header
-
-        check_sheet_header(sheet_path)
-        rows = _sheet_rows(sheet_path)
-        if not rows:
-            raise ValueError(f"{sheet_path}: no dataset rows (expected a TSV with a header line and one row per record)")
-        for i, row in enumerate(rows, start=2):
-            if "path" not in row:
-                raise ValueError(f"{sheet_path}: no 'path' column (columns: {', '.join(row)})")
-            kw = sheet_row_to_kwargs(row, base_dir=root)
+            raise ValueError(f"{config}: datasets = {cfg['datasets']!r} but {sheet_path} does not exist")
+        rows = rc.read_sheet(sheet_path, root / rc.SCHEMAS / "datasets.schema.yaml")
+        for i, row in enumerate(rows.values(), start=2):
             try:
-                check_file(kw["path"])  # names a symlink loop, a broken link, a Windows path
+                check_file(sheet_row_to_kwargs(row, base_dir=root)["path"])  # a symlink loop, a Windows path
             except ValueError as exc:
                 raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
         done.append(f"dataset sheet {sheet_path.name}: {len(rows)} rows, every file present")
@@ -135,6 +123,10 @@ def check_config(config: str | Path) -> list[str]:
         raise ValueError(f"{config}: 'datasets' is null and 'simulation' is empty: nothing to analyse")
     else:
         done.append("datasets: simulated")
+    schema = rc.validate_schema(cfg, root / rc.SCHEMAS / "config.schema.yaml", where=str(config))
+    rc.check_cross_keys(cfg)
+    done.append("config keys: " + ("the schema and the checks across keys" if schema else
+                                   "the checks across keys (the schema needs jsonschema, installed with Snakemake)"))
     return done
 
 
@@ -255,31 +247,12 @@ def _cmd_allan(args) -> int:
     return 0
 
 
-def _merged_config(config: Path) -> tuple[Path, dict, dict]:
-    """(checkout root, the config file's keys, the config merged with config/config.yaml) as the workflow reads
-    it; the root is the working directory outside a checkout."""
-    from imupipe.io import merged_with_defaults, read_yaml
-
-    if not config.is_file():
-        raise ValueError(f"{config}: config file not found")
-    given = read_yaml(config)
-    if not isinstance(given, dict):
-        raise ValueError(f"{config}: expected a YAML mapping of config keys")
+def _root() -> Path:
+    """The checkout root (config paths are relative to it); the working directory outside a checkout."""
     try:
-        root = checkout_root()
+        return checkout_root()
     except FileNotFoundError:
-        root = Path.cwd()
-    defaults = root / "config" / "config.yaml"
-    return root, given, (merged_with_defaults(read_yaml(defaults), given) if defaults.is_file() else given)
-
-
-def _sheet_rows(path: Path) -> list[dict]:
-    """The rows of a dataset sheet (TSV with a header line); comment lines (#) are skipped, as the workflow skips
-    them."""
-    import csv
-
-    with open(path, newline="") as fh:
-        return list(csv.DictReader((ln for ln in fh if not ln.lstrip().startswith("#")), delimiter="\t"))
+        return Path.cwd()
 
 
 def read_records(config: str | Path, cores: int = 2) -> list[str]:
@@ -338,11 +311,15 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
 
 def _sheet_paths(config: Path) -> dict[str, str]:
     """{absolute path: the path as the dataset sheet writes it} of a config's recordings (empty without a sheet)."""
-    root, _, cfg = _merged_config(config)
+    from imupipe import runconfig as rc
+    from imupipe.io import read_yaml
+
+    root = _root()
+    cfg = rc.merged_config(read_yaml(config), root, where=str(config))
     if not cfg.get("datasets"):
         return {}
-    return {str(root / row["path"].strip()): row["path"].strip() for row in _sheet_rows(root / str(cfg["datasets"]))
-            if (row.get("path") or "").strip()}
+    rows = rc.read_sheet(root / str(cfg["datasets"]), root / rc.SCHEMAS / "datasets.schema.yaml")
+    return {str(root / row["path"]): row["path"] for row in rows.values()}
 
 
 def _cmd_check(args) -> int:
@@ -459,7 +436,7 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
 
     Every record is probed (:func:`imupipe.init.inspect_record`), the settings derived
     (:func:`imupipe.init.derive_settings`: decimation, PSD window / step leaving at most 10 % of the shortest
-    record unused, application rate and horizon; the rules in :mod:`imupipe.init`), then both files are written.
+    record unused, filter rate and outage; the rules in :mod:`imupipe.init`), then both files are written.
     Paths in the files are absolute (the workflow reads them relative to the checkout). Nothing is written when a
     check fails.
 

@@ -33,8 +33,8 @@ DEFAULTS: dict[str, object] = {
     "identify.pooling_level": 0.01,
     "identify.n_boot": 100,
     "identify.pooling_n_boot": 99,
-    "application.rate_hz": 1.0,
-    "application.horizon_s": 3600.0,
+    "application.filter_rate_hz": 1.0,
+    "application.outage_s": 3600.0,
     "bound.mode": "raw",
     "bound.confidence": 0.95,
     "bound.bands_per_decade": 10,
@@ -44,7 +44,6 @@ DEFAULTS: dict[str, object] = {
     "verify.fix_s": 600.0,
     "verify.reduce": True,
     "verify.replay_z": 2.0,
-    "verify.filter_rate_hz": 1.0,
     "verify.sigma_fix_m": 0.5,
     "verify.sigma_fix_rad": 0.001745,
 }

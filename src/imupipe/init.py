@@ -15,13 +15,13 @@ derived, each by a stated rule (:func:`derive_settings`):
   samples unused. When :math:`u / N > 0.10` (only records longer than 4 x 7 h, where W is capped), the step is
   shortened so that the segments tile the record: :math:`K' = \lceil (N - n_w) / (n_w/2) \rceil + 1`,
   :math:`n_s' = \lfloor (N - n_w)/(K' - 1) \rfloor`, leaving fewer than :math:`K' - 1` samples.
-- ``application.rate_hz`` = ``verify.filter_rate_hz`` = :math:`f_d`: the application band
-  ``[1/horizon_s, rate_hz / 2]`` then lies inside the band of the decimated spectra the bound is fitted on
+- ``application.filter_rate_hz`` = :math:`f_d` (the exported filter's and the verification's rate): the application
+  band ``[1/outage_s, filter_rate_hz / 2]`` then lies inside the band of the decimated spectra the bound is fitted on
   (``[1/W, f_d/2]``), and the verification replay reads the decimated series (a divisor of every record rate).
-- ``application.horizon_s`` :math:`H = \min(H_0, W, T_{min} - F)` (``H_0`` = 3600 s the default, ``F`` =
+- ``application.outage_s`` :math:`H = \min(H_0, W, T_{min} - F)` (``H_0`` = 3600 s the default, ``F`` =
   ``verify.fix_s``), down to a whole decimated sample: the band bottom ``1/H`` is not below the lowest PSD
   frequency ``1/W`` the records measure, and one fix period plus one outage fits in the shortest record (the
-  replay of :func:`imupipe.verify` needs records of at least ``fix_s + horizon_s``).
+  replay of :func:`imupipe.verify` needs records of at least ``fix_s + outage_s``).
 
 Column names gyro_x .. accel_z are guessed from the header (:func:`guess_channels`); units from a bracketed
 suffix (``gx [deg/s]``), the file's attribute (netCDF: ``from_file``) or the format (ROS ``sensor_msgs/Imu``:
@@ -46,7 +46,7 @@ __all__ = ["PLACEHOLDER", "MAX_UNUSED_FRACTION", "RecordInfo", "Settings", "insp
 PLACEHOLDER = "FILL_ME"
 #: Largest share of the shortest record the PSD segments may leave unused.
 MAX_UNUSED_FRACTION = 0.10
-#: Default verify.fix_s (s) the horizon rule subtracts.
+#: Default verify.fix_s (s) the outage rule subtracts.
 _FIX_S = float(DEFAULTS["verify.fix_s"])
 
 _SENSORS, _AXES = ("gyro", "accel"), ("x", "y", "z")
@@ -223,7 +223,7 @@ class Settings:
     decimate_rate_hz: float
     window_s: float
     step_s: float
-    horizon_s: float
+    outage_s: float
     shortest_s: float
     unused: dict[str, float]
 
@@ -236,7 +236,7 @@ def _rate_gcd(rates) -> Fraction:
 
 
 def derive_settings(records: list[RecordInfo]) -> Settings:
-    """decimate.rate_hz, psd.window_s / step_s and application.horizon_s that fit `records` (module docstring).
+    """decimate.rate_hz, psd.window_s / step_s and application.outage_s that fit `records` (module docstring).
 
     Raises ValueError when the shortest record cannot hold one fix period (verify.fix_s) plus an outage.
     """
@@ -253,9 +253,9 @@ def derive_settings(records: list[RecordInfo]) -> Settings:
         k = math.ceil((n_min - nw) / (nw / 2)) + 1
         ns = (n_min - nw) // (k - 1)
         step = ns / fd
-    h0 = float(DEFAULTS["application.horizon_s"])
-    horizon = math.floor(min(h0, window, n_min / fd - _FIX_S) * fd) / fd
-    if horizon * fd < 2:
+    h0 = float(DEFAULTS["application.outage_s"])
+    outage = math.floor(min(h0, window, n_min / fd - _FIX_S) * fd) / fd
+    if outage * fd < 2:
         raise ValueError(f"{shortest.path}: {shortest.duration_s:g} s is too short for the verification: one fix "
                          f"period (verify.fix_s = {_FIX_S:g} s) and an outage of at least 2 samples must fit")
     unused = {}
@@ -264,7 +264,7 @@ def derive_settings(records: list[RecordInfo]) -> Settings:
         check_against_config({"rate_hz": r.rate_hz, "n_samples": r.n_samples, "duration_s": r.duration_s},
                              window_s=window, decimate_rate_hz=fd, n_segments=2, dataset=r.dataset)
         unused[r.dataset] = welch_unused(n, nw, ns) / n
-    return Settings(fd, float(window), float(step), float(horizon), shortest.duration_s, unused)
+    return Settings(fd, float(window), float(step), float(outage), shortest.duration_s, unused)
 
 
 _SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", "gyro_x", "gyro_y", "gyro_z",
@@ -305,11 +305,10 @@ psd:
   # S = W / 2 (shortened to tile the record when that left more than 10 % unused); unused: {worst:.2%} at most
   step_s: {s.step_s!r}
 application:
-  # = decimate.rate_hz: the band [1/horizon_s, rate_hz/2] inside the decimated spectra's [1/W, f/2]
-  rate_hz: {s.decimate_rate_hz!r}
-  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/horizon not below the lowest PSD
+  # = decimate.rate_hz: the band [1/outage_s, filter_rate_hz/2] inside the decimated spectra's [1/W, f/2]; the
+  # verification's reference filter runs at it too (the exported model is the verified one)
+  filter_rate_hz: {s.decimate_rate_hz!r}
+  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/outage not below the lowest PSD
   # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
-  horizon_s: {s.horizon_s!r}
-verify:
-  filter_rate_hz: {s.decimate_rate_hz!r}   # = application.rate_hz (the exported model is the verified one)
+  outage_s: {s.outage_s!r}
 """

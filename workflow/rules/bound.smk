@@ -1,15 +1,12 @@
 # The bound of one sensor type against one spec sheet: the tightest model of each axis alone (bound_axis),
 # then the global bound over every included curve and the spec sheet (bound), with the Allan-domain check of
 # the kept components and the paper's hand inflation for comparison. Both bound over all frequencies: below
-# the lowest PSD bin down to 0.01 / horizon (horizon = verify.fix_s + application.horizon_s) the bound's PSD
+# the lowest PSD bin down to 0.01 / span (span = verify.fix_s + application.outage_s, SPAN_S) the bound's PSD
 # stays above the spec sheet's and the identified model's upper confidence envelope (docs/method.md, "Bound
 # over all frequencies"). Spectral lines found by the lines stage enter through the sensor's line policy
-# (`lines.policy`: model | exclude | keep); until that stage is part of the workflow the lines input is empty.
+# (`lines.policy`: model | exclude | keep).
 # With kf, verify, contract, figures and tables the only stages that read the spec sheet: a new spec sheet
 # re-runs these jobs alone.
-
-
-include: "integrity_helpers.smk"
 
 
 rule bound_axis:
@@ -25,8 +22,8 @@ rule bound_axis:
         n_gm=config["bound"]["n_gm"],
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
-        horizon_s=bound_horizon_s(),
-        lines=lines_params(),
+        horizon_s=SPAN_S,
+        lines=LINES_PARAMS,
     threads: 1
     resources:
         mem_mb=MEM_MB["bound_axis"],
@@ -57,9 +54,9 @@ rule bound:
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
-        horizon_s=bound_horizon_s(),
-        application_rate_hz=config["application"]["rate_hz"],
-        lines=lines_params(),
+        horizon_s=SPAN_S,
+        application_rate_hz=FILTER_RATE_HZ,
+        lines=LINES_PARAMS,
     threads: 1
     resources:
         mem_mb=MEM_MB["bound"],

@@ -9,7 +9,7 @@ rule simulate:
     params:
         seed=simulation_seed,
         duration_s=simulation_param("duration_h", 3600.0),
-        rate_hz=simulation_param("rate_hz"),
+        rate_hz=simulation_param("record_rate_hz"),
         gravity_axis=simulation_param("gravity_axis"),
     threads: 1
     resources:
@@ -32,7 +32,7 @@ rule simulate:
 # at a time (readers.read_channel: peak memory one channel plus a fixed overhead; a text file is parsed once
 # per channel); R and bag records are parsed whole once (their layout has no per-channel access), then
 # written one channel after the other.
-INGEST_RULES = ingest_rule_groups()
+INGEST_RULES = rc.ingest_rule_groups(AXES_OF, SENSORS)
 
 for _rule_name, (_chans, _names) in INGEST_RULES.items():
 

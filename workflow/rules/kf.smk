@@ -11,8 +11,8 @@ rule kf:
     output:
         kf=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
     params:
-        dt_s=1.0 / float(config["application"]["rate_hz"]),
-        horizon_s=config["application"]["horizon_s"],
+        dt_s=1.0 / FILTER_RATE_HZ,
+        horizon_s=OUTAGE_S,
     threads: 1
     resources:
         mem_mb=MEM_MB["kf"],

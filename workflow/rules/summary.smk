@@ -15,10 +15,6 @@ SUMMARY_INPUTS.setdefault("stationarity", []).extend(
 SUMMARY_INPUTS.setdefault("psd", []).extend(
     f"{RESULTS}/psd/{d}/{s}/{a}.nc" for d in DATASETS for s in SENSORS for a in AXES_OF[d][s]
 )
-MEM_MB["summary"] = 100
-RUNTIME_MIN["summary"] = 10
-MEM_MB["report_file"] = 100
-RUNTIME_MIN["report_file"] = 10
 
 
 rule summary:

@@ -1,7 +1,7 @@
 # Verification of the exported model and the integrity contract (docs/method.md, "Integrity: what bounded must
 # mean, and how to check it"). Per spec sheet and sensor type: the reference filter (paper eq. 17 position
 # filter for accelerometers, an angle filter for gyros; `verify` section: fix_s of fixes, then an outage of
-# application.horizon_s) built on the bound's model, checked by exact covariance analysis against the
+# application.outage_s) built on the bound's model, checked by exact covariance analysis against the
 # identified upper envelope, the spec sheet and (simulated data) the truth, and by replay of the decimated
 # records of that sensor (verify); the model reduction by integrity is tried there. The contract (contract)
 # says `bounded` (every check passed and the verification ran), `verified` and each failed check with its
@@ -14,7 +14,7 @@ rule verify:
         bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
         spectra=f"{RESULTS}/spectra/{{sensor}}.nc",
         spec=spec_file,
-        truth=verify_truth,
+        truth=truth_file(),
         records=verify_records,
     output:
         verify=f"{RESULTS}/verify/{{spec}}/{{sensor}}.yaml",
@@ -27,10 +27,11 @@ rule verify:
         ),
     params:
         fix_s=config["verify"]["fix_s"],
-        horizon_s=config["application"]["horizon_s"],
+        horizon_s=OUTAGE_S,
         sigma_fix_m=config["verify"]["sigma_fix_m"],
         sigma_fix_rad=config["verify"]["sigma_fix_rad"],
-        filter_rate_hz=config["verify"]["filter_rate_hz"],
+        # the reference filter runs at the exported filter's rate
+        filter_rate_hz=FILTER_RATE_HZ,
         fix_rate_hz=config["verify"].get("fix_rate_hz"),
         reduce=config["verify"]["reduce"],
         replay_z=config["verify"]["replay_z"],
@@ -58,10 +59,10 @@ rule contract:
         contract=f"{RESULTS}/contract/{{spec}}/{{sensor}}.yaml",
     params:
         kf_file=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
-        kf_rate_hz=config["application"]["rate_hz"],
-        # the application band of the in-band inflation, [1/horizon_s, filter_rate_hz/2], as verify has them
-        horizon_s=config["application"]["horizon_s"],
-        filter_rate_hz=config["verify"]["filter_rate_hz"],
+        kf_rate_hz=FILTER_RATE_HZ,
+        # the application band of the in-band inflation, [1/outage_s, filter_rate_hz/2], as verify has them
+        horizon_s=OUTAGE_S,
+        filter_rate_hz=FILTER_RATE_HZ,
         on_failure=config["verify"]["on_failure"],
     threads: 1
     resources:

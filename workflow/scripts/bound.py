@@ -1,6 +1,5 @@
-"""The global bound of one sensor type against one spec sheet (rule bound): imupipe.stages.bound on the included
-curves of the stacked spectra and Allan files, the identify file, the spec sheet, the lines files and the
-per-axis bounds (rule bound_axis). Not the verdict: that is the contract file's (rule contract)."""
+"""The global bound of one sensor type against one spec sheet (rule bound): imupipe.stages.bound.bound_stage on the
+included curves of the stacked spectra and Allan files, the identify, spec, lines and per-axis bound files."""
 
 from pathlib import Path
 
@@ -14,9 +13,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     from imupipe.specsheet import display_units, load_spec
     from imupipe.stages.bound import HEADER, bound_stage
 
-    spec = load_spec(path_spec)
-    if sensor not in spec.models:
-        raise ValueError(f"{path_spec}: no '{sensor}' section, but the config processes {sensor}")
+    spec = load_spec(path_spec)  # a missing sensor section: refused at start-up (imupipe.runconfig.check_specs)
     sp, al = Stacked(path_spectra), Stacked(path_allan)
     psd, edf = ({f"{d}/{a}": sp.at(k, d, a) for d, a in sp.curves(included_only=True)} for k in ("psd", "edf"))
     allan = (al["tau"], {f"{d}/{a}": (al.at("avar", d, a), al.at("edf", d, a)) for d, a in al.curves(True)})

@@ -7,7 +7,10 @@ so the two cannot disagree (tests/test_orchestration_parity.py).
 
 Rule -> stage function:
 
-- ``stationarity`` -> :func:`imupipe.stages.stationarity.stationarity_stage`
+- ``simulate`` -> :func:`imupipe.stages.simulate.simulate_stage`
+- ``ingest`` (and ``ingest_<channels>``) -> :func:`imupipe.stages.ingest.ingest_stage`
+- ``stationarity`` -> :func:`imupipe.stages.stationarity.stationarity_stage`; ``stationarity_summary`` ->
+  :func:`imupipe.stages.stationarity.summary_stage` with :func:`~imupipe.stages.stationarity.paper_tests`
 - ``identify`` -> :func:`imupipe.stages.identify.identification_stage`
 - ``bound_axis`` -> :func:`imupipe.stages.bound.axis_bound_stage`
 - ``bound`` -> :func:`imupipe.stages.bound.bound_stage`
@@ -15,9 +18,13 @@ Rule -> stage function:
 - ``contract`` -> :func:`imupipe.stages.contract.contract_stage`; ``integrity`` ->
   :func:`imupipe.stages.contract.verdict_stage`
 - ``kf`` -> :func:`imupipe.stages.kf.kf_stage`
+- ``kalibr`` -> :func:`imupipe.stages.kalibr.kalibr_stage`
+- ``figures`` -> :func:`imupipe.stages.figures.figures_stage`
+- ``tables`` -> :func:`imupipe.stages.tables.tables_stage`
 
 The modules are imported on use (``from imupipe.stages import identify``): importing the package loads
 nothing heavy.
 """
 
-__all__ = ["bound", "contract", "identify", "kf", "stationarity", "verify"]
+__all__ = ["bound", "contract", "figures", "identify", "ingest", "kalibr", "kf", "simulate", "stationarity", "tables",
+           "verify"]

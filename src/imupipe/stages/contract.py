@@ -99,8 +99,9 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     """The contract file's content (YAML-ready) of the bound file's dict `bound` and the verification file's dict
     `verification`, against the spec sheet `spec` (:class:`imupipe.specsheet.SpecSheet`) of `sensor`; `kf_file`
     names the KF file it marks, `on_failure` is ``verify.on_failure`` (stated, not acted on here) and
-    `kf_rate_hz` (Hz) the KF export's rate (application.rate_hz), checked against the verification's;
-    `horizon_s` (s, application.horizon_s) and `filter_rate_hz` (Hz, verify.filter_rate_hz) set the application
+    `kf_rate_hz` (Hz) the KF export's rate (application.filter_rate_hz), checked against the verification's;
+    `horizon_s` (s, application.outage_s) and `filter_rate_hz` (Hz, the verification's, application.filter_rate_hz in
+    the workflow) set the application
     band [1/horizon_s, filter_rate_hz/2] of the in-band inflation (:mod:`imupipe.inband`; None: not computed)."""
     from imupipe.inband import application_band
     from imupipe.kf import inflation_scope

@@ -55,7 +55,7 @@ def exported_kf(exported: dict, dt_s: float, sensor: str) -> dict:
 def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, horizon_s: float,
              sensor: str) -> dict:
     """The KF file's content (YAML-ready, SI) from the bound, verification and contract files' dicts, at the
-    filter step `dt_s` (s, 1/application.rate_hz) for the outage `horizon_s` (s, application.horizon_s)."""
+    filter step `dt_s` (s, 1/application.filter_rate_hz) for the outage `horizon_s` (s, application.outage_s)."""
     from imupipe.kf import export_kf, export_scope
     from imupipe.models import NoiseModel
 

@@ -9,13 +9,19 @@ gives its p-value's Monte Carlo standard error, the draws used and how close p w
 test on the same record is reported beside it by the sensor's summary (rule ``stationarity_summary``), so that
 this job does not import scipy.stats for its asymptotic p-values (about 1.2 s per axis).
 
+Per sensor type (rule ``stationarity_summary``): every axis's verdict with ``stationarity.on_fail`` applied, i.e.
+which curves the stacked files mark ``included`` (:func:`summary_stage`), and the paper's test of each axis beside
+the calibrated verdict (:func:`paper_tests`), run once per sensor type so that only that job imports scipy.stats.
+
 Plain values in (the decimated record, its rate and labels, its Allan curve), the verdict file's dict out
 (:func:`stationarity_stage`). p-values are probabilities, the rate in Hz.
 """
 
 from __future__ import annotations
 
-__all__ = ["NULL_COMPONENTS", "stationarity_stage"]
+import logging
+
+__all__ = ["NULL_COMPONENTS", "paper_tests", "stationarity_stage", "summary_stage"]
 
 #: Components of the calibrated null's model (the axis's Allan fit).
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
@@ -56,3 +62,45 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
         out["stationary"] = bool(paper["stationary"])
         out["p_value"] = float(min(paper["levene_p"], min(paper["ks_p"])))
     return out
+
+
+def paper_tests(verdicts: list, decimated: list) -> list:
+    """The paper's test of each axis: the per-axis verdict's own (test = paper), else run here on the axis's
+    decimated record (test = calibrated), with the verdict's segments and level."""
+    out = []
+    for v, path in zip(verdicts, decimated, strict=True):
+        if isinstance(v.get("paper"), dict):
+            out.append(v["paper"])
+            continue
+        from imupipe.io import read_series
+        from imupipe.stationarity import stationarity_tests
+
+        x, _, attrs = read_series(path)
+        if (str(attrs.get("dataset")), str(attrs.get("axis"))) != (str(v["dataset"]), str(v["axis"])):
+            raise ValueError(f"{path}: holds {attrs.get('dataset')}/{attrs.get('axis')}, expected the verdict's "
+                             f"{v['dataset']}/{v['axis']}")
+        cal = v["calibrated"]
+        out.append(stationarity_tests(x, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"])))
+    return out
+
+
+def summary_stage(verdicts: list, on_fail: str, sensor: str, papers: list | None = None) -> dict:
+    """Per-sensor summary; raises for on_fail = fail, or when on_fail = exclude leaves no curve. `papers`: the
+    paper's test of each curve (default: each verdict's own ``paper``)."""
+    papers = [v["paper"] for v in verdicts] if papers is None else papers
+    curves = [{"dataset": v["dataset"], "axis": v["axis"], "stationary": bool(v["stationary"]),
+               "p_value": v["p_value"], "test": v["test"], "paper_stationary": bool(paper["stationary"]),
+               "paper": paper}
+              for v, paper in zip(verdicts, papers, strict=True)]
+    failing = [f"{c['dataset']}/{sensor}/{c['axis']} (p = {c['p_value']:.3g})" for c in curves if not c["stationary"]]
+    if failing and on_fail == "fail":
+        raise ValueError(f"non-stationary {sensor} records (stationarity.on_fail = fail): {', '.join(failing)}")
+    for c in curves:
+        c["included"] = c["stationary"] or on_fail == "warn"
+    if failing:
+        logging.warning("non-stationary: %s (%s)", ", ".join(failing),
+                        "excluded from the bound" if on_fail == "exclude" else "kept, on_fail = warn")
+    if not any(c["included"] for c in curves):
+        raise ValueError(f"every {sensor} record failed the stationarity test and on_fail = exclude: nothing to bound")
+    return {"sensor": sensor, "on_fail": on_fail, "n_curves": len(curves), "n_non_stationary": len(failing),
+            "curves": curves}
