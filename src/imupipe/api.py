@@ -463,9 +463,9 @@ def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, ou
                                      reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
                                      fix_rate_hz=fix_rate_hz)[0]
         contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,
-                                  on_failure="warn", kf_rate_hz=filter_rate_hz, horizon_s=outage_s,
+                                  on_failure="warn", kf_rate_hz=filter_rate_hz, outage_s=outage_s,
                                   filter_rate_hz=filter_rate_hz)
-        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, horizon_s=outage_s, sensor=sensor)
+        kf = kf_stage(bound.record, verification, contract, dt_s=kf_dt, outage_s=outage_s, sensor=sensor)
         return verification, contract, kf
     from imupipe.biasinit import bias_initialisation
     from imupipe.stages.verify import model_of

@@ -22,7 +22,7 @@ rule bound_axis:
         n_gm=config["bound"]["n_gm"],
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
-        horizon_s=SPAN_S,
+        span_s=SPAN_S,
         lines=LINES_PARAMS,
     threads: 1
     resources:
@@ -54,8 +54,8 @@ rule bound:
         confidence=config["bound"]["confidence"],
         bands_per_decade=config["bound"]["bands_per_decade"],
         compare_paper=config["bound"]["compare_paper"],
-        horizon_s=SPAN_S,
-        application_rate_hz=FILTER_RATE_HZ,
+        span_s=SPAN_S,
+        filter_rate_hz=FILTER_RATE_HZ,
         lines=LINES_PARAMS,
     threads: 1
     resources:

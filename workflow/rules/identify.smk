@@ -21,10 +21,10 @@ rule identify:
         fit_tau_min_samples=config["identify"].get("fit_tau_min_samples"),
         pooling_level=config["identify"]["pooling_level"],
         pooling_n_boot=config["identify"]["pooling_n_boot"],
-        rate_hz=FILTER_RATE_HZ,
-        horizon_s=OUTAGE_S,
+        filter_rate_hz=FILTER_RATE_HZ,
+        outage_s=OUTAGE_S,
         # the upper envelope covers a GM time constant the data leave open for f >= 1/(fix_s + outage_s)
-        envelope_horizon_s=SPAN_S,
+        span_s=SPAN_S,
     threads: 1
     resources:
         mem_mb=MEM_MB["identify"],

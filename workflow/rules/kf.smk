@@ -12,7 +12,7 @@ rule kf:
         kf=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
     params:
         dt_s=1.0 / FILTER_RATE_HZ,
-        horizon_s=OUTAGE_S,
+        outage_s=OUTAGE_S,
     threads: 1
     resources:
         mem_mb=MEM_MB["kf"],

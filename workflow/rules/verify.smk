@@ -61,7 +61,7 @@ rule contract:
         kf_file=f"{RESULTS}/kf/{{spec}}/{{sensor}}.yaml",
         kf_rate_hz=FILTER_RATE_HZ,
         # the application band of the in-band inflation, [1/outage_s, filter_rate_hz/2], as verify has them
-        horizon_s=OUTAGE_S,
+        outage_s=OUTAGE_S,
         filter_rate_hz=FILTER_RATE_HZ,
         on_failure=config["verify"]["on_failure"],
     threads: 1

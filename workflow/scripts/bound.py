@@ -7,8 +7,8 @@ from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 
 def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, axis_bounds: list, mode: str,
-         n_gm: int, confidence: float, bands_per_decade: int, compare_paper: bool, horizon_s: float, lines: list,
-         lines_params: dict, path_out: str, sensor: str, application_rate_hz: float = 1.0) -> None:
+         n_gm: int, confidence: float, bands_per_decade: int, compare_paper: bool, span_s: float, lines: list,
+         lines_params: dict, path_out: str, sensor: str, filter_rate_hz: float = 1.0) -> None:
     from imupipe.merge import Stacked
     from imupipe.specsheet import display_units, load_spec
     from imupipe.stages.bound import HEADER, bound_stage
@@ -19,7 +19,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     allan = (al["tau"], {f"{d}/{a}": (al.at("avar", d, a), al.at("edf", d, a)) for d, a in al.curves(True)})
     out = bound_stage(sp["frequency"], psd, edf, spec.models[sensor], read_yaml(path_identified),
                       dt=1.0 / float(sp.attrs["rate_hz"]), sensor=sensor, mode=mode, n_gm=n_gm, confidence=confidence,
-                      bands_per_decade=bands_per_decade, span_s=horizon_s, filter_rate_hz=application_rate_hz,
+                      bands_per_decade=bands_per_decade, span_s=span_s, filter_rate_hz=filter_rate_hz,
                       taper=sp.attrs.get("taper", "hann"), allan=allan,
                       lines={f"{Path(p).parent.parent.name}/{Path(p).stem}": read_yaml(p) for p in lines},
                       line_policy=lines_params["policy"][sensor],
@@ -34,6 +34,6 @@ if __name__ == "__main__":
     p, i, o = snakemake.params, snakemake.input, snakemake.output
     run_job(main, snakemake.log[0], path_spectra=i.spectra, path_allan=i.allan, path_identified=i.identified,
             path_spec=i.spec, mode=p.mode, n_gm=p.n_gm, confidence=p.confidence, bands_per_decade=p.bands_per_decade,
-            compare_paper=p.compare_paper, horizon_s=p.horizon_s, lines=list(i.get("lines", [])),
+            compare_paper=p.compare_paper, span_s=p.span_s, lines=list(i.get("lines", [])),
             lines_params=p.lines, axis_bounds=list(i.axis_bounds), path_out=o.bound,
-            sensor=snakemake.wildcards.sensor, application_rate_hz=p.application_rate_hz)
+            sensor=snakemake.wildcards.sensor, filter_rate_hz=p.filter_rate_hz)

@@ -6,13 +6,13 @@ from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 
 def contract(path_bound: str, path_verify: str, path_spec: str, kf_file: str, on_failure: str, path_out: str,
-             sensor: str, kf_rate_hz: float | None = None, horizon_s: float | None = None,
+             sensor: str, kf_rate_hz: float | None = None, outage_s: float | None = None,
              filter_rate_hz: float | None = None) -> None:
     from imupipe.specsheet import load_spec
     from imupipe.stages.contract import HEADER, contract_stage
 
     out = contract_stage(read_yaml(path_bound), read_yaml(path_verify), load_spec(path_spec), sensor=sensor,
-                         kf_file=kf_file, on_failure=on_failure, kf_rate_hz=kf_rate_hz, horizon_s=horizon_s,
+                         kf_file=kf_file, on_failure=on_failure, kf_rate_hz=kf_rate_hz, outage_s=outage_s,
                          filter_rate_hz=filter_rate_hz)
     write_yaml_atomic(out, path_out, header=HEADER)
 
@@ -32,5 +32,5 @@ if __name__ == "__main__":
     else:
         run_job(contract, snakemake.log[0], path_bound=i.bound, path_verify=i.verify, path_spec=i.spec,
                 kf_file=p.kf_file, kf_rate_hz=getattr(p, "kf_rate_hz", None), on_failure=p.on_failure,
-                horizon_s=getattr(p, "horizon_s", None), filter_rate_hz=getattr(p, "filter_rate_hz", None),
+                outage_s=getattr(p, "outage_s", None), filter_rate_hz=getattr(p, "filter_rate_hz", None),
                 path_out=o.contract, sensor=snakemake.wildcards.sensor)

@@ -23,6 +23,6 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_allan=snakemake.input.allan, components=list(p.components), n_gm=p.n_gm,
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
-            filter_rate_hz=p.rate_hz, outage_s=p.horizon_s, span_s=p.envelope_horizon_s,
+            filter_rate_hz=p.filter_rate_hz, outage_s=p.outage_s, span_s=p.span_s,
             fit_tau_min_samples=p.fit_tau_min_samples, truth=snakemake.input.truth or None,
             path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)

@@ -94,21 +94,21 @@ def inband(exported: dict | None, spec, sensor: str, band_hz) -> dict | None:
 
 
 def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_file: str | None = None,
-                   on_failure: str = "fail", kf_rate_hz: float | None = None, horizon_s: float | None = None,
+                   on_failure: str = "fail", kf_rate_hz: float | None = None, outage_s: float | None = None,
                    filter_rate_hz: float | None = None) -> dict:
     """The contract file's content (YAML-ready) of the bound file's dict `bound` and the verification file's dict
     `verification`, against the spec sheet `spec` (:class:`imupipe.specsheet.SpecSheet`) of `sensor`; `kf_file`
     names the KF file it marks, `on_failure` is ``verify.on_failure`` (stated, not acted on here) and
     `kf_rate_hz` (Hz) the KF export's rate (application.filter_rate_hz), checked against the verification's;
-    `horizon_s` (s, application.outage_s) and `filter_rate_hz` (Hz, the verification's, application.filter_rate_hz in
+    `outage_s` (s, application.outage_s) and `filter_rate_hz` (Hz, the verification's, application.filter_rate_hz in
     the workflow) set the application
-    band [1/horizon_s, filter_rate_hz/2] of the in-band inflation (:mod:`imupipe.inband`; None: not computed)."""
+    band [1/outage_s, filter_rate_hz/2] of the in-band inflation (:mod:`imupipe.inband`; None: not computed)."""
     from imupipe.inband import application_band
     from imupipe.kf import inflation_scope
 
     ver = verification
     exported = ver["exported"]
-    band = application_band(horizon_s, filter_rate_hz) if horizon_s and filter_rate_hz else None
+    band = application_band(outage_s, filter_rate_hz) if outage_s and filter_rate_hz else None
     c, in_spec_units, note, scope = _checks(bound, exported, ver.get("reduction"), spec, sensor, kf_rate_hz)
     out = {
         "sensor": sensor, "spec_name": bound["spec_name"],

@@ -52,10 +52,10 @@ def exported_kf(exported: dict, dt_s: float, sensor: str) -> dict:
                         reduced=p0 is None)}
 
 
-def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, horizon_s: float,
+def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, outage_s: float,
              sensor: str) -> dict:
     """The KF file's content (YAML-ready, SI) from the bound, verification and contract files' dicts, at the
-    filter step `dt_s` (s, 1/application.filter_rate_hz) for the outage `horizon_s` (s, application.outage_s)."""
+    filter step `dt_s` (s, 1/application.filter_rate_hz) for the outage `outage_s` (s, application.outage_s)."""
     from imupipe.kf import export_kf, export_scope
     from imupipe.models import NoiseModel
 
@@ -73,7 +73,7 @@ def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, ho
                          "refused": red["refused"] if red else []},
            # which states the verified reduction dropped, the horizon the export then holds for, and the
            # verification's filter rate against this file's (imupipe.kf.export_scope)
-           "export": export_scope(ver["exported"], red, 1.0 / dt_s, horizon_s),
+           "export": export_scope(ver["exported"], red, 1.0 / dt_s, outage_s),
            **exported_kf(ver["exported"], dt_s, sensor)}
     out["per_axis"] = None
     if con.get("per_axis_models"):
@@ -83,7 +83,7 @@ def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, ho
             m = NoiseModel.from_dict(c["model"]) if own else model
             rep = (ver.get("per_axis_models") or {}).get(ax) if own else None
             p0, bias_ax = _bias_p0(rep["exported"]) if rep else (p0_rw, bias)
-            scope = export_scope(rep["exported"], rep.get("reduction"), 1.0 / dt_s, horizon_s) if rep else out["export"]
+            scope = export_scope(rep["exported"], rep.get("reduction"), 1.0 / dt_s, outage_s) if rep else out["export"]
             out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
                                    "bounded": bool(c["bounded"]) if own else bool(con["bounded"]), "export": scope,
                                    "bias_initialisation": bias_block(bias_ax, p0),
