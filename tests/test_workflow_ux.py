@@ -138,8 +138,11 @@ def test_kalibr_refuses_a_kf_export_with_a_line(tiny_run, tmp_path):
     assert "f0 0.47 Hz" in out.read_text()
     with pytest.raises(ValueError, match="accelerometer_noise_density"):
         read_kalibr(out)
-    flags = _script("summary").kalibr_flags([str(out)])
-    assert len(flags) == 1 and flags[0].startswith("- FLAG kalibr export") and "refused" in flags[0]
+    from imupipe.stages.summary import summary_text
+
+    text = summary_text({"kalibr": [str(out)]}, ["gyro", "accel"], ["stim300"], "tiny")
+    flags = [ln for ln in text.splitlines() if ln.startswith("- FLAG kalibr export")]
+    assert len(flags) == 1 and "refused" in flags[0] and "narrowband" in flags[0]
 
 
 def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):

@@ -47,7 +47,7 @@ def print_summary(failed=False):
     summary of whatever files the run left (imupipe.summary.summarise_run), and after a failure where the logs
     are. Never raises: a handler must not hide the run's own error."""
     try:
-        from imupipe.summary import summarise_run
+        from imupipe.summary import first_screen, summarise_run
 
         md = Path(SUMMARY_MD)
         if not failed and md.is_file():
@@ -56,13 +56,13 @@ def print_summary(failed=False):
             text = summarise_run(RESULTS) if Path(RESULTS).is_dir() else ""
             if text:
                 text = f"(partial: from the files this run has written so far)\n{text}"
-        if text:
-            print(f"\n{text.rstrip()}", flush=True)
+        if text:  # the first screen (verdicts, values to paste, checks); the details stay in summary.md
+            print(f"\n{first_screen(text).rstrip()}", flush=True)
         if failed:
             print(f"\nRUN FAILED: the failed job's log is under {LOGS}/ (the error above names it); "
                   f"summary.md is written only by a complete run.", flush=True)
         elif md.is_file():
-            print(f"\nSummary: {md}; report: snakemake --report {RESULTS}/report.html (make report)", flush=True)
+            print(f"\nSummary with the details: {md}; report: snakemake --report {RESULTS}/report.html (make report)", flush=True)
     except Exception as exc:  # pragma: no cover - a broken summary must not mask the run's status
         print(f"(run summary unavailable: {exc})", flush=True)
 

@@ -15,9 +15,10 @@ Rule -> stage function:
 - ``contract`` -> :func:`imupipe.stages.contract.contract_stage`; ``integrity`` ->
   :func:`imupipe.stages.contract.verdict_stage`
 - ``kf`` -> :func:`imupipe.stages.kf.kf_stage`
+- ``summary`` -> :func:`imupipe.stages.summary.summary_stage`
 
 The modules are imported on use (``from imupipe.stages import identify``): importing the package loads
 nothing heavy.
 """
 
-__all__ = ["bound", "contract", "identify", "kf", "stationarity", "verify"]
+__all__ = ["bound", "contract", "identify", "kf", "stationarity", "summary", "verify"]
