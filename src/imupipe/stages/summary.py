@@ -144,6 +144,13 @@ def front_page(template: str, html_page: str) -> str:
     # the report centres its content panel vertically (flex, h-screen): a page taller than the window would lose
     # its top, out of scroll reach; "safe center" centres only what fits
     css += ".grow.flex.items-center.justify-center.h-screen{align-items:safe center}.imupipe-summary h1{font-size:1.4em}"
+    # the report puts the description in a narrow prose column (max-w-lg, 32 rem) beside the rule graph: the page
+    # holding the summary lets that column span the panel and the graph wrap below it (tests/test_report_browser.py
+    # measures the widths at 1 400 px); the report's code style adds backticks around code, dropped here
+    css += (".flex.gap-3:has(.imupipe-summary){flex-wrap:wrap}"
+            ".py-2:has(.imupipe-summary){flex:1 1 100%;min-width:0}"
+            ".prose:has(.imupipe-summary){max-width:none}"
+            ".imupipe-summary code::before,.imupipe-summary code::after{content:none}")
     inner = f'<style>{css}</style><div class="imupipe-summary">{body.group(1) if body else html_page}</div>'
     raw = "\n".join("   " + ln for ln in inner.splitlines())
     return (Path(template).read_text().rstrip() + "\n\n"
