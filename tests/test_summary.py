@@ -398,6 +398,11 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
     refused = render_summary({"gyro": {"bound": contract}}, kalibr={"refused": True, "reason": "a line state"})
     assert "- FLAG kalibr export: refused: a line state" in first_screen(refused)
     assert "0 failed, 1 flagged" in refused and "gyroscope_random_walk" not in refused
+    # axes with their own model in the KF file: the first screen says the KF rows are the global model
+    per = {**contract, "per_axis_models": {"x": {"exported_in_kf": True}, "y": {"exported_in_kf": False}}}
+    assert "gyro: the axes differ; the KF file's `per_axis` holds each axis's own model" in \
+        first_screen(render_summary({"gyro": {"bound": per}}))
+    assert "the axes differ" not in head
 
 
 def test_a_component_absent_at_zero_is_not_flagged_on_its_boundary():

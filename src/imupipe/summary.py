@@ -773,6 +773,11 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                  "again.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
+        own = [s for s, f in runs.items() if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
+                                                 for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
+        if own:  # the KF rows are the global model; these axes have their own in the KF file
+            head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
+                     "(the per-axis table in the details); the KF rows above are the global model."]
         head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
                  "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
