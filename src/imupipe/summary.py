@@ -2,9 +2,9 @@
 
 The first screen (:func:`summary_sections`, up to :data:`DETAILS_HEADING`): the verdict per sensor, the values to
 paste (the KF file's exported model and Kalibr's densities, one table in the spec sheet's units and one in SI) and
-every FAIL / FLAG line. The details, per sensor type: bounded yes/no and the margin (min over curves and frequencies of S_model/S_sample), the
-inflation table (spec sheet vs bound, in the spec sheet's units), the states the filter keeps and why, and
-every failed or flagged check (stuck channels first, then stationarity, fit adequacy, Allan-domain check,
+every FAIL / FLAG line. The details, per sensor type: bounded yes/no and the margin (min over curves and
+frequencies of S_model/S_sample), the inflation table (spec sheet vs bound, in the spec sheet's units), the
+states the filter keeps and why. The checks (stuck channels first, then stationarity, fit adequacy, Allan-domain check,
 narrowband lines, outliers, gaps, verification) with where it is (dataset/axis, frequency, tau). Built from the
 per-sensor YAML files a run writes (the bound contract, the identification, the stationarity summary); keys that
 a run does not write are simply absent from the summary (every lookup is tolerant).
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["DETAILS_HEADING", "Flag", "discover_run", "first_screen", "flags_of", "load_sensor_files", "markdown_to_html",
-           "paste_rows", "psd_usage_flags", "render_summary", "summarise_run", "summary_sections"]
+__all__ = ["DETAILS_HEADING", "Flag", "discover_run", "first_screen", "flags_of", "load_sensor_files",
+           "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summarise_run", "summary_sections"]
 
 
 #: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
@@ -773,8 +773,9 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                  "again.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
-        own = [s for s, f in runs.items() if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
-                                                 for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
+        own = [s for s, f in runs.items()
+               if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
+                      for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
         if own:  # the KF rows are the global model; these axes have their own in the KF file
             head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
                      "(the per-axis table in the details); the KF rows above are the global model."]

@@ -150,7 +150,8 @@ def front_page(template: str, html_page: str) -> str:
     css += (".flex.gap-3:has(.imupipe-summary){flex-wrap:wrap}"
             ".py-2:has(.imupipe-summary){flex:1 1 100%;min-width:0}"
             ".prose:has(.imupipe-summary){max-width:none}"
-            ".imupipe-summary table{width:auto}.imupipe-summary code::before,.imupipe-summary code::after{content:none}")
+            ".imupipe-summary table{width:auto}"
+            ".imupipe-summary code::before,.imupipe-summary code::after{content:none}")
     inner = f'<style>{css}</style><div class="imupipe-summary">{body.group(1) if body else html_page}</div>'
     raw = "\n".join("   " + ln for ln in inner.splitlines())
     return (Path(template).read_text().rstrip() + "\n\n"
