@@ -94,7 +94,7 @@ def test_screenshot_is_not_blank(report, tmp_path):
 
 def test_first_page_shows_the_verdict(report):
     verdicts = []
-    for path in sorted((report["work"] / "results").rglob("bound/*/*.yaml")):
+    for path in sorted((report["work"] / "results").rglob("contract/*/*.yaml")):  # the verdict is the contract's
         b = yaml.safe_load(path.read_text())
         if isinstance(b, dict) and "bounded" in b and "sensor" in b:
             verdicts.append(f"{b['sensor']}: {'BOUNDED' if b['bounded'] else 'NOT BOUNDED'}")

@@ -94,7 +94,7 @@ def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_exported_kf_mode
         assert f"# {sensor}: exported model in-band (" in text  # the contract's in-band inflation
     assert "# Rule: (N, K) is the pair whose two-sided PSD" in text
     assert "BOUNDING VALUES" in text and "no further inflation" in text
-    assert "gyroscope_noise_density: x" in text  # the factor against the identified values
+    assert "gyroscope_noise_density: " in text and " times the identified value" in text  # the factor
 
 
 def test_figures_include_the_allan_readoffs(tiny_run):
