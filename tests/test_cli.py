@@ -182,7 +182,9 @@ def test_run_tiny_config_prints_the_summary(tmp_path):
                            str(tmp_path)], capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.count("imupipe run summary: tiny, spec sheet stim300") == 1  # printed once, by the workflow
-    assert "## gyro: " in proc.stdout and "## accel: " in proc.stdout
+    # the first screen: the verdict table and the values to paste; the details stay in summary.md
+    assert "| gyro | " in proc.stdout and "| accel | " in proc.stdout and "## Values to paste" in proc.stdout
+    assert "# Details" not in proc.stdout and "## gyro: " not in proc.stdout
     assert "rule bound" not in proc.stdout + proc.stderr  # job blocks quiet by default (details in logs/)
 
 

@@ -57,7 +57,7 @@ def test_file_reads_back_with_kalibrs_fields_and_values(tmp_path):
     assert "BOUNDING VALUES" in text and "no further inflation" in text
     # inflation against the identified model's pair by the same rule and band
     r = _pair(GYRO)[0] / _pair(GYRO_ID)[0]
-    assert f"gyroscope_noise_density: x{r:.3g}" in text
+    assert f"gyroscope_noise_density: {r:.3g} times the identified value" in text
     assert imu.inflation["accelerometer_noise_density"] == pytest.approx(_pair(ACCEL)[0] / _pair(ACCEL_ID)[0])
     assert "Rule: (N, K) is the pair whose two-sided PSD N^2 + K^2/(2 pi f)^2 bounds" in text
 
@@ -313,9 +313,10 @@ def test_a_ratio_below_one_is_not_called_an_inflation():
     assert _pair(ident)[0] == pytest.approx(math.sqrt(1e-6 + 2 * 25e-6 * 0.01), rel=1e-3)  # N^2 + 2 sigma^2 T
     text = kalibr_text(imu)
     (line,) = [ln for ln in text.splitlines() if ln.startswith("#   accelerometer_random_walk:")]
-    assert line.startswith(f"#   accelerometer_random_walk: x{r:.3g}, BELOW the identified value, not an inflation: ")
+    assert line.startswith(f"#   accelerometer_random_walk: {r:.3g} times the identified value (the written value is "
+                           "the smaller one, still the bounding value to use): ")
     assert "its terms acting as random walk in band: random_walk)" in line
     rn = imu.inflation["accelerometer_noise_density"]
-    assert rn > 1 and f"#   accelerometer_noise_density: x{rn:.3g}\n" in text
+    assert rn > 1 and f"#   accelerometer_noise_density: {rn:.3g} times the identified value\n" in text
     assert set(imu.below) == {"accelerometer_random_walk"}
-    assert "written / identified; above 1 an inflation" in text
+    assert "(above 1: the bound's inflation)" in text

@@ -540,6 +540,28 @@ class TestFirstHourMessages:
         ok.write_text("dataset\tpath\tgyro_unit\t\t\nd1\timu.csv\tdeg/s\t\t\n")  # trailing tabs: fine
         assert check_sheet_header(ok) == ["dataset", "path", "gyro_unit", "", ""]
 
+    @pytest.mark.parametrize("clock, time_unit_hint, fix", [
+        # stamps whose mean rate is 0.85 % above 100 Hz (a fast clock), rate_hz empty: 100.8 Hz is read (snapped to
+        # 1e-3), which 1 Hz does not divide; the fix is the nominal rate in the sheet, not decimate.rate_hz
+        (1.0 / 1.0085, None, r"0\.80 % above 100 Hz: if 100 Hz is the record's nominal rate, set rate_hz: 100"),
+        # stamps counting ms, read as s: 0.1 Hz; read as ms 100 Hz, which 1 Hz divides
+        (1e3, None, r"read as ms the timestamps give 100 Hz: if the time column counts ms, set time_unit: ms"),
+    ])
+    def test_a_rate_decimation_cannot_divide_names_the_sheet_fix(self, tmp_path, table, clock, time_unit_hint, fix):
+        t = table.copy()
+        t[:, 0] = t[:, 0] * clock
+        path = write_csv(tmp_path / "imu.csv", t)
+        meta = probe_row({"dataset": "lab", "path": str(path), "time_column": "t"})
+        assert meta.rate_from == "timestamps"
+        with pytest.raises(ConfigError, match=r"decimate\.rate_hz = 1 Hz does not divide the rate of dataset 'lab'.*"
+                           + fix):
+            check_against_config(meta, decimate_rate_hz=1.0)
+        # a rate the sheet gives is the user's statement: no guess added
+        meta = probe_row({"dataset": "lab", "path": str(path), "time_column": "t", "rate_hz": 100.85})
+        with pytest.raises(ConfigError) as exc:
+            check_against_config(meta, decimate_rate_hz=1.0)
+        assert "set rate_hz" not in str(exc.value) and "time_unit" not in str(exc.value)
+
     @pytest.mark.parametrize("header_too", [True, False])
     def test_csv_with_a_trailing_comma_on_every_line_is_read(self, tmp_path, table, header_too):
         path = tmp_path / "imu.csv"

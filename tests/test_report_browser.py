@@ -94,17 +94,18 @@ def test_screenshot_is_not_blank(report, tmp_path):
 
 def test_first_page_shows_the_verdict(report):
     verdicts = []
-    for path in sorted((report["work"] / "results").rglob("bound/*/*.yaml")):
+    for path in sorted((report["work"] / "results").rglob("contract/*/*.yaml")):  # the verdict is the contract's
         b = yaml.safe_load(path.read_text())
         if isinstance(b, dict) and "bounded" in b and "sensor" in b:
             verdicts.append(f"{b['sensor']}: {'BOUNDED' if b['bounded'] else 'NOT BOUNDED'}")
     assert verdicts
-    # the first page (the workflow description, shown when the report opens) holds the verdicts and the
-    # inflation table as a rendered table
+    # the first page (the workflow description, shown when the report opens) holds the verdicts and the values
+    # to paste as rendered tables (spec-sheet units, then SI); the details (the inflation table) are not on it
     first = _first_page(report)
     for v in verdicts:
         assert v in first, v
-    assert "bound/spec" in first and "white noise N" in first
+    assert "Values to paste, in the spec sheet's units" in first and "The same values in SI" in first
+    assert "white noise N" in first and "gyroscope_noise_density" in first and "bound/spec" not in first
 
 
 def _first_page(report):
@@ -115,3 +116,42 @@ def _first_page(report):
     assert start >= 0, "the run summary is not on the report's first page"
     text = re.sub(r"<style.*?</style>", " ", dom[start:], flags=re.S)
     return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", text))
+
+
+#: Injected into a copy of the report: once the report's script has put the summary on the page, the layout
+#: widths (CSS px) of the summary block, the report's content panel (the viewport less the navigation bar) and
+#: the widest table of the summary, written to an attribute of <html> that --dump-dom returns.
+_WIDTH_PROBE = """<script>
+(function measure() {
+  var el = document.querySelector('.imupipe-summary');
+  if (!el) { setTimeout(measure, 200); return; }
+  var panel = el.closest('.h-screen') || document.body;
+  var tables = Array.prototype.map.call(el.querySelectorAll('table'), function (t) {
+    return t.getBoundingClientRect().width; });
+  document.documentElement.setAttribute('data-widths', JSON.stringify({
+    summary: el.getBoundingClientRect().width, panel: panel.getBoundingClientRect().width,
+    table: Math.max.apply(null, tables.concat([0])), viewport: window.innerWidth}));
+})();
+</script>"""
+
+
+def test_first_page_summary_spans_the_panel_at_1400_px(report, tmp_path):
+    """At 1 400 px the summary's text is not squeezed into a narrow column beside the rule graph: the summary block
+    spans most of the content panel and every table of it fits inside the block (none runs under the graph).
+
+    The limits: the report's description column was 32 rem (512 px) in a panel of about 1 120 px (1 400 px less the
+    280 px navigation bar), 46 %; a block spanning the panel is the panel less its padding (p-3: 2 x 12 px) and the
+    block's own margins, > 90 % of it at this width; 0.8 lies between the two. A table as wide as its block fits
+    (1 px for sub-pixel rounding)."""
+    html = (report["work"] / "report.html").read_text()
+    end = html.rindex("</body>")
+    probe = tmp_path / "probe.html"
+    probe.write_text(html[:end] + _WIDTH_PROBE + html[end:])
+    dom = _chromium(tmp_path, probe.as_uri(), "--dump-dom", "--window-size=1400,900")
+    assert dom.returncode == 0, dom.stderr.decode(errors="replace")[-2000:]
+    m = re.search(r'data-widths="([^"]+)"', dom.stdout.decode(errors="replace"))
+    assert m, "the summary block never appeared on the report's first page"
+    w = json.loads(m.group(1).replace("&quot;", '"'))
+    assert w["viewport"] == 1400
+    assert w["summary"] >= 0.8 * w["panel"], w
+    assert w["table"] <= w["summary"] + 1.0, w

@@ -2,7 +2,7 @@
 
 import pytest
 
-from imupipe.summary import flags_of, render_summary
+from imupipe.summary import first_screen, flags_of, render_summary
 
 
 def _bound(bounded=True, margin=1.0, **extra):
@@ -45,7 +45,7 @@ def test_clean_run_says_bounded_with_inflation_table_and_states():
     assert "| GM sigma | deg/h | 1.5 | 4.1 | 2.73 |" in text
     assert "- states kept: white, gauss_markov" in text
     assert "random_walk (dropped): contributes < 5 % in the application band" in text
-    assert "Checks: none failed or flagged." in text
+    assert "gyro: none failed or flagged." in first_screen(text)
 
 
 def test_flagged_and_failed_checks_appear_with_where():
@@ -127,7 +127,9 @@ def test_markdown_to_html_renders_the_summary_and_the_inflation_table():
     assert page.startswith("<!DOCTYPE html>")
     assert "<h2>gyro: NOT BOUNDED</h2>" in page
     # the inflation table as an HTML table: header + 4 rows (N, K, GM sigma, GM T)
-    (table,) = re.findall(r"<table>.*?</table>", page)
+    # the first screen's verdict table, then the inflation table
+    verdicts, table = re.findall(r"<table>.*?</table>", page)
+    assert "<td>gyro</td><td>NOT BOUNDED</td><td>0.9</td>" in verdicts
     assert table.count("<tr>") == 5 and "<th>bound/spec</th>" in table
     assert "<td>deg/sqrt(h)</td><td>0.15</td><td>0.41</td><td>2.73</td>" in table
     assert '<li class="fail">FAIL bound [sim1/y at 0.0123 Hz]' in page
@@ -215,21 +217,16 @@ def test_a_random_walk_resting_on_the_spec_sheet_alone_is_stated():
     env_k = _bound(export=_scope(["random_walk"]), upper_envelope={"white": 4.6e-5, "random_walk": 5.55e-8})
     text = render_summary({"gyro": {"bound": env_k, "identify": IDENTIFY}})
     assert "rests on the spec sheet" not in text
-    assert ("- random walk: the data showed none (identification dropped it) but do not exclude one up to K = 5.55e-08 "
-            "(SI, the identified envelope); the bound's K covers that limit and the spec sheet's; the exported filter "
+    # K in the spec sheet's unit: 5.55e-8 rad/s/sqrt(s) * (180/pi deg/rad) * (3600 s/h) = 0.01145 (deg/h)/sqrt(s)
+    assert ("- random walk: the data showed none (identification dropped it) but do not exclude one up to K = 0.0114 "
+            "(deg/h)/sqrt(s) (the identified envelope); the bound's K covers that limit and the spec sheet's; the exported filter "
             "drops it (reduction above)") in text
 
 
 def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_ratio():
     """A lines file (one dataset/sensor/axis, units under `units`) merged by the summary script: each FLAG names
     where the line is, its frequency in Hz, its amplitude in the sensor's unit and its peak over the floor."""
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location(
-        "stage_summary", Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "summary.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from imupipe.stages import summary as mod
     entry = {}
     lines_file = {"dataset": "adis_imu2", "sensor": "accel", "axis": "z",
                   "lines": [{"frequency_hz": 0.5669195, "power": 2.4e-05, "amplitude": 0.0069233,
@@ -362,20 +359,58 @@ def test_a_replay_passed_only_by_its_allowance_is_flagged():
     assert replay_allowance_flags("gyro", contract) == []
 
 
-def test_the_filter_to_use_comes_first_with_its_file_and_units():
-    """The summary's line for the filter to use: the KF file and the exported model's values in the spec sheet's
-    units and in SI with the unit named (an outside evaluation found neither on the first screen)."""
-    from imupipe.summary import _filter_line
+def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_separate_tables():
+    """The first screen: the verdict table, then the exported model (KF) and Kalibr's densities as two tables, one
+    in the spec sheet's units and one in SI (never both in one table), then the checks; the details after it."""
+    from imupipe.summary import DETAILS_HEADING, paste_rows
 
-    contract = {"sensor": "gyro", "kf_file": "results/x/kf/s/gyro.yaml",
-                "model": {"white": 1.8147e-4, "gauss_markov": [{"sigma": 4.0e-6, "T": 500.0}], "random_walk": 0.0},
-                "model_spec_units": {"white": {"value": 0.6239, "unit": "deg/sqrt(h)"},
-                                     "gauss_markov": [{"sigma": {"value": 0.825, "unit": "deg/h"}}],
-                                     "random_walk": {"value": 0.0, "unit": "(deg/h)/sqrt(s)"}}}
-    line = _filter_line(contract)
-    assert "`results/x/kf/s/gyro.yaml`" in line and "0.6239 deg/sqrt(h) (0.0001815 rad/s/sqrt(Hz))" in line
-    assert "GM sigma 0.825 deg/h (4e-06 rad/s), T 500 s" in line and "random walk" not in line
-    assert _filter_line({"sensor": "gyro"}) is None
+    contract = _bound(sensor="gyro", kf_file="results/x/kf/s/gyro.yaml", verified=True,
+                      model={"white": 1.8147e-4, "gauss_markov": [{"sigma": 4.0e-6, "T": 500.0}], "random_walk": 0.0},
+                      model_spec_units={"white": {"value": 0.6239, "unit": "deg/sqrt(h)"},
+                                        "gauss_markov": [{"sigma": {"value": 0.825, "unit": "deg/h"},
+                                                          "T": {"value": 500.0, "unit": "s"}}],
+                                        "random_walk": {"value": 0.0, "unit": "(deg/h)/sqrt(s)"}})
+    # Kalibr's gyroscope_random_walk 1e-7 rad/s^2/sqrt(Hz) = 1e-7 rad/s/sqrt(s) = 1e-7 * 180/pi * 3600
+    # = 0.02063 (deg/h)/sqrt(s); its noise density 1.8147e-4 rad/s/sqrt(Hz) = 1.8147e-4 * 180/pi * 60
+    # = 0.6239 deg/sqrt(h) (sqrt(h) = 60 sqrt(s))
+    kalibr = {"gyroscope_noise_density": 1.8147e-4, "gyroscope_random_walk": 1e-7, "update_rate": 100.0,
+              "rostopic": "/imu"}
+    rows = paste_rows("gyro", contract, kalibr)
+    assert [r[:2] for r in rows] == [("KF", "white noise N"), ("KF", "GM sigma"), ("KF", "GM T"),
+                                     ("Kalibr", "gyroscope_noise_density"), ("Kalibr", "gyroscope_random_walk")]
+    assert rows[3][2] == pytest.approx(0.6239, rel=1e-3) and rows[3][3] == "deg/sqrt(h)"
+    assert rows[4][2] == pytest.approx(0.020626, rel=1e-4) and rows[4][3] == "(deg/h)/sqrt(s)"
+    assert rows[4][4:] == (1e-7, "rad/s^2/sqrt(Hz)")
+    text = render_summary({"gyro": {"bound": contract}}, kalibr=kalibr, kalibr_path="results/x/kf/s/kalibr_imu.yaml")
+    head = first_screen(text)
+    assert DETAILS_HEADING not in head and "## gyro: BOUNDED" not in head and "## gyro: BOUNDED" in text
+    assert "| gyro | BOUNDED | 1 | passed | `results/x/kf/s/gyro.yaml` |" in head
+    spec_table = head.split("## Values to paste, in the spec sheet's units")[1].split("## The same values in SI")[0]
+    si_table = head.split("## The same values in SI")[1].split("## Checks")[0]
+    assert "| gyro | KF | white noise N | 0.6239 | deg/sqrt(h) |" in spec_table
+    assert "| gyro | KF | GM sigma | 0.825 | deg/h |" in spec_table
+    assert "| gyro | Kalibr | gyroscope_random_walk | 0.02063 | (deg/h)/sqrt(s) |" in spec_table
+    assert "| gyro | KF | white noise N | 0.0001815 | rad/s/sqrt(Hz) |" in si_table
+    assert "| gyro | Kalibr | gyroscope_random_walk | 1e-07 | rad/s^2/sqrt(Hz) |" in si_table
+    assert "rad" not in spec_table and "deg" not in si_table  # one unit system per table
+    assert "Kalibr imu.yaml [results/x/kf/s/kalibr_imu.yaml]: update_rate 100 Hz" in head
+    assert "## Checks: 0 failed, 0 flagged" in head
+    refused = render_summary({"gyro": {"bound": contract}}, kalibr={"refused": True, "reason": "a line state"})
+    assert "- FLAG kalibr export: refused: a line state" in first_screen(refused)
+    assert "0 failed, 1 flagged" in refused and "gyroscope_random_walk" not in refused
+    # axes with their own model in the KF file: the first screen says the KF rows are the global model
+    per = {**contract, "per_axis_models": {"x": {"exported_in_kf": True}, "y": {"exported_in_kf": False}}}
+    assert "gyro: the axes differ; the KF file's `per_axis` holds each axis's own model" in \
+        first_screen(render_summary({"gyro": {"bound": per}}))
+    assert "the axes differ" not in head
+
+
+def test_a_component_absent_at_zero_is_not_flagged_on_its_boundary():
+    # a coefficient at its lower limit 0 is the component absent (dropped), not a fit pressed against its range
+    ident = {"model": {"white": 1e-4, "flicker": 0.0, "gauss_markov": []},
+             "fit": {"on_boundary": {"white": False, "flicker": True, "gm_T_1": True}}}
+    flagged = [f.where for f in flags_of("gyro", identify=ident) if f.check == "parameter on boundary"]
+    assert flagged == ["gm_T_1"]
 
 
 def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
@@ -409,7 +444,7 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
     rep = yaml.safe_load(report.read_text())
     assert rep["n_stuck_spans"] == 1 and rep["stuck_spans"][0]["start_s"] == pytest.approx(1000.0, abs=0.01)
     entry = {}
-    summ = script("summary")
+    from imupipe.stages import summary as summ
     summ._merge_checks(entry, rep)
     summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "x", "units": {"amplitude": "m/s^2"},
                                "lines": [{"frequency_hz": 0.25, "amplitude": 1e-3, "peak_ratio": 40.0}]})
@@ -427,13 +462,7 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
 
 
 def test_a_clean_outliers_report_adds_no_flag():
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location(
-        "stage_summary", Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "summary.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    from imupipe.stages import summary as mod
     entry = {}
     mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "n_outliers": 0, "stuck_spans": [],
                               "n_stuck_spans": 0})

@@ -94,7 +94,7 @@ def test_kalibr_file_has_kalibr_fields_at_the_imu_rate_from_the_exported_kf_mode
         assert f"# {sensor}: exported model in-band (" in text  # the contract's in-band inflation
     assert "# Rule: (N, K) is the pair whose two-sided PSD" in text
     assert "BOUNDING VALUES" in text and "no further inflation" in text
-    assert "gyroscope_noise_density: x" in text  # the factor against the identified values
+    assert "gyroscope_noise_density: " in text and " times the identified value" in text  # the factor
 
 
 def test_figures_include_the_allan_readoffs(tiny_run):
@@ -138,8 +138,11 @@ def test_kalibr_refuses_a_kf_export_with_a_line(tiny_run, tmp_path):
     assert "f0 0.47 Hz" in out.read_text()
     with pytest.raises(ValueError, match="accelerometer_noise_density"):
         read_kalibr(out)
-    flags = _script("summary").kalibr_flags([str(out)])
-    assert len(flags) == 1 and flags[0].startswith("- FLAG kalibr export") and "refused" in flags[0]
+    from imupipe.stages.summary import summary_text
+
+    text = summary_text({"kalibr": [str(out)]}, ["gyro", "accel"], ["stim300"], "tiny")
+    flags = [ln for ln in text.splitlines() if ln.startswith("- FLAG kalibr export")]
+    assert len(flags) == 1 and "refused" in flags[0] and "narrowband" in flags[0]
 
 
 def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):

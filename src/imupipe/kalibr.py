@@ -491,14 +491,15 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
     lines += [f"# {n}" for n in notes]
     known = {k: v for k, v in imu.inflation.items() if v is not None}
     if known:
-        lines.append("# Against the pair of the model identified from the Allan variance, same rule and band (written /"
-                     " identified; above 1 an inflation):")
+        lines.append("# Each value written divided by the one the model identified from the Allan variance gives under the"
+                     " same rule and band (above 1: the bound's inflation):")
         for k, v in known.items():
             if v < 1.0:
                 why = imu.below.get(k) or "see the identify file"
-                lines.append(f"#   {k}: x{v:.3g}, BELOW the identified value, not an inflation: {why}")
+                lines.append(f"#   {k}: {v:.3g} times the identified value (the written value is the smaller one, "
+                             f"still the bounding value to use): {why}")
             else:
-                lines.append(f"#   {k}: x{v:.3g}")
+                lines.append(f"#   {k}: {v:.3g} times the identified value")
     body = [
         f"accelerometer_noise_density: {imu.accelerometer_noise_density:.6e}  # m/s^2/sqrt(Hz)",
         f"accelerometer_random_walk: {imu.accelerometer_random_walk:.6e}  # m/s^3/sqrt(Hz)",

@@ -374,7 +374,7 @@ def remove_stale(roots, produced=None, rerun=(), keep=()) -> list:
 def summary_text(results: str, logs: str, summary_md, failed: bool = False) -> str:
     """The run summary printed at the end of a run: summary.md when the run wrote it, else the summary of whatever
     files it left (:func:`imupipe.summary.summarise_run`), marked partial; after a failure where the logs are."""
-    from imupipe.summary import summarise_run
+    from imupipe.summary import first_screen, summarise_run
 
     md, text = Path(summary_md), ""
     if not failed and md.is_file():
@@ -382,10 +382,11 @@ def summary_text(results: str, logs: str, summary_md, failed: bool = False) -> s
     elif Path(results).is_dir():
         text = summarise_run(results)
         text = f"(partial: from the files this run has written so far)\n{text}" if text else ""
-    parts = [text.rstrip()] if text else []
+    # the first screen (verdicts, values to paste, checks); the details stay in summary.md
+    parts = [first_screen(text).rstrip()] if text else []
     if failed:
         parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); summary.md is "
                      "written only by a complete run.")
     elif md.is_file():
-        parts.append(f"Summary: {md}; report: snakemake --report {results}/report.html (make report)")
+        parts.append(f"Summary with the details: {md}; report: snakemake --report {results}/report.html (make report)")
     return "".join(f"\n{p}\n" for p in parts).rstrip("\n")

@@ -1,8 +1,10 @@
-"""The run summary: the answer of a run in a few lines of plain text / markdown (``results/.../summary.md``).
+"""The run summary: the answer of a run in plain text / markdown (``results/.../summary.md``), first screen first.
 
-Per sensor type: bounded yes/no and the margin (min over curves and frequencies of S_model/S_sample), the
-inflation table (spec sheet vs bound, in the spec sheet's units), the states the filter keeps and why, and
-every failed or flagged check (stuck channels first, then stationarity, fit adequacy, Allan-domain check,
+The first screen (:func:`summary_sections`, up to :data:`DETAILS_HEADING`): the verdict per sensor, the values to
+paste (the KF file's exported model and Kalibr's densities, one table in the spec sheet's units and one in SI) and
+every FAIL / FLAG line. The details, per sensor type: bounded yes/no and the margin (min over curves and
+frequencies of S_model/S_sample), the inflation table (spec sheet vs bound, in the spec sheet's units), the
+states the filter keeps and why. The checks (stuck channels first, then stationarity, fit adequacy, Allan-domain check,
 narrowband lines, outliers, gaps, verification) with where it is (dataset/axis, frequency, tau). Built from the
 per-sensor YAML files a run writes (the bound contract, the identification, the stationarity summary); keys that
 a run does not write are simply absent from the summary (every lookup is tolerant).
@@ -17,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Flag", "discover_run", "flags_of", "psd_usage_flags", "load_sensor_files", "markdown_to_html", "render_summary",
-           "summarise_run"]
+__all__ = ["DETAILS_HEADING", "Flag", "discover_run", "first_screen", "flags_of", "load_sensor_files",
+           "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summarise_run", "summary_sections"]
 
 
 #: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
@@ -236,8 +238,11 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         "the model does not describe the Allan variance within its confidence"))
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     if isinstance(on_b, Mapping):
+        model = identify.get("model") if isinstance(identify.get("model"), Mapping) else {}
         for p, v in on_b.items():
-            if v:
+            # a component's coefficient at its lower limit 0 is that component absent (the selection lists it as
+            # dropped; the data's upper limit for it is in the envelope), not a fit pressed against its range
+            if v and not (p in model and isinstance(model[p], (int, float)) and float(model[p]) == 0.0):
                 out.append(Flag(sensor, "parameter on boundary", str(p), "fitted value at a limit of its range"))
     for key in ("lines", "narrowband"):
         for src in (identify, stationarity, bound):
@@ -378,45 +383,14 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
     if kept is not None and "random_walk" not in kept and k_of("bound") > 0 and (k_of("spec") > 0 or k_env > 0):
         dropped = isinstance(exp, Mapping) and "random_walk" in (exp.get("dropped_by_reduction") or [])
         if k_env > 0:
+            value, unit = _in_spec_units(bound, "random_walk", k_env)
             head = ("- random walk: the data showed none (identification dropped it) but do not exclude one up to "
-                    f"K = {k_env:.3g} (SI, the identified envelope); the bound's K covers that limit"
+                    f"K = {value:.3g} {unit} (the identified envelope); the bound's K covers that limit"
                     + (" and the spec sheet's" if k_of("spec") > 0 else ""))
         else:
             head = "- random walk: the data showed none (identification dropped it); the bound's K rests on the spec sheet alone"
         out.append(head + ("; the exported filter drops it (reduction above)" if dropped else ""))
     return out
-
-
-def _filter_line(bound: Mapping) -> str | None:
-    """The filter to use, first: the KF file and the exported model's values in the spec sheet's units and SI (the
-    contract's ``kf_file``, ``model_spec_units`` and ``model``; the table above is the bound before the verified
-    reduction). None when the contract has no exported model."""
-    from imupipe.units import SI_UNITS
-
-    m, mu = bound.get("model"), bound.get("model_spec_units")
-    if not isinstance(m, Mapping) or not isinstance(mu, Mapping):
-        return None
-    u = SI_UNITS.get(bound.get("sensor"), "u")
-    parts = []
-    w = mu.get("white") or {}
-    if m.get("white"):
-        parts.append(f"white noise N {_num(w.get('value'), '{:.4g}')} {w.get('unit', '')} ({_num(m['white'], '{:.4g}')} {u}/sqrt(Hz))")
-    gm_units = mu.get("gauss_markov") or []
-    for i, term in enumerate(m.get("gauss_markov") or []):
-        su = (gm_units[i] if i < len(gm_units) else {}).get("sigma") or {}
-        parts.append(f"GM sigma {_num(su.get('value'), '{:.4g}')} {su.get('unit', '')} ({_num(term.get('sigma'), '{:.4g}')} {u}), "
-                     f"T {_num(term.get('T'), '{:.4g}')} s")
-    if m.get("random_walk"):
-        k = mu.get("random_walk") or {}
-        parts.append(f"random walk K {_num(k.get('value'), '{:.4g}')} {k.get('unit', '')} "
-                     f"({_num(m['random_walk'], '{:.4g}')} {u}/sqrt(s))")
-    for t in m.get("narrowband") or []:
-        if isinstance(t, Mapping) and t.get("sigma"):
-            parts.append(f"line at {_num(t.get('f0_hz'))} Hz")
-    where = f"`{bound['kf_file']}`" if bound.get("kf_file") else "the KF file"
-    return (f"- **the filter to use:** {where} (Phi, Qd, P0 at the verified rate): " + ("; ".join(parts) or "no noise "
-            "state") + " (the exported model, after the verified reduction; its initial bias below"
-            + ("; per axis where the axes differ: the table below" if bound.get("per_axis_models") else "") + ")")
 
 
 def _bias_lines(bound: Mapping) -> list[str]:
@@ -554,8 +528,119 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
     return out
 
 
-def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary") -> str:
-    """Markdown summary of a run (also readable as plain text).
+#: SI unit of each value a summary pastes, per sensor (u = rad/s or m/s^2): the KF file's white noise N and
+#: random walk K (imupipe.units), Kalibr's fields as Kalibr spells them (its random walk rad/s^2/sqrt(Hz) is the
+#: same dimension as rad/s/sqrt(s)).
+_SI_SPELLING = {
+    ("gyro", "white"): "rad/s/sqrt(Hz)", ("gyro", "random_walk"): "rad/s/sqrt(s)", ("gyro", "gm_sigma"): "rad/s",
+    ("accel", "white"): "m/s^2/sqrt(Hz)", ("accel", "random_walk"): "m/s^2/sqrt(s)", ("accel", "gm_sigma"): "m/s^2",
+}
+_KALIBR_FIELDS = {"gyro": ("gyroscope_noise_density", "gyroscope_random_walk"),
+                  "accel": ("accelerometer_noise_density", "accelerometer_random_walk")}
+_KALIBR_SI = {("gyro", "white"): "rad/s/sqrt(Hz)", ("gyro", "random_walk"): "rad/s^2/sqrt(Hz)",
+              ("accel", "white"): "m/s^2/sqrt(Hz)", ("accel", "random_walk"): "m/s^3/sqrt(Hz)"}
+
+
+def _spec_unit(bound: Mapping, key: str) -> str | None:
+    """The spec sheet's unit of `key` (``white``, ``random_walk`` or ``gm_sigma``) as the contract states it: the
+    exported model's, else the bound's, else the spec sheet's (``*_spec_units`` blocks); None when none states it."""
+    for block in ("model_spec_units", "bound_spec_units", "spec_spec_units"):
+        b = bound.get(block)
+        if not isinstance(b, Mapping):
+            continue
+        if key == "gm_sigma":
+            gms = b.get("gauss_markov") or []
+            v = gms[0].get("sigma") if gms and isinstance(gms[0], Mapping) else None
+        else:
+            v = b.get(key)
+        if isinstance(v, Mapping) and v.get("unit"):
+            return str(v["unit"])
+    return None
+
+
+def _in_spec_units(bound: Mapping, key: str, value_si: float) -> tuple[float, str]:
+    """`value_si` (SI) in the spec sheet's unit of `key` (:func:`_spec_unit`, :func:`imupipe.units.from_si`), or
+    the SI value with its SI unit when the contract states no spec unit (or the sensor is not gyro / accel)."""
+    from imupipe.units import UnitError, from_si
+
+    sensor, unit = bound.get("sensor"), _spec_unit(bound, key)
+    if unit and sensor in ("gyro", "accel"):
+        try:
+            return float(from_si(float(value_si), unit, key, sensor)), unit
+        except UnitError:
+            pass
+    return float(value_si), _SI_SPELLING.get((sensor, key), "SI")
+
+
+def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> list[tuple]:
+    """The values a user pastes into a filter, each in the spec sheet's unit and in SI.
+
+    Rows ``(file, parameter, value_spec, unit_spec, value_si, unit_si)``: from the contract (`bound`: ``model`` in
+    SI, ``model_spec_units``) the exported filter model's white noise N (u/sqrt(Hz)), each GM's sigma (u) and T (s),
+    random walk K (u/sqrt(s)) and narrowband lines' sigma (u); from the Kalibr file (`kalibr`, its fields as read)
+    the sensor's noise density (u/sqrt(Hz)) and random walk (u/s/sqrt(Hz), which is u/sqrt(s)), converted to the
+    spec sheet's N and K units. u = rad/s (gyro) or m/s^2 (accel). A term the model lacks (0) has no row; a
+    spec-sheet unit the contract does not state gives the SI value in both columns."""
+    rows = []
+    m, mu = bound.get("model"), bound.get("model_spec_units")
+    if isinstance(m, Mapping):
+        mu = mu if isinstance(mu, Mapping) else {}
+
+        def row(name, key, v_si, shown=None):
+            if shown and isinstance(shown, Mapping) and shown.get("value") is not None and shown.get("unit"):
+                vs, us = float(shown["value"]), str(shown["unit"])
+            else:
+                vs, us = _in_spec_units({**bound, "sensor": sensor}, key, v_si)
+            rows.append(("KF", name, vs, us, float(v_si), _SI_SPELLING.get((sensor, key), "SI")))
+
+        if m.get("white"):
+            row("white noise N", "white", m["white"], mu.get("white"))
+        gms = m.get("gauss_markov") or []
+        gmu = mu.get("gauss_markov") or []
+        for i, term in enumerate(gms):
+            if not isinstance(term, Mapping) or not term.get("sigma"):
+                continue
+            tag = f" {i + 1}" if len(gms) > 1 else ""
+            su = gmu[i] if i < len(gmu) and isinstance(gmu[i], Mapping) else {}
+            row(f"GM sigma{tag}", "gm_sigma", term["sigma"], su.get("sigma"))
+            rows.append(("KF", f"GM T{tag}", float(term.get("T")), "s", float(term.get("T")), "s"))
+        if m.get("random_walk"):
+            row("random walk K", "random_walk", m["random_walk"], mu.get("random_walk"))
+        for t in m.get("narrowband") or []:
+            if isinstance(t, Mapping) and t.get("sigma"):
+                row(f"line at {_num(t.get('f0_hz'))} Hz, sigma", "gm_sigma", t["sigma"])
+    if isinstance(kalibr, Mapping) and not kalibr.get("refused") and sensor in _KALIBR_FIELDS:
+        for field, key in zip(_KALIBR_FIELDS[sensor], ("white", "random_walk")):
+            v = kalibr.get(field)
+            if v is None:
+                continue
+            vs, us = _in_spec_units({**bound, "sensor": sensor}, key, float(v))
+            rows.append(("Kalibr", field, vs, us, float(v), _KALIBR_SI[(sensor, key)]))
+    return rows
+
+
+#: The heading that ends a summary's first screen (verdicts, values to paste, checks); the details follow it.
+DETAILS_HEADING = "# Details"
+
+
+def first_screen(text: str) -> str:
+    """The part of a summary text before :data:`DETAILS_HEADING` (the whole text when it has none)."""
+    head, sep, _ = text.partition("\n" + DETAILS_HEADING + "\n")
+    return (head.rstrip() + "\n") if sep else text
+
+
+
+def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary",
+                   kalibr: Mapping | None = None, kalibr_path: str | None = None) -> str:
+    """Markdown summary of a run (also readable as plain text): :func:`summary_sections`, the first screen, then
+    :data:`DETAILS_HEADING` and the details."""
+    head, details = summary_sections(runs, title=title, kalibr=kalibr, kalibr_path=kalibr_path)
+    return head.rstrip() + "\n\n" + DETAILS_HEADING + "\n\n" + details.rstrip() + "\n"
+
+
+def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary",
+                     kalibr: Mapping | None = None, kalibr_path: str | None = None) -> tuple[str, str]:
+    """The first screen and the details of a run's summary (markdown), one spec sheet.
 
     Parameters
     ----------
@@ -564,19 +649,25 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         run's per-sensor YAML files as read (:func:`load_sensor_files`).
     title : str, optional
         First heading.
+    kalibr : mapping, optional
+        The spec sheet's Kalibr file as read (its fields; ``refused`` and ``reason`` when refused).
+    kalibr_path : str, optional
+        Where that file is, named in the summary.
 
     Returns
     -------
-    str
-        One section per sensor: verdict line (``BOUNDED`` / ``NOT BOUNDED``, margin, spec sheet, mode),
-        inflation table (spec-sheet units), states kept and dropped with the reasons, and the checks
-        (``FAIL`` / ``FLAG`` lines, or "none flagged").
+    (str, str)
+        The first screen: the verdict line, a table of the verdict per sensor (``BOUNDED`` / ``NOT BOUNDED``,
+        PSD margin, verification, KF file), the values to paste (:func:`paste_rows`) as two tables, one in the
+        spec sheet's units and one in SI, and every ``FAIL`` / ``FLAG`` line per sensor (or "none flagged").
+        The details: one section per sensor with the inflation table (spec-sheet units), the in-band line, the
+        exported model's scope, the initial bias, the states kept and dropped with the reasons.
     """
     from imupipe.inband import inband_line
 
-    lines = [f"# {title}", ""]
+    lines = []  # the details
     all_flags: list[Flag] = []
-    verdicts = []
+    verdicts, table, paste, checks = [], [], [], []
     for sensor, files in runs.items():
         bound = files.get("bound") or {}
         identify = files.get("identify") or {}
@@ -589,6 +680,16 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         if bounded and fails:
             verdict += " (with failed checks)"
         verdicts.append(f"{sensor}: {verdict}")
+        ver = bound.get("verified")
+        table.append(f"| {sensor} | {verdict} | {_num(bound.get('margin'), '{:.4g}')} | "
+                     f"{'-' if ver is None else 'passed' if ver else 'FAILED'} | "
+                     f"{'`' + str(bound['kf_file']) + '`' if bound.get('kf_file') else '-'} |")
+        paste += [(sensor, *r) for r in paste_rows(sensor, bound, kalibr)] if bound else []
+        n_fail = sum(f.severity == "fail" for f in flags)
+        checks.append(f"{sensor}: " + (f"{n_fail} failed, {len(flags) - n_fail} flagged" if flags else
+                                       "none failed or flagged."))
+        checks += [f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}" for f in flags]
+        checks.append("")
         lines.append(f"## {sensor}: {verdict}")
         lines.append("")
         lines.append(f"- margin (min S_model/S_sample): {_num(bound.get('margin'), '{:.4g}')}"
@@ -607,9 +708,6 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
         if inband:
             # what the whole exported model does over the application band (imupipe.inband): beside the table
             lines += [f"- {inband}", ""]
-        use = _filter_line(bound) if bound else None
-        if use:
-            lines += [use, ""]
         if rows:
             gap = _spec_above_data(bound)
             if gap:
@@ -651,7 +749,7 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
             lines.append("")
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
-        lines += _export_lines(bound, kept)
+        lines += _export_lines({"sensor": sensor, **bound}, kept)
         lines += _bias_lines(bound)
         if kept is not None:
             lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
@@ -661,18 +759,41 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
                 mark = "kept" if comp in kept else "dropped"
                 lines.append(f"  - {comp} ({mark}): {why if why else '-'}")
         lines.append("")
-        if flags:
-            lines.append("Checks:")
-            for f in flags:
-                lines.append(f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}")
-        else:
-            lines.append("Checks: none failed or flagged.")
+        lines.append("Checks: " + ("on the first screen (above)." if flags else "none failed or flagged."))
         lines.append("")
     n_fail = sum(f.severity == "fail" for f in all_flags)
-    n_flag = len(all_flags) - n_fail
-    lines.insert(2, f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).")
-    lines.insert(3, "")
-    return "\n".join(lines).rstrip() + "\n"
+    n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
+    head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
+    head += ["| sensor | verdict | PSD margin (min S_model/S_sample) | verification | KF file |",
+             "|---|---|---|---|---|", *table, ""]
+    if paste:
+        head += ["## Values to paste, in the spec sheet's units", "",
+                 "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
+                 "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
+                 "again.", "",
+                 "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
+        head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
+        own = [s for s, f in runs.items()
+               if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
+                      for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
+        if own:  # the KF rows are the global model; these axes have their own in the KF file
+            head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
+                     "(the per-axis table in the details); the KF rows above are the global model."]
+        head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
+                 "|---|---|---|---|---|"]
+        head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
+        head.append("")
+    if isinstance(kalibr, Mapping):
+        where = f" [{kalibr_path}]" if kalibr_path else ""
+        if kalibr.get("refused"):
+            checks.append(f"- FLAG kalibr export{where}: refused: {kalibr.get('reason', '-')} (no Kalibr fields "
+                          "written; use the Kalman-filter export)")
+            checks.append("")
+        else:
+            head += [f"Kalibr imu.yaml{where}: update_rate {_num(kalibr.get('update_rate'), '{:g}')} Hz, rostopic "
+                     f"{kalibr.get('rostopic')}.", ""]
+    head += [f"## Checks: {n_fail} failed, {n_flag} flagged", "", *checks]
+    return "\n".join(head).rstrip() + "\n", "\n".join(lines).rstrip() + "\n"
 
 
 def load_sensor_files(bound: str | Path | None = None, identify: str | Path | None = None,
@@ -722,12 +843,17 @@ def discover_run(results: str | Path) -> dict:
 
 
 def summarise_run(results: str | Path) -> str:
-    """The summary text of every spec sheet of a finished run under `results` ("" when none is found)."""
-    texts = []
+    """The summary text of every spec sheet of a finished run under `results` ("" when none is found): the first
+    screens of every spec sheet, then :data:`DETAILS_HEADING` and their details."""
+    heads, details = [], []
     for spec, sensors in discover_run(results).items():
         runs = {s: load_sensor_files(**paths) for s, paths in sensors.items()}
-        texts.append(render_summary(runs, title=f"imupipe run summary: {spec}"))
-    return "\n".join(texts)
+        head, detail = summary_sections(runs, title=f"imupipe run summary: {spec}")
+        heads.append(head.rstrip())
+        details.append(detail.rstrip())
+    if not heads:
+        return ""
+    return "\n\n".join(heads) + "\n\n" + DETAILS_HEADING + "\n\n" + "\n\n".join(details) + "\n"
 
 
 def markdown_to_html(text: str, *, title: str = "imupipe") -> str:

@@ -281,6 +281,40 @@ def validate_dataset_name(name: Any, where: str = "dataset sheet") -> str:
     return text
 
 
+#: Time units a time column may count when the sheet's time_unit is left at seconds, with their factor to s.
+_STAMP_UNITS = (("ms", 1e3), ("us", 1e6), ("ns", 1e9))
+#: Rates (Hz) an IMU record plausibly has: 1 Hz .. 10 kHz (a rate outside it read from stamps is a unit slip).
+_PLAUSIBLE_RATE_HZ = (1.0, 1e4)
+
+
+def _rate_hint(rate: float, rate_from, decimate_rate_hz: float) -> str:
+    """The fix for a record rate that decimate.rate_hz does not divide, when the rate came from the timestamps
+    (the sheet's rate_hz empty): the stamps' unit when reading them as ms, us or ns gives a plausible rate that the
+    decimation divides (set time_unit), else the round rate within the reader's 1 % rate tolerance that it divides
+    (set rate_hz: the sheet's rate is then checked against the stamps within 1 %); "" when neither fits or the
+    rate is the sheet's or the file's (Hz)."""
+    if str(rate_from or "") != "timestamps" or not rate or rate <= 0:
+        return ""
+
+    def divides(r):
+        q = r / decimate_rate_hz
+        return round(q) >= 1 and abs(q - round(q)) <= 1e-9 * q
+
+    for unit, factor in _STAMP_UNITS:
+        r = rate * factor
+        if _PLAUSIBLE_RATE_HZ[0] <= r <= _PLAUSIBLE_RATE_HZ[1] and divides(round(r, 6)):
+            return (f"; read as {unit} the timestamps give {r:.6g} Hz: if the time column counts {unit}, set "
+                    f"time_unit: {unit} in the dataset sheet")
+    for digits in (-3, -2, -1, 0, 1, 2, 3):  # the coarsest round rate first
+        nominal = round(rate, digits)
+        if nominal > 0 and abs(rate - nominal) <= 0.01 * nominal and divides(nominal):
+            off = 100 * (rate - nominal) / nominal
+            return (f"; the timestamps' mean rate is {abs(off):.2f} % {'above' if off > 0 else 'below'} {nominal:g} Hz: "
+                    f"if {nominal:g} Hz is the record's nominal rate, set rate_hz: {nominal:g} in the dataset sheet "
+                    "(accepted within 1 % of the timestamps' rate)")
+    return ""
+
+
 def check_against_config(
     meta: Any,
     *,
@@ -339,6 +373,7 @@ def check_against_config(
             raise ConfigError(
                 f"config key decimate.rate_hz = {decimate_rate_hz:g} Hz does not divide the rate of {label} "
                 f"({rate:.12g} Hz; ratio {ratio:.9g}): block-average decimation needs an integer ratio"
+                + _rate_hint(rate, get("rate_from"), decimate_rate_hz)
             )
     if window_s is not None:
         if not (isinstance(window_s, (int, float)) and math.isfinite(window_s) and window_s > 0):

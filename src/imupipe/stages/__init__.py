@@ -21,10 +21,11 @@ Rule -> stage function:
 - ``kalibr`` -> :func:`imupipe.stages.kalibr.kalibr_stage`
 - ``figures`` -> :func:`imupipe.stages.figures.figures_stage`
 - ``tables`` -> :func:`imupipe.stages.tables.tables_stage`
+- ``summary`` -> :func:`imupipe.stages.summary.summary_stage`
 
 The modules are imported on use (``from imupipe.stages import identify``): importing the package loads
 nothing heavy.
 """
 
-__all__ = ["bound", "contract", "figures", "identify", "ingest", "kalibr", "kf", "simulate", "stationarity", "tables",
-           "verify"]
+__all__ = ["bound", "contract", "figures", "identify", "ingest", "kalibr", "kf", "simulate", "stationarity", "summary",
+           "tables", "verify"]
