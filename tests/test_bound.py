@@ -525,7 +525,7 @@ class TestCheckAllan:
 
 
     def test_total_check_restricted_to_the_application_band(self):
-        """The total-AV check runs over [1/application.rate_hz, horizon]: a bound too small inside that band
+        """The total-AV check runs over [1/application.filter_rate_hz, span_s]: a bound too small inside that band
         fails and is named; a shortfall only at taus below one filter step is reported (outside_band) and fails
         nothing. Sample AV 1.5x the bound's with edf 1000: its Bonferroni lower limit is ~1.25x the bound's
         (test above), a shortfall wherever it is compared."""

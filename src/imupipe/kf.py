@@ -431,9 +431,9 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
     reduction : dict or None
         The report's ``reduction`` (``accepted``: the drops, e.g. ``random_walk``, ``narrowband f0=0.56 Hz``).
     kf_rate_hz : float
-        Rate of the exported filter, Hz (1 / the KF file's dt_s; config ``application.rate_hz``).
+        Rate of the exported filter, Hz (1 / the KF file's dt_s; config ``application.filter_rate_hz``).
     horizon_s : float, optional
-        The configured outage horizon, s (config ``application.horizon_s``); default: the verification
+        The configured outage horizon, s (config ``application.outage_s``); default: the verification
         scenario's (the same number: the verify rule passes it).
 
     Returns

@@ -128,7 +128,7 @@ def _export_rate_detail(exp: Mapping) -> str:
     """The words of a KF file exported at another rate than the verified reference filter."""
     return (f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported at "
             f"{_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not cover the "
-            "exported rate (set verify.filter_rate_hz to application.rate_hz; it must divide decimate.rate_hz)")
+            "exported rate (the workflow runs both at application.filter_rate_hz; a KF file from elsewhere must be re-exported)")
 
 
 def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
@@ -371,8 +371,8 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
                if exp.get("verified_sigma_fix") is not None else "")
         out.append(f"- verified scenario: reference filter at {_num(exp['verified_filter_rate_hz'])} Hz, fixes at "
                    f"{_num(fix_rate)} Hz{sig} for {_num(exp.get('fix_s'))} s, then an outage of "
-                   f"{_num(exp.get('horizon_s'))} s (verify.filter_rate_hz, verify.fix_rate_hz, verify.fix_s, "
-                   "application.horizon_s)")
+                   f"{_num(exp.get('horizon_s'))} s (application.filter_rate_hz, verify.fix_rate_hz, "
+                   "verify.fix_s, application.outage_s)")
     def k_of(section):
         try:
             return float(_g(bound, section, "random_walk", default=0.0))
