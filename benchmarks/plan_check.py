@@ -1,0 +1,110 @@
+"""`imupipe plan` against simulation: predicted median half-widths of N, B and K vs the simulated ones.
+
+For each truth (the STIM-300-like default truth and a MEMS-like one defined here) and record length, simulate
+`--n` single-axis records (imupipe.simulate.simulate, fixed seeds), compute each record's Allan variance as the
+workflow does (imupipe.allan.allan_variance, octave grid), run the same identification call the plan uses
+(imupipe.plan.identify_intervals: fit_allan with the truth's components, 100 correlated-bootstrap replicates,
+95 %) and take the median half-width of each interval; the plan (imupipe.plan.predict, 1 record, 1 axis) predicts
+it from the expected Allan variance. Prints a markdown table (ratio = predicted / simulated median; the goal is
+0.75-1.25) and, with --figure, draws imupipe.plot.plot_plan_check.
+
+    nice python benchmarks/plan_check.py --n 50 --rate-hz 5 --hours 2 6 20 --figure docs/figures/plan_check.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from imupipe.allan import allan_variance
+from imupipe.plan import PARAMS, fit_components, half_widths, identify_intervals, predict
+from imupipe.simulate import simulate
+from imupipe.specsheet import load_spec, parse_spec
+
+#: A MEMS-class gyro (consumer/industrial MEMS levels: N 0.4 deg/sqrt(h), a 10 deg/h bias wander over 100 s, a
+#: random walk 0.2 (deg/h)/sqrt(s)); SI values come from imupipe.specsheet like any sheet.
+MEMS_LIKE = {"name": "MEMS-like gyro (plan check)",
+             "gyro": {"white": {"value": 0.4, "unit": "deg/sqrt(h)"},
+                      "gauss_markov": [{"sigma": {"value": 10.0, "unit": "deg/h"}, "T": {"value": 100.0, "unit": "s"}}],
+                      "random_walk": {"value": 0.2, "unit": "(deg/h)/sqrt(s)"}}}
+
+
+def truths():
+    return {"stim300_like": load_spec("config/truth/stim300_like.yaml").models["gyro"],
+            "mems_like": parse_spec(MEMS_LIKE, "plan_check.MEMS_LIKE").models["gyro"]}
+
+
+def simulated(model, hours, rate, n_rec, seed):
+    n = int(round(hours * 3600 * rate))
+    comps = fit_components(model)
+    out = []
+    for i in range(n_rec):
+        x = simulate(model, n, rate, rng=seed + i)
+        av = allan_variance(x, rate)
+        fit = identify_intervals([(av.tau.values, av.avar.values, av.edf.values)], n, rate, comps)
+        out.append([half_widths(fit)[p] for p in PARAMS])
+    return np.array(out)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=50, help="simulated records per cell")
+    ap.add_argument("--rate-hz", type=float, default=5.0)
+    ap.add_argument("--hours", type=float, nargs="+", default=[2.0, 6.0, 20.0])
+    ap.add_argument("--truth", nargs="+", default=None, help="truth names (default: all)")
+    ap.add_argument("--json", default=None, help="write the numbers here")
+    ap.add_argument("--figure", default=None, help="write the figure here (PNG)")
+    ap.add_argument("--load", nargs="+", default=None,
+                    help="JSON files of earlier runs (--json): draw --figure from them, no simulation")
+    a = ap.parse_args(argv)
+    models = truths()
+    names = a.truth or list(models)
+    rows = []
+    if a.load:
+        for path in a.load:
+            with open(path) as fh:
+                rows += json.load(fh)["rows"]
+        names = list(dict.fromkeys(r["truth"] for r in rows))
+        a.hours = sorted({r["hours"] for r in rows})
+    print("| truth | hours | param | predicted | simulated median | ratio | records |")
+    print("|---|---|---|---|---|---|---|")
+    for ti, name in enumerate([] if a.load else names):
+        ti = list(models).index(name)
+        model = models[name]
+        for hi, h in enumerate(a.hours):
+            t0 = time.process_time()
+            pred = predict(model, h, 1, a.rate_hz)["half_width"]
+            sims = simulated(model, h, a.rate_hz, a.n, seed=1000 * (ti + 1) + 100 * hi)
+            med = np.nanmedian(sims, axis=0)
+            for j, p in enumerate(PARAMS):
+                ratio = pred[p] / med[j]
+                n_ok = int(np.isfinite(sims[:, j]).sum())
+                rows.append({"truth": name, "hours": h, "param": p, "predicted": pred[p], "simulated": float(med[j]),
+                             "ratio": float(ratio), "n": n_ok,
+                             "q25": float(np.nanpercentile(sims[:, j], 25)),
+                             "q75": float(np.nanpercentile(sims[:, j], 75))})
+                print(f"| {name} | {h:g} | {p} | {pred[p]:.3g} | {med[j]:.3g} | {ratio:.2f} | {n_ok} |", flush=True)
+            print(f"<!-- {name} {h:g} h: {time.process_time() - t0:.0f} s CPU -->", file=sys.stderr, flush=True)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"rate_hz": a.rate_hz, "n": a.n, "rows": rows}, fh, indent=1)
+    if a.figure:
+        from imupipe.plot import plot_plan_check, save_figure
+
+        curves = {}
+        for name in names:
+            hh = np.geomspace(min(a.hours), max(a.hours), 7)
+            curves[name] = {"hours": hh, "half_width": [predict(models[name], h, 1, a.rate_hz)["half_width"]
+                                                        for h in hh]}
+        save_figure(plot_plan_check(curves, rows, sensor="gyro"), a.figure)
+    bad = [r for r in rows if not 0.75 <= r["ratio"] <= 1.25]
+    print(f"\n{len(rows) - len(bad)} of {len(rows)} within 25 %", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
