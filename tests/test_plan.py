@@ -177,3 +177,19 @@ def test_cli_bad_sources(tmp_path, capsys):
     assert code == 1 and "--rate-hz" in err
     with pytest.raises(SystemExit):  # argparse: --spec and --from exclude each other
         cli.main(["plan", "--spec", str(STIM), "--from", str(nor), "--sensor", "gyro"])
+
+
+def test_plot_plan_check_draws_predicted_lines_and_simulated_points(tmp_path):
+    from imupipe.plot import plot_plan_check, save_figure
+
+    hw = [{"N": 1e-6 / math.sqrt(h), "B": 1e-5 / math.sqrt(h), "K": float("nan")} for h in (2.0, 8.0)]
+    rows = [{"truth": "t", "hours": 2.0, "param": "N", "simulated": 7e-7, "q25": 6e-7, "q75": 8e-7}]
+    fig = plot_plan_check({"t": {"hours": [2.0, 8.0], "half_width": hw}}, rows, sensor="gyro")
+    ax_n, ax_b, ax_k = fig.axes
+    assert ax_n.get_ylabel() == "interval half-width [deg/sqrt(h)]"
+    # N: 1e-6 rad/s/sqrt(Hz) at 2 h is 1e-6 / sqrt(2) x (180/pi) x 60 deg/sqrt(h)
+    assert ax_n.lines[0].get_ydata()[0] == pytest.approx(1e-6 / math.sqrt(2) * 180 / math.pi * 60, rel=1e-9)
+    assert len(ax_b.lines) == 1 and len(ax_k.lines) == 0  # K NaN: not drawn; B has no simulated point
+    assert len(ax_n.collections) >= 1  # the error bar of the simulated point
+    save_figure(fig, tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 0

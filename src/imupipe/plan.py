@@ -235,7 +235,7 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
         for p, (_, q) in PARAMS.items():
             hw, rel = r["half_width"][p], r["relative"][p]
             cells.append(f"{float(from_si(hw, units[q], q, sensor)):.3g}" if np.isfinite(hw) else "-")
-            cells.append(f"{100 * rel:.1f}" if np.isfinite(rel) else "-")
+            cells.append(f"{100 * rel:.3g}" if np.isfinite(rel) else "-")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

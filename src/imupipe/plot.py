@@ -1083,6 +1083,11 @@ def plot_plan_check(predicted: dict, simulated=(), *, sensor: str, units: dict |
                 ax.errorbar(h, med, yerr=[med - lo, hi - med], fmt="o", color=colour, ms=5, capsize=3,
                             label=f"{label}: simulated median (IQR)")
         _axes_title(ax, name)
-        _finish_loglog(ax, "record length [h]", f"interval half-width [{units[q]}]", legend_loc="best")
+        if ax.lines:
+            _finish_loglog(ax, "record length [h]", f"interval half-width [{units[q]}]", legend_loc="best")
+        else:  # the model has no such term: nothing to predict
+            ax.text(0.5, 0.5, f"no {p} in the model", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xlabel("record length [h]")
+            ax.set_ylabel(f"interval half-width [{units[q]}]")
     fig.suptitle(title or f"{sensor}: expected interval half-width against record length (imupipe plan)")
     return fig
