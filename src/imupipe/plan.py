@@ -31,8 +31,8 @@ of a record to first order (the interval's ends are smooth functions of the AV c
 median is close to their mean for :math:`\nu_k \gg 1`); benchmarks/plan_check.py checks it against the median
 over simulated records and docs/performance.md gives the result.
 
-The fit allows the components the model has (N, GM, K, flicker, quantization where non-zero), one GM term, and
-runs no component selection: the plan answers how well the records pin down the model's parameters, not which
+The fit allows the components the model has (N, GM, K, flicker, quantization where non-zero; a pilot's spectral
+lines and ramp are left out of the plan), one GM term, and runs no component selection: the plan answers how well the records pin down the model's parameters, not which
 ones the application keeps (that depends on the filter, :func:`imupipe.identify.select_components`).
 
 References: W. J. Riley, NIST SP 1065 (2008), section 5.2; C. A. Greenhall and W. J. Riley, "Uncertainty of
@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -144,6 +145,8 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
     where the model has no such term)}``."""
     records = _check_positive(records, "--records", integer=True)
     axes = _check_positive(axes, "--axes", integer=True)
+    # spectral lines and a ramp are no part of the plan's fit (lines are modelled by the bound, a ramp is no noise)
+    model = replace(model, narrowband=(), ramp=0.0)
     tau, avar, edf, n = expected_allan(model, hours, record_rate_hz)
     comps = fit_components(model)
     fit = identify_intervals([(tau, avar, edf)] * (records * axes), n, record_rate_hz, comps, n_boot=n_boot,
