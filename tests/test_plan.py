@@ -195,3 +195,18 @@ def test_plot_plan_check_draws_predicted_lines_and_simulated_points(tmp_path):
     assert len(ax_n.collections) >= 1  # the error bar of the simulated point
     save_figure(fig, tmp_path / "p.png")
     assert (tmp_path / "p.png").stat().st_size > 0
+
+
+def test_format_table_marks_confounded_cells():
+    from imupipe.plan import format_table
+
+    row = {"hours": 6.0, "records": 1, "half_width": {"N": 1e-6, "B": 1e-6, "K": float("nan")},
+           "relative": {"N": 0.01, "B": 0.5, "K": float("nan")},
+           "confounded": {"N": False, "B": True, "K": False}}
+    units = {"white": "deg/sqrt(h)", "gm_sigma": "deg/h", "random_walk": "(deg/h)/sqrt(s)"}
+    text = format_table([row], units, "gyro")
+    cells = text.splitlines()[2].split("|")
+    assert cells[4].strip() == "1" and cells[6].strip() == "50 ~" and cells[8].strip() == "-"
+    # 1e-6 rad/s is 1e-6 x 180/pi x 3600 deg/h
+    assert float(cells[5]) == pytest.approx(1e-6 * 180 / math.pi * 3600, rel=1e-3)
+    assert "~ the interval on the expected data is one-sided or confounded" in text
