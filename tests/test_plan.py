@@ -210,3 +210,19 @@ def test_format_table_marks_confounded_cells():
     # 1e-6 rad/s is 1e-6 x 180/pi x 3600 deg/h; printed to 3 digits: within half a unit of the third, <= 5e-3
     assert float(cells[5]) == pytest.approx(1e-6 * 180 / math.pi * 3600, rel=5e-3)
     assert "~ the interval on the expected data is one-sided or confounded" in text
+
+
+def test_plan_check_benchmark_runs(tmp_path, capsys):
+    """benchmarks/plan_check.py on a tiny case (2 sets of a half-hour record at 1 Hz), then its --load / --figure
+    path: it must not rot (no accuracy claim at this size)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("plan_check", ROOT / "benchmarks" / "plan_check.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    js, fig = tmp_path / "c.json", tmp_path / "c.png"
+    assert mod.main(["--n", "2", "--rate-hz", "1", "--hours", "0.5", "--truth", "mems_like", "--json", str(js)]) == 0
+    assert mod.main(["--load", str(js), "--figure", str(fig)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("| mems_like | 0.5 | 1 |") == 6  # 3 parameters, printed by the run and by --load
+    assert fig.stat().st_size > 0
