@@ -124,12 +124,12 @@ def identify_intervals(curves, n_samples: int, record_rate_hz: float, components
 
 
 def half_widths(fit) -> dict:
-    """``{"N" | "B" | "K": (upper - lower) / 2}`` of `fit`'s intervals (SI; NaN where the fit has no interval of
-    that parameter, e.g. B without a GM term)."""
+    """``{"N" | "B" | "K": (upper - lower) / 2}`` of `fit`'s intervals (SI; inf where the upper end is unbounded,
+    NaN where the fit has no interval of that parameter, e.g. B without a GM term)."""
     out = {}
     for p, (name, _) in PARAMS.items():
         lo, hi = fit.intervals.get(name, (np.nan, np.nan))
-        out[p] = float((hi - lo) / 2.0) if np.isfinite(lo) and np.isfinite(hi) else float("nan")
+        out[p] = float((hi - lo) / 2.0) if np.isfinite(lo) and not np.isnan(hi) else float("nan")
     return out
 
 
@@ -253,9 +253,10 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
         cells = [f"{r['hours']:g}", f"{r['records']}"]
         for p, (_, q) in PARAMS.items():
             hw, rel = r["half_width"][p], r["relative"][p]
-            cells.append(f"{float(from_si(hw, units[q], q, sensor)):.3g}" if np.isfinite(hw) else "-")
+            cells.append("unbounded" if hw == np.inf else
+                         f"{float(from_si(hw, units[q], q, sensor)):.3g}" if np.isfinite(hw) else "-")
             mark = " ~" if r.get("confounded", {}).get(p) else ""
-            cells.append(f"{100 * rel:.3g}{mark}" if np.isfinite(rel) else "-")
+            cells.append(f"{100 * rel:.3g}{mark}" if not np.isnan(rel) else "-")
         lines.append("| " + " | ".join(cells) + " |")
     if any(any(r.get("confounded", {}).values()) for r in rows):
         lines.append("\n~ the interval on the expected data is one-sided or confounded (GM and random walk trade "
