@@ -5,8 +5,9 @@ For each truth (the STIM-300-like default truth and a MEMS-like one defined here
 workflow does (imupipe.allan.allan_variance, octave grid), run the same identification call the plan uses
 (imupipe.plan.identify_intervals: fit_allan with the truth's components, 100 correlated-bootstrap replicates,
 95 %) and take the median half-width of each interval; the plan (imupipe.plan.predict, 1 record, 1 axis) predicts
-it from the expected Allan variance. Prints a markdown table (ratio = predicted / simulated median; the goal is
-0.75-1.25), the column ~ marking cells whose interval the plan finds one-sided or confounded; with --figure it
+it from the expected Allan variance, and where that fit finds an interval one-sided or confounded (column ~) from
+the median over --replicates replicate AV curves. Prints a markdown table (ratio = predicted / simulated median,
+the goal 0.75-1.25; the expected-curve value beside it); with --figure it
 draws imupipe.plot.plot_plan_check. One truth per process (two cores), then the table and figure of both:
 
     nice python benchmarks/plan_check.py --n 50 --truth stim300_like --json stim.json
@@ -60,12 +61,28 @@ def simulated(model, hours, rate, n_rec, seed, records=1):
 
 
 def _print(rows):
-    print("| truth | hours | records | param | predicted | ~ | simulated median (IQR) | ratio | sets |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| truth | hours | records | param | ~ | expected curve (ratio) | predicted | simulated median (IQR) | "
+          "ratio | sets |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['truth']} | {r['hours']:g} | {r['records']} | {r['param']} | {r['predicted']:.3g} | "
-              f"{'~' if r.get('confounded') else ''} | {r['simulated']:.3g} ({r['q25']:.3g}-{r['q75']:.3g}) | "
-              f"{r['ratio']:.2f} | {r['n']} |", flush=True)
+        e = r.get("expected", r["predicted"])
+        print(f"| {r['truth']} | {r['hours']:g} | {r['records']} | {r['param']} | "
+              f"{'~' if r.get('confounded') else ''} | {e:.3g} ({e / r['simulated']:.2f}) | {r['predicted']:.3g} | "
+              f"{r['simulated']:.3g} ({r['q25']:.3g}-{r['q75']:.3g}) | {r['ratio']:.2f} | {r['n']} |", flush=True)
+
+
+def _predict_rows(models, rows, rate, replicates):
+    """The plan's prediction for each (truth, hours, records) of `rows`: the expected-curve value (`expected`),
+    the plan's value with `replicates` for ~ cells (`predicted`, `ratio`) and the ~ flag (`confounded`)."""
+    for key in dict.fromkeys((r["truth"], r["hours"], r["records"]) for r in rows):
+        p0 = predict(models[key[0]], key[1], key[2], rate)
+        pr = predict(models[key[0]], key[1], key[2], rate, replicates=replicates) if replicates else p0
+        for r in rows:
+            if (r["truth"], r["hours"], r["records"]) == key:
+                r["confounded"] = bool(p0["confounded"][r["param"]])
+                r["expected"] = p0["half_width"][r["param"]]
+                r["predicted"] = pr["half_width"][r["param"]]
+                r["ratio"] = r["predicted"] / r["simulated"]
 
 
 def main(argv=None):
@@ -74,6 +91,8 @@ def main(argv=None):
     ap.add_argument("--rate-hz", type=float, default=5.0)
     ap.add_argument("--hours", type=float, nargs="+", default=[2.0, 6.0, 20.0])
     ap.add_argument("--records", type=int, default=1, help="records pooled in each simulated set (and the plan)")
+    ap.add_argument("--replicates", type=int, default=20,
+                    help="the plan's replicates for one-sided or confounded cells (imupipe.plan.predict)")
     ap.add_argument("--truth", nargs="+", default=None, help="truth names (default: stim300_like mems_like)")
     ap.add_argument("--json", default=None, help="write the numbers here")
     ap.add_argument("--figure", default=None, help="write the figure here (PNG)")
@@ -92,11 +111,7 @@ def main(argv=None):
             rows += [{"records": 1, **r} for r in doc["rows"]]
         names = list(dict.fromkeys(r["truth"] for r in rows))
         a.hours = sorted({r["hours"] for r in rows})
-        for key in dict.fromkeys((r["truth"], r["hours"], r["records"]) for r in rows):
-            pr = predict(models[key[0]], key[1], key[2], a.rate_hz)
-            for r in rows:
-                if (r["truth"], r["hours"], r["records"]) == key:
-                    r["confounded"] = bool(pr["confounded"][r["param"]])
+        _predict_rows(models, rows, a.rate_hz, a.replicates)
         print(f"records at {a.rate_hz:g} Hz; ~: the plan marks the interval one-sided or confounded")
         _print(rows)
     for name in [] if a.load else names:
@@ -104,17 +119,15 @@ def main(argv=None):
         model = models[name]
         for hi, h in enumerate(a.hours):
             t0 = time.process_time()
-            pr = predict(model, h, a.records, a.rate_hz)
-            pred = pr["half_width"]
             sims = simulated(model, h, a.rate_hz, a.n, seed=1000 * (ti + 1) + 100 * hi, records=a.records)
             med = np.nanmedian(sims, axis=0)
             new = []
             for j, p in enumerate(PARAMS):
-                new.append({"truth": name, "hours": h, "records": a.records, "param": p, "predicted": pred[p],
-                            "confounded": bool(pr["confounded"][p]), "simulated": float(med[j]),
-                            "ratio": float(pred[p] / med[j]), "n": int(np.isfinite(sims[:, j]).sum()),
+                new.append({"truth": name, "hours": h, "records": a.records, "param": p, "simulated": float(med[j]),
+                            "n": int(np.isfinite(sims[:, j]).sum()),
                             "q25": float(np.nanpercentile(sims[:, j], 25)),
                             "q75": float(np.nanpercentile(sims[:, j], 75))})
+            _predict_rows(models, new, a.rate_hz, a.replicates)
             _print(new)
             rows += new
             print(f"<!-- {name} {h:g} h: {time.process_time() - t0:.0f} s CPU -->", file=sys.stderr, flush=True)
@@ -127,8 +140,8 @@ def main(argv=None):
         curves = {}
         for name in names:
             hh = np.geomspace(min(a.hours), max(a.hours), 7)
-            curves[name] = {"hours": hh, "half_width": [predict(models[name], h, 1, a.rate_hz)["half_width"]
-                                                        for h in hh]}
+            curves[name] = {"hours": hh, "half_width": [predict(models[name], h, 1, a.rate_hz,
+                                                                replicates=a.replicates)["half_width"] for h in hh]}
         single = [r for r in rows if r.get("records", 1) == 1]  # the figure: one record per set
         save_figure(plot_plan_check(curves, single, sensor="gyro"), a.figure)
     for flag in (False, True):

@@ -221,8 +221,22 @@ def test_plan_check_benchmark_runs(tmp_path, capsys):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     js, fig = tmp_path / "c.json", tmp_path / "c.png"
-    assert mod.main(["--n", "2", "--rate-hz", "1", "--hours", "0.5", "--truth", "mems_like", "--json", str(js)]) == 0
-    assert mod.main(["--load", str(js), "--figure", str(fig)]) == 0
+    assert mod.main(["--n", "2", "--rate-hz", "1", "--hours", "0.5", "--truth", "mems_like", "--json", str(js),
+                     "--replicates", "2"]) == 0
+    assert mod.main(["--load", str(js), "--figure", str(fig), "--replicates", "2"]) == 0
     out = capsys.readouterr().out
     assert out.count("| mems_like | 0.5 | 1 |") == 6  # 3 parameters, printed by the run and by --load
     assert fig.stat().st_size > 0
+
+
+def test_replicates_replace_a_confounded_cell_by_a_median():
+    """The STIM-300 spec's GM at 2 h (T = 1500 s on the end of the T search): confounded on the expected data, so
+    `replicates` gives the median over that many replicate curve sets; a white noise alone is never confounded and
+    runs no replicate."""
+    model = load_spec(STIM).models["gyro"]
+    r = predict(model, 2.0, 1, 1.0, 1, replicates=3, n_boot=20)
+    assert r["confounded"]["B"] and r["method"] == "median over 3 replicate Allan-variance curve sets"
+    assert all(v > 0 for v in r["half_width"].values())
+    assert predict(_white(), 1.0, 1, 1.0, 1, replicates=3, n_boot=20)["method"] == "expected Allan variance"
+    with pytest.raises(ValueError, match="--replicates"):
+        predict(_white(), 1.0, 1, 1.0, 1, replicates=-1)
