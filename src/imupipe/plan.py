@@ -37,8 +37,9 @@ generator of the fit's own bootstrap), each fitted like a record. benchmarks/pla
 the median over simulated records; docs/performance.md gives the result.
 
 The fit allows the components the model has (N, GM, K, flicker, quantization where non-zero; a pilot's spectral
-lines and ramp are left out of the plan), one GM term, and runs no component selection: the plan answers how well the records pin down the model's parameters, not which
-ones the application keeps (that depends on the filter, :func:`imupipe.identify.select_components`).
+lines and ramp are left out of the plan), one GM term, and runs no component selection: the plan answers how
+well the records pin down the model's parameters, not which ones the application keeps (that depends on the
+filter, :func:`imupipe.identify.select_components`).
 
 References: W. J. Riley, NIST SP 1065 (2008), section 5.2; C. A. Greenhall and W. J. Riley, "Uncertainty of
 stability variances based on finite differences", Proc. 35th PTTI (2003).
@@ -53,7 +54,7 @@ from dataclasses import replace
 import numpy as np
 
 __all__ = ["PARAMS", "expected_allan", "fit_components", "identify_intervals", "half_widths", "predict",
-           "plan_table", "parse_target", "shortest_plan", "load_model", "format_table"]
+           "plan_table", "parse_target", "shortest_plan", "load_model", "format_table", "add_subcommand"]
 
 #: Plan parameter -> fit_allan parameter name and the unit key of a spec sheet (imupipe.specsheet.display_units).
 PARAMS = {"N": ("white", "white"), "B": ("gm_sigma_1", "gm_sigma"), "K": ("random_walk", "random_walk")}
