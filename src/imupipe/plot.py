@@ -11,6 +11,7 @@ function                               what it shows
 :func:`plot_allan_components`          Figure 6: sample ADEVs, identified and bound components
 :func:`plot_inflation_effect`          Figure 7: PSD change when one parameter is inflated (Table 3)
 :func:`plot_inflation_steps`           Figure 8: the hand inflation, model after each phase
+:func:`plot_plan_check`                `imupipe plan`: predicted half-widths of N, B, K against record length
 =====================================  ==============================================================
 
 Conventions (docs/architecture.md): data and models are SI (gyro rad/s, accel m/s^2); every PSD is
