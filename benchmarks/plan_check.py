@@ -91,7 +91,7 @@ def main(argv=None):
     ap.add_argument("--rate-hz", type=float, default=5.0)
     ap.add_argument("--hours", type=float, nargs="+", default=[2.0, 6.0, 20.0])
     ap.add_argument("--records", type=int, default=1, help="records pooled in each simulated set (and the plan)")
-    ap.add_argument("--replicates", type=int, default=20,
+    ap.add_argument("--replicates", type=int, default=50,
                     help="the plan's replicates for one-sided or confounded cells (imupipe.plan.predict)")
     ap.add_argument("--truth", nargs="+", default=None, help="truth names (default: stim300_like mems_like)")
     ap.add_argument("--json", default=None, help="write the numbers here")

@@ -314,8 +314,8 @@ def add_subcommand(sub) -> None:
     p.add_argument("--records", type=int, nargs="+", default=[1, 5], help="numbers of records")
     p.add_argument("--axes", type=int, default=3, help="axes pooled per record (default 3; 1 when the pooling "
                    "test splits the axes)")
-    p.add_argument("--replicates", type=int, default=20, help="where an interval is one-sided or confounded, the "
-                   "median over this many replicate Allan-variance curve sets (default 20; 0: the expected curve "
+    p.add_argument("--replicates", type=int, default=50, help="where an interval is one-sided or confounded, the "
+                   "median over this many replicate Allan-variance curve sets (default 50; 0: the expected curve "
                    "only, fast)")
     p.add_argument("--target", help="PARAM:FRACTION, e.g. K:0.25 (K within +/-25 %%): the shortest plan of the "
                    "table that meets it")
