@@ -51,8 +51,6 @@ import math
 import warnings
 from dataclasses import replace
 
-import numpy as np
-
 __all__ = ["PARAMS", "expected_allan", "fit_components", "identify_intervals", "half_widths", "predict",
            "plan_table", "parse_target", "shortest_plan", "load_model", "format_table", "add_subcommand"]
 
@@ -82,6 +80,8 @@ def expected_allan(model, hours: float, record_rate_hz: float, taus="octave"):
     `taus`), :math:`\sigma^2(\tau)` of the model (u^2, :meth:`imupipe.models.NoiseModel.avar`), the Greenhall-Riley
     edf at the model's noise type :math:`\alpha = \mathrm{clip}(\mathrm{round}(-1 - d\ln\sigma^2/d\ln\tau), -2, 0)`
     (:func:`imupipe.allan.edf_greenhall`, d = 2, overlapping) and the record length in samples."""
+    import numpy as np
+
     from imupipe.allan import edf_greenhall, tau_grid
 
     hours = _check_positive(hours, "--hours")
@@ -132,6 +132,8 @@ def identify_intervals(curves, n_samples: int, record_rate_hz: float, components
 def half_widths(fit) -> dict:
     """``{"N" | "B" | "K": (upper - lower) / 2}`` of `fit`'s intervals (SI; inf where the upper end is unbounded,
     NaN where the fit has no interval of that parameter, e.g. B without a GM term)."""
+    import numpy as np
+
     out = {}
     for p, (name, _) in PARAMS.items():
         lo, hi = fit.intervals.get(name, (np.nan, np.nan))
@@ -155,6 +157,8 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
     instead the median over `replicates` draws of the plan's curves from their sampling distribution (each curve
     :func:`imupipe.avcov.correlated_replicates`: chi-squared marginals, the exact covariance of
     :func:`imupipe.avcov.avar_covariance`), each fitted like a record (`replicates` fits more)."""
+    import numpy as np
+
     records = _check_positive(records, "--records", integer=True)
     axes = _check_positive(axes, "--axes", integer=True)
     # spectral lines and a ramp are no part of the plan's fit (lines are modelled by the bound, a ramp is no noise)
@@ -232,6 +236,8 @@ def parse_target(text: str) -> tuple:
 def shortest_plan(rows: list, target: tuple):
     """The row of `rows` (:func:`plan_table`) with the least total recording time (hours x records; ties: fewer
     records) whose relative half-width of ``target[0]`` is at most ``target[1]``; None when none is."""
+    import numpy as np
+
     p, f = target
     ok = [r for r in rows if np.isfinite(r["relative"][p]) and r["relative"][p] <= f]
     if not ok:
@@ -276,6 +282,8 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
     """A markdown table of :func:`plan_table` rows: hours, records, then per parameter the half-width in `units`
     (the spec sheet's) and relative to the model's value (%), marked ``~`` where the interval is one-sided or
     confounded (:func:`predict`'s ``confounded``), with a footnote."""
+    import numpy as np
+
     from imupipe.units import from_si
 
     head = ["hours", "records"]
