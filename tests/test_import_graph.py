@@ -33,7 +33,7 @@ LAYERS = [
      "summary"},
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
-    {"bound", "kf", "kalibr", "biasinit"},
+    {"bound", "kf", "kalibr", "biasinit", "plan"},
     {"verify", "plot"},
     {"stages"},
     {"api", "cli", "__main__"},

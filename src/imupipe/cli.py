@@ -575,6 +575,9 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--read", action="store_true", help="also read every record as a run reads it (the ingest "
                    "stage, in a scratch folder removed afterwards): values, timestamps, units and gravity checked")
     c.set_defaults(func=_cmd_check)
+
+    from imupipe.plan import add_subcommand  # imupipe plan: the logic in imupipe.plan
+    add_subcommand(sub)
     return p
 
 

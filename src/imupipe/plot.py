@@ -11,6 +11,7 @@ function                               what it shows
 :func:`plot_allan_components`          Figure 6: sample ADEVs, identified and bound components
 :func:`plot_inflation_effect`          Figure 7: PSD change when one parameter is inflated (Table 3)
 :func:`plot_inflation_steps`           Figure 8: the hand inflation, model after each phase
+:func:`plot_plan_check`                `imupipe plan`: predicted half-widths of N, B, K against record length
 =====================================  ==============================================================
 
 Conventions (docs/architecture.md): data and models are SI (gyro rad/s, accel m/s^2); every PSD is
@@ -55,6 +56,7 @@ __all__ = [
     "plot_allan_components",
     "plot_inflation_effect",
     "plot_inflation_steps",
+    "plot_plan_check",
     "plot_psd_bound",
     "save_figure",
     "table3_model",
@@ -1024,4 +1026,69 @@ def plot_verification(results: dict, unit: str | None = None, scale: float = 1.0
     if title:
         ax.set_title(title)
     ax.legend(loc="upper left", fontsize="small")
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# recording plan (imupipe.plan)
+# ---------------------------------------------------------------------------------------------
+def plot_plan_check(predicted: dict, simulated=(), *, sensor: str, units: dict | None = None,
+                    title: str | None = None) -> "Figure":
+    r"""The plan's predicted interval half-widths of N, B (GM sigma) and K against record length, one panel each,
+    with simulated medians as points (their inter-quartile range as bars).
+
+    Parameters
+    ----------
+    predicted : dict
+        ``{label: {"hours": array (h), "half_width": [{"N", "B", "K"} (SI), one per hour]}}``, e.g. one label per
+        truth (:func:`imupipe.plan.predict` at each length).
+    simulated : sequence of dict
+        Rows ``{"truth": label, "hours", "param": "N" | "B" | "K", "simulated", "q25", "q75"}`` (SI), as
+        benchmarks/plan_check.py writes them; may be empty.
+    sensor : {"gyro", "accel"}
+    units : dict, optional
+        Display unit per quantity ``white``, ``gm_sigma``, ``random_walk`` (default: deg/sqrt(h), deg/h,
+        (deg/h)/sqrt(s) for a gyro; m/s/sqrt(h), mg, m/s^2/sqrt(s) for an accelerometer).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from imupipe.units import from_si
+
+    _check_sensor(sensor)
+    if not predicted:
+        raise ValueError("plot_plan_check needs at least one predicted curve")
+    units = units or ({"white": "deg/sqrt(h)", "gm_sigma": "deg/h", "random_walk": "(deg/h)/sqrt(s)"}
+                      if sensor == "gyro" else
+                      {"white": "m/s/sqrt(h)", "gm_sigma": "mg", "random_walk": "m/s^2/sqrt(s)"})
+    params = (("N", "white", "white noise N"), ("B", "gm_sigma", "GM sigma B"), ("K", "random_walk",
+                                                                                  "random walk K"))
+    fig, axes = _new_figure(1, 3, figsize=(13.0, 4.6))
+    for j, (p, q, name) in enumerate(params):
+        ax = axes[0, j]
+        for i, (label, cur) in enumerate(predicted.items()):
+            colour = f"C{i}"
+            hw = np.array([h[p] for h in cur["half_width"]], dtype=float)
+            ok = np.isfinite(hw)
+            if ok.any():
+                y = np.array([float(from_si(v, units[q], q, sensor)) for v in hw[ok]])
+                ax.plot(np.asarray(cur["hours"], dtype=float)[ok], y, color=colour, lw=1.4,
+                        label=f"{label}: predicted")
+            pts = [r for r in simulated if r["truth"] == label and r["param"] == p and np.isfinite(r["simulated"])]
+            if pts:
+                h = np.array([r["hours"] for r in pts], dtype=float)
+                conv = [[float(from_si(r[k], units[q], q, sensor)) for r in pts] for k in ("simulated", "q25", "q75")]
+                med, lo, hi = (np.array(c) for c in conv)
+                ax.errorbar(h, med, yerr=[med - lo, hi - med], fmt="o", color=colour, ms=5, capsize=3,
+                            label=f"{label}: simulated median (IQR)")
+        _axes_title(ax, name)
+        if ax.lines:
+            _finish_loglog(ax, "record length [h]", f"interval half-width [{units[q]}]", legend_loc="best")
+        else:  # the model has no such term: nothing to predict
+            ax.text(0.5, 0.5, f"no {p} in the model", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xlabel("record length [h]")
+            ax.set_ylabel(f"interval half-width [{units[q]}]")
+    fig.suptitle(title or f"{sensor}: expected interval half-width against record length (imupipe plan)")
     return fig
