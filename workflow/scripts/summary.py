@@ -14,7 +14,8 @@ from pathlib import Path
 from imupipe.io import read_yaml, run_job, write_text_atomic
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
-CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans")
+CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans",
+              "events")
 
 
 def _sensor_spec(path: str, data, sensors: list, specs: list):

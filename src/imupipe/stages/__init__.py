@@ -7,6 +7,7 @@ so the two cannot disagree (tests/test_orchestration_parity.py).
 
 Rule -> stage function:
 
+- ``outliers`` -> :func:`imupipe.stages.outliers.outliers_stage`
 - ``stationarity`` -> :func:`imupipe.stages.stationarity.stationarity_stage`
 - ``identify`` -> :func:`imupipe.stages.identify.identification_stage`
 - ``bound_axis`` -> :func:`imupipe.stages.bound.axis_bound_stage`
@@ -20,4 +21,4 @@ The modules are imported on use (``from imupipe.stages import identify``): impor
 nothing heavy.
 """
 
-__all__ = ["bound", "contract", "identify", "kf", "stationarity", "verify"]
+__all__ = ["bound", "contract", "identify", "kf", "outliers", "stationarity", "verify"]
