@@ -182,3 +182,55 @@ def test_quantised_live_records_give_no_stuck_span(rng, correlated):
     assert out["n_stuck_spans"] == 0, out["spans"][:3]
     assert out["min_run_samples"] < RATE  # the derivation, not the floor, decided
     assert stuck_spans(x, RATE)["n_stuck_spans"] == 0
+
+
+class TestEventsInTheStage:
+    """imupipe.stages.outliers: the events of the axis in the report, and what events.policy does with them."""
+
+    @staticmethod
+    def _record(seed=2):
+        # white + GM + random walk, 2000 s at 100 Hz, a 3.4 mg step at 1234.5 s (accel, m/s^2)
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+
+        x = simulate(NoiseModel(white=2e-3, gauss_markov=((3e-4, 100.0),), random_walk=3e-6), 200_000, 100.0,
+                     rng=seed)
+        x[123_450:] += 3.4e-3 * 9.80665
+        return x
+
+    def test_warn_reports_the_step_and_keeps_the_record(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        out, x_out = outliers_stage(self._record(), 100.0, units="m/s^2", dataset="rec", sensor="accel", axis="x")
+        assert x_out is None  # warn + warn: the modelling stages read the series as recorded
+        [ev] = out["events"]
+        assert (ev["dataset"], ev["sensor"], ev["axis"], ev["kind"]) == ("rec", "accel", "x", "step")
+        assert abs(ev["time_s"] - 1234.5) <= 1.0 and ev["units"] == "m/s^2" and ev["display"]["unit"] == "mg"
+        assert ev["policy"] == "warn" and out["events_segment"] == {"start_s": 0.0, "stop_s": 2000.0, "fraction": 1.0}
+
+    def test_exclude_returns_the_longest_event_free_segment(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        x = self._record()
+        out, x_out = outliers_stage(x, 100.0, units="m/s^2", sensor="accel", events={"policy": "exclude"})
+        seg = out["events_segment"]
+        # the step at 1234.5 s: the longest side is the first 1234.5 s less the 1 s guard (within the 1 s location)
+        assert seg["start_s"] == 0.0 and abs(seg["stop_s"] - 1233.5) <= 1.0
+        np.testing.assert_array_equal(x_out, x[: int(round(seg["stop_s"] * 100.0))])
+        with pytest.raises(ValueError, match=r"leaves 12\d\d s .* shorter than the 1800 s"):
+            outliers_stage(x, 100.0, units="m/s^2", events={"policy": "exclude"}, min_segment_s=1800.0)
+
+    def test_split_is_refused_with_the_alternatives(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        with pytest.raises(ValueError, match="'split' is not available.*'exclude'.*'warn'"):
+            outliers_stage(np.zeros(1000), 100.0, units="m/s^2", events={"policy": "split"})
+
+    def test_summary_flags_each_event(self):
+        from imupipe.stages.outliers import outliers_stage
+        from imupipe.summary import flags_of
+
+        out, _ = outliers_stage(self._record(), 100.0, units="m/s^2", dataset="rec", sensor="accel", axis="x")
+        flags = [f for f in flags_of("accel", bound={"events": out["events"]}) if f.check == "event"]
+        assert len(flags) == 1 and flags[0].where == "rec/accel/x"
+        assert flags[0].detail.startswith("mean step 0.033") and "mg) at 123" in flags[0].detail

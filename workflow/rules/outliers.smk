@@ -6,7 +6,7 @@
 # FLAGged in the summary) or exclude (the cleaned series is the longest event-free segment); split is refused.
 
 OUTLIER_POLICY = config["outliers"]["policy"]
-EVENTS = {**config.get("events", None) or {}}
+EVENTS = dict(config.get("events") or {})
 EVENT_POLICY = EVENTS.get("policy", "warn")
 if EVENT_POLICY == "split":
     raise ValueError("config key events.policy = 'split' is not available yet: the records of a run are fixed by "
