@@ -125,8 +125,8 @@ class TestKnockAndTilt:
 class TestExclude:
     def test_random_walk_of_the_event_free_segment_matches_the_record_without_the_step(self):
         # 10 h at 10 Hz, the random walk dominating the Allan variance beyond ~100 s; the step at 7 h multiplies
-        # the random walk identified on the whole record (by ~40 on this seed); the longest event-free segment (the first
-        # 7 h) gives a K inside the 95 % interval of the record without the step
+        # the random walk identified on the whole record (by ~40 on this seed); the longest event-free segment
+        # (the first 7 h) gives a K inside the 95 % interval of the record without the step
         rate, n = 10.0, 360_000
         x = simulate(TRUTH, n, rate, rng=31)
         y, i0 = _with_events(x, rate, t_step_s=25_200.0)

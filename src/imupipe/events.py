@@ -17,9 +17,9 @@ covariance matrix; with :math:`\theta_r = \sum_k \lambda_k^r` the power transfor
 
 makes :math:`y_j` nearly Gaussian (Jensen & Solomon 1972 [1]_; h = 1/3, the Wilson-Hilferty cube root, for
 white noise, where :math:`E_j = \sigma^2\chi^2_{w-1}`; h is negative when a few eigenvalues dominate, e.g. a
-short GM, and then :math:`-E_j^h` is used, :math:`\ln E_j` for :math:`|h| < 0.02`: each increasing in E). The covariance is the Toeplitz matrix of the blocks' mean
-lag products (up to :data:`ACOV_BLOCKS` blocks below the threshold of a first pass with h = 1/3, so a burst does
-not shape it). The centre and scale of :math:`y` are the median and :math:`1.4826\,\mathrm{MAD}` of the K blocks
+short GM, and then :math:`-E_j^h` is used, :math:`\ln E_j` for :math:`|h| < 0.02`: each increasing in E).
+The covariance is the Toeplitz matrix of the blocks' mean lag products (up to :data:`ACOV_BLOCKS` blocks
+below the threshold of a first pass with h = 1/3, so a burst does not shape it). The centre and scale of :math:`y` are the median and :math:`1.4826\,\mathrm{MAD}` of the K blocks
 (robust: a knock changes a few blocks). A block is energetic when
 
 .. math:: z_j = \frac{y_j - \mathrm{med}(y)}{1.4826\,\mathrm{MAD}(y)} > z_b,
@@ -78,7 +78,9 @@ the first differences: the CUSUM error on white noise is of order :math:`\sigma_
 windows see less of the slow noise). The size is :math:`\hat\delta = D_{m^*}(\hat t_0)` at the scale
 :math:`m^*` of smallest :math:`\hat\sigma_D` whose windows fit between the neighbouring events and the record's
 ends (chosen from the noise alone, not from D, so there is no selection bias), with the interval
-:math:`\hat\delta \pm t_{\nu, 1-(1-c)/2}\,\hat\sigma_D(m^*)` at confidence c.
+:math:`\hat\delta \pm t_{\nu, 1-(1-c)/2}\,\hat\sigma_D(m^*)` at confidence c. When that interval holds 0
+while the detecting scale m saw a shift, the mean moved for less than :math:`m^*` only: the event is a
+``transient`` (an excursion), sized at m with m's interval.
 
 Before the step scan, each burst span (widened by a tenth of a burst window each side) is replaced, its first half
 by the median of the samples before it and its second half by that of the samples after it: a 17 deg/s knock of
@@ -121,10 +123,11 @@ _DISPLAY = {
 
 
 def display_unit(sensor: str | None, kind: str) -> tuple[str, float] | None:
-    """(unit, SI per unit) in which an event of ``kind`` ('step' or 'burst') of ``sensor`` is shown, or None."""
+    """(unit, SI per unit) in which an event of ``kind`` ('step', 'transient' or 'burst') of ``sensor`` is shown,
+    or None."""
     if sensor not in _DISPLAY:
         return None
-    return _DISPLAY[sensor][0 if kind == "step" else 1]
+    return _DISPLAY[sensor][1 if kind == "burst" else 0]
 
 
 def _t_isf(p: float, nu: float) -> float:
@@ -298,9 +301,10 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
     Returns
     -------
     dict
-        ``steps``: list of ``{index, size, size_low, size_high, sigma_d, z, scale, size_scale}`` (sample index of
-        the first sample after the step; size and interval u; sigma_D at the size scale, u; z = |D|/sigma_D at
-        the detecting scale; scales in samples); ``scales``: per scale ``{m, sigma_d, threshold_z, positions}``.
+        ``steps``: list of ``{index, stop, kind, size, size_low, size_high, sigma_d, z, scale, size_scale}``
+        (index: the first sample after the step; stop: a transient's end at the latest, else the index; kind
+        ``step`` or ``transient``; size and interval u; sigma_D at the size scale, u; z = |D|/sigma_D at the
+        detecting scale; scales in samples); ``scales``: per scale ``{m, sigma_d, threshold_z, positions}``.
     """
     x = np.asarray(x, dtype=np.float64).ravel()
     n = x.size
@@ -362,9 +366,16 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         ms = row["m"] if fits else min(m, max(1, room))
         size = float(_d_at(cs, t0, ms)) if ms >= 1 and t0 - ms >= 0 and t0 + ms <= n else float(delta)
         q = _t_isf((1.0 - confidence) / 2.0, row["nu"])
+        kind, stop = "step", t0
+        if abs(size) <= q * row["sigma_d"] and ms != m and t0 - m >= 0 and t0 + m <= n:
+            # not a lasting shift: the mean moved over the detecting window only (an excursion shorter than the
+            # size window); sized at the detecting scale
+            kind, row, stop, ms = "transient", sd_of[m], min(n, t0 + ms), m
+            size = float(_d_at(cs, t0, m))
+            q = _t_isf((1.0 - confidence) / 2.0, row["nu"])
         steps.append({"index": int(t0), "size": size, "size_low": size - q * row["sigma_d"],
                       "size_high": size + q * row["sigma_d"], "sigma_d": float(row["sigma_d"]), "z": zc,
-                      "scale": int(m), "size_scale": int(ms)})
+                      "scale": int(m), "size_scale": int(ms), "kind": kind, "stop": int(stop)})
     steps.sort(key=lambda s: s["index"])
     return {"steps": steps, "scales": table}
 
@@ -395,8 +406,9 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     -------
     dict
         ``events``: list sorted by time of ``{kind, time_s, start_s, stop_s, index, size, size_low, size_high,
-        z, ...}`` (times s from the record's start, sizes u: a step's mean shift after - before with its interval
-        at ``confidence``, a burst's peak deviation from the local median) and ``display`` (the size in the
+        z, ...}`` (kind ``burst``, ``step`` or ``transient``: a mean excursion ended by ``stop_s``; times s
+        from the record's start, sizes u: a step's mean shift after - before with its interval at
+        ``confidence``, a burst's peak deviation from the local median) and ``display`` (the size in the
         display unit); ``false_alarm_rate`` (per record), ``burst_scan``, ``step_scan`` (thresholds per scale).
     """
     if not 0.0 < alpha < 1.0:
@@ -415,8 +427,8 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
                        "size": e["peak"], "z": e["z"], "threshold_z": b["threshold_z"]})
     thr = {r["m"]: r["threshold_z"] for r in s["scales"]}
     for e in s["steps"]:
-        events.append({"kind": "step", "time_s": e["index"] / rate_hz, "start_s": e["index"] / rate_hz,
-                       "stop_s": e["index"] / rate_hz, "index": int(e["index"]), "stop_index": int(e["index"]),
+        events.append({"kind": e["kind"], "time_s": e["index"] / rate_hz, "start_s": e["index"] / rate_hz,
+                       "stop_s": e["stop"] / rate_hz, "index": int(e["index"]), "stop_index": int(e["stop"]),
                        "size": e["size"], "size_low": e["size_low"], "size_high": e["size_high"],
                        "confidence": float(confidence), "z": e["z"], "threshold_z": thr[e["scale"]],
                        "scale_s": e["scale"] / rate_hz, "size_scale_s": e["size_scale"] / rate_hz})
@@ -468,8 +480,8 @@ def event_flags(items) -> list[tuple[str, str]]:
         def fmt(v):
             return f"{float(v):.3g}"
 
-        if it.get("kind") == "step":
-            size = f"mean step {fmt(it['size'])} {unit}"
+        if it.get("kind") in ("step", "transient"):
+            size = f"{'mean step' if it['kind'] == 'step' else 'mean excursion'} {fmt(it['size'])} {unit}"
             if it.get("size_low") is not None:
                 size += f" [{fmt(it['size_low'])}, {fmt(it['size_high'])}]"
             if disp:

@@ -26,7 +26,7 @@ def main(path_series: str, policy: str, k: float, window_samples: int, max_indic
     if path_cleaned is not None:
         attrs.pop("rate_hz", None)
         attrs["outliers_removed"] = int(out["n_outliers"]) if policy == "remove" else 0
-        attrs["outlier_rule"] = out["rule"] + ("; each outlier replaced by its block median" if policy == "remove" else "")
+        attrs["outlier_rule"] = out["rule"] + ("; each outlier replaced by its block median" * (policy == "remove"))
         attrs["segment_start_s"] = float(out["events_segment"]["start_s"])
         write_series(path_cleaned, x if x_out is None else x_out, rate_hz=rate, units=units, attrs=attrs)
 
