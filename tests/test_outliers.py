@@ -234,3 +234,52 @@ class TestEventsInTheStage:
         flags = [f for f in flags_of("accel", bound={"events": out["events"]}) if f.check == "event"]
         assert len(flags) == 1 and flags[0].where == "rec/accel/x"
         assert flags[0].detail.startswith("mean step 0.033") and "mg) at 123" in flags[0].detail
+
+
+class TestEventsInTheWorkflow:
+    """The events of the tiny run's reports and what events.policy does to the DAG (tests/configs/tiny.yaml)."""
+
+    @staticmethod
+    def _changed(work, config, name, **sections):
+        import yaml
+
+        cfg = yaml.safe_load(config.read_text())
+        for key, value in sections.items():
+            cfg[key] = {**(cfg.get(key) or {}), **value}
+        path = work / f"changed_{name}.yaml"
+        path.write_text(yaml.safe_dump(cfg))
+        return path
+
+    def test_event_free_simulation_reports_no_more_than_the_false_alarm_rate(self, tiny_run):
+        # 12 simulated event-free axes at alpha = 0.01 each (an upper bound): more than the 0.999 binomial
+        # quantile of events-bearing axes refutes the bound
+        import yaml
+        from scipy.stats import binom
+
+        from workflow_helpers import RES
+
+        work, _ = tiny_run
+        reports = sorted((work / RES / "outliers").glob("*/*/*.yaml"))
+        assert len(reports) == 12
+        hit = 0
+        for path in reports:
+            rep = yaml.safe_load(path.read_text())
+            assert rep["events_policy"] == "warn" and rep["n_events"] == len(rep["events"])
+            assert rep["events_scan"]["false_alarm_rate_per_record"] == 0.01
+            hit += rep["n_events"] > 0
+        assert hit <= binom.ppf(0.999, 12, 0.01)
+
+    def test_exclude_feeds_the_segment_and_split_is_refused(self, tiny_run):
+        pytest.importorskip("snakemake")
+        from workflow_helpers import RES, snakemake
+
+        work, config = tiny_run
+        changed = self._changed(work, config, "exclude", events={"policy": "exclude"})
+        out = snakemake(work, "-n", config=changed, snakefile=work / "Snakefile").stdout
+        for rule in ("allan", "decimate", "lines"):
+            block = out.split(f"rule {rule}:", 1)[1].split("\n\n", 1)[0]
+            assert f"input: {RES}/cleaned/" in block, (rule, block)
+        split = self._changed(work, config, "split", events={"policy": "split"})
+        proc = snakemake(work, "-n", config=split, snakefile=work / "Snakefile", check=False)
+        assert proc.returncode != 0
+        assert "events.policy = 'split' is not available" in proc.stdout + proc.stderr

@@ -144,6 +144,14 @@ def _robust_center_scale(y: np.ndarray) -> tuple[float, float]:
     return med, MAD_TO_SIGMA * float(np.median(np.abs(y - med)))
 
 
+def _white_sd(x: np.ndarray) -> float:
+    """Per-sample white-noise sd from the first differences: 1.4826 MAD(diff x) / sqrt(2), u."""
+    dx = np.diff(x)
+    dx -= np.median(dx)
+    np.abs(dx, out=dx)
+    return MAD_TO_SIGMA * float(np.median(dx)) / math.sqrt(2.0)
+
+
 # ---------------------------------------------------------------------------------------------------- bursts
 def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.0, burst_k: float = 7.0) -> dict:
     """Bursts of one full-rate axis (module docstring, "Bursts").
@@ -187,7 +195,7 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
     if hot.size:
         groups = np.split(hot, np.flatnonzero(np.diff(hot) > 2) + 1)  # blocks no more than one block apart
         xmed = float(np.median(x))
-        s1 = MAD_TO_SIGMA * float(np.median(np.abs(np.diff(x) - np.median(np.diff(x))))) / math.sqrt(2.0)
+        s1 = _white_sd(x)
         for g in groups:
             b0, b1 = int(g[0]) * w, min(n, (int(g[-1]) + 1) * w)
             lo, hi = max(0, b0 - w), min(n, b1 + w)
@@ -312,8 +320,10 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
     scales = _scales(n, rate_hz, min_scale_s, min_windows)
     if not scales:
         return {"steps": [], "scales": [], "note": f"record of {n} samples too short for a step scan"}
-    cs = np.zeros(n + 1)
-    np.cumsum(x - np.median(x), out=cs[1:])
+    cs = np.zeros(n + 1)  # cs[i] = sum of the first i samples less the median (no other sample-length array)
+    cs[1:] = x
+    cs[1:] -= np.median(x)
+    np.cumsum(cs[1:], out=cs[1:])
     S = len(scales)
     table, cands = [], []
     for m in scales:
@@ -340,8 +350,7 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         if len(taken) >= max_steps:
             break
     # per-sample white sd from the first differences (robust)
-    dx = np.diff(x)
-    s1 = MAD_TO_SIGMA * float(np.median(np.abs(dx - np.median(dx)))) / math.sqrt(2.0)
+    s1 = _white_sd(x)
     sd_of = {row["m"]: row for row in table}
     steps = []
     times = sorted(tc for _, tc, _ in taken)

@@ -22,10 +22,11 @@ OUTLIER_OUTPUTS = {"report": f"{RESULTS}/outliers/{{dataset}}/{{sensor}}/{{axis}
 if CLEANED:
     OUTLIER_OUTPUTS["cleaned"] = f"{RESULTS}/cleaned/{{dataset}}/{{sensor}}/{{axis}}.nc"
 
-# memory: the axis, one batch of the rule's work arrays (imupipe.outliers.HAMPEL_BATCH) and, when there are
-# outliers, the cleaned copy; measured at 125 Hz (no outlier): 130 MB at 10 h, 240 MB at 40 h (96 MB + one
-# axis); with the copy 96 MB + 2 axes: 100 MB + 2.5 x the axis file's size
-MEM_MB["outliers"] = lambda wildcards, input: int(100 + 2.5 * input.size_mb)
+# memory: the axis, one batch of the rule's work arrays (imupipe.outliers.HAMPEL_BATCH), the event scans'
+# cumulative sum, block deviations and median copies (imupipe.events) and the cleaned copy; measured at 125 Hz:
+# 111 MB at 2.2 h (8 MB file), 226 MB at 10 h (36 MB; outliers.policy remove + events.policy exclude alike):
+# 78 MB + 4.1 x the axis file's size, so 100 MB + 4.5 x
+MEM_MB["outliers"] = lambda wildcards, input: int(100 + 4.5 * input.size_mb)
 RUNTIME_MIN["outliers"] = full_rate_runtime
 
 
