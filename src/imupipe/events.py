@@ -496,6 +496,8 @@ def event_flags(items) -> list[tuple[str, str]]:
             if disp:
                 size += f" ({fmt(disp['size'])} {disp['unit']})"
             when = f"at {float(it['time_s']):.1f} s"
+            if it["kind"] == "transient" and it.get("stop_s") is not None:
+                when += f" (back by {float(it['stop_s']):.1f} s)"
         else:
             size = f"burst, peak {fmt(it['size'])} {unit}" + (f" ({fmt(disp['size'])} {disp['unit']})" if disp else "")
             when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
