@@ -19,8 +19,9 @@ makes :math:`y_j` nearly Gaussian (Jensen & Solomon 1972 [1]_; h = 1/3, the Wils
 white noise, where :math:`E_j = \sigma^2\chi^2_{w-1}`; h is negative when a few eigenvalues dominate, e.g. a
 short GM, and then :math:`-E_j^h` is used, :math:`\ln E_j` for :math:`|h| < 0.02`: each increasing in E).
 The covariance is the Toeplitz matrix of the blocks' mean lag products (up to :data:`ACOV_BLOCKS` blocks
-below the threshold of a first pass with h = 1/3, so a burst does not shape it). The centre and scale of :math:`y` are the median and :math:`1.4826\,\mathrm{MAD}` of the K blocks
-(robust: a knock changes a few blocks). A block is energetic when
+below the threshold of a first pass with h = 1/3, so a burst does not shape it). The centre and scale of
+:math:`y` are the median and :math:`1.4826\,\mathrm{MAD}` of the K blocks (robust: a knock changes a few
+blocks). A block is energetic when
 
 .. math:: z_j = \frac{y_j - \mathrm{med}(y)}{1.4826\,\mathrm{MAD}(y)} > z_b,
           \qquad z_b = t^{-1}_{\nu_b}\!\left(1 - \frac{\alpha_b}{K}\right),\quad \nu_b = 0.37\,K
@@ -87,7 +88,12 @@ by the median of the samples before it and its second half by that of the sample
 0.1 s moves a 100 s mean by 0.017 deg/s, and a step inside a knock is then placed at the knock's middle.
 
 Total false-alarm rate per record and axis: :math:`\alpha = \alpha_b + \alpha_s`, split equally
-(``alpha``, default 0.01: one false event in 100 event-free axes, at most).
+(``alpha``, default 0.01: one false event in 100 event-free axes). The step scan's share is a bound (measured
+about half of it); the burst scan's rests on the Gaussian approximation of :math:`y_j` (blocks are nearly
+independent, so the union bound is nearly exact there) and is nominal: measured 9-10.5 % for a share of 10 %
+on 200 simulated records of each of three coloured models, with the Jensen-Solomon power (white, short GM) no
+more than 1.2x the Gaussian tail up to z = 4.5. Both assume Gaussian noise: a heavier-tailed sensor (beyond its
+quantisation, which the block sums and means absorb) raises the rate.
 
 References
 ----------
