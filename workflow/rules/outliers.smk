@@ -41,8 +41,9 @@ rule outliers:
         window_samples=config["outliers"]["window_samples"],
         max_indices=config["outliers"]["max_indices"],
         events=EVENTS,
-        # the PSD stage needs one window of the record: the shortest event-free segment `exclude` accepts
-        min_segment_s=float(config["psd"]["window_s"]),
+        # the PSD stage needs one window of the record: the shortest event-free segment `exclude` accepts (a
+        # param only under exclude, so that psd.window_s re-runs no outliers job under warn)
+        min_segment_s=float(config["psd"]["window_s"]) if EVENT_POLICY == "exclude" else 0.0,
     group:
         "per_axis"
     threads: 1
