@@ -182,3 +182,140 @@ def test_quantised_live_records_give_no_stuck_span(rng, correlated):
     assert out["n_stuck_spans"] == 0, out["spans"][:3]
     assert out["min_run_samples"] < RATE  # the derivation, not the floor, decided
     assert stuck_spans(x, RATE)["n_stuck_spans"] == 0
+
+
+class TestEventsInTheStage:
+    """imupipe.stages.outliers: the events of the axis in the report, and what events.policy does with them."""
+
+    @staticmethod
+    def _record(seed=2):
+        # white + GM + random walk, 2000 s at 100 Hz, a 3.4 mg step at 1234.5 s (accel, m/s^2)
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+
+        x = simulate(NoiseModel(white=2e-3, gauss_markov=((3e-4, 100.0),), random_walk=3e-6), 200_000, 100.0,
+                     rng=seed)
+        x[123_450:] += 3.4e-3 * 9.80665
+        return x
+
+    def test_warn_reports_the_step_and_keeps_the_record(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        out, x_out = outliers_stage(self._record(), 100.0, units="m/s^2", dataset="rec", sensor="accel", axis="x")
+        assert x_out is None  # warn + warn: the modelling stages read the series as recorded
+        [ev] = out["events"]
+        assert (ev["dataset"], ev["sensor"], ev["axis"], ev["kind"]) == ("rec", "accel", "x", "step")
+        assert abs(ev["time_s"] - 1234.5) <= 1.0 and ev["units"] == "m/s^2" and ev["display"]["unit"] == "mg"
+        assert ev["policy"] == "warn" and out["events_segment"] == {"start_s": 0.0, "stop_s": 2000.0, "fraction": 1.0}
+
+    def test_exclude_returns_the_longest_event_free_segment(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        x = self._record()
+        out, x_out = outliers_stage(x, 100.0, units="m/s^2", sensor="accel", events={"policy": "exclude"})
+        seg = out["events_segment"]
+        # the step at 1234.5 s: the longest side is the first 1234.5 s less the 1 s guard (within the 1 s location)
+        assert seg["start_s"] == 0.0 and abs(seg["stop_s"] - 1233.5) <= 1.0
+        np.testing.assert_array_equal(x_out, x[: int(round(seg["stop_s"] * 100.0))])
+        with pytest.raises(ValueError, match=r"leaves 12\d\d s .* shorter than the 1800 s"):
+            outliers_stage(x, 100.0, units="m/s^2", events={"policy": "exclude"}, min_segment_s=1800.0)
+
+    def test_split_is_refused_with_the_alternatives(self):
+        from imupipe.stages.outliers import outliers_stage
+
+        with pytest.raises(ValueError, match="'split' is not available.*'exclude'.*'warn'"):
+            outliers_stage(np.zeros(1000), 100.0, units="m/s^2", events={"policy": "split"})
+
+    def test_summary_flags_each_event(self):
+        from imupipe.stages.outliers import outliers_stage
+        from imupipe.summary import flags_of
+
+        out, _ = outliers_stage(self._record(), 100.0, units="m/s^2", dataset="rec", sensor="accel", axis="x")
+        flags = [f for f in flags_of("accel", bound={"events": out["events"]}) if f.check == "event"]
+        assert len(flags) == 1 and flags[0].where == "rec/accel/x"
+        assert flags[0].detail.startswith("mean step 0.033") and "mg) at 123" in flags[0].detail
+
+
+class TestEventsInTheWorkflow:
+    """The events of the tiny run's reports and what events.policy does to the DAG (tests/configs/tiny.yaml)."""
+
+    @staticmethod
+    def _changed(work, config, name, **sections):
+        import yaml
+
+        cfg = yaml.safe_load(config.read_text())
+        for key, value in sections.items():
+            cfg[key] = {**(cfg.get(key) or {}), **value}
+        path = work / f"changed_{name}.yaml"
+        path.write_text(yaml.safe_dump(cfg))
+        return path
+
+    def test_event_free_simulation_reports_no_more_than_the_false_alarm_rate(self, tiny_run):
+        # 12 simulated event-free axes at alpha = 0.01 each (an upper bound): more than the 0.999 binomial
+        # quantile of events-bearing axes refutes the bound
+        import yaml
+        from scipy.stats import binom
+
+        from workflow_helpers import RES
+
+        work, _ = tiny_run
+        reports = sorted((work / RES / "outliers").glob("*/*/*.yaml"))
+        assert len(reports) == 12
+        hit = 0
+        for path in reports:
+            rep = yaml.safe_load(path.read_text())
+            assert rep["events_policy"] == "warn" and rep["n_events"] == len(rep["events"])
+            assert rep["events_scan"]["false_alarm_rate_per_record"] == 0.01
+            hit += rep["n_events"] > 0
+        assert hit <= binom.ppf(0.999, 12, 0.01)
+
+    def test_exclude_feeds_the_segment_and_split_is_refused(self, tiny_run):
+        pytest.importorskip("snakemake")
+        from workflow_helpers import RES, snakemake
+
+        work, config = tiny_run
+        changed = self._changed(work, config, "exclude", events={"policy": "exclude"})
+        out = snakemake(work, "-n", config=changed, snakefile=work / "Snakefile").stdout
+        for rule in ("allan", "decimate", "lines"):
+            block = out.split(f"rule {rule}:", 1)[1].split("\n\n", 1)[0]
+            assert f"input: {RES}/cleaned/" in block, (rule, block)
+        split = self._changed(work, config, "split", events={"policy": "split"})
+        proc = snakemake(work, "-n", config=split, snakefile=work / "Snakefile", check=False)
+        assert proc.returncode != 0
+        assert "events.policy = 'split' is not available" in proc.stdout + proc.stderr
+
+    def test_summary_script_flags_the_events_of_the_outliers_files(self, tmp_path):
+        # the rule summary reads the outliers files (SUMMARY_INPUTS): each event becomes one FLAG line naming
+        # dataset/sensor/axis, time and size
+        import importlib.util
+        from pathlib import Path
+
+        import yaml
+
+        from imupipe.stages.outliers import outliers_stage
+
+        root = Path(__file__).resolve().parents[1]
+        spec = importlib.util.spec_from_file_location("summary_script", root / "workflow" / "scripts" / "summary.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        x = TestEventsInTheStage._record()
+        paths = []
+        for axis in ("x", "y"):
+            out, _ = outliers_stage(x, 100.0, units="m/s^2", dataset="rec", sensor="accel", axis=axis)
+            paths.append(tmp_path / f"{axis}.yaml")
+            paths[-1].write_text(yaml.safe_dump(out))
+        text = mod.render({"outliers": [str(p) for p in paths]}, ["gyro", "accel"], ["spec"], "run")
+        flags = [line for line in text.splitlines() if line.startswith("- FLAG event")]
+        assert [f.split("]")[0] for f in flags] == ["- FLAG event [rec/accel/x", "- FLAG event [rec/accel/y"]
+        assert all("mean step 0.033" in f and " mg) at 123" in f for f in flags), flags
+
+    def test_events_section_reruns_the_reports_alone_under_warn(self, tiny_run):
+        # warn: the events are a report, which the run summary reads (and the run verdict, the last job); nor does
+        # psd.window_s (the shortest segment `exclude` accepts) reach the outliers jobs under warn
+        from workflow_helpers import dry_run_jobs
+
+        work, config = tiny_run
+        jobs = dry_run_jobs(work, config=self._changed(work, config, "ev_alpha", events={"alpha": 0.02}))
+        assert jobs == {"outliers": 12, "summary": 1, "integrity": 1, "all": 1}
+        jobs = dry_run_jobs(work, config=self._changed(work, config, "ev_psd", psd={"window_s": 1200.0}))
+        assert "outliers" not in jobs and "psd" in jobs

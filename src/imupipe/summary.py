@@ -172,6 +172,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
              for it in _items(src.get("stuck_spans")) if isinstance(it, Mapping)]
     stuck_where = {f.where for f in stuck}
     out += stuck
+    from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
+
+    out += [Flag(sensor, "event", w, d) for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
         out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
                         f"{_num(bound.get('margin_frequency_hz'))} Hz",

@@ -9,6 +9,7 @@ Rule -> stage function:
 
 - ``simulate`` -> :func:`imupipe.stages.simulate.simulate_stage`
 - ``ingest`` (and ``ingest_<channels>``) -> :func:`imupipe.stages.ingest.ingest_stage`
+- ``outliers`` -> :func:`imupipe.stages.outliers.outliers_stage`
 - ``stationarity`` -> :func:`imupipe.stages.stationarity.stationarity_stage`; ``stationarity_summary`` ->
   :func:`imupipe.stages.stationarity.summary_stage` with :func:`~imupipe.stages.stationarity.paper_tests`
 - ``identify`` -> :func:`imupipe.stages.identify.identification_stage`
@@ -27,5 +28,5 @@ The modules are imported on use (``from imupipe.stages import identify``): impor
 nothing heavy.
 """
 
-__all__ = ["bound", "contract", "figures", "identify", "ingest", "kalibr", "kf", "simulate", "stationarity", "summary",
-           "tables", "verify"]
+__all__ = ["bound", "contract", "figures", "identify", "ingest", "kalibr", "kf", "outliers", "simulate", "stationarity",
+           "summary", "tables", "verify"]

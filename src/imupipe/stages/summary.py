@@ -18,7 +18,8 @@ from pathlib import Path
 __all__ = ["CHECK_KEYS", "front_page", "group_run_files", "psd_usage", "summary_stage", "summary_text"]
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
-CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans")
+CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans",
+              "events")
 
 
 def _sensor_spec(path: str, data, sensors: list, specs: list):

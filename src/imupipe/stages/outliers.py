@@ -1,0 +1,110 @@
+"""Outliers, stuck spans and events of one full-rate axis (rule ``outliers``).
+
+The Hampel/MAD rule with the ``outliers`` policy (:func:`imupipe.outliers.screen_outliers`), the stuck spans
+(:func:`imupipe.outliers.stuck_spans`) and the bursts and steps (:func:`imupipe.events.detect_events`) with the
+``events`` policy:
+
+- ``warn``: every event is reported (dataset, axis, time from the record's start in s, size in SI and in the
+  display unit, kind) and the summary FLAGs it; the data are analysed as recorded;
+- ``exclude``: as ``warn``, and the series the modelling stages read is the longest event-free segment of the
+  record (:func:`imupipe.events.event_free_segment`, each event widened by one burst window), written as the
+  cleaned series (outliers replaced first when ``outliers.policy`` is ``remove``). A segment shorter than
+  ``min_segment_s`` is an error naming the axis;
+- ``split`` (the record cut at each event into segments analysed as records) is refused: the workflow's records
+  are fixed by the dataset sheet before any job runs, so segments found by a job cannot become records of the same
+  run (config/README.md).
+
+Plain values in (the series in SI, its rate in Hz, its labels and the settings), the report's dict and the series
+the modelling stages read out (:func:`outliers_stage`).
+"""
+
+from __future__ import annotations
+
+__all__ = ["EVENT_DEFAULTS", "EFFECT_NOTE", "outliers_stage"]
+
+EFFECT_NOTE = {
+    "remove": "the cleaned series (outliers replaced by their block median) feeds allan, decimate and lines",
+    "warn": "data kept as recorded: the effect is what `remove` would change",
+    "fail": "no outlier found (any outlier stops the run)",
+}
+
+#: Settings of the ``events`` section used when a config has none (config/README.md).
+EVENT_DEFAULTS = {"policy": "warn", "alpha": 0.01, "burst_window_s": 1.0, "burst_k": 7.0, "min_scale_s": 1.0,
+                  "min_windows": 50, "confidence": 0.95}
+
+
+def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axis=None, policy: str = "warn",
+                   k: float = 7.0, window_samples: int = 100, max_indices: int = 100, events: dict | None = None,
+                   min_segment_s: float = 0.0, series: str | None = None):
+    """The outliers report of the full-rate series `x` (`units`, SI) at `rate` (Hz) and the series the modelling
+    stages read: (report dict, x_out), x_out None when they read the series as recorded (module docstring).
+
+    `events` holds the ``events`` settings (:data:`EVENT_DEFAULTS` fill what it lacks); `min_segment_s` (s) is the
+    shortest event-free segment ``exclude`` accepts; `series` names the file in messages."""
+    from imupipe.events import POLICIES, detect_events, event_free_segment
+    from imupipe.outliers import removal_effect, screen_outliers, stuck_spans
+
+    ev_cfg = {**EVENT_DEFAULTS, **(events or {})}
+    ev_policy = ev_cfg["policy"]
+    label = "/".join(str(v) for v in (dataset, sensor, axis) if v is not None) or (series or "series")
+    if ev_policy not in POLICIES:
+        raise ValueError(f"events.policy must be one of {POLICIES}, got {ev_policy!r}")
+    if ev_policy == "split":
+        raise ValueError("events.policy = 'split' is not available: the records of a run are fixed by the dataset "
+                         "sheet before any job runs; use 'exclude' (longest event-free segment) or 'warn'")
+    try:
+        x_out, report = screen_outliers(x, policy=policy, k=k, window=window_samples, label=label, units=units)
+    except ValueError as exc:
+        raise ValueError(f"{series or label}: {exc} (config key outliers.policy = 'fail')") from None
+    removed = x_out
+    if report.n_outliers and policy != "remove":
+        removed, _ = screen_outliers(x, policy="remove", k=k, window=window_samples, label=label, units=units)
+    effect = removal_effect(x, removed, rate)
+    effect["note"] = EFFECT_NOTE[policy]
+    effect["units"] = {"tau0_s": "s", "avar_tau0_before": f"({units})^2", "avar_tau0_after": f"({units})^2",
+                       "avar_ratio": "1", "white_noise_ratio": "1"}
+    out = {"dataset": dataset, "sensor": sensor, "axis": axis, "series": series, "rate_hz": float(rate),
+           **report.to_dict(max_indices=max_indices), "threshold": float(k), "effect": effect}
+    stuck = stuck_spans(x, rate)  # on the record as read: a stuck stretch is no outlier, the rule leaves it
+    out["stuck_spans"] = stuck["spans"]
+    out["n_stuck_spans"] = stuck["n_stuck_spans"]
+    out["stuck_rule"] = (f"runs of >= {stuck['min_run_samples']} identical samples ({stuck['min_run_s']:g} s): "
+                         f"expected chance runs (n - 1) p0 q^(r - 2) < {stuck['alpha']:g} with p0 = {stuck['p0']:.4g}, "
+                         f"q = {stuck['q']:.4g}, and at least 1 s")
+    # events on the record as read (a knock is what the Hampel rule would partly remove)
+    det = detect_events(x, rate, alpha=ev_cfg["alpha"], burst_window_s=ev_cfg["burst_window_s"],
+                        burst_k=ev_cfg["burst_k"], min_scale_s=ev_cfg["min_scale_s"],
+                        min_windows=ev_cfg["min_windows"], confidence=ev_cfg["confidence"], sensor=sensor)
+    n = int(x.size)
+    seg = (0, n)
+    if ev_policy == "exclude" and det["events"]:
+        guard = int(round(ev_cfg["burst_window_s"] * rate))
+        seg = event_free_segment(n, det["events"], guard=guard)
+        if (seg[1] - seg[0]) / rate < min_segment_s:
+            raise ValueError(
+                f"{series or label}: events.policy = 'exclude' leaves {(seg[1] - seg[0]) / rate:.0f} s "
+                f"(samples {seg[0]}-{seg[1]}) between {len(det['events'])} event(s), shorter than the "
+                f"{min_segment_s:g} s the analysis needs (psd.window_s); use events.policy = 'warn'")
+    keep = {"kind", "time_s", "start_s", "stop_s", "size", "size_low", "size_high", "confidence", "z",
+            "threshold_z", "scale_s", "size_scale_s", "display"}
+    action = ("kept in the analysis (events.policy warn)" if ev_policy == "warn" else
+              f"excluded: the analysis uses {seg[0] / rate:.1f}-{seg[1] / rate:.1f} s, the longest event-free "
+              f"segment ({100.0 * (seg[1] - seg[0]) / n:.3g} % of the record)")
+    out["events"] = [{"dataset": dataset, "sensor": sensor, "axis": axis,
+                      **{k2: v for k2, v in e.items() if k2 in keep}, "units": units, "policy": ev_policy,
+                      "action": action} for e in det["events"]]
+    out["n_events"] = len(det["events"])
+    out["events_policy"] = ev_policy
+    out["events_scan"] = {"false_alarm_rate_per_record": det["false_alarm_rate"], "burst_scan": det["burst_scan"],
+                          "step_scan": det["step_scan"]}
+    out["events_segment"] = {"start_s": seg[0] / rate, "stop_s": seg[1] / rate, "fraction": (seg[1] - seg[0]) / n}
+    out["units"] = {**out["units"], "rate_hz": "Hz", "threshold": "robust standard deviations (1.4826 MAD)",
+                    "stuck_spans": {"start_s": "s from the record's start", "stop_s": "s from the record's start",
+                                    "value": units, "n_samples": "samples", "fraction": "of the record's samples"},
+                    "events": {"time_s": "s from the record's start", "size": units, "z": "robust sds of the scan",
+                               "display": "spec-like unit (deg/h, mg for steps; deg/s, g for bursts)"},
+                    "events_segment": "s from the record's start"}
+    x_seg = None
+    if ev_policy == "exclude" or policy == "remove":
+        x_seg = x_out[seg[0]:seg[1]]
+    return out, x_seg
