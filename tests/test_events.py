@@ -139,7 +139,7 @@ class TestExclude:
             av = allan_variance(z, rate, taus="octave")
             return fit_allan(av.tau.values, av.avar.values, av.edf.values,
                              components=("white", "gauss_markov", "random_walk"), n_boot=n_boot, rng=1,
-                             rate=rate, n_samples=z.size)
+                             record_rate_hz=rate, n_samples=z.size)
 
         ref = fit(x, n_boot=100)
         lo, hi = ref.intervals["random_walk"]

@@ -86,6 +86,16 @@ def test_fix_rate_must_divide_the_filter_rate(fix, ok):
             rc.load_config(cfg, ROOT)
 
 
+@pytest.mark.parametrize("policy, ok", [("warn", True), ("exclude", True), ("split", False)])
+def test_events_split_is_refused_at_start_up(policy, ok):
+    cfg = tiny(events={"policy": policy})
+    if ok:
+        assert rc.load_config(cfg, ROOT)["events"]["policy"] == policy
+    else:
+        with pytest.raises(ValueError, match="events.policy = 'split' is not available yet.*'exclude'"):
+            rc.load_config(cfg, ROOT)
+
+
 def test_divides_is_a_whole_ratio_of_at_least_one():
     assert rc.divides(125.0, 1.0) and rc.divides(0.3, 0.1) and rc.divides(100.0, 100.0)
     assert not rc.divides(10.0, 3.0) and not rc.divides(1.0, 2.0)
@@ -266,7 +276,7 @@ def test_summary_text_after_a_failure_and_a_success(tmp_path):
     assert rc.summary_text(str(tmp_path / "none"), "logs/t", md) == ""
     md.write_text("# summary\n")
     ok = rc.summary_text(str(tmp_path), "logs/t", md)
-    assert ok.startswith("\n# summary\n\nSummary: ") and "make report" in ok
+    assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report" in ok
 
 
 # ---------------------------------------------------------------------------------------------------------

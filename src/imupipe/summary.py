@@ -641,6 +641,57 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
     return head.rstrip() + "\n\n" + DETAILS_HEADING + "\n\n" + details.rstrip() + "\n"
 
 
+def _per_axis_lines(bound: Mapping) -> list[str]:
+    """The details' per-axis table (when the pooling test says the axes differ) and each axis's in-band line."""
+    from imupipe.inband import inband_line
+
+    lines: list[str] = []
+    per = bound.get("per_axis_models") or {}
+    if per:
+        lines += ["", "Per-axis models (the pooling test says the axes differ; the KF file's per_axis):", "",
+                  "| axis | N bound/spec | own model in the KF file | why | exported filter model |",
+                  "|---|---|---|---|---|"]
+        glob = (bound.get("export") or {}).get("statement") if isinstance(bound.get("export"), Mapping) else None
+        for ax, pa in per.items():
+            if isinstance(pa, Mapping):
+                own = pa.get("exported_in_kf")
+                scope = _g(pa, "export", "statement") if own else (f"global: {glob}" if glob else "global")
+                lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
+                             f"{'yes' if own else 'no (global model)'} | "
+                             f"{pa.get('kf', '-')} | {scope or '-'} |")
+        lines.append("")
+        for ax, pa in per.items():
+            text = inband_line(pa.get("inband_inflation")) if isinstance(pa, Mapping) else None
+            if text:
+                lines.append(f"- axis {ax}: {text}")
+        lines.append("")
+    return lines
+
+
+def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[str]:
+    """The first screen's values to paste: one table in the spec sheet's units, one in SI (rows of
+    :func:`paste_rows` with the sensor in front); empty when there is nothing to paste."""
+    head: list[str] = []
+    if paste:
+        head += ["## Values to paste, in the spec sheet's units", "",
+                 "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
+                 "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
+                 "again.", "",
+                 "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
+        head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
+        own = [s for s, f in runs.items()
+               if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
+                      for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
+        if own:  # the KF rows are the global model; these axes have their own in the KF file
+            head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
+                     "(the per-axis table in the details); the KF rows above are the global model."]
+        head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
+                 "|---|---|---|---|---|"]
+        head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
+        head.append("")
+    return head
+
+
 def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary",
                      kalibr: Mapping | None = None, kalibr_path: str | None = None) -> tuple[str, str]:
     """The first screen and the details of a run's summary (markdown), one spec sheet.
@@ -731,25 +782,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         if band:
             lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "
                          f"{_num(band[1])} s")
-        per = bound.get("per_axis_models") or {}
-        if per:
-            lines += ["", "Per-axis models (the pooling test says the axes differ; the KF file's per_axis):", "",
-                      "| axis | N bound/spec | own model in the KF file | why | exported filter model |",
-                      "|---|---|---|---|---|"]
-            glob = (bound.get("export") or {}).get("statement") if isinstance(bound.get("export"), Mapping) else None
-            for ax, pa in per.items():
-                if isinstance(pa, Mapping):
-                    own = pa.get("exported_in_kf")
-                    scope = _g(pa, "export", "statement") if own else (f"global: {glob}" if glob else "global")
-                    lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
-                                 f"{'yes' if own else 'no (global model)'} | "
-                                 f"{pa.get('kf', '-')} | {scope or '-'} |")
-            lines.append("")
-            for ax, pa in per.items():
-                text = inband_line(pa.get("inband_inflation")) if isinstance(pa, Mapping) else None
-                if text:
-                    lines.append(f"- axis {ax}: {text}")
-            lines.append("")
+        lines += _per_axis_lines(bound)
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
         lines += _export_lines({"sensor": sensor, **bound}, kept)
@@ -769,23 +802,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
     head += ["| sensor | verdict | PSD margin (min S_model/S_sample) | verification | KF file |",
              "|---|---|---|---|---|", *table, ""]
-    if paste:
-        head += ["## Values to paste, in the spec sheet's units", "",
-                 "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
-                 "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
-                 "again.", "",
-                 "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
-        head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
-        own = [s for s, f in runs.items()
-               if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
-                      for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
-        if own:  # the KF rows are the global model; these axes have their own in the KF file
-            head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
-                     "(the per-axis table in the details); the KF rows above are the global model."]
-        head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
-                 "|---|---|---|---|---|"]
-        head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
-        head.append("")
+    head += _paste_section(runs, paste)
     if isinstance(kalibr, Mapping):
         where = f" [{kalibr_path}]" if kalibr_path else ""
         if kalibr.get("refused"):

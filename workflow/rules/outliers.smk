@@ -8,10 +8,7 @@
 OUTLIER_POLICY = config["outliers"]["policy"]
 EVENTS = dict(config.get("events") or {})
 EVENT_POLICY = EVENTS.get("policy", "warn")
-if EVENT_POLICY == "split":
-    raise ValueError("config key events.policy = 'split' is not available yet: the records of a run are fixed by "
-                     "the dataset sheet before any job runs, so the segments found at an event cannot become records "
-                     "of the same run; use 'exclude' (the longest event-free segment) or 'warn' (config/README.md)")
+# events.policy split is refused at start-up (imupipe.runconfig.check_cross_keys)
 CLEANED = OUTLIER_POLICY == "remove" or EVENT_POLICY == "exclude"
 
 
