@@ -267,15 +267,36 @@ def _summary(sc, mse, P, tol=0.0, details=None):
                         details or {}, worst_outage_t_s=float(t[j]))
 
 
+_FILTER_CACHE: dict = {}
+_FILTER_CACHE_SIZE = 8
+
+
+def _filter_solution(Phi_f, Qd_f, P0_f, H_f, R, sc):
+    """(pvar, gains per fix) of :func:`imupipe.covariance.filter_variance`, kept for the last few filters.
+
+    A verification job analyses one filter against several truths (and the replay); the filter's Riccati
+    recursion depends only on its own matrices and the schedule, so it runs once per filter. The key is the
+    matrices' bytes and the schedule (exact: equal keys give bit-identical results); pvar is returned as a copy."""
+    from imupipe.covariance import filter_variance
+
+    m = sc.fix_every
+    key = tuple(np.ascontiguousarray(a, dtype=float).tobytes() for a in (Phi_f, Qd_f, P0_f, H_f)) + (
+        float(R), sc.n_steps, sc.n_fix, m)
+    if key not in _FILTER_CACHE:
+        if len(_FILTER_CACHE) >= _FILTER_CACHE_SIZE:
+            _FILTER_CACHE.pop(next(iter(_FILTER_CACHE)))
+        _FILTER_CACHE[key] = filter_variance(Phi_f, Qd_f, P0_f, H_f, R, sc.n_steps, sc.n_fix, m)
+    pvar, fg = _FILTER_CACHE[key]
+    return pvar.copy(), fg
+
+
 def _filter_gains(Phi_f, Qd_f, P0_f, H_f, R, sc):
     """Gains K_k per step (None where there is no fix) and the filter's a-posteriori P_f[0, 0] per step.
 
     Closed form (:func:`imupipe.covariance.filter_variance`): one Riccati iteration per fix until the gain
     has converged, no per-step loop; the list repeats the same gain object between fixes' positions."""
-    from imupipe.covariance import filter_variance
-
     m = sc.fix_every
-    pvar, fg = filter_variance(Phi_f, Qd_f, P0_f, H_f, R, sc.n_steps, sc.n_fix, m)
+    pvar, fg = _filter_solution(Phi_f, Qd_f, P0_f, H_f, R, sc)
     gains = [None] * sc.n_steps
     for j, K in enumerate(fg):
         gains[(j + 1) * m - 1] = K
@@ -330,8 +351,9 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
     R = sc.sigma_fix**2
     from imupipe.covariance import mismatched_mse
 
-    mse, pvar, _ = mismatched_mse(Pt, Qt, P0t, Ht, Pf, Qf, P0f, Hf, R, sc.n_steps, sc.n_fix, sc.fix_every,
-                                  shared=_shared(st, sf))
+    pvar, fg = _filter_solution(Pf, Qf, P0f, Hf, R, sc)
+    mse, _, _ = mismatched_mse(Pt, Qt, P0t, Ht, Pf, Qf, P0f, Hf, R, sc.n_steps, sc.n_fix, sc.fix_every, gains=fg,
+                               shared=_shared(st, sf))
     return _summary(sc, mse, pvar, tol=1e-6, details={"method": "exact covariance analysis (closed form)",
                                                        "truth_states": st, "filter_states": sf,
                                                        "filter_rate_hz": float(sc.rate_hz),
