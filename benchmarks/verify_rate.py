@@ -32,12 +32,12 @@ def main():
     for sensor, m in MODELS.items():
         for r in a.rates:
             fr = a.fix_rate if a.fix_rate is not None and a.fix_rate <= r else None
-            sc = reference_scenario(sensor, rate_hz=r, fix_rate_hz=fr)
+            sc = reference_scenario(sensor, filter_rate_hz=r, fix_rate_hz=fr)
             t0 = time.perf_counter()
             v = covariance_analysis(m, m, sc)
             tc = time.perf_counter() - t0
             f = 1.0 if r < 100 else a.step_fraction
-            scs = reference_scenario(sensor, rate_hz=r, fix_s=600.0 * f, horizon_s=3600.0 * f, fix_rate_hz=fr)
+            scs = reference_scenario(sensor, filter_rate_hz=r, fix_s=600.0 * f, outage_s=3600.0 * f, fix_rate_hz=fr)
             t0 = time.perf_counter()
             covariance_analysis_steps(m, m, scs)
             ts = (time.perf_counter() - t0) * sc.n_steps / scs.n_steps

@@ -67,10 +67,13 @@ def truth_discrete(truth, sensor: str, dt: float):
     return Phi, Qd, P0
 
 
-def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, horizon_s: float = HORIZON_S) -> dict:
+def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, horizon_s: float = HORIZON_S,
+                     fix_every: int = 1) -> dict:
     """Worst true MSE / P of the first state over fixes + outage for the filter of the KF file `kf` (its dt_s,
     Phi, Qd, P0) when the error is `truth` (``worst``; ``worst_outage`` over the outage alone); the time of the
-    first ratio > 1 (None if none); the conservatism P / MSE averaged over the outage's steps and at its end. Joseph-form updates; the joint (truth, filter estimate) covariance is
+    first ratio > 1 (None if none); the conservatism P / MSE averaged over the outage's steps and at its end. A fix
+    every `fix_every` filter steps (at the steps k < fix_s/dt with (k + 1) % fix_every == 0). Joseph-form updates;
+    the joint (truth, filter estimate) covariance is
     propagated exactly (no Monte Carlo). ``cancellation``: the largest (var(truth) + var(estimate)) / MSE of the
     first state, the factor by which round-off in the joint form is magnified in MSE = var + var - 2 cov."""
     dt = float(kf["dt_s"])
@@ -99,7 +102,7 @@ def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, horizon
     for k in range(n_all):
         C = A @ C @ A.T + Qa
         P = Phi_f @ P @ Phi_f.T + Qd_f
-        if k < n_fix:
+        if k < n_fix and (k + 1) % fix_every == 0:
             K = P @ Hf / (Hf @ P @ Hf + R)
             IKH = np.eye(nf) - np.outer(K, Hf)
             P = IKH @ P @ IKH.T + R * np.outer(K, K)

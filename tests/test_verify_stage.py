@@ -43,7 +43,7 @@ def test_line_policy_from_files_names_a_bad_file():
 
 
 # a short reference filter (fixes 100 s, outage 600 s at 1 Hz) keeps these analyses fast
-SHORT = dict(fix_s=100.0, horizon_s=600.0, filter_rate_hz=1.0)
+SHORT = dict(fix_s=100.0, outage_s=600.0, filter_rate_hz=1.0)
 TRUTH = NoiseModel(white=2e-3, gauss_markov=((5e-4, 200.0),), random_walk=2e-5)
 
 
