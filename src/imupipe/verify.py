@@ -75,6 +75,7 @@ __all__ = [
     "covariance_analysis_steps",
     "replay_steps",
     "monte_carlo",
+    "monte_carlo_steps",
     "replay",
     "verify_model",
     "reduce_by_integrity",
@@ -429,17 +430,110 @@ def covariance_analysis_steps(filter_model, truth_model, scenario: Scenario | No
 
 
 def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_runs: int = 2000, rng=None,
-                sensor: str = "accel"):
+                sensor: str = "accel", block: int = 32):
     r"""Monte Carlo estimate of the MSE of :func:`covariance_analysis` (cross-check).
 
     Truth states are drawn from (P0_t, Qd_t), fixes with noise sigma_fix, the filter runs its own
     gains; the MSE is the mean square of the position (angle) error over `n_runs` runs. Its relative
     standard error is :math:`\sqrt{2/n}` (the error is Gaussian with zero mean), reported as ``tol``.
 
+    Vectorised over runs and steps (no per-step Python loop; :func:`monte_carlo_steps` is the step loop it
+    replaces, equal in distribution: the same discrete model, noise law and gains). The steps are cut into
+    segments that end at a fix or after at most `block` steps (work arrays of runs x block x states). In a segment
+    of L steps
+    from the truth state :math:`x_0`, with draws :math:`w_l \sim N(0, Q_{d,t})`,
+
+    .. math:: x_i = \Phi_t^{i+1} x_0 + y_i, \qquad y_i = \sum_{l \le i} \Phi_t^{i-l} w_l ,
+
+    :math:`y` by recursive doubling over the segment (:math:`y_i \mathrel{+}= \Phi_t^{d} y_{i-d}`, d = 1, 2, 4, ...:
+    after the pass of shift d, :math:`y_i` sums the draws of the last 2d steps; log2 L passes of one matrix product
+    each); the estimate only propagates inside the segment, its position :math:`\hat x_0 \cdot e_0^T\Phi_f^{i+1}`
+    (row powers); at the segment's last step a fix updates it. One Python iteration per segment: per fix, or per
+    block of the outage.
+
+    Cost: the doubling does log2 L products per step where the step loop does one, and the step loop was already
+    vectorised over runs (its per-step Python overhead is small beside 2000 runs' products and draws). Measured
+    (1500 runs, a 4-state truth, 2400 outage steps, 2-core machine under load): blocks of 16-32 steps 4.5 s, the
+    step loop 4.0 s; blocks of 8 steps 8.3 s and of 666 steps 10 s. Hence the default of 32: no per-step loop
+    at about the step loop's cost, not faster.
+
     Returns
     -------
     Verification
     """
+    from imupipe.covariance import row_powers
+
+    sc = scenario if scenario is not None else reference_scenario(sensor)
+    rng = np.random.default_rng(rng)
+    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
+    Pf, Qf, P0f, Hf, _ = state_space(filter_model, sc)
+    R = sc.sigma_fix**2
+    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    L0 = sc.n_steps
+    nt, nf = Pt.shape[0], Pf.shape[0]
+    L_max = int(max(1, min(L0, block)))
+
+    def chol(M):
+        w, V = np.linalg.eigh(0.5 * (M + M.T))
+        return V * np.sqrt(np.clip(w, 0.0, None))
+
+    L0c, Lq = chol(P0t), chol(Qt)
+    # powers Phi_t^(i+1) and rows e0^T Phi_f^(i+1), i < L_max
+    Tp = np.empty((L_max, nt, nt))
+    Tp[0], filled, Pw = Pt, 1, Pt  # doubling: Tp[f + j] = Phi^f Tp[j], Pw = Phi^f
+    while filled < L_max:
+        take = min(filled, L_max - filled)
+        Tp[filled:filled + take] = Pw @ Tp[:take]
+        filled += take
+        Pw = Pw @ Pw
+    G = next(row_powers(np.eye(nf)[0] @ Pf, Pf, L_max, L_max))[1][:, 0, :]  # (L_max, nf)
+    TpT = np.ascontiguousarray(Tp.transpose(0, 2, 1))  # Phi_t^(i+1) T: x (runs, nt) @ TpT[i]
+    LqT = np.ascontiguousarray(Lq.T)
+    powers = {}  # Phi_f^L T per segment length (a few lengths: the fix period, the block, the tails)
+
+    def power_T(n):
+        if n not in powers:
+            powers[n] = np.linalg.matrix_power(Pf, n).T.copy()
+        return powers[n]
+
+    fixes = [k for k, K in enumerate(gains) if K is not None]
+    x = rng.standard_normal((n_runs, nt)) @ L0c.T
+    xh = np.zeros((n_runs, nf))
+    mse = np.empty(L0)
+    k0, fi = 0, 0
+    while k0 < L0:
+        while fi < len(fixes) and fixes[fi] < k0:
+            fi += 1
+        k1 = min(L0, k0 + L_max, fixes[fi] + 1 if fi < len(fixes) else L0)
+        L = k1 - k0
+        # (steps, runs, states): the same law as per-step draws; products on 2-D views (one BLAS call each)
+        y = (rng.standard_normal((L * n_runs, nt)) @ LqT).reshape(L, n_runs, nt)
+        d, Pd = 1, Pt
+        while d < L:
+            # the right side is formed before the in-place add: old values
+            y[d:] += (y[:-d].reshape(-1, nt) @ Pd.T).reshape(L - d, n_runs, nt)
+            d *= 2
+            Pd = Pd @ Pd
+        y += x @ TpT[:L]  # truth states after steps k0..k1-1, (L, runs, nt)
+        est = G[:L] @ xh.T  # (L, runs): position of the propagated estimate
+        x = y[-1]
+        K = gains[k1 - 1]
+        xh = xh @ power_T(L)
+        if K is not None:
+            z = x @ Ht[0] + sc.sigma_fix * rng.standard_normal(n_runs)
+            xh = xh + np.outer(z - xh @ Hf[0], K[:, 0])
+            est[-1] = xh[:, 0]
+        e = est - y[:, :, 0]
+        mse[k0:k1] = np.einsum("lr,lr->l", e, e) / n_runs
+        k0 = k1
+    return _summary(sc, mse, pvar, tol=2.0 * math.sqrt(2.0 / n_runs),
+                    details={"method": "Monte Carlo", "n_runs": int(n_runs),
+                             "relative_standard_error": math.sqrt(2.0 / n_runs)})
+
+
+def monte_carlo_steps(filter_model, truth_model, scenario: Scenario | None = None, n_runs: int = 2000, rng=None,
+                      sensor: str = "accel"):
+    """Reference step loop of :func:`monte_carlo` (one Python iteration per filter step; tests)."""
     sc = scenario if scenario is not None else reference_scenario(sensor)
     rng = np.random.default_rng(rng)
     Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
@@ -466,7 +560,7 @@ def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_r
         e = xh[:, 0] - x[:, 0]
         mse[k] = float(np.mean(e * e))
     return _summary(sc, mse, pvar, tol=2.0 * math.sqrt(2.0 / n_runs),
-                    details={"method": "Monte Carlo", "n_runs": int(n_runs),
+                    details={"method": "Monte Carlo (step loop)", "n_runs": int(n_runs),
                              "relative_standard_error": math.sqrt(2.0 / n_runs)})
 
 
