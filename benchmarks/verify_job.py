@@ -12,7 +12,8 @@ two 2.5 h records simulated from the spec at the filter rate (imupipe.simulate, 
 3 + 3 windows.
 
 The closed form is timed `--repeats` times (median printed): wall time and the process's CPU time (on a machine
-shared with other jobs the wall time grows with the load; the CPU time is what the job costs). The step loop is the same job with
+shared with other jobs the wall time grows with the load; the CPU time is what the job costs). The step loop is
+the same job with
 verify.covariance_analysis and verify.replay replaced by their step-loop references
 (covariance_analysis_steps, replay_steps), timed once; at filter rates >= 100 Hz on a scenario shortened by
 `--step-fraction` and scaled by the step count (both loops are linear in the number of steps): "estimated".

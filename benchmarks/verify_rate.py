@@ -1,7 +1,7 @@
 """Wall time of the exact covariance verification at filter rates 1 / 100 / 1000 Hz (600 s fixes + 3600 s outage).
 
 Closed form (imupipe.covariance via verify.covariance_analysis) beside the reference step loop
-(verify.covariance_analysis_steps). The step loop is timed on a shortened scenario (fix_s and horizon_s
+(verify.covariance_analysis_steps). The step loop is timed on a shortened scenario (fix_s and outage_s
 scaled by `--step-fraction` at rates >= 100 Hz) and its time scaled by the step count (it is linear in the
 number of steps); those rows say "estimated". The replay is not included: benchmarks/verify_job.py times the
 whole verify job (analyses, replay, reduction).

@@ -269,7 +269,7 @@ def test_verification_report_with_replay_and_reduction():
     big = NoiseModel(white=1.2e-4, gauss_markov=((6e-5, 300.0), (1e-9, 5.0)), random_walk=1.2e-6)
     rec = simulate(TRUTH, 20000, 1.0, rng=np.random.default_rng(3), n_records=2)
     rep = verification_report(big, "gyro", spec=TRUTH, upper=TRUTH, records=list(rec), record_rate_hz=1.0,
-                              fix_s=300.0, horizon_s=900.0)
+                              fix_s=300.0, outage_s=900.0)
     # the random walk of the envelope and the spec is a bias slower than the records: its family's worst member
     # (a GM of T_max = 10 x the 20 000 s record, sigma^2 = K^2 T_max / 2) is a truth of its own
     assert set(rep["verification"]["checks"]) == {"upper_envelope", "spec", "replay", "slow_bias"}

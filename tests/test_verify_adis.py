@@ -52,7 +52,8 @@ def test_adis16405_bound_verifies_and_the_spec_sheet_fails_on_replay(shared_data
     g = np.logspace(-1, 3, 200)  # 0.1 Hz .. 1 kHz, across and above the decimated band
     assert np.all(b.model.psd(g) >= up.psd(g) * (1 - 1e-9))
     sc = reference_scenario(sensor, outage_s=600.0)
-    ver = {sensor: verify_model(b.model, sensor, upper=up, spec=spec, records=series, record_rate_hz=100.0, scenario=sc)}
+    ver = {sensor: verify_model(b.model, sensor, upper=up, spec=spec, records=series, record_rate_hz=100.0,
+                                scenario=sc)}
     al = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
                      horizon_s=1200.0, tau_min_s=0.01)
     assert al["total"]["tau_band_s"] == [0.01, 1200.0]

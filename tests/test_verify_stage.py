@@ -77,7 +77,7 @@ def test_the_fix_rate_reaches_the_scenario_and_the_filter():
     (MSE = P at every step: worst ratio 1 within round-off), the scenario says the fix rate, and the filter's
     variance differs from the one with a fix every step (the fix rate is used, not only reported)."""
     m = NoiseModel(white=1e-4, gauss_markov=((3e-4, 300.0),))
-    kw = dict(spec=m, fix_s=100.0, horizon_s=300.0, filter_rate_hz=10.0, reduce=False)
+    kw = dict(spec=m, fix_s=100.0, outage_s=300.0, filter_rate_hz=10.0, reduce=False)
     rep, series = verification_stage(m, "accel", fix_rate_hz=1.0, **kw)
     every, series_every = verification_stage(m, "accel", **kw)
     assert rep["verification"]["scenario"]["fix_rate_hz"] == 1.0

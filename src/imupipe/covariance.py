@@ -34,7 +34,8 @@ a cycle are pure propagation: MSE at step jm-1+s = :math:`r_s C_j r_s^T + q_s`, 
 fix by fix (one Python iteration per fix, not per step) until the filter's a-posteriori :math:`P` has
 converged: with :math:`\delta_j = \max_{ab} |P_j - P_{j-1}|_{ab} / \sqrt{P_{j,aa} P_{j,bb}}` (the change in
 correlation units, so that a small state such as a velocity, to which the gain is nearly blind but which the
-outage integrates, counts as much as the position) and :math:`\rho = (\delta_j/\delta_{j-16})^{1/16}` (checked every 16 fixes), converged when
+outage integrates, counts as much as the position) and :math:`\rho = (\delta_j/\delta_{j-16})^{1/16}` (checked
+every 16 fixes), converged when
 :math:`\delta_j = 0` (a fixed point in floating point: the map is deterministic) or when :math:`\rho < 1` and both
 :math:`\delta_j` and the geometric-tail bound :math:`\delta_j \rho/(1-\rho)` on the remaining distance are
 <= ``p_rtol`` = 1e-13. From there the gain is the steady-state one, the cycle map is time-invariant

@@ -139,7 +139,8 @@ class Scenario:
             return 1
         m = self.filter_rate_hz / self.fix_rate_hz
         if not (math.isfinite(m) and m >= 1 and abs(m - round(m)) <= 1e-9 * m):
-            raise ValueError(f"verification fix_rate_hz must divide filter_rate_hz ({self.filter_rate_hz!r} Hz) with an integer "
+            raise ValueError(f"verification fix_rate_hz must divide filter_rate_hz ({self.filter_rate_hz!r} Hz) "
+                             f"with an integer "
                              f"ratio >= 1, got {self.fix_rate_hz!r}")
         return int(round(m))
 
@@ -614,7 +615,8 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
     R = sc.sigma_fix**2
     gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
     L = sc.n_steps
-    stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / sc.filter_rate_hz) * sc.filter_rate_hz)))
+    fr = sc.filter_rate_hz
+    stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / fr) * fr)))
     sq, W, total = np.zeros(L), 0, 0
     for E, n in _replay_windows(records, record_rate_hz, sc.filter_rate_hz, L, stride):
         total += n
@@ -723,7 +725,8 @@ def replay_steps(filter_model, records, record_rate_hz: float, scenario: Scenari
     R = sc.sigma_fix**2
     gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
     L = sc.n_steps
-    stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / sc.filter_rate_hz) * sc.filter_rate_hz)))
+    fr = sc.filter_rate_hz
+    stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / fr) * fr)))
     wins, total = [], 0
     for i, r in enumerate(records):
         x = np.asarray(r, dtype=np.float64)
@@ -984,8 +987,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
 
     # the earlier names rate_hz (the records' rate) and horizon_s (the outage) are still taken
     _renamed(earlier, "verification_stage", rate_hz="record_rate_hz", horizon_s="outage_s")
-    if set(earlier) - {"record_rate_hz", "outage_s"}:
-        raise TypeError(f"verification_stage: unexpected keyword {sorted(set(earlier) - {'record_rate_hz', 'outage_s'})}")
+    if extra := sorted(set(earlier) - {"record_rate_hz", "outage_s"}):
+        raise TypeError(f"verification_stage: unexpected keywords {extra}")
     record_rate_hz = earlier.get("record_rate_hz", record_rate_hz)
     outage_s = earlier.get("outage_s", outage_s)
     if record_s is None and records is not None and record_rate_hz:
@@ -1009,7 +1012,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
             if record_rate_hz is None:
                 raise ValueError("verification_stage: replay records need record_rate_hz")
             series["replay"] = replay(model, records, record_rate_hz, sc, z=replay_z)
-        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.filter_rate_hz, "fix_rate_hz": sc.filter_rate_hz / sc.fix_every,
+        ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.filter_rate_hz,
+                            "fix_rate_hz": sc.filter_rate_hz / sc.fix_every,
                             "fix_s": sc.fix_s, "horizon_s": sc.outage_s,
                             "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
                             "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,

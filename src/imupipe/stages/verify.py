@@ -2,7 +2,8 @@ r"""The verification stage of one spec sheet's bound of one sensor type (rule ``
 :func:`imupipe.api.noise_model`).
 
 The reference filter built on the bound's model (accel: paper eq. 17 position filter; gyro: angle filter;
-``fix_s`` s of fixes, then an outage of ``outage_s`` s, config ``application.horizon_s``), checked by exact covariance analysis against the
+``fix_s`` s of fixes, then an outage of ``outage_s`` s, config ``application.horizon_s``), checked by exact
+covariance analysis against the
 identified upper envelope, the spec sheet and, for simulated data, the truth; the replay of the decimated
 records of that sensor; the model reduction by integrity (all of it :func:`imupipe.verify.verification_stage`).
 When the bound carries per-axis models (the axes differ), each is verified the same way against its own
@@ -73,8 +74,8 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
     from imupipe.verify import _renamed
 
     _renamed(earlier, "verify_sensor", rate_hz="record_rate_hz", horizon_s="outage_s")
-    if set(earlier) - {"record_rate_hz", "outage_s"}:
-        raise TypeError(f"verify_sensor: unexpected keyword {sorted(set(earlier) - {'record_rate_hz', 'outage_s'})}")
+    if extra := sorted(set(earlier) - {"record_rate_hz", "outage_s"}):
+        raise TypeError(f"verify_sensor: unexpected keywords {extra}")
     record_rate_hz, outage_s = earlier.get("record_rate_hz", record_rate_hz), earlier.get("outage_s", outage_s)
     records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
     kw = dict(spec=spec, truth=truth, record_rate_hz=record_rate_hz, fix_s=fix_s, outage_s=outage_s,
