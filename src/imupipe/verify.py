@@ -293,11 +293,11 @@ def _summary(sc, mse, P, tol=0.0, details=None):
 
 
 _FILTER_CACHE: dict = {}
-_FILTER_CACHE_SIZE = 8
+_FILTER_CACHE_SIZE = 2  # a job analyses one filter at a time (the bound, each reduction, the reduced model)
 
 
 def _filter_solution(Phi_f, Qd_f, P0_f, H_f, R, sc):
-    """(pvar, gains per fix) of :func:`imupipe.covariance.filter_variance`, kept for the last few filters.
+    """(pvar, gains per fix) of :func:`imupipe.covariance.filter_variance`, kept for the last two filters.
 
     A verification job analyses one filter against several truths (and the replay); the filter's Riccati
     recursion depends only on its own matrices and the schedule, so it runs once per filter. The key is the
