@@ -684,8 +684,11 @@ def _replay_errors(E, Phi_f, H_f, gains, sc, block: int = 4096):
     xh = np.zeros((W, nf))
     pos, vel = np.zeros(W), np.zeros(W)
     last, k0 = -1, 0  # the anchor (step whose estimate xh is held; -1: the start, xh = 0); the next step
+    fi = 0  # index of the next fix in `fixes` (a pointer: a scan from the start per fix was quadratic in fixes)
     while k0 < L:
-        nxt = next(f for f in fixes if f >= k0)
+        while fixes[fi] < k0:
+            fi += 1
+        nxt = fixes[fi]
         k1 = min(nxt + 1, last + 1 + span)  # up to the next fix, at most `span` steps after the last anchor
         e = E[:, k0:k1]
         cs = np.cumsum(e, axis=1)
