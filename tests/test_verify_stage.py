@@ -105,3 +105,20 @@ def test_the_contract_needs_the_identifications_bootstrap():
         c = integrity_contract(ok, None, ver, intervals={"n_boot": n_boot, "confidence": 0.95})
         assert c["bounded"] is bounded and "identification_intervals" in c["checks_run"]
         assert bounded or c["failed_checks"][0]["check"] == "identification_intervals"
+
+
+def test_earlier_keyword_names_are_taken_and_both_names_refused():
+    """Issue 30's names (outage_s, filter_rate_hz, record_rate_hz): the earlier horizon_s and rate_hz give the same
+    scenario and report; giving both spellings of one is an error naming them."""
+    from imupipe.verify import reference_scenario
+
+    old = reference_scenario("gyro", rate_hz=10.0, horizon_s=50.0, fix_s=10.0)
+    assert old == reference_scenario("gyro", filter_rate_hz=10.0, outage_s=50.0, fix_s=10.0)
+    assert (old.rate_hz, old.horizon_s) == (10.0, 50.0)
+    with pytest.raises(ValueError, match="outage_s only"):
+        reference_scenario("gyro", horizon_s=50.0, outage_s=50.0)
+    a = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, horizon_s=600.0, reduce=False)[0]
+    b = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, outage_s=600.0, reduce=False)[0]
+    assert a == b and a["verification"]["scenario"]["horizon_s"] == 600.0  # the YAML field keeps its name
+    with pytest.raises(TypeError, match="unexpected keywords"):
+        verification_stage(TRUTH, "accel", spec=TRUTH, horizont_s=600.0)
