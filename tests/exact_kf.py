@@ -3,7 +3,7 @@ project's state-space code (the truth's discrete model is built here from its pa
 exponential), for the integrity tables of tests/test_slow_bias.py and tests/test_integrity_cases.py.
 
 Reference filter: position (accelerometer: x, v) or angle (gyro: theta) fixed every dt (sigma 0.5 m or 0.1 deg)
-for ``fix_s``, then an outage of ``horizon_s`` with no fixes. The filter runs on the KF file's own Phi, Qd and P0
+for ``fix_s``, then an outage of ``outage_s`` with no fixes. The filter runs on the KF file's own Phi, Qd and P0
 (its kinematic initial variances set to the truth's: the fix variance, and 1 (m/s)^2 for the velocity); the truth
 is white noise + Gauss-Markov terms (each started at its stationary variance sigma^2, as a sensor's bias is at
 turn-on) + an optional random walk (started at 0). The true error covariance of the filter (the truth and the
@@ -18,7 +18,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-FIX_S, HORIZON_S = 600.0, 3600.0
+FIX_S, OUTAGE_S = 600.0, 3600.0
 SIGMA_FIX = {"accel": 0.5, "gyro": math.radians(0.1)}  # m, rad
 
 
@@ -67,10 +67,13 @@ def truth_discrete(truth, sensor: str, dt: float):
     return Phi, Qd, P0
 
 
-def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, horizon_s: float = HORIZON_S) -> dict:
+def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, outage_s: float = OUTAGE_S,
+                     fix_every: int = 1) -> dict:
     """Worst true MSE / P of the first state over fixes + outage for the filter of the KF file `kf` (its dt_s,
     Phi, Qd, P0) when the error is `truth` (``worst``; ``worst_outage`` over the outage alone); the time of the
-    first ratio > 1 (None if none); the conservatism P / MSE averaged over the outage's steps and at its end. Joseph-form updates; the joint (truth, filter estimate) covariance is
+    first ratio > 1 (None if none); the conservatism P / MSE averaged over the outage's steps and at its end. A fix
+    every `fix_every` filter steps (at the steps k < fix_s/dt with (k + 1) % fix_every == 0). Joseph-form updates;
+    the joint (truth, filter estimate) covariance is
     propagated exactly (no Monte Carlo). ``cancellation``: the largest (var(truth) + var(estimate)) / MSE of the
     first state, the factor by which round-off in the joint form is magnified in MSE = var + var - 2 cov."""
     dt = float(kf["dt_s"])
@@ -95,11 +98,11 @@ def kf_against_truth(kf: dict, truth, sensor: str, fix_s: float = FIX_S, horizon
     c[0], c[nt] = -1.0, 1.0
     worst, first, ratio, cancel = 0.0, None, float("nan"), 1.0
     worst_out, sum_p_over_mse = 0.0, 0.0
-    n_fix, n_all = int(round(fix_s / dt)), int(round((fix_s + horizon_s) / dt))
+    n_fix, n_all = int(round(fix_s / dt)), int(round((fix_s + outage_s) / dt))
     for k in range(n_all):
         C = A @ C @ A.T + Qa
         P = Phi_f @ P @ Phi_f.T + Qd_f
-        if k < n_fix:
+        if k < n_fix and (k + 1) % fix_every == 0:
             K = P @ Hf / (Hf @ P @ Hf + R)
             IKH = np.eye(nf) - np.outer(K, Hf)
             P = IKH @ P @ IKH.T + R * np.outer(K, K)

@@ -35,12 +35,12 @@ def _rel(a, b):
     return float(np.max(np.abs(a - b) / np.abs(b)))
 
 
-@pytest.mark.parametrize("rate,fix_rate", [(1.0, None), (10.0, None), (10.0, 2.0)])
+@pytest.mark.parametrize("rate,fix_rate", [(1.0, None), (1.0, 0.5), (10.0, None), (10.0, 2.0)])
 @pytest.mark.parametrize("matched", [True, False])
 @pytest.mark.parametrize("sensor", ["accel", "gyro"])
 @pytest.mark.parametrize("name", sorted(MODELS))
 def test_closed_form_equals_step_loop(name, sensor, matched, rate, fix_rate):
-    sc = reference_scenario(sensor, rate_hz=rate, fix_rate_hz=fix_rate, fix_s=60.0, horizon_s=180.0)
+    sc = reference_scenario(sensor, filter_rate_hz=rate, fix_rate_hz=fix_rate, fix_s=60.0, outage_s=180.0)
     truth = _scaled(MODELS[name], S[sensor])
     filt = truth if matched else _scaled(MODELS[name], S[sensor], wider=1.3)
     ref = covariance_analysis_steps(filt, truth, sc)
@@ -52,7 +52,7 @@ def test_closed_form_equals_step_loop(name, sensor, matched, rate, fix_rate):
 def test_gain_schedule_matches_step_loop():
     from imupipe.verify import state_space
 
-    sc = reference_scenario("accel", rate_hz=10.0, fix_rate_hz=2.5, fix_s=30.0, horizon_s=30.0)
+    sc = reference_scenario("accel", filter_rate_hz=10.0, fix_rate_hz=2.5, fix_s=30.0, outage_s=30.0)
     Pf, Qf, P0f, Hf, _ = state_space(MODELS["random_walk"], sc)
     g1, p1 = _filter_gains(Pf, Qf, P0f, Hf, 0.25, sc)
     g2, p2 = _filter_gains_steps(Pf, Qf, P0f, Hf, 0.25, sc)
@@ -75,3 +75,47 @@ def test_doubling_exact_on_jordan_block():
     q = quad_series(np.array([1.0, 0.0]), A, np.zeros((2, 2)), Q, 5000, block=256)[:, 0]
     k = np.arange(5000)
     np.testing.assert_allclose(q, np.concatenate([[0.0], np.cumsum((k * dt) ** 2)[:-1]]), rtol=1e-12)
+
+
+def _frozen_at(sc, model):
+    """The first fix from which the closed form uses the steady gain (None: it never froze)."""
+    from imupipe.verify import _filter_solution, state_space
+
+    Pf, Qf, P0f, Hf, _ = state_space(model, sc)
+    _, fg = _filter_solution(Pf, Qf, P0f, Hf, sc.sigma_fix**2, sc)
+    return next((j for j in range(1, len(fg)) if fg[j] is fg[j - 1]), None)
+
+
+@pytest.mark.parametrize("rate,fix_rate,fix_s", [(1.0, None, 2400.0), (10.0, 2.0, 1200.0)])
+@pytest.mark.parametrize("matched", [True, False])
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+def test_steady_gain_branch_equals_step_loop(sensor, matched, rate, fix_rate, fix_s):
+    """A filter whose gain converges within the fix phase (white + a 5 s GM): the closed form freezes the gain
+    (asserted, so this test covers that branch) and still equals the step loop to 1e-9 at every step, the
+    mismatched truth (a second, slower GM) included: the freeze tolerance 1e-13 (imupipe.covariance)."""
+    filt = _scaled(NoiseModel(white=1e-4, gauss_markov=((5e-5, 5.0),)), S[sensor])
+    truth = filt if matched else _scaled(NoiseModel(white=8e-5, gauss_markov=((4e-5, 5.0), (1e-5, 60.0))),
+                                         S[sensor])
+    sc = reference_scenario(sensor, filter_rate_hz=rate, fix_rate_hz=fix_rate, fix_s=fix_s, outage_s=120.0)
+    j = _frozen_at(sc, filt)
+    assert j is not None and j < sc.n_fix // sc.fix_every - 10
+    ref = covariance_analysis_steps(filt, truth, sc)
+    new = covariance_analysis(filt, truth, sc)
+    assert _rel(new.P, ref.P) <= 1e-9
+    assert _rel(new.mse, ref.mse) <= 1e-9
+
+
+@pytest.mark.parametrize("matched", [True, False])
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+@pytest.mark.parametrize("name", ["flicker", "narrowband"])
+def test_fix_at_every_100_hz_step_equals_step_loop(name, sensor, matched):
+    """A fix at every step of a 100 Hz filter (the per-fix loop with its rank-1 update, no freeze: the flicker
+    bank's slow states keep the gain moving) against the step loop's full Joseph form, 1e-9 at every step."""
+    sc = reference_scenario(sensor, filter_rate_hz=100.0, fix_s=20.0, outage_s=40.0)
+    truth = _scaled(MODELS[name], S[sensor])
+    filt = truth if matched else _scaled(MODELS[name], S[sensor], wider=1.3)
+    assert _frozen_at(sc, filt) is None
+    ref = covariance_analysis_steps(filt, truth, sc)
+    new = covariance_analysis(filt, truth, sc)
+    assert _rel(new.P, ref.P) <= 1e-9
+    assert _rel(new.mse, ref.mse) <= 1e-9

@@ -17,7 +17,7 @@ import sys
 import numpy as np
 import pytest
 
-from exact_kf import FIX_S, HORIZON_S, kf_against_truth, truth_discrete
+from exact_kf import FIX_S, OUTAGE_S, kf_against_truth, truth_discrete
 from imupipe.models import NoiseModel
 from imupipe.specsheet import parse_spec
 
@@ -49,7 +49,7 @@ def run_case(name: str, sensor: str, n_data: int, seed: int) -> dict:
     X = simulate(truth, int(RECORD_S * RATE_HZ), RATE_HZ, rng=np.random.default_rng(seed), n_records=n_data)
     curves = {f"d{i}/x": X[i] for i in range(n_data)}
     res = noise_model(curves, RATE_HZ, sensor, optimistic_spec(truth, sensor), window_s=25200.0, step_s=36000.0,
-                      outage_s=HORIZON_S, fix_s=FIX_S, n_boot=50, n_gm=len(truth.gauss_markov))
+                      outage_s=OUTAGE_S, fix_s=FIX_S, n_boot=50, n_gm=len(truth.gauss_markov))
     ver = res.verification["verification"]
     out = kf_against_truth(res.kf, truth, sensor)
     return {"case": name, "sensor": sensor, "n_data": n_data, "seed": seed,

@@ -24,7 +24,7 @@ from imupipe.specsheet import parse_spec
 
 RATE_HZ = 10.0
 RECORD_S = 36000.0
-FIX_S, HORIZON_S = 600.0, 3600.0
+FIX_S, OUTAGE_S = 600.0, 3600.0
 BASE = {"accel": (1e-4, 3e-4), "gyro": (1e-5, 1e-5)}  # (N u/sqrt(Hz), GM sigma u), SI
 UNITS = {"accel": ("m/s^2/sqrt(Hz)", "m/s^2"), "gyro": ("rad/s/sqrt(Hz)", "rad/s")}
 
@@ -50,11 +50,11 @@ def run_case(sensor: str, factor: float, n_data: int, scale: float, seed: int) -
     X = simulate(truth, int(RECORD_S * RATE_HZ), RATE_HZ, rng=np.random.default_rng(seed), n_records=n_data)
     curves = {f"d{i}/x": X[i] for i in range(n_data)}
     res = noise_model(curves, RATE_HZ, sensor, spec_of(sensor, truth, scale), window_s=25200.0, step_s=36000.0,
-                      outage_s=HORIZON_S, fix_s=FIX_S)  # the workflow's defaults: n_boot 100
+                      outage_s=OUTAGE_S, fix_s=FIX_S)  # the workflow's defaults: n_boot 100
     ver = res.verification
     checks = ver["verification"]["checks"]
     bounded = res.bounded  # the contract's verdict: every check passed, the verification included
-    exact = kf_against_truth(res.kf, truth, sensor, FIX_S, HORIZON_S)
+    exact = kf_against_truth(res.kf, truth, sensor, FIX_S, OUTAGE_S)
     worst, first = exact["worst"], exact["first_exceed_s"]
     bi = ver["exported"]["bias_initialisation"]
     return {"sensor": sensor, "T_factor": factor, "n_data": n_data, "spec_scale": scale, "seed": seed,

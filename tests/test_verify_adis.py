@@ -51,8 +51,9 @@ def test_adis16405_bound_verifies_and_the_spec_sheet_fails_on_replay(shared_data
     assert b.model.white >= max(up.white, spec.white) * (1 - 1e-9)
     g = np.logspace(-1, 3, 200)  # 0.1 Hz .. 1 kHz, across and above the decimated band
     assert np.all(b.model.psd(g) >= up.psd(g) * (1 - 1e-9))
-    sc = reference_scenario(sensor, horizon_s=600.0)
-    ver = {sensor: verify_model(b.model, sensor, upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)}
+    sc = reference_scenario(sensor, outage_s=600.0)
+    ver = {sensor: verify_model(b.model, sensor, upper=up, spec=spec, records=series, record_rate_hz=100.0,
+                                scenario=sc)}
     al = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
                      span_s=1200.0, tau_min_s=0.01)
     assert al["total"]["tau_band_s"] == [0.01, 1200.0]
@@ -120,8 +121,8 @@ def test_adis16405_accel_line_modelled_removes_the_inflation_and_verifies(shared
     assert any(abs(f0 - 0.565) < 0.01 and s > 0 for s, f0, _ in model.model.narrowband)
     assert excl.model.narrowband == () and all(e["bins_hz"] and min(e["bins_hz"]) > 0.1
                                                for e in excl.details["excluded"])
-    sc = reference_scenario("accel", horizon_s=600.0)
-    ver = verify_model(model.model, "accel", upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)
+    sc = reference_scenario("accel", outage_s=600.0)
+    ver = verify_model(model.model, "accel", upper=up, spec=spec, records=series, record_rate_hz=100.0, scenario=sc)
     assert ver["passed"], ver["checks"]
     al = check_allan(model.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs), sample_edf=np.array(edfs),
                      span_s=1200.0, tau_min_s=0.01)

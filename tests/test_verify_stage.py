@@ -43,7 +43,7 @@ def test_line_policy_from_files_names_a_bad_file():
 
 
 # a short reference filter (fixes 100 s, outage 600 s at 1 Hz) keeps these analyses fast
-SHORT = dict(fix_s=100.0, horizon_s=600.0, filter_rate_hz=1.0)
+SHORT = dict(fix_s=100.0, outage_s=600.0, filter_rate_hz=1.0)
 TRUTH = NoiseModel(white=2e-3, gauss_markov=((5e-4, 200.0),), random_walk=2e-5)
 
 
@@ -77,7 +77,7 @@ def test_the_fix_rate_reaches_the_scenario_and_the_filter():
     (MSE = P at every step: worst ratio 1 within round-off), the scenario says the fix rate, and the filter's
     variance differs from the one with a fix every step (the fix rate is used, not only reported)."""
     m = NoiseModel(white=1e-4, gauss_markov=((3e-4, 300.0),))
-    kw = dict(spec=m, fix_s=100.0, horizon_s=300.0, filter_rate_hz=10.0, reduce=False)
+    kw = dict(spec=m, fix_s=100.0, outage_s=300.0, filter_rate_hz=10.0, reduce=False)
     rep, series = verification_stage(m, "accel", fix_rate_hz=1.0, **kw)
     every, series_every = verification_stage(m, "accel", **kw)
     assert rep["verification"]["scenario"]["fix_rate_hz"] == 1.0
@@ -105,3 +105,20 @@ def test_the_contract_needs_the_identifications_bootstrap():
         c = integrity_contract(ok, None, ver, intervals={"n_boot": n_boot, "confidence": 0.95})
         assert c["bounded"] is bounded and "identification_intervals" in c["checks_run"]
         assert bounded or c["failed_checks"][0]["check"] == "identification_intervals"
+
+
+def test_earlier_keyword_names_are_taken_and_both_names_refused():
+    """Issue 30's names (outage_s, filter_rate_hz, record_rate_hz): the earlier horizon_s and rate_hz give the same
+    scenario and report; giving both spellings of one is an error naming them."""
+    from imupipe.verify import reference_scenario
+
+    old = reference_scenario("gyro", rate_hz=10.0, horizon_s=50.0, fix_s=10.0)
+    assert old == reference_scenario("gyro", filter_rate_hz=10.0, outage_s=50.0, fix_s=10.0)
+    assert (old.rate_hz, old.horizon_s) == (10.0, 50.0)
+    with pytest.raises(ValueError, match="outage_s only"):
+        reference_scenario("gyro", horizon_s=50.0, outage_s=50.0)
+    a = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, horizon_s=600.0, reduce=False)[0]
+    b = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, outage_s=600.0, reduce=False)[0]
+    assert a == b and a["verification"]["scenario"]["horizon_s"] == 600.0  # the YAML field keeps its name
+    with pytest.raises(TypeError, match="unexpected keywords"):
+        verification_stage(TRUTH, "accel", spec=TRUTH, horizont_s=600.0)

@@ -2,7 +2,8 @@ r"""The verification stage of one spec sheet's bound of one sensor type (rule ``
 :func:`imupipe.api.noise_model`).
 
 The reference filter built on the bound's model (accel: paper eq. 17 position filter; gyro: angle filter;
-``fix_s`` s of fixes, then an outage of ``horizon_s`` s), checked by exact covariance analysis against the
+``fix_s`` s of fixes, then an outage of ``outage_s`` s, config ``application.horizon_s``), checked by exact
+covariance analysis against the
 identified upper envelope, the spec sheet and, for simulated data, the truth; the replay of the decimated
 records of that sensor; the model reduction by integrity (all of it :func:`imupipe.verify.verification_stage`).
 When the bound carries per-axis models (the axes differ), each is verified the same way against its own
@@ -18,7 +19,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-__all__ = ["HEADER", "model_of", "records_at_one_rate", "verify_sensor", "verify_stage"]
+__all__ = ["HEADER", "model_of", "records_at_one_rate", "read_records", "verify_sensor", "verify_stage", "verify_job"]
 
 #: Header of the verification file (what its fields mean, units).
 HEADER = """verification of the bound in the reference filter (docs/method.md, "Integrity: what bounded must mean").
@@ -51,16 +52,18 @@ def records_at_one_rate(series: Mapping):
     return records, rate
 
 
-def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = None, rate_hz: float | None = None,
-                  truth=None, turn_on_bias: float = 0.0, fix_s: float = 600.0, horizon_s: float = 3600.0,
-                  sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
-                  replay_z: float = 2.0, max_bias_time_s: float | None = None, fix_rate_hz: float | None = None):
+def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = None,
+                  record_rate_hz: float | None = None, truth=None, turn_on_bias: float = 0.0, fix_s: float = 600.0,
+                  outage_s: float = 3600.0, sigma_fix: float | None = None, filter_rate_hz: float = 1.0,
+                  reduce: bool = True, replay_z: float = 2.0, max_bias_time_s: float | None = None,
+                  fix_rate_hz: float | None = None, **earlier):
     """The verification of the bound file's dict `bound` (its ``bound``, ``upper_envelope``, ``spec_name``,
     ``psd_bounded`` and ``per_axis_models``): `spec` the spec sheet's model of `sensor` and its `turn_on_bias`
-    (u, 1 sigma), `truth` the simulation's model or None, `records` curve label -> decimated record (u) at
-    `rate_hz` (Hz; the included curves), the ``verify`` settings (`fix_s`, `horizon_s` in s, `sigma_fix` m for
-    accel or rad for gyro, `filter_rate_hz` Hz, `reduce`, `replay_z`, `fix_rate_hz` Hz: the fixes' rate, None: the
-    filter's) and ``identify.max_bias_time_s`` (s).
+    (u, 1 sigma), `truth` the simulation's model or None, `records` curve label -> record (u) at
+    `record_rate_hz` (Hz; the included curves; block-averaged to the filter rate by the replay), the ``verify``
+    settings (`fix_s` s, `outage_s` s = ``application.horizon_s``, `sigma_fix` m for accel or rad for gyro,
+    `filter_rate_hz` Hz, `reduce`, `replay_z`, `fix_rate_hz` Hz: the fixes' rate, None: the filter's) and
+    ``identify.max_bias_time_s`` (s). The earlier keyword names ``rate_hz`` and ``horizon_s`` are still taken.
 
     Returns (report, checks): the verification file's dict and the exported model's series by check."""
     import numpy as np
@@ -68,8 +71,15 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
     from imupipe.models import NoiseModel
     from imupipe.verify import verification_stage
 
+    from imupipe.verify import _renamed
+
+    _renamed(earlier, "verify_sensor", rate_hz="record_rate_hz", horizon_s="outage_s")
+    if extra := sorted(set(earlier) - {"record_rate_hz", "outage_s"}):
+        raise TypeError(f"verify_sensor: unexpected keywords {extra}")
+    record_rate_hz, outage_s = earlier.get("record_rate_hz", record_rate_hz), earlier.get("outage_s", outage_s)
     records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
-    kw = dict(spec=spec, truth=truth, rate_hz=rate_hz, fix_s=fix_s, horizon_s=horizon_s, sigma_fix=sigma_fix,
+    kw = dict(spec=spec, truth=truth, record_rate_hz=record_rate_hz, fix_s=fix_s, outage_s=outage_s,
+              sigma_fix=sigma_fix,
               filter_rate_hz=filter_rate_hz, reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
               turn_on_bias=turn_on_bias, fix_rate_hz=fix_rate_hz)
     upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
@@ -99,3 +109,54 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
 def verify_stage(bound: dict, sensor: str, **settings) -> dict:
     """The verification file's content (a YAML-ready dict, SI) of :func:`verify_sensor` with the same arguments."""
     return verify_sensor(bound, sensor, **settings)[0]
+
+
+def read_records(paths, path_spectra: str, filter_rate_hz: float):
+    """(label -> record, rate in Hz) of the record files `paths` (:func:`imupipe.io.read_series`) whose
+    ``dataset/axis`` is an included curve of the stacked spectra file `path_spectra`, each block-averaged to
+    `filter_rate_hz` on reading when faster (one full-rate record in memory at a time); one rate, or a ValueError
+    naming the record whose rate differs (:func:`records_at_one_rate`)."""
+    from imupipe.io import read_series
+    from imupipe.merge import Stacked
+    from imupipe.spectra import decimate
+
+    included = {f"{d}/{a}" for d, a in Stacked(path_spectra).curves(included_only=True)}
+    series = {}
+    for path in paths:
+        y, r, at = read_series(path)
+        if (label := f"{at.get('dataset')}/{at.get('axis')}") in included:
+            series[label] = decimate(y, r, filter_rate_hz) if r > filter_rate_hz * (1 + 1e-9) else (y, r)
+        del y
+    return records_at_one_rate(series)
+
+
+def verify_job(path_bound: str, path_spectra: str, path_spec: str, path_truth, records: list, path_out: str,
+               path_figure: str, spec_name: str, sensor: str, *, fix_s: float, outage_s: float, sigma_fix_m: float,
+               sigma_fix_rad: float, filter_rate_hz: float, reduce: bool, replay_z: float,
+               max_bias_time_s: float | None = None, fix_rate_hz: float | None = None) -> dict:
+    """Rule ``verify`` for one spec sheet and sensor: :func:`verify_sensor` on the bound file `path_bound`, the
+    spec sheet `path_spec` (its model and turn-on bias of `sensor`), the simulation's truth sheet `path_truth` (or
+    None) and the included curves' records (:func:`read_records`); writes the report (YAML with :data:`HEADER`,
+    SI) to `path_out` and the figure sqrt(P) against the true / empirical RMS error of the exported model to
+    `path_figure` (position error in m for accel, angle error in deg for gyro). Returns the report."""
+    import math
+
+    from imupipe.io import read_yaml, write_yaml_atomic
+    from imupipe.plot import plot_verification, save_figure
+    from imupipe.specsheet import load_spec
+
+    sheet = load_spec(path_spec)
+    series, rate = read_records(records, path_spectra, filter_rate_hz)
+    report, checks = verify_sensor(
+        read_yaml(path_bound), sensor, spec=sheet.models[sensor], records=series, record_rate_hz=rate,
+        truth=load_spec(path_truth).models[sensor] if path_truth else None,
+        turn_on_bias=sheet.turn_on_bias.get(sensor, 0.0), fix_s=fix_s, outage_s=outage_s,
+        sigma_fix=sigma_fix_m if sensor == "accel" else sigma_fix_rad, filter_rate_hz=filter_rate_hz,
+        reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s, fix_rate_hz=fix_rate_hz)
+    write_yaml_atomic(report, path_out, header=HEADER)
+    unit, scale = ("m", 1.0) if sensor == "accel" else ("deg", math.degrees(1.0))
+    what = "reduced model" if report["exported"]["reduced"] else "bound"
+    save_figure(plot_verification(checks, unit=unit, scale=scale, fix_s=fix_s,
+                                  title=f"{sensor}, {spec_name}: reference filter on the exported {what}",
+                                  quantity="position error" if sensor == "accel" else "angle error"), path_figure)
+    return report
