@@ -93,8 +93,8 @@ def main(argv=None):
                           **pol.bound_kwargs())
             ver = None
             if not a.no_verify:
-                sc = reference_scenario(sensor, horizon_s=600.0)
-                ver = verify_model(b.model, sensor, upper=up, spec=spec, records=series, rate_hz=100.0, scenario=sc)
+                sc = reference_scenario(sensor, outage_s=600.0)
+                ver = verify_model(b.model, sensor, upper=up, spec=spec, records=series, record_rate_hz=100.0, scenario=sc)
             al = check_allan(b.model, fit.model, taus[0], kept=sel, sample_avar=np.array(avs),
                              sample_edf=np.array(edfs), span_s=600.0)
             rows.append((sensor, policy, b.inflation["N"], sum(s > 0 for s, _, _ in b.model.narrowband), b.margin,

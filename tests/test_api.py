@@ -96,8 +96,8 @@ def workflow(records, tmp_path_factory):
 
     # verification of the bound file on the decimated records, then the KF matrices of the model it exports
     dec = {label: decimate(np.asarray(x), RATE, 1.0)[0] for label, x in records.items()}
-    ver = verify_stage(bound, "gyro", spec=spec.models["gyro"], records=dec, rate_hz=1.0, fix_s=600.0,
-                       horizon_s=600.0, filter_rate_hz=1.0, sigma_fix=0.001745)  # config.yaml's sigma_fix_rad
+    ver = verify_stage(bound, "gyro", spec=spec.models["gyro"], records=dec, record_rate_hz=1.0, fix_s=600.0,
+                       outage_s=600.0, filter_rate_hz=1.0, sigma_fix=0.001745)  # config.yaml's sigma_fix_rad
     write_yaml_atomic(ver, tmp / "verify.yaml")
     ver = read_yaml(tmp / "verify.yaml")
     kf = exported_kf(ver["exported"], 1.0, "gyro")

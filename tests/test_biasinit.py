@@ -110,7 +110,7 @@ def test_truth_random_walk_starts_stationary():
     _, _, P0t, _, st = state_space(m, sc, role="truth")
     assert P0t[st.index("p"), st.index("p")] == pytest.approx(1e-12 * 0.5e5)
     _, _, P0f, _, sf = state_space(m, sc, role="filter")
-    assert P0f[sf.index("p"), sf.index("p")] == pytest.approx(1e-12 * (sc.fix_s + sc.horizon_s))
+    assert P0f[sf.index("p"), sf.index("p")] == pytest.approx(1e-12 * (sc.fix_s + sc.outage_s))
 
 
 def test_spec_turn_on_bias(tmp_path):
@@ -142,7 +142,7 @@ def test_a_slow_bias_is_not_carried_by_a_fast_filter_state():
     filt = NoiseModel(white=6e-5, gauss_markov=((math.sqrt(0.7 * V), 168.0),), random_walk=1.1 * K)
     worst = {}
     for slow in (0.0, V):
-        sc = reference_scenario("accel", fix_s=600.0, horizon_s=3600.0, bias_var_floor=V, bias_var_floor_slow=slow,
+        sc = reference_scenario("accel", fix_s=600.0, outage_s=3600.0, bias_var_floor=V, bias_var_floor_slow=slow,
                                 max_bias_time_s=T_max)
         worst[slow] = covariance_analysis(filt, truth, sc).worst_ratio
     assert worst[0.0] > 1.0 + 1e-6 and worst[V] <= 1.0 + 1e-6, worst

@@ -438,7 +438,7 @@ class TestAllFrequencies:
         assert np.all(r.model.psd(g) >= up.psd(g) * (1 - 1e-9))
         assert r.details["all_frequency"]["N_upper"] == pytest.approx(up.white)
         assert np.min(r0.model.psd(g) / up.psd(g)) < 0.999
-        sc = reference_scenario("gyro", rate_hz=1.0, fix_s=600.0, horizon_s=600.0)
+        sc = reference_scenario("gyro", filter_rate_hz=1.0, fix_s=600.0, outage_s=600.0)
         assert covariance_analysis(r.model, up, sc).passed
         assert not covariance_analysis(r0.model, up, sc).passed
 

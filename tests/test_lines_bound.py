@@ -165,7 +165,7 @@ BASE = NoiseModel(white=1e-4, gauss_markov=((2e-5, 300.0),))
 
 
 def test_filter_with_the_line_is_verified_against_a_truth_with_the_line():
-    sc = reference_scenario("accel", rate_hz=1.0, fix_s=600.0, horizon_s=1800.0)
+    sc = reference_scenario("accel", filter_rate_hz=1.0, fix_s=600.0, outage_s=1800.0)
     truth = replace(BASE, narrowband=(LINE,))
     matched = covariance_analysis(truth, truth, sc)
     # matched filter: its P is the true MSE (to the recursions' rounding)
@@ -187,7 +187,7 @@ def test_bound_with_a_line_column_verifies():
     r = bound_psd(f, truth.psd_sampled(f, 1.0)[None, :], None, dt=1.0, keep=("white", "gauss_markov"),
                   narrowband=((LINE[1], LINE[2]),))
     assert r.bounded and len(r.model.narrowband) == 1
-    sc = reference_scenario("accel", rate_hz=1.0, fix_s=600.0, horizon_s=1800.0)
+    sc = reference_scenario("accel", filter_rate_hz=1.0, fix_s=600.0, outage_s=1800.0)
     assert covariance_analysis(r.model, truth, sc).passed
     assert not covariance_analysis(replace(r.model, narrowband=()), truth, sc).passed
     assert math.isfinite(r.model.narrowband[0][0])
@@ -200,7 +200,7 @@ def test_replay_of_simulated_records_with_a_line_matches_the_exact_mse():
     each step's MSE; the mean ratio over the outage is checked to 3 SE (conservative: steps are correlated, so
     their mean varies less than one step's). The same records against the filter without the line fail."""
     truth = replace(BASE, narrowband=(LINE,))
-    sc = reference_scenario("accel", rate_hz=1.0, fix_s=300.0, horizon_s=900.0)
+    sc = reference_scenario("accel", filter_rate_hz=1.0, fix_s=300.0, outage_s=900.0)
     rec = simulate(truth, 24000 * 10, 10.0, rng=np.random.default_rng(11), n_records=8)
     r = replay(truth, list(rec), 10.0, sc)
     exact = covariance_analysis(truth, truth, sc)

@@ -40,7 +40,7 @@ def run_case(name: str, sensor: str, seed: int) -> dict:
     X = simulate(truth, int(RECORD_S * RATE_HZ), RATE_HZ, rng=np.random.default_rng(seed), n_records=N_DATA)
     curves = {f"d{i}/x": X[i] for i in range(N_DATA)}
     res = noise_model(curves, RATE_HZ, sensor, optimistic_spec(truth, sensor), window_s=7200.0, step_s=3600.0,
-                      horizon_s=OUTAGE_S, fix_s=FIX_S, n_gm=len(truth.gauss_markov), application_rate_hz=RATE_HZ,
+                      outage_s=OUTAGE_S, fix_s=FIX_S, n_gm=len(truth.gauss_markov),
                       filter_rate_hz=RATE_HZ, fix_rate_hz=FIX_RATE_HZ, decimate_hz=RATE_HZ)
     assert abs(float(res.kf["dt_s"]) - 1.0 / RATE_HZ) < 1e-15  # the KF file runs at the verified 100 Hz
     out = kf_against_truth(res.kf, truth, sensor, fix_every=int(round(RATE_HZ / FIX_RATE_HZ)))

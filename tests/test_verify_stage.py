@@ -107,18 +107,23 @@ def test_the_contract_needs_the_identifications_bootstrap():
         assert bounded or c["failed_checks"][0]["check"] == "identification_intervals"
 
 
-def test_earlier_keyword_names_are_taken_and_both_names_refused():
-    """Issue 30's names (outage_s, filter_rate_hz, record_rate_hz): the earlier horizon_s and rate_hz give the same
-    scenario and report; giving both spellings of one is an error naming them."""
-    from imupipe.verify import reference_scenario
+def test_earlier_keyword_names_are_refused_naming_the_new_one():
+    """One meaning per name (outage_s, filter_rate_hz, record_rate_hz): the earlier horizon_s and rate_hz are refused
+    with the name to use; a misspelt keyword is refused as unexpected; the YAML field keeps its name."""
+    from imupipe.stages.verify import verify_sensor
+    from imupipe.verify import reference_scenario, verify_model
 
-    old = reference_scenario("gyro", rate_hz=10.0, horizon_s=50.0, fix_s=10.0)
-    assert old == reference_scenario("gyro", filter_rate_hz=10.0, outage_s=50.0, fix_s=10.0)
-    assert (old.rate_hz, old.horizon_s) == (10.0, 50.0)
-    with pytest.raises(ValueError, match="outage_s only"):
-        reference_scenario("gyro", horizon_s=50.0, outage_s=50.0)
-    a = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, horizon_s=600.0, reduce=False)[0]
-    b = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, outage_s=600.0, reduce=False)[0]
-    assert a == b and a["verification"]["scenario"]["horizon_s"] == 600.0  # the YAML field keeps its name
+    with pytest.raises(TypeError, match="'horizon_s' is now 'outage_s'"):
+        reference_scenario("gyro", horizon_s=50.0)
+    with pytest.raises(TypeError, match="'rate_hz' is now 'filter_rate_hz'"):
+        reference_scenario("gyro", rate_hz=10.0)
+    with pytest.raises(TypeError, match="'horizon_s' is now 'outage_s'"):
+        verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, horizon_s=600.0, reduce=False)
+    with pytest.raises(TypeError, match="'rate_hz' is now 'record_rate_hz'"):
+        verify_model(TRUTH, "accel", spec=TRUTH, rate_hz=1.0)
+    with pytest.raises(TypeError, match="'rate_hz' is now 'record_rate_hz'"):
+        verify_sensor({}, "accel", spec=TRUTH, rate_hz=1.0)
+    a = verification_stage(TRUTH, "accel", spec=TRUTH, fix_s=100.0, outage_s=600.0, reduce=False)[0]
+    assert a["verification"]["scenario"]["horizon_s"] == 600.0  # the YAML field keeps its name
     with pytest.raises(TypeError, match="unexpected keywords"):
         verification_stage(TRUTH, "accel", spec=TRUTH, horizont_s=600.0)

@@ -380,7 +380,7 @@ class TestPerAxisExport:
                     "allan_check_passed": allan["passed"]}
 
         def ver(res):
-            return verification_stage(res.model, "gyro", spec=spec, fix_s=60.0, horizon_s=120.0, reduce=False)[0]
+            return verification_stage(res.model, "gyro", spec=spec, fix_s=60.0, outage_s=120.0, reduce=False)[0]
 
         bound = {**bound_doc(glob, ok_allan), "per_axis_models": {
             "x": {**bound_doc(per["x"][1], ok_allan), "curves": per["x"][0], "upper_envelope": None},
@@ -468,7 +468,7 @@ def test_contract_says_the_inflation_is_the_bounds_and_which_states_the_export_d
                                                     "K": 1.2}}
     docs = {}
     for reduce in (True, False):
-        ver = verification_stage(big, "gyro", spec=truth, upper=truth, fix_s=300.0, horizon_s=900.0, reduce=reduce)[0]
+        ver = verification_stage(big, "gyro", spec=truth, upper=truth, fix_s=300.0, outage_s=900.0, reduce=reduce)[0]
         paths = {k: tmp_path / f"{k}_{reduce}.yaml" for k in ("bound", "verify", "contract")}
         paths["bound"].write_text(yaml.safe_dump(plain(bound)))
         paths["verify"].write_text(yaml.safe_dump(plain(ver)))

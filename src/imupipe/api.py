@@ -458,8 +458,8 @@ def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, ou
     turn_on = spec_sheet.turn_on_bias.get(sensor, 0.0)
     if verify:
         verification = verify_sensor(bound.record, sensor, spec=spec_sheet.models[sensor], records=decimated,
-                                     rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
-                                     horizon_s=outage_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
+                                     record_rate_hz=1.0 / dt, truth=true_model, turn_on_bias=turn_on, fix_s=fix_s,
+                                     outage_s=outage_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz,
                                      reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
                                      fix_rate_hz=fix_rate_hz)[0]
         contract = contract_stage(bound.record, verification, spec_sheet, sensor=sensor, kf_file=None,

@@ -70,6 +70,7 @@ import numpy as np
 __all__ = [
     "Scenario",
     "reference_scenario",
+    "refuse_keywords",
     "state_space",
     "covariance_analysis",
     "covariance_analysis_steps",
@@ -89,12 +90,12 @@ __all__ = [
 @dataclass(frozen=True)
 class Scenario:
     """Reference-filter scenario (SI): a filter step every 1/filter_rate_hz s, fixes every 1/fix_rate_hz s for fix_s,
-    then an outage of outage_s. ``rate_hz`` and ``horizon_s`` are read-only aliases of the earlier names."""
+    then an outage of outage_s."""
 
     sensor: str = "accel"  #: ``accel`` (position fixes, m) or ``gyro`` (angle fixes, rad)
     filter_rate_hz: float = 1.0  #: filter rate, Hz (and fix rate unless fix_rate_hz)
     fix_s: float = 600.0  #: fix period, s
-    outage_s: float = 3600.0  #: outage (application.horizon_s), s
+    outage_s: float = 3600.0  #: outage (application.outage_s), s
     sigma_fix: float = 0.5  #: fix standard deviation, m (accel) or rad (gyro)
     var_pos: float | None = None  #: initial position/angle variance, m^2 or rad^2 (None: sigma_fix^2)
     var_vel: float = 1.0  #: initial velocity variance, (m/s)^2 (accel only)
@@ -109,16 +110,6 @@ class Scenario:
     #: same drift, s (None: K^2 * p0_time_s, the filter's own rule)
     max_bias_time_s: float | None = None
     fix_rate_hz: float | None = None  #: fix rate, Hz (None: filter_rate_hz); their ratio must be an integer
-
-    @property
-    def rate_hz(self):
-        """The filter rate, Hz (earlier name of filter_rate_hz)."""
-        return self.filter_rate_hz
-
-    @property
-    def horizon_s(self):
-        """The outage, s (earlier name of outage_s)."""
-        return self.outage_s
 
     @property
     def dt(self):
@@ -145,23 +136,23 @@ class Scenario:
         return int(round(m))
 
 
-def _renamed(kw: dict, where: str, **old_to_new):
-    """Move the earlier keyword names of `kw` (``rate_hz``, ``horizon_s``) to the agreed ones in place; both given is
-    an error naming them."""
+def refuse_keywords(kw: dict, where: str, **old_to_new):
+    """Refuse the keyword arguments `kw` a function does not take: an earlier name (``rate_hz``, ``horizon_s``:
+    one meaning per name) with the one to use instead, any other as unexpected."""
     for old, new in old_to_new.items():
         if old in kw:
-            if new in kw:
-                raise ValueError(f"{where}: give {new} only ({old} is its earlier name)")
-            kw[new] = kw.pop(old)
+            raise TypeError(f"{where}: the keyword {old!r} is now {new!r}")
+    if kw:
+        raise TypeError(f"{where}: unexpected keywords {sorted(kw)}")
 
 
 def reference_scenario(sensor: str = "accel", **kw) -> Scenario:
     """The default reference filter of `sensor` (``accel``: eq. 17 position filter; ``gyro``: angle
-    filter), keyword arguments overriding :class:`Scenario` fields (``rate_hz`` and ``horizon_s`` are taken as
-    ``filter_rate_hz`` and ``outage_s``). Raises ValueError on bad values."""
+    filter), keyword arguments overriding :class:`Scenario` fields. Raises ValueError on bad values."""
     if sensor not in ("accel", "gyro"):
         raise ValueError(f"verification sensor must be 'accel' or 'gyro', got {sensor!r}")
-    _renamed(kw, "reference_scenario", rate_hz="filter_rate_hz", horizon_s="outage_s")
+    refuse_keywords({k: kw.pop(k) for k in ("rate_hz", "horizon_s") if k in kw}, "reference_scenario",
+                    rate_hz="filter_rate_hz", horizon_s="outage_s")
     if sensor == "gyro" and "sigma_fix" not in kw:
         kw["sigma_fix"] = math.radians(0.1)  # 0.1 deg angle fixes
     sc = Scenario(sensor=sensor, **kw)
@@ -779,14 +770,10 @@ def verify_model(filter_model, sensor: str = "accel", truth=None, upper=None, sp
     """All verification checks of one exported model in one reference filter, as a YAML-ready dict.
 
     Checks run for the arguments given: ``truth`` (a) (simulated data), ``upper`` and ``spec`` (b)
-    (identified upper envelope, spec sheet), ``records`` with ``record_rate_hz`` (c) (replay; ``rate_hz`` is its
-    earlier name). Each entry is
+    (identified upper envelope, spec sheet), ``records`` with ``record_rate_hz`` (c) (replay). Each entry is
     :meth:`Verification.to_dict`; ``passed`` is True when every check run passed.
     """
-    _renamed(earlier, "verify_model", rate_hz="record_rate_hz")
-    if set(earlier) - {"record_rate_hz"}:
-        raise TypeError(f"verify_model: unexpected keyword {sorted(set(earlier) - {'record_rate_hz'})}")
-    record_rate_hz = earlier.get("record_rate_hz", record_rate_hz)
+    refuse_keywords(earlier, "verify_model", rate_hz="record_rate_hz")
     sc = scenario if scenario is not None else reference_scenario(sensor)
     out = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.filter_rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.outage_s,
                         "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad"},
@@ -988,12 +975,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     from imupipe.biasinit import bias_initialisation, worst_member
     from imupipe.units import SI_UNITS
 
-    # the earlier names rate_hz (the records' rate) and horizon_s (the outage) are still taken
-    _renamed(earlier, "verification_stage", rate_hz="record_rate_hz", horizon_s="outage_s")
-    if extra := sorted(set(earlier) - {"record_rate_hz", "outage_s"}):
-        raise TypeError(f"verification_stage: unexpected keywords {extra}")
-    record_rate_hz = earlier.get("record_rate_hz", record_rate_hz)
-    outage_s = earlier.get("outage_s", outage_s)
+    refuse_keywords(earlier, "verification_stage", rate_hz="record_rate_hz", horizon_s="outage_s")
     if record_s is None and records is not None and record_rate_hz:
         record_s = max(np.asarray(r).size for r in records) / float(record_rate_hz)
     bias = bias_initialisation(bound_model, spec=spec, upper=upper, turn_on_bias=turn_on_bias, record_s=record_s,

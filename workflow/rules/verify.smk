@@ -27,7 +27,7 @@ rule verify:
         ),
     params:
         fix_s=config["verify"]["fix_s"],
-        horizon_s=OUTAGE_S,
+        outage_s=OUTAGE_S,
         sigma_fix_m=config["verify"]["sigma_fix_m"],
         sigma_fix_rad=config["verify"]["sigma_fix_rad"],
         # the reference filter runs at the exported filter's rate

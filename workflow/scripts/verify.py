@@ -10,7 +10,6 @@ if __name__ == "__main__":
     run_job(verify_job, snakemake.log[0], path_bound=i.bound, path_spectra=i.spectra, path_spec=i.spec,
             path_truth=i.get("truth") or None, records=list(i.records), path_out=o.verify, path_figure=o.figure,
             spec_name=snakemake.wildcards.spec, sensor=snakemake.wildcards.sensor, fix_s=p.fix_s,
-            # the rule's param horizon_s is config application.horizon_s: the outage
-            outage_s=p.horizon_s, sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad,
+            outage_s=p.outage_s, sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad,
             filter_rate_hz=p.filter_rate_hz, reduce=p.reduce, replay_z=p.replay_z,
             max_bias_time_s=p.max_bias_time_s, fix_rate_hz=p.fix_rate_hz)

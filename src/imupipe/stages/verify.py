@@ -2,7 +2,7 @@ r"""The verification stage of one spec sheet's bound of one sensor type (rule ``
 :func:`imupipe.api.noise_model`).
 
 The reference filter built on the bound's model (accel: paper eq. 17 position filter; gyro: angle filter;
-``fix_s`` s of fixes, then an outage of ``outage_s`` s, config ``application.horizon_s``), checked by exact
+``fix_s`` s of fixes, then an outage of ``outage_s`` s, config ``application.outage_s``), checked by exact
 covariance analysis against the
 identified upper envelope, the spec sheet and, for simulated data, the truth; the replay of the decimated
 records of that sensor; the model reduction by integrity (all of it :func:`imupipe.verify.verification_stage`).
@@ -61,9 +61,9 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
     ``psd_bounded`` and ``per_axis_models``): `spec` the spec sheet's model of `sensor` and its `turn_on_bias`
     (u, 1 sigma), `truth` the simulation's model or None, `records` curve label -> record (u) at
     `record_rate_hz` (Hz; the included curves; block-averaged to the filter rate by the replay), the ``verify``
-    settings (`fix_s` s, `outage_s` s = ``application.horizon_s``, `sigma_fix` m for accel or rad for gyro,
+    settings (`fix_s` s, `outage_s` s = ``application.outage_s``, `sigma_fix` m for accel or rad for gyro,
     `filter_rate_hz` Hz, `reduce`, `replay_z`, `fix_rate_hz` Hz: the fixes' rate, None: the filter's) and
-    ``identify.max_bias_time_s`` (s). The earlier keyword names ``rate_hz`` and ``horizon_s`` are still taken.
+    ``identify.max_bias_time_s`` (s).
 
     Returns (report, checks): the verification file's dict and the exported model's series by check."""
     import numpy as np
@@ -71,12 +71,9 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
     from imupipe.models import NoiseModel
     from imupipe.verify import verification_stage
 
-    from imupipe.verify import _renamed
+    from imupipe.verify import refuse_keywords
 
-    _renamed(earlier, "verify_sensor", rate_hz="record_rate_hz", horizon_s="outage_s")
-    if extra := sorted(set(earlier) - {"record_rate_hz", "outage_s"}):
-        raise TypeError(f"verify_sensor: unexpected keywords {extra}")
-    record_rate_hz, outage_s = earlier.get("record_rate_hz", record_rate_hz), earlier.get("outage_s", outage_s)
+    refuse_keywords(earlier, "verify_sensor", rate_hz="record_rate_hz", horizon_s="outage_s")
     records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
     kw = dict(spec=spec, truth=truth, record_rate_hz=record_rate_hz, fix_s=fix_s, outage_s=outage_s,
               sigma_fix=sigma_fix,
