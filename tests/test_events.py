@@ -174,6 +174,26 @@ class TestReportHelpers:
         assert text == ("mean excursion 0.0188 m/s^2 [0.0127, 0.0249] at 7846.9 s (back by 7878.9 s) from the "
                         "record's start")
 
+    def test_many_events_of_one_record_make_one_flag_each_few_their_own(self):
+        # a record with more than MAX_EVENT_FLAGS events (the shipped ADIS16405 accels have 3-11 per axis) gives one
+        # line per record and sensor naming the counts and the largest step; another record's 1 event keeps its own
+        from imupipe.events import MAX_EVENT_FLAGS
+
+        def step(axis, t, mg, dataset="a"):
+            return {"dataset": dataset, "sensor": "accel", "axis": axis, "kind": "step", "time_s": t,
+                    "size": mg * 9.80665e-3, "units": "m/s^2", "display": {"size": mg, "unit": "mg"}}
+
+        many = [step("x", 10.0 * i, 1.0 + i) for i in range(MAX_EVENT_FLAGS)] + [
+            step("y", 500.0, -9.0), {"dataset": "a", "sensor": "accel", "axis": "z", "kind": "burst", "start_s": 3.0,
+                                     "stop_s": 4.0, "size": 0.5, "units": "m/s^2"}]
+        flags = event_flags(many + [step("x", 7.0, 2.0, dataset="b")])
+        assert [w for w, _ in flags] == ["a/accel", "b/accel/x"]
+        text = flags[0][1]
+        assert text.startswith(f"{MAX_EVENT_FLAGS + 2} events ({MAX_EVENT_FLAGS} on x, 1 on y, 1 on z; "
+                               f"{MAX_EVENT_FLAGS + 1} mean steps, 1 bursts)"), text
+        assert "the largest: mean step" in text and "(-9 mg) at 500.0 s" in text and "on axis y" in text
+        assert len(event_flags(many[:MAX_EVENT_FLAGS])) == MAX_EVENT_FLAGS  # up to the limit: one line each
+
     def test_excursion_edges_are_two_steps_and_a_decaying_kick_a_transient(self):
         rate = 100.0
         x = simulate(TRUTH, 200_000, rate, rng=9)

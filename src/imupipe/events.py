@@ -112,7 +112,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["POLICIES", "detect_events", "find_bursts", "find_steps", "event_free_segment", "event_flags",
+__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "find_bursts", "find_steps", "event_free_segment", "event_flags",
            "display_unit", "MAD_EFFICIENCY"]
 
 #: What a found event does (config ``events.policy``); ``split`` is refused (config/README.md says why).
@@ -481,34 +481,64 @@ def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:
     return best
 
 
+#: more events than this on one record and sensor are summarised in one FLAG line (each stays in the report)
+MAX_EVENT_FLAGS = 3
+
+
+def _event_text(it: Mapping) -> str:
+    """The FLAG text of one event (kind, size in SI with its interval and display unit, time from the start)."""
+    unit = it.get("units") or "SI"
+    disp = it.get("display") if isinstance(it.get("display"), Mapping) else None
+
+    def fmt(v):
+        return f"{float(v):.3g}"
+
+    if it.get("kind") in ("step", "transient"):
+        size = f"{'mean step' if it['kind'] == 'step' else 'mean excursion'} {fmt(it['size'])} {unit}"
+        if it.get("size_low") is not None:
+            size += f" [{fmt(it['size_low'])}, {fmt(it['size_high'])}]"
+        if disp:
+            size += f" ({fmt(disp['size'])} {disp['unit']})"
+        when = f"at {float(it['time_s']):.1f} s"
+        if it["kind"] == "transient" and it.get("stop_s") is not None:
+            when += f" (back by {float(it['stop_s']):.1f} s)"
+    else:
+        size = f"burst, peak {fmt(it['size'])} {unit}" + (f" ({fmt(disp['size'])} {disp['unit']})" if disp else "")
+        when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
+    text = f"{size} {when} from the record's start"
+    if it.get("action"):
+        text += f"; {it['action']}"
+    return text
+
+
+def _group_text(group: list) -> str:
+    """One FLAG text for many events of one record and sensor: counts per axis and kind, the largest step."""
+    axes = sorted({str(it.get("axis", "-")) for it in group})
+    per_axis = ", ".join(f"{sum(str(it.get('axis', '-')) == a for it in group)} on {a}" for a in axes)
+    kinds = {"step": "mean steps", "transient": "mean excursions", "burst": "bursts"}
+    counts = ", ".join(f"{n} {kinds.get(k, k)}" for k in kinds
+                       if (n := sum(it.get("kind") == k for it in group)))
+    steps = [it for it in group if it.get("kind") in ("step", "transient")]
+    largest = max(steps or group, key=lambda it: abs(float((it.get("display") or it).get("size", 0.0))))
+    return (f"{len(group)} events ({per_axis}; {counts}); the largest: {_event_text(largest)} on axis "
+            f"{largest.get('axis', '-')}; each is listed in the outliers report of its axis")
+
+
 def event_flags(items) -> list[tuple[str, str]]:
-    """(where, text) of the summary FLAG of each event of an outliers report (``events``: dicts with ``dataset``,
-    ``sensor``, ``axis``, ``kind``, ``time_s``, ``size`` and ``units``, ``display``, ``policy``, ``action``)."""
-    out = []
+    """(where, text) of the summary FLAGs of the events of outliers reports (``events``: dicts with ``dataset``,
+    ``sensor``, ``axis``, ``kind``, ``time_s``, ``size`` and ``units``, ``display``, ``policy``, ``action``): one
+    FLAG per event, or one per record and sensor where that record has more than :data:`MAX_EVENT_FLAGS`."""
+    groups: dict = {}
     for it in items or []:
-        if not isinstance(it, Mapping):
+        if isinstance(it, Mapping):
+            groups.setdefault((it.get("dataset"), it.get("sensor")), []).append(it)
+    out = []
+    for (dataset, sensor), group in groups.items():
+        if len(group) > MAX_EVENT_FLAGS:
+            where = "/".join(str(v) for v in (dataset, sensor) if v is not None) or "-"
+            out.append((where, _group_text(group)))
             continue
-        where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None) or "-"
-        unit = it.get("units") or "SI"
-        disp = it.get("display") if isinstance(it.get("display"), Mapping) else None
-
-        def fmt(v):
-            return f"{float(v):.3g}"
-
-        if it.get("kind") in ("step", "transient"):
-            size = f"{'mean step' if it['kind'] == 'step' else 'mean excursion'} {fmt(it['size'])} {unit}"
-            if it.get("size_low") is not None:
-                size += f" [{fmt(it['size_low'])}, {fmt(it['size_high'])}]"
-            if disp:
-                size += f" ({fmt(disp['size'])} {disp['unit']})"
-            when = f"at {float(it['time_s']):.1f} s"
-            if it["kind"] == "transient" and it.get("stop_s") is not None:
-                when += f" (back by {float(it['stop_s']):.1f} s)"
-        else:
-            size = f"burst, peak {fmt(it['size'])} {unit}" + (f" ({fmt(disp['size'])} {disp['unit']})" if disp else "")
-            when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
-        text = f"{size} {when} from the record's start"
-        if it.get("action"):
-            text += f"; {it['action']}"
-        out.append((where, text))
+        for it in group:
+            where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None) or "-"
+            out.append((where, _event_text(it)))
     return out
