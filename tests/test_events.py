@@ -191,7 +191,7 @@ class TestReportHelpers:
         text = flags[0][1]
         assert text.startswith(f"{MAX_EVENT_FLAGS + 2} events ({MAX_EVENT_FLAGS} on x, 1 on y, 1 on z; "
                                f"{MAX_EVENT_FLAGS + 1} mean steps, 1 bursts)"), text
-        assert "the largest: mean step" in text and "(-9 mg) at 500.0 s" in text and "on axis y" in text
+        assert "the largest, on axis y: mean step" in text and "(-9 mg) at 500.0 s" in text
         assert len(event_flags(many[:MAX_EVENT_FLAGS])) == MAX_EVENT_FLAGS  # up to the limit: one line each
 
     def test_excursion_edges_are_two_steps_and_a_decaying_kick_a_transient(self):

@@ -239,6 +239,29 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
     assert "- FLAG lines [adis_imu2/accel/x]: 0.5669 Hz" in text
 
 
+def test_an_axis_with_a_line_family_gets_one_flag_naming_every_frequency_and_the_strongest():
+    """An accelerometer line with its sidebands and harmonics (the ADIS16405's 0.46 / 0.56 / 0.67 / 1.69 Hz): more
+    than MAX_LINE_FLAGS lines on one axis make one FLAG (frequencies, the strongest by peak over the floor); another
+    axis with one line keeps its own."""
+    from imupipe.stages import summary as mod
+    from imupipe.summary import MAX_LINE_FLAGS
+
+    def line(f, ratio):
+        return {"frequency_hz": f, "amplitude": 1e-3 * ratio, "peak_ratio": ratio}
+
+    units = {"frequency_hz": "Hz", "amplitude": "m/s^2", "peak_ratio": "1"}
+    family = [line(0.4631, 6.69), line(0.5641, 203.0), line(0.6654, 6.27), line(1.691, 8.5)]
+    assert len(family) > MAX_LINE_FLAGS
+    entry = {}
+    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "lines": family, "units": units})
+    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "y", "lines": [line(0.564, 143.0)],
+                              "units": units})
+    flags = [ln for ln in render_summary({"accel": {"bound": entry}}).splitlines() if ln.startswith("- FLAG lines")]
+    assert flags == ["- FLAG lines [d/accel/x]: 4 lines at 0.4631, 0.5641, 0.6654, 1.691 Hz; the strongest: "
+                     "0.5641 Hz, amplitude 0.203 m/s^2, peak PSD 203x the floor",
+                     "- FLAG lines [d/accel/y]: 0.564 Hz, amplitude 0.143 m/s^2, peak PSD 143x the floor"], flags
+
+
 def test_inflation_table_shows_a_component_the_spec_sheet_does_not_give_as_in_the_tables():
     """The ADIS16405 sheet gives no random walk and no GM (only N and flicker): summary.md's table shows such a spec
     cell "-" with no ratio, as tables/<spec>/inflation.md does (imupipe.specsheet.inflation_rows), not "0"; every

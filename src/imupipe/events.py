@@ -520,8 +520,8 @@ def _group_text(group: list) -> str:
                        if (n := sum(it.get("kind") == k for it in group)))
     steps = [it for it in group if it.get("kind") in ("step", "transient")]
     largest = max(steps or group, key=lambda it: abs(float((it.get("display") or it).get("size", 0.0))))
-    return (f"{len(group)} events ({per_axis}; {counts}); the largest: {_event_text(largest)} on axis "
-            f"{largest.get('axis', '-')}; each is listed in the outliers report of its axis")
+    return (f"{len(group)} events ({per_axis}; {counts}); the largest, on axis {largest.get('axis', '-')}: "
+            f"{_event_text(largest)}; each is listed in the outliers report of its axis")
 
 
 def event_flags(items) -> list[tuple[str, str]]:

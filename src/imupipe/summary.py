@@ -247,12 +247,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             # dropped; the data's upper limit for it is in the envelope), not a fit pressed against its range
             if v and not (p in model and isinstance(model[p], (int, float)) and float(model[p]) == 0.0):
                 out.append(Flag(sensor, "parameter on boundary", str(p), "fitted value at a limit of its range"))
-    for key in ("lines", "narrowband"):
-        for src in (identify, stationarity, bound):
-            for it in _items(src.get(key)):
-                if isinstance(it, Mapping):
-                    f = _line_flag(sensor, it)
-                    out.append(Flag(f.sensor, f.check, f.where, f.detail + STUCK_NOTE) if f.where in stuck_where else f)
+    line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
+                  for it in _items(src.get(key)) if isinstance(it, Mapping)]
+    for f in _line_flags(sensor, line_items):
+        out.append(Flag(f.sensor, f.check, f.where, f.detail + STUCK_NOTE) if f.where in stuck_where else f)
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
@@ -435,6 +433,31 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
                 f"constant at {_num(it.get('value'), '{:.6g}')}{f' {unit}' if unit else ''} from "
                 f"{_num(it.get('start_s'), '{:.6g}')} s to {_num(it.get('stop_s'), '{:.6g}')} s"
                 + (f" ({_num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
+
+
+#: more lines than this on one axis are FLAGged in one line (each stays in the lines file)
+MAX_LINE_FLAGS = 2
+
+
+def _line_flags(sensor: str, items: list) -> list[Flag]:
+    """The FLAGs of narrowband lines (:func:`_line_flag`), one per line, or one per axis naming every frequency and
+    the strongest line where an axis has more than :data:`MAX_LINE_FLAGS` (an accelerometer's line with its
+    sidebands and harmonics)."""
+    flags = [(_line_flag(sensor, it), it) for it in items]
+    by_where: dict = {}
+    for f, it in flags:
+        by_where.setdefault(f.where, []).append((f, it))
+    out = []
+    for where, group in by_where.items():
+        if len(group) <= MAX_LINE_FLAGS:
+            out += [f for f, _ in group]
+            continue
+        freqs = [it.get("frequency_hz", it.get("f0_hz")) for _, it in group]
+        strongest = max(group, key=lambda g: float(g[1].get("peak_ratio") or 0.0))[0]
+        out.append(Flag(sensor, "lines", where, f"{len(group)} lines at "
+                        + ", ".join(_num(fr, '{:.4g}') for fr in freqs if fr is not None)
+                        + f" Hz; the strongest: {strongest.detail}"))
+    return out
 
 
 def _line_flag(sensor: str, it: Mapping) -> Flag:
