@@ -216,6 +216,19 @@ def test_summary_command_writes_markdown_and_html(tmp_path, capsys):
     assert "no such results folder" in capsys.readouterr().err
 
 
+def test_summary_command_gives_the_workflows_summary(tiny_run, capsys, monkeypatch):
+    # imupipe summary reads every file the summary job reads (contract, verify, lines, outliers, PSD usage, Kalibr),
+    # so a finished run's summary is summary.md itself, not a shorter one from the bound files alone (from the
+    # run's working folder: the files are named as the workflow names them)
+    work, _ = tiny_run
+    monkeypatch.chdir(work)
+    run = work / "results" / "tiny"
+    assert main(["summary", "results/tiny"]) == 0
+    assert capsys.readouterr().out.rstrip() == (run / "summary.md").read_text().rstrip()
+    assert main(["summary", "results"]) == 0  # the results folder above the run: the same run
+    assert capsys.readouterr().out.rstrip() == (run / "summary.md").read_text().rstrip()
+
+
 def _stamped_csv(tmp_path, rate, factor, name="t", n=20_000):
     """White gyro noise at `rate` Hz with a time column `name` in units of `factor` s (ms: 1e-3)."""
     rng = np.random.default_rng(5)

@@ -354,12 +354,13 @@ def _dry_run_error(text: str, n_tail: int = 15) -> str:
 
 def _cmd_summary(args) -> int:
     from imupipe.io import write_text_atomic
-    from imupipe.summary import markdown_to_html, summarise_run
+    from imupipe.stages.summary import summarise_results
+    from imupipe.summary import markdown_to_html
 
     results = Path(args.results)
     if not results.is_dir():
         raise ValueError(f"{results}: no such results folder")
-    text = summarise_run(results)
+    text = summarise_results(results)  # the workflow's summary job's text, from the files the run left
     if not text:
         raise ValueError(f"{results}: no bound contract (bound/<spec>/<sensor>.yaml) found: has the run finished?")
     if args.markdown:

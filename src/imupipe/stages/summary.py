@@ -15,7 +15,8 @@ import logging
 import re
 from pathlib import Path
 
-__all__ = ["CHECK_KEYS", "front_page", "group_run_files", "psd_usage", "summary_stage", "summary_text"]
+__all__ = ["CHECK_KEYS", "front_page", "group_run_files", "psd_usage", "run_files", "summarise_results",
+           "summary_stage", "summary_text"]
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
 CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans",
@@ -128,6 +129,44 @@ def summary_text(files: dict, sensors: list, specs: list, name: str) -> str:
     if others:
         text += "\n\n## Other run files\n\n" + "\n".join(others)
     return text + "\n"
+
+
+def run_files(run_dir) -> tuple[dict, list, list]:
+    """The files a finished run's summary reads, found under `run_dir` (``results/<name>``) as the workflow names
+    them: ``(files, sensors, specs)`` with ``files`` kind -> paths (bound, contract, verify, identify, stationarity,
+    lines, outliers, psd, kalibr), the sensors and spec sheets of the bound files (``bound/{spec}/{sensor}.yaml``)."""
+    base = Path(run_dir)
+    bounds = sorted(p for p in base.glob("bound/*/*.yaml"))
+    specs = sorted({p.parent.name for p in bounds})
+    order = ("gyro", "accel")  # the default config's order
+    sensors = sorted({p.stem for p in bounds}, key=lambda s: (order.index(s) if s in order else len(order), s))
+    files = {"bound": [str(p) for p in bounds]}
+    for kind, pattern in (("contract", "contract/*/*.yaml"), ("verify", "verify/*/*.yaml"),
+                          ("identify", "identify/*.yaml"), ("stationarity", "stationarity/*.yaml"),
+                          ("lines", "lines/*/*/*.yaml"), ("outliers", "outliers/*/*/*.yaml"),
+                          ("psd", "psd/*/*/*.nc"), ("kalibr", "kf/*/kalibr_imu.yaml")):
+        found = sorted(str(p) for p in base.glob(pattern))
+        if kind == "contract":  # contract/verdict.yaml is the run's verdict, not a sensor's contract
+            found = [p for p in found if Path(p).parent.name != "contract"]
+        if found:
+            files[kind] = found
+    return files, sensors, specs
+
+
+def summarise_results(results) -> str:
+    """The summary of every finished run under `results` (``results/<name>/`` folders, or one such folder), as the
+    workflow's summary job writes it (:func:`summary_text` on :func:`run_files`); "" when no bound file is found."""
+    results = Path(results)
+    # a run folder holds bound/{spec}/{sensor}.yaml; a bound/ folder inside a run (the report's copies under
+    # report/bound/) is not one
+    runs = sorted({p.parents[2] for p in results.rglob("bound/*/*.yaml")
+                   if p.parent.name != "axes" and not (p.parents[3] / "bound").is_dir()})
+    texts = []
+    for run_dir in runs:
+        files, sensors, specs = run_files(run_dir)
+        if specs and sensors:
+            texts.append(summary_text(files, sensors, specs, run_dir.name))
+    return "\n\n".join(t.rstrip() for t in texts) + ("\n" if texts else "")
 
 
 def front_page(template: str, html_page: str) -> str:
