@@ -126,7 +126,7 @@ def identify_intervals(curves, n_samples: int, record_rate_hz: float, components
         return fit_allan([c[0] for c in curves], [c[1] for c in curves], [c[2] for c in curves],
                          components=tuple(components), n_gm=N_GM if "gauss_markov" in components else 0,
                          n_boot=int(n_boot), confidence=float(confidence), rng=seed, dt=1.0 / record_rate_hz,
-                         rate=[float(record_rate_hz)] * k, n_samples=[int(n_samples)] * k)
+                         record_rate_hz=[float(record_rate_hz)] * k, n_samples=[int(n_samples)] * k)
 
 
 def half_widths(fit) -> dict:
