@@ -153,6 +153,19 @@ def _cycles(m, n_fix):
     return n_fix // m if m > 0 else 0
 
 
+def _record_substeps(out, k0: int, m: int, M, Rs, sub, *, c=None, e0: bool = False) -> None:
+    """Write the variances of the m sub-steps after a fix (steps k0 .. k0 + m - 1, those >= 0) into `out`: with one
+    sub-step the quadratic form of `M` itself (``c^T M c``, or ``M[0, 0]`` with `e0`), else the row-power forms
+    ``(R_s M R_s^T)_{00} + sub_s`` of the covariance `M` propagated s steps (rows `Rs`, process part `sub`)."""
+    if m == 1:
+        if k0 >= 0:
+            out[k0] = M[0, 0] if e0 else float(c @ M @ c)
+        return
+    vals = ((Rs @ M) * Rs).sum(axis=1) + sub
+    lo = max(0, k0)
+    out[lo:k0 + m] = vals[lo - k0:]
+
+
 def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTOL):
     r"""The filter's a-posteriori P[0,0] at every step and its gains per fix: (pvar (n_steps,), gains list).
 
@@ -180,13 +193,7 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTO
     while j < J:
         # P at sub-steps s = 0..m-1 after state j (step jm-1+s); s = 0 is the step of fix j-1
         k0 = j * m - 1
-        if m == 1:
-            if k0 >= 0:
-                pvar[k0] = P[0, 0]
-        else:
-            vals = ((Rs @ P) * Rs).sum(axis=1) + sub
-            lo = max(0, k0)
-            pvar[lo:k0 + m] = vals[lo - k0:]
+        _record_substeps(pvar, k0, m, P, Rs, sub, e0=True)
         np.matmul(Am, P, out=tmp)
         Pm = tmp @ AmT
         Pm += Sm
@@ -306,13 +313,7 @@ def mismatched_mse(Phi_t, Qd_t, P0_t, H_t, Phi_f, Qd_f, P0_f, H_f, R, n_steps, n
         if j > 0 and K is gains[j - 1]:
             break  # steady gain from here on
         k0 = j * m - 1
-        if m == 1:
-            if k0 >= 0:
-                mse[k0] = float(c @ C @ c)
-        else:
-            vals = ((Rs @ C) * Rs).sum(axis=1) + sub
-            lo = max(0, k0)
-            mse[lo:k0 + m] = vals[lo - k0:]
+        _record_substeps(mse, k0, m, C, Rs, sub, c=c)
         # X = A^m C A^mT + S_m; B X B^T + R kt kt^T = X + kt z^T + z kt^T, z = X u + (u^T X u + R)/2 kt
         np.matmul(Am, C, out=tmp)
         X = tmp @ AmT

@@ -421,6 +421,17 @@ def covariance_analysis_steps(filter_model, truth_model, scenario: Scenario | No
     return v
 
 
+def _monte_carlo_setup(filter_model, truth_model, scenario, sensor: str, rng):
+    """What both Monte Carlo runs start from: the scenario, the generator, the truth's and the filter's
+    (Phi, Qd, P0, H), the fix variance R and the filter's gains and own variances."""
+    sc = scenario if scenario is not None else reference_scenario(sensor)
+    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
+    Pf, Qf, P0f, Hf, _ = state_space(filter_model, sc)
+    R = sc.sigma_fix**2
+    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    return sc, np.random.default_rng(rng), (Pt, Qt, P0t, Ht), (Pf, Qf, P0f, Hf), R, gains, pvar
+
+
 def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_runs: int = 2000, rng=None,
                 sensor: str = "accel", block: int = 32):
     r"""Monte Carlo estimate of the MSE of :func:`covariance_analysis` (cross-check).
@@ -455,12 +466,8 @@ def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_r
     """
     from imupipe.covariance import row_powers
 
-    sc = scenario if scenario is not None else reference_scenario(sensor)
-    rng = np.random.default_rng(rng)
-    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
-    Pf, Qf, P0f, Hf, _ = state_space(filter_model, sc)
-    R = sc.sigma_fix**2
-    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    sc, rng, (Pt, Qt, P0t, Ht), (Pf, Qf, P0f, Hf), R, gains, pvar = _monte_carlo_setup(
+        filter_model, truth_model, scenario, sensor, rng)
     L0 = sc.n_steps
     nt, nf = Pt.shape[0], Pf.shape[0]
     L_max = int(max(1, min(L0, block)))
@@ -526,12 +533,8 @@ def monte_carlo(filter_model, truth_model, scenario: Scenario | None = None, n_r
 def monte_carlo_steps(filter_model, truth_model, scenario: Scenario | None = None, n_runs: int = 2000, rng=None,
                       sensor: str = "accel"):
     """Reference step loop of :func:`monte_carlo` (one Python iteration per filter step; tests)."""
-    sc = scenario if scenario is not None else reference_scenario(sensor)
-    rng = np.random.default_rng(rng)
-    Pt, Qt, P0t, Ht, _ = state_space(truth_model, sc, role="truth")
-    Pf, Qf, P0f, Hf, _ = state_space(filter_model, sc)
-    R = sc.sigma_fix**2
-    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    sc, rng, (Pt, Qt, P0t, Ht), (Pf, Qf, P0f, Hf), R, gains, pvar = _monte_carlo_setup(
+        filter_model, truth_model, scenario, sensor, rng)
 
     def chol(M):
         w, V = np.linalg.eigh(0.5 * (M + M.T))
