@@ -187,3 +187,19 @@ def test_lines_policy_model_carries_the_line_to_the_filter():
     assert len(r.model.narrowband) == 1 and r.bounded
     assert "nb" in r.kf["states"]
     assert r.to_dict()["lines"]["policy"] == "model"
+
+
+def test_flags_say_what_the_summary_would_a_unit_slip_included():
+    # gyro white noise in deg/s passed as rad/s: 57.3x the STIM-300 sheet's N; the PSD bound holds (the data are
+    # what they are), so only the plausibility FLAG tells the user, and res.flags carries it as the summary words it
+    rate, n = 10.0, 72_000  # 2 h at 10 Hz
+    n_si = 0.15 * (np.pi / 180.0) / 60.0  # the sheet's 0.15 deg/sqrt(h) in rad/s/sqrt(Hz)
+    rng = np.random.default_rng(20261204)
+    curves = {f"d/{a}": 57.3 * n_si * np.sqrt(rate) * rng.standard_normal(n) for a in "xy"}
+    res = noise_model(curves, record_rate_hz=rate, sensor="gyro", spec=SPEC, window_s=1800.0, step_s=900.0,
+                      n_boot=20, verify=False)
+    unit = [f for f in res.flags if f.startswith("FLAG data far above the spec sheet")]
+    assert len(unit) == 1 and "check the unit" in unit[0], res.flags
+    assert not [f for f in noise_model({k: v / 57.3 for k, v in curves.items()}, record_rate_hz=rate,
+                                       sensor="gyro", spec=SPEC, window_s=1800.0, step_s=900.0, n_boot=20,
+                                       verify=False).flags if "unit" in f]

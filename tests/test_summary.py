@@ -77,10 +77,25 @@ def test_data_far_below_the_spec_sheet_are_flagged():
     # deg/s declared as mrad/s gives (an outside tester's run: margin 63); a margin of 5 is a normal spec sheet
     from imupipe.summary import FAR_BELOW_SPEC_MARGIN
 
-    far = [f for f in flags_of("gyro", bound=_bound(margin=63.06)) if f.check == "data far below the spec sheet"]
+    # under a unit slip the bound is the spec sheet's: its white noise is the sheet's
+    at_spec = {"white": 4.4e-5, "gauss_markov": [{"sigma": 7.3e-6, "T": 1500.0}], "random_walk": 9.7e-8}
+    far = [f for f in flags_of("gyro", bound=_bound(margin=63.06, bound=at_spec))
+           if f.check == "data far below the spec sheet"]
     assert len(far) == 1 and "63.1x below the bound" in far[0].detail and "unit" in far[0].detail
-    assert not [f for f in flags_of("gyro", bound=_bound(margin=5.0)) if f.check.startswith("data far")]
-    assert [f for f in flags_of("gyro", bound=_bound(margin=FAR_BELOW_SPEC_MARGIN)) if f.check.startswith("data far")]
+    assert not [f for f in flags_of("gyro", bound=_bound(margin=5.0, bound=at_spec)) if f.check.startswith("data far")]
+    assert [f for f in flags_of("gyro", bound=_bound(margin=FAR_BELOW_SPEC_MARGIN, bound=at_spec))
+            if f.check.startswith("data far")]
+
+
+def test_a_bound_far_above_the_data_from_the_envelope_does_not_blame_the_unit():
+    # an outside tester's accel: spec sheet half the truth, the bound 23x the truth's white noise from an upper
+    # envelope covering a GM time constant the records left open (margin 191): the bound is not the sheet's, so the
+    # FLAG names the envelope, not the data's unit
+    far = flags_of("accel", bound=_bound(margin=190.7, bound={"white": 0.0383, "gauss_markov": [], "random_walk": 0.0},
+                                         spec={"white": 8.3e-4, "gauss_markov": [], "random_walk": 0.0}))
+    [f] = [f for f in far if f.check in ("bound far above the data", "data far below the spec sheet")]
+    assert f.check == "bound far above the data" and "46.1x the spec sheet's" in f.detail
+    assert "upper envelope" in f.detail and "unit" not in f.detail
 
 
 def test_missing_keys_are_tolerated_and_nothing_is_invented():

@@ -121,6 +121,18 @@ class NoiseModelResult:
         return bool(self.contract is not None and self.contract.get("bounded"))
 
     @property
+    def flags(self) -> list[str]:
+        """Every failed or flagged check, as the workflow's summary words them (``"FAIL|FLAG check [where]:
+        detail"``; :func:`imupipe.summary.flags_of` on the bound, contract and identification records): a
+        plausibility FLAG (a unit slip, data far below the sheet) does not change :attr:`bounded`, so read these
+        too. Empty when nothing failed or was flagged."""
+        from imupipe.summary import flags_of
+
+        bound = {**(self.records.get("bound") or {}), **(self.contract or {})}
+        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}"
+                for f in flags_of(self.sensor, bound, self.records.get("identify") or {}, None)]
+
+    @property
     def psd_bounded(self) -> bool:
         """True when the model PSD bounds every sample PSD and the spec sheet (``bound.bounded``), nothing more."""
         return bool(self.bound.bounded)

@@ -210,12 +210,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             f"not exported: {pa.get('kf', 'its own contract failed')}"))
     margin = bound.get("margin")
     if margin is not None and float(margin) >= FAR_BELOW_SPEC_MARGIN:
-        out.append(Flag(sensor, "data far below the spec sheet", f"{bound.get('margin_curve', '-')} at "
-                        f"{_num(bound.get('margin_frequency_hz'))} Hz",
-                        f"every sample PSD bin is at least {_num(margin, '{:.3g}')}x below the bound (min "
-                        "S_bound/S_sample); the bound is the spec sheet's, the data are not what it describes: check "
-                        "the data's unit in the dataset sheet (a record in a smaller unit than declared, e.g. deg/s "
-                        "declared as mrad/s, looks like this) and that the spec sheet is this sensor's"))
+        out.append(_far_below_flag(sensor, bound, float(margin)))
     out += above_spec_flags(sensor, bound)
     out += replay_allowance_flags(sensor, bound)
     if exp.get("rate_mismatch") and not rate_failed:  # a contract written before the export_rate check
@@ -482,6 +477,27 @@ def _line_flag(sensor: str, it: Mapping) -> Flag:
 #: Spec sheet's white noise over the data's (the identification's upper envelope) from which the summary says that
 #: the bound's N rests on the spec sheet rather than on the records.
 SPEC_ABOVE_DATA_RATIO = 2.0
+
+
+def _far_below_flag(sensor: str, bound: Mapping, margin: float) -> Flag:
+    """The FLAG of a bound at least FAR_BELOW_SPEC_MARGIN above every sample PSD bin, saying what holds it up: the
+    spec sheet (the bound's white noise N within 1.5x the sheet's: the data are not what the sheet describes, a
+    unit slip looks like this) or the identification's upper envelope (N far above the sheet's: what the records
+    leave open, e.g. a GM time-constant interval reaching far from the fitted T, is covered whole)."""
+    where = f"{bound.get('margin_curve', '-')} at {_num(bound.get('margin_frequency_hz'))} Hz"
+    head = f"every sample PSD bin is at least {_num(margin, '{:.3g}')}x below the bound (min S_bound/S_sample); "
+    b_n, s_n = _g(bound, "bound", "white"), _g(bound, "spec", "white")
+    ratio = float(b_n) / float(s_n) if isinstance(b_n, (int, float)) and isinstance(s_n, (int, float)) and s_n else None
+    if ratio is not None and ratio > 1.5:
+        return Flag(sensor, "bound far above the data", where, head + (
+            f"the bound's white noise is {_num(ratio, '{:.3g}')}x the spec sheet's, so it rests on the "
+            "identification's upper envelope, not on the sheet: the envelope covers what the records leave open "
+            "(each interval of identify/<sensor>.yaml whole, e.g. a GM time constant the data do not pin down); "
+            "longer or more records narrow it (imupipe plan)"))
+    return Flag(sensor, "data far below the spec sheet", where, head + (
+        "the bound is the spec sheet's, the data are not what it describes: check the data's unit in the dataset "
+        "sheet (a record in a smaller unit than declared, e.g. deg/s declared as mrad/s, looks like this) and that "
+        "the spec sheet is this sensor's"))
 
 
 def _spec_above_data(bound: Mapping) -> str | None:
