@@ -852,10 +852,13 @@ def verify_model(filter_model, sensor: str = "accel", truth=None, upper=None, sp
     return out
 
 
-def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario | None = None):
+def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario | None = None, analyse=None):
     """Try dropping states (the random walk: eq. 19; each GM term; each narrowband term) from `model`; accept a reduction
     only when the covariance analysis passes against every model in `truths` (b: upper envelope,
     spec) without it.
+
+    `analyse` (default :func:`covariance_analyses`): the function ``(filter_model, truths, scenario) -> list of
+    Verification`` that runs the covariance analyses (a caller may pass one that keeps its results).
 
     Returns
     -------
@@ -870,8 +873,10 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     tried = []
     current = model
 
+    analyse = covariance_analyses if analyse is None else analyse
+
     def worst(m):  # the truths of one candidate in one per-fix loop (covariance_analyses)
-        return max(v.worst_ratio for v in covariance_analyses(m, truths, sc)) if truths else float("inf")
+        return max(v.worst_ratio for v in analyse(m, truths, sc)) if truths else float("inf")
 
     candidates = []
     if current.random_walk > 0:
@@ -1051,15 +1056,26 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
     truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow))
+    if records is not None and record_rate_hz is None:
+        raise ValueError("verification_stage: replay records need record_rate_hz")
+    # every truth a model's checks need, the replay's noise-only truth included
+    everything = [m for _, m in truths if m is not None] + ([NoiseModel()] if records is not None else [])
+    done = {}  # (filter model, truth model) -> Verification: NoiseModel is a frozen dataclass, equal by value
+
+    def analyse(model, ts, scen):
+        """The analyses of `model` against `ts`, and against the rest of `everything` in the same per-fix loop
+        (the reduction's accepted candidate is the reduced model, whose checks then cost no further loop)."""
+        todo = [t for t in dict.fromkeys(list(ts) + everything) if (model, t) not in done]
+        for t, v in zip(todo, covariance_analyses(model, todo, scen)):
+            done[(model, t)] = v
+        return [done[(model, t)] for t in ts]
 
     def run(model):
         # every truth and the replay's noise-only truth in one per-fix loop (covariance_analyses)
         named = [(name, m) for name, m in truths if m is not None]
         if records is not None:
-            if record_rate_hz is None:
-                raise ValueError("verification_stage: replay records need record_rate_hz")
             named.append((None, NoiseModel()))
-        res = covariance_analyses(model, [m for _, m in named], sc)
+        res = analyse(model, [m for _, m in named], sc)
         series = {name: v for (name, _), v in zip(named, res) if name is not None}
         if records is not None:
             series["replay"] = replay(model, records, record_rate_hz, sc, z=replay_z, noise_mse=res[-1].mse)
@@ -1081,7 +1097,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                            "no reduction accepted"}
     exported_model = bound_model
     if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc)
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc, analyse=analyse)
         red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
                "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
                "verification": None}
