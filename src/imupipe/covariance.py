@@ -359,6 +359,7 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
     q = np.empty((T, 1, 1))
     Xf = X[:, ntm:, :]  # the filter's rows
     half_R = 0.5 * R
+    unit_c = bool(np.all(c_s == np.eye(n)[ntm]))
     j = 0
     while j < J:
         K = gains[j]
@@ -367,8 +368,11 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
         k0 = j * m - 1
         if m == 1:
             if k0 >= 0:
-                np.matmul(cT, np.matmul(C_s, c3, out=Cc), out=q)  # c^T C c
-                mse[:, k0] = q[:, 0, 0]
+                if unit_c:  # c = e_ntm (the position is shared): c^T C c is that diagonal entry, exactly
+                    mse[:, k0] = C_s[:, ntm, ntm]
+                else:
+                    np.matmul(cT, np.matmul(C_s, c3, out=Cc), out=q)  # c^T C c
+                    mse[:, k0] = q[:, 0, 0]
         else:
             for t, (_, _, sub, Rs, ix) in enumerate(per):
                 _record_substeps(mse[t], k0, m, C_s[t][np.ix_(ix, ix)], Rs, sub)
