@@ -15,8 +15,9 @@ The closed form is timed `--repeats` times (median printed): wall time and the p
 shared with other jobs the wall time grows with the load; the CPU time is what the job costs). The step loop is
 the same job with
 verify.covariance_analysis, verify.covariance_analyses (one truth after the other) and verify.replay replaced by
-their step-loop references (covariance_analysis_steps, replay_steps), timed once; at filter rates >= 100 Hz on a scenario shortened by
-`--step-fraction` and scaled by the step count (both loops are linear in the number of steps): "estimated".
+their step-loop references (covariance_analysis_steps, replay_steps), timed once; at filter rates >= 100 Hz on a
+scenario shortened by `--step-fraction` and scaled by the step count (both loops are linear in the number of
+steps): "estimated".
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/verify_job.py [--rates 1 100 1000] [--fix-rate 1]
        [--repeats 3] [--sensors accel gyro] [--step-fraction 0.01]

@@ -80,7 +80,8 @@ import math
 
 import numpy as np
 
-__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many", "augmented"]
+__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many",
+           "augmented"]
 
 P_RTOL = 1e-13
 _CHECK_EVERY = 16  # fixes between two convergence checks (a late stop costs at most 15 iterations)
