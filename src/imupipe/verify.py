@@ -694,18 +694,17 @@ def _replay_errors(Es, Phi_f, H_f, gains, sc, block: int = 4096):
         kl = fixes[-1]
         n = kl + 1
         # true position (and velocity) at steps 0..kl of every window: the step loop's recursions as cumulative sums
-        e = np.concatenate([E[:, :n] for E in Es], axis=0)  # (W, n)
-        de = -dt * e
+        # (at most three windows x fix-phase arrays at once: e, v and dt v; then x, computed in e's place, and est)
+        x = np.concatenate([E[:, :n] for E in Es], axis=0)  # (W, n): e_k, then the increments, then x_k
         if sc.sensor == "accel":
-            v = np.cumsum(de, axis=1)  # v_k
-            inc = -0.5 * dt * dt * e
-            inc[:, 1:] += dt * v[:, :-1]  # v_{k-1} dt - e_k dt^2/2 (v_{-1} = 0)
-            x = np.cumsum(inc, axis=1)
+            v = np.cumsum(-dt * x, axis=1)  # v_k
+            x *= -0.5 * dt * dt
+            x[:, 1:] += dt * v[:, :-1]  # v_{k-1} dt - e_k dt^2/2 (v_{-1} = 0)
             vel = v[:, -1].copy()
-            del v, inc
+            del v
         else:
-            x = np.cumsum(de, axis=1)
-        del de, e
+            x *= -dt
+        np.cumsum(x, axis=1, out=x)  # x_k
         est = np.empty((W, n))
         gap_max = int(np.max(np.diff([-1] + fixes)))
         G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, gap_max, gap_max))[1][:, 0, :]  # g_j, j = 1..gap_max
