@@ -119,3 +119,22 @@ def test_fix_at_every_100_hz_step_equals_step_loop(name, sensor, matched):
     new = covariance_analysis(filt, truth, sc)
     assert _rel(new.P, ref.P) <= 1e-9
     assert _rel(new.mse, ref.mse) <= 1e-9
+
+
+@pytest.mark.parametrize("rate,fix_rate", [(1.0, None), (10.0, None), (10.0, 2.0)])
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+def test_truths_of_one_filter_in_one_loop_equal_the_step_loop(sensor, rate, fix_rate):
+    # all five truths (state dimensions 1 + 1 .. 1 + 2 + flicker bank: padded to the largest in the stacked loop)
+    # against one mismatched filter in one per-fix loop, each equal to its own step loop at every step (1e-9:
+    # module docstring); the matched truth among them too
+    from imupipe.verify import covariance_analyses, state_space
+
+    sc = reference_scenario(sensor, filter_rate_hz=rate, fix_rate_hz=fix_rate, fix_s=60.0, outage_s=180.0)
+    filt = _scaled(MODELS["two_gm"], S[sensor], wider=1.3)
+    truths = [_scaled(MODELS[k], S[sensor]) for k in sorted(MODELS)] + [filt]
+    dims = {state_space(t, sc, role="truth")[0].shape[0] for t in truths}
+    assert len(dims) > 1  # the padding is exercised
+    for truth, new in zip(truths, covariance_analyses(filt, truths, sc)):
+        ref = covariance_analysis_steps(filt, truth, sc)
+        assert _rel(new.P, ref.P) <= 1e-9
+        assert _rel(new.mse, ref.mse) <= 1e-9

@@ -61,7 +61,11 @@ products (:math:`A^m C A^{mT}`) and O(n^2) work: a scalar fix makes :math:`B = I
 correction, :math:`B X B^T + R\,\tilde k \tilde k^T = X + \tilde k z^T + z \tilde k^T`,
 :math:`z = X u + \tfrac12 (u^T X u + R) \tilde k`, :math:`\tilde k = [0; K]`; likewise the filter's
 :math:`P \leftarrow P^- - u u^T/s`. The filter's recursion runs once per filter and schedule
-(:func:`imupipe.verify.covariance_analysis` keeps it for the truths that follow).
+(:func:`imupipe.verify.covariance_analysis` keeps it for the truths that follow). The truths of one filter share
+its gains, so :func:`mismatched_mse_many` runs their fix-by-fix phases in one loop (one Python iteration per fix
+for all of them, the covariances stacked in one 3-D array, zero-padded to the largest dimension): with state
+dimensions of 3-10 the per-fix cost is the interpreter's overhead per array operation, not the arithmetic, so a
+stack of four truths costs about what one does.
 
 The worst MSE/P is then taken over every step (all steps are computed; nothing is sampled).
 
@@ -76,7 +80,8 @@ import math
 
 import numpy as np
 
-__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "augmented"]
+__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many",
+           "augmented"]
 
 P_RTOL = 1e-13
 _CHECK_EVERY = 16  # fixes between two convergence checks (a late stop costs at most 15 iterations)
@@ -292,53 +297,121 @@ def mismatched_mse(Phi_t, Qd_t, P0_t, H_t, Phi_f, Qd_f, P0_f, H_f, R, n_steps, n
 
     The estimate starts at 0, C_0 = diag(P0_t, 0); computed in error coordinates (:func:`augmented`, `shared`:
     (truth index, filter index) of the states both have, the kinematic ones); see the module docstring for the
-    schedule and method."""
+    schedule and method. One truth of :func:`mismatched_mse_many`."""
     pvar, gains = (None, gains) if gains is not None else filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps,
                                                                           n_fix, m, p_rtol)
-    A, Qa, C, c, B_of, nt = augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared)
-    n = A.shape[0]
+    mse = mismatched_mse_many([(Phi_t, Qd_t, P0_t, H_t, shared)], Phi_f, H_f, R, n_steps, n_fix, m, gains)[0]
+    return mse, pvar, gains
+
+
+def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
+    r"""The true MSE of one filter against several truths at once: a list of (n_steps,) arrays.
+
+    `truths`: sequence of (Phi_t, Qd_t, P0_t, H_t, shared) (:func:`mismatched_mse`); `gains` the filter's gains per
+    fix (:func:`filter_variance`). The gain is the same for every truth, so the fix-by-fix part of the fix phase
+    (until the steady gain) runs one Python iteration per fix for all truths together: the augmented covariances
+    are stacked as one (T, n, n) array, n = the largest truth dimension + the filter's, each truth's states first,
+    then zero padding, then the filter's states. The padding rows and columns of :math:`A^m, S_m, C_0` and
+    :math:`u` are zero, so they stay exactly zero and add exact zeros to every sum: each truth's recursion is the
+    one of its own unpadded matrices (to the rounding of a different summation order in the matrix products).
+    """
+    T = len(truths)
+    nf = Phi_f.shape[0]
     J = _cycles(m, n_fix)
-    Am, Sm = power_and_sum(A, Qa, m)
-    sub = quad_series(c, A, np.zeros((n, n)), Qa, m)[:, 0]
-    Rs = _rows(c, A, m)
-    mse = np.empty(n_steps)
-    AmT = np.ascontiguousarray(Am.T)
-    # B(K) = I + [0; K] u^T with u^T = [H_t - H_f E, -H_f] (a scalar fix): row nt of B(1) - I
-    u = B_of(np.ones((n - nt, 1)))[nt] - np.eye(n)[nt]
-    kt = np.zeros(n)
-    tmp = np.empty((n, n))
+    systems = []
+    for Phi_t, Qd_t, P0_t, H_t, shared in truths:
+        A, Qa, C, c, B_of, nt = augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared)
+        systems.append((A, Qa, C, c, B_of, nt))
+    ntm = max(s[5] for s in systems)
+    n = ntm + nf
+
+    def pad_idx(nt):  # positions of an unpadded truth's augmented states in the padded layout
+        return np.concatenate([np.arange(nt), np.arange(ntm, n)])
+
+    Am_s = np.zeros((T, n, n))
+    Sm_s = np.zeros((T, n, n))
+    C_s = np.zeros((T, n, n))
+    c_s = np.zeros((T, n))
+    u_s = np.zeros((T, n))
+    per = []
+    for t, (A, Qa, C, c, B_of, nt) in enumerate(systems):
+        na = A.shape[0]
+        ix = pad_idx(nt)
+        Am, Sm = power_and_sum(A, Qa, m)
+        Am_s[t][np.ix_(ix, ix)] = Am
+        Sm_s[t][np.ix_(ix, ix)] = Sm
+        C_s[t][np.ix_(ix, ix)] = C
+        c_s[t, ix] = c
+        # B(K) = I + [0; K] u^T with u^T = [H_t - H_f E, -H_f] (a scalar fix): row nt of B(1) - I
+        u_s[t, ix] = B_of(np.ones((na - nt, 1)))[nt] - np.eye(na)[nt]
+        sub = quad_series(c, A, np.zeros((na, na)), Qa, m)[:, 0]
+        Rs = _rows(c, A, m)
+        per.append((Am, Sm, sub, Rs, ix))
+    mse = np.empty((T, n_steps))
+    AmT_s = np.ascontiguousarray(np.swapaxes(Am_s, 1, 2))
+    tmp = np.empty((T, n, n))
+    X = np.empty((T, n, n))
+    XT = np.swapaxes(X, 1, 2)
+    u3, c3 = u_s[:, :, None], c_s[:, :, None]  # column vectors: batched products by matmul (numpy >= 1.26)
+    u3T = np.swapaxes(u3, 1, 2)
+    y = np.empty((T, n, 1))
+    Cc = np.empty((T, n, 1))
+    cT = np.swapaxes(c3, 1, 2)
+    q = np.empty((T, 1, 1))
+    Xf = X[:, ntm:, :]  # the filter's rows
+    half_R = 0.5 * R
+    unit_c = bool(np.all(c_s == np.eye(n)[ntm]))
     j = 0
     while j < J:
         K = gains[j]
         if j > 0 and K is gains[j - 1]:
             break  # steady gain from here on
         k0 = j * m - 1
-        _record_substeps(mse, k0, m, C, Rs, sub, c=c)
+        if m == 1:
+            if k0 >= 0:
+                if unit_c:  # c = e_ntm (the position is shared): c^T C c is that diagonal entry, exactly
+                    mse[:, k0] = C_s[:, ntm, ntm]
+                else:
+                    np.matmul(cT, np.matmul(C_s, c3, out=Cc), out=q)  # c^T C c
+                    mse[:, k0] = q[:, 0, 0]
+        else:
+            for t, (_, _, sub, Rs, ix) in enumerate(per):
+                _record_substeps(mse[t], k0, m, C_s[t][np.ix_(ix, ix)], Rs, sub)
         # X = A^m C A^mT + S_m; B X B^T + R kt kt^T = X + kt z^T + z kt^T, z = X u + (u^T X u + R)/2 kt
-        np.matmul(Am, C, out=tmp)
-        X = tmp @ AmT
-        X += Sm
-        kt[nt:] = K[:, 0]
-        y = X @ u
-        z = y + (0.5 * (float(u @ y) + R)) * kt
-        # the symmetric part of X + 2 kt z^T is X + kt z^T + z kt^T (X symmetric); kt is 0 above row nt
-        X[nt:] += np.multiply.outer(K[:, 0], 2.0 * z)
-        C = 0.5 * (X + X.T)
+        np.matmul(Am_s, C_s, out=tmp)
+        np.matmul(tmp, AmT_s, out=X)
+        X += Sm_s
+        np.matmul(X, u3, out=y)
+        w = np.matmul(u3T, y)[:, :, 0] * 0.5 + half_R  # (u^T X u + R)/2, (T, 1)
+        z = y[:, :, 0]
+        z[:, ntm:] += w * K[:, 0]
+        # the symmetric part of X + 2 kt z^T is X + kt z^T + z kt^T (X symmetric); kt is 0 above row ntm
+        z *= 2.0
+        Xf += K[None, :, :] * z[:, None, :]
+        np.add(X, XT, out=C_s)
+        C_s *= 0.5
         j += 1
-    if j < J:
-        K = gains[j]
-        B = B_of(K)
-        M = B @ Am
-        Kz = np.zeros((n, 1))
-        Kz[nt:] = K
-        W = B @ Sm @ B.T + R * (Kz @ Kz.T)
-        vals = quad_series(Rs, M, C, W, J - j)  # (cycles, m): r_s C_i r_s^T, i = j..J-1
-        k0 = j * m - 1  # >= 0: the steady gain is reached after a few fixes
-        mse[k0:J * m - 1] = (vals + sub).reshape(-1)
-        C = _lyap_power(M, C, W, J - j)  # the state after fix J, for the outage
-        j = J
-    _fill_outage(mse, J * m - 1, c, A, C, Qa)
-    return mse, pvar, gains
+    out = []
+    for t, (A, Qa, _, c, B_of, nt) in enumerate(systems):
+        Am, Sm, sub, Rs, ix = per[t]
+        C = C_s[t][np.ix_(ix, ix)].copy()
+        mse_t = mse[t]
+        jj = j
+        if jj < J:
+            na = A.shape[0]
+            K = gains[jj]
+            B = B_of(K)
+            M = B @ Am
+            Kz = np.zeros((na, 1))
+            Kz[nt:] = K
+            W = B @ Sm @ B.T + R * (Kz @ Kz.T)
+            vals = quad_series(Rs, M, C, W, J - jj)  # (cycles, m): r_s C_i r_s^T, i = j..J-1
+            k0 = jj * m - 1  # >= 0: the steady gain is reached after a few fixes
+            mse_t[k0:J * m - 1] = (vals + sub).reshape(-1)
+            C = _lyap_power(M, C, W, J - jj)  # the state after fix J, for the outage
+        _fill_outage(mse_t, J * m - 1, c, A, C, Qa)
+        out.append(mse_t)
+    return out
 
 
 def _lyap_power(M, C0, W, j):

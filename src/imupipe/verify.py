@@ -361,19 +361,31 @@ def covariance_analysis(filter_model, truth_model, scenario: Scenario | None = N
         mse <= P at every step (to 1e-6 relative: the Riccati and the augmented recursions round
         differently, measured 4e-8 on a matched filter).
     """
+    return covariance_analyses(filter_model, [truth_model], scenario, sensor)[0]
+
+
+def covariance_analyses(filter_model, truth_models, scenario: Scenario | None = None, sensor: str = "accel"):
+    """:func:`covariance_analysis` of one filter against each of `truth_models` (a list of Verification).
+
+    The truths share the filter's gains, so their fix phases run in one per-fix loop
+    (:func:`imupipe.covariance.mismatched_mse_many`): one Python iteration per fix for all truths, not per truth."""
     sc = scenario if scenario is not None else reference_scenario(sensor)
-    Pt, Qt, P0t, Ht, st = state_space(truth_model, sc, role="truth")
     Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
     R = sc.sigma_fix**2
-    from imupipe.covariance import mismatched_mse
+    from imupipe.covariance import mismatched_mse_many
 
     pvar, fg = _filter_solution(Pf, Qf, P0f, Hf, R, sc)
-    mse, _, _ = mismatched_mse(Pt, Qt, P0t, Ht, Pf, Qf, P0f, Hf, R, sc.n_steps, sc.n_fix, sc.fix_every, gains=fg,
-                               shared=_shared(st, sf))
-    return _summary(sc, mse, pvar, tol=1e-6, details={"method": "exact covariance analysis (closed form)",
-                                                       "truth_states": st, "filter_states": sf,
-                                                       "filter_rate_hz": float(sc.filter_rate_hz),
-                                                       "fix_rate_hz": float(sc.filter_rate_hz / sc.fix_every)})
+    systems, states = [], []
+    for tm in truth_models:
+        Pt, Qt, P0t, Ht, st = state_space(tm, sc, role="truth")
+        systems.append((Pt, Qt, P0t, Ht, _shared(st, sf)))
+        states.append(st)
+    mses = mismatched_mse_many(systems, Pf, Hf, R, sc.n_steps, sc.n_fix, sc.fix_every, fg) if systems else []
+    return [_summary(sc, mse, pvar.copy(), tol=1e-6, details={"method": "exact covariance analysis (closed form)",
+                                                               "truth_states": st, "filter_states": sf,
+                                                               "filter_rate_hz": float(sc.filter_rate_hz),
+                                                               "fix_rate_hz": float(sc.filter_rate_hz / sc.fix_every)})
+            for mse, st in zip(mses, states)]
 
 
 def covariance_analysis_steps(filter_model, truth_model, scenario: Scenario | None = None, sensor: str = "accel"):
@@ -560,7 +572,7 @@ def monte_carlo_steps(filter_model, truth_model, scenario: Scenario | None = Non
 
 
 def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | None = None, sensor: str = "accel",
-           stride_s: float | None = None, z: float = 2.0, block: int = 4096):
+           stride_s: float | None = None, z: float = 2.0, block: int = 4096, noise_mse=None):
     r"""Empirical MSE of the reference filter when windows of static records are the sensor error.
 
     Each record (rate error, u, at `record_rate_hz`) is block-averaged to the filter rate
@@ -596,6 +608,9 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
         Sample rate of the records, Hz.
     block : int, optional
         Most steps computed at once (work arrays of windows x block floats). Default 4096.
+    noise_mse : array_like, optional
+        The MSE of the fix noise and initial kinematic error alone (``covariance_analysis(filter_model,
+        NoiseModel(), scenario).mse``) when the caller has it already; computed here when None.
 
     Returns
     -------
@@ -611,18 +626,19 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
     L = sc.n_steps
     fr = sc.filter_rate_hz
     stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / fr) * fr)))
-    sq, W, total = np.zeros(L), 0, 0
+    Es, total = [], 0
     for E, n in _replay_windows(records, record_rate_hz, sc.filter_rate_hz, L, stride):
         total += n
         if E.shape[0]:
-            sq += _replay_errors(E, Pf, Hf, gains, sc, block)
-            W += E.shape[0]
+            Es.append(E)
+    W = sum(E.shape[0] for E in Es)
+    sq = _replay_errors(Es, Pf, Hf, gains, sc, block) if W else np.zeros(L)
     if not W:
         raise ValueError(f"replay needs records of at least {L / sc.filter_rate_hz:g} s at the filter rate "
                          f"(fix_s + outage_s)")
     mse_e = sq / W
     # fix noise and initial kinematic error, exactly: a truth with no sensor error
-    mse_n = covariance_analysis(filter_model, NoiseModel(), sc).mse
+    mse_n = covariance_analysis(filter_model, NoiseModel(), sc).mse if noise_mse is None else np.asarray(noise_mse)
     n_eff = max(1.0, total / L)
     rse = math.sqrt(2.0 / n_eff)
     return _summary(sc, mse_e + mse_n, pvar, tol=z * rse,
@@ -647,43 +663,93 @@ def _replay_windows(records, rate_hz, filter_rate_hz, L, stride):
         yield np.lib.stride_tricks.sliding_window_view(y, L)[::stride], y.size
 
 
-def _replay_errors(E, Phi_f, H_f, gains, sc, block: int = 4096):
+def _replay_errors(Es, Phi_f, H_f, gains, sc, block: int = 4096):
     r"""Sum over windows of the squared position error of the reference filter, per step, shape (L,).
 
-    `E` (W, L): sensor error per window and step (u). Integration as :func:`replay_steps`: accel
-    :math:`v_k = v_{k-1} - e_k dt`, :math:`x_k = x_{k-1} + v_{k-1} dt - e_k dt^2/2`; gyro
-    :math:`x_k = x_{k-1} - e_k dt`. The estimate after its last update :math:`\hat x_l` (step l) is, at step
+    `Es`: a list (one entry per record) of (W_r, L) arrays, the sensor error per window and step (u). Integration
+    as :func:`replay_steps`: accel :math:`x_k = x_{k-1} + v_{k-1} dt - e_k dt^2/2`, :math:`v_k = v_{k-1} - e_k dt`;
+    gyro :math:`x_k = x_{k-1} - e_k dt`. The estimate after its last update :math:`\hat x_l` (step l) is, at step
     k > l without a fix, :math:`\Phi_f^{k-l}\hat x_l`, whose position is :math:`\hat x_l \cdot g_{k-l}`; at a fix
     step :math:`\hat x \leftarrow \hat x^- + (x_k - H_f\hat x^-) K_k`. The error is :math:`\hat x_k[0] - x_k`.
+
+    Fix phase (steps up to the last fix, the only part that needs one Python iteration per fix): the true
+    position is integrated for every window of every record at once (cumulative sums over the steps; windows x
+    fix-phase steps floats), then one loop over the fixes updates the estimates of all windows together. The
+    outage: per record, blocks of at most `block` steps (:func:`_replay_outage`).
     """
+    from imupipe.covariance import row_powers
+
+    L = Es[0].shape[1]
+    dt = sc.dt
+    nf = Phi_f.shape[0]
+    h = H_f[0]
+    fixes = [k for k, K in enumerate(gains) if K is not None]
+    sizes = [E.shape[0] for E in Es]
+    W = sum(sizes)
+    sq = np.empty(L)
+    xh = np.zeros((W, nf))
+    pos, vel = np.zeros(W), np.zeros(W)
+    last = -1
+    if fixes:
+        kl = fixes[-1]
+        n = kl + 1
+        # true position (and velocity) at steps 0..kl of every window: the step loop's recursions as cumulative sums
+        # (at most three windows x fix-phase arrays at once: e, v and dt v; then x, computed in e's place, and est)
+        x = np.concatenate([E[:, :n] for E in Es], axis=0)  # (W, n): e_k, then the increments, then x_k
+        if sc.sensor == "accel":
+            v = np.cumsum(-dt * x, axis=1)  # v_k
+            x *= -0.5 * dt * dt
+            x[:, 1:] += dt * v[:, :-1]  # v_{k-1} dt - e_k dt^2/2 (v_{-1} = 0)
+            vel = v[:, -1].copy()
+            del v
+        else:
+            x *= -dt
+        np.cumsum(x, axis=1, out=x)  # x_k
+        est = np.empty((W, n))
+        gap_max = int(np.max(np.diff([-1] + fixes)))
+        G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, gap_max, gap_max))[1][:, 0, :]  # g_j, j = 1..gap_max
+        powT = {}
+        for f in fixes:
+            gap = f - last
+            PT = powT.get(gap)
+            if PT is None:
+                PT = powT[gap] = np.ascontiguousarray(np.linalg.matrix_power(Phi_f, gap).T)
+            if gap > 1:
+                est[:, last + 1:f] = xh @ G[:gap - 1].T
+            prior = xh @ PT
+            xh = prior + np.multiply.outer(x[:, f] - prior @ h, gains[f][:, 0])
+            est[:, f] = xh[:, 0]
+            last = f
+        est -= x
+        sq[:n] = np.einsum("wk,wk->k", est, est)
+        pos = x[:, -1].copy()
+        del est, x
+    if last + 1 < L:
+        sq[last + 1:] = 0.0
+        lo = 0
+        for E, w in zip(Es, sizes):
+            sl = slice(lo, lo + w)
+            sq[last + 1:] += _replay_outage(E, Phi_f, sc, block, last, xh[sl], pos[sl], vel[sl])
+            lo += w
+    return sq
+
+
+def _replay_outage(E, Phi_f, sc, block, last, xh, pos, vel):
+    """Sum over the windows of `E` of the squared position error at steps last+1 .. L-1 (no fix there), from the
+    estimate `xh` (W, nf) held at step `last` and the true position and velocity `pos`, `vel` (W,) at that step;
+    blocks of at most `block` steps (:func:`_replay_errors`)."""
     from imupipe.covariance import row_powers
 
     W, L = E.shape
     dt = sc.dt
     nf = Phi_f.shape[0]
-    h = H_f[0]
-    fixes = [k for k, K in enumerate(gains) if K is not None] + [L - 1]
-    longest = max(np.diff([-1] + fixes).max(), 1)
-    span = min(block, int(longest))
-    # g_j = e_0^T Phi_f^j for j = 1..span (the rows after the last update), and Phi_f^j for the fix steps
+    span = min(block, L - 1 - last)
     G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, span, span))[1][:, 0, :]  # (span, nf): j = 1..span
-    powers = {}
-
-    def power(j):
-        if j not in powers:
-            powers[j] = np.linalg.matrix_power(Phi_f, j)
-        return powers[j]
-
-    sq = np.empty(L)
-    xh = np.zeros((W, nf))
-    pos, vel = np.zeros(W), np.zeros(W)
-    last, k0 = -1, 0  # the anchor (step whose estimate xh is held; -1: the start, xh = 0); the next step
-    fi = 0  # index of the next fix in `fixes` (a pointer: a scan from the start per fix was quadratic in fixes)
+    PspanT = np.linalg.matrix_power(Phi_f, span).T
+    out = np.empty(L - 1 - last)
+    k0 = last + 1
     while k0 < L:
-        while fixes[fi] < k0:
-            fi += 1
-        nxt = fixes[fi]
-        k1 = min(nxt + 1, last + 1 + span)  # up to the next fix, at most `span` steps after the last anchor
+        k1 = min(L, last + 1 + span)
         e = E[:, k0:k1]
         cs = np.cumsum(e, axis=1)
         if sc.sensor == "accel":
@@ -695,20 +761,13 @@ def _replay_errors(E, Phi_f, H_f, gains, sc, block: int = 4096):
         else:
             x = pos[:, None] - dt * cs
         pos = x[:, -1]
-        est = xh @ G[k0 - last - 1:k1 - last - 1].T  # position estimate, (W, k1 - k0)
-        K = gains[k1 - 1]
-        if K is not None:
-            prior = xh @ power(k1 - 1 - last).T
-            xh = prior + np.outer(pos - prior @ h, K[:, 0])
-            est[:, -1] = xh[:, 0]
+        err = xh @ G[:k1 - k0].T - x  # position estimate minus truth, (W, k1 - k0)
+        if k1 - 1 - last == span:
+            xh = xh @ PspanT
             last = k1 - 1
-        elif k1 - 1 - last == span or k1 == L:
-            xh = xh @ power(k1 - 1 - last).T
-            last = k1 - 1
-        err = est - x
-        sq[k0:k1] = np.einsum("wk,wk->k", err, err)
+        out[k0 - (L - out.size):k1 - (L - out.size)] = np.einsum("wk,wk->k", err, err)
         k0 = k1
-    return sq
+    return out
 
 
 def replay_steps(filter_model, records, record_rate_hz: float, scenario: Scenario | None = None, sensor: str = "accel",
@@ -792,10 +851,13 @@ def verify_model(filter_model, sensor: str = "accel", truth=None, upper=None, sp
     return out
 
 
-def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario | None = None):
+def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario | None = None, analyse=None):
     """Try dropping states (the random walk: eq. 19; each GM term; each narrowband term) from `model`; accept a reduction
     only when the covariance analysis passes against every model in `truths` (b: upper envelope,
     spec) without it.
+
+    `analyse` (default :func:`covariance_analyses`): the function ``(filter_model, truths, scenario) -> list of
+    Verification`` that runs the covariance analyses (a caller may pass one that keeps its results).
 
     Returns
     -------
@@ -810,8 +872,10 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     tried = []
     current = model
 
-    def worst(m):
-        return max(covariance_analysis(m, t, sc).worst_ratio for t in truths) if truths else float("inf")
+    analyse = covariance_analyses if analyse is None else analyse
+
+    def worst(m):  # the truths of one candidate in one per-fix loop (covariance_analyses)
+        return max(v.worst_ratio for v in analyse(m, truths, sc)) if truths else float("inf")
 
     candidates = []
     if current.random_walk > 0:
@@ -976,6 +1040,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         of the exported model.
     """
     from imupipe.biasinit import bias_initialisation, worst_member
+    from imupipe.models import NoiseModel
     from imupipe.units import SI_UNITS
 
     refuse_keywords(earlier, "verification_stage", rate_hz="record_rate_hz", horizon_s="outage_s")
@@ -990,16 +1055,29 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
     truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow))
+    if records is not None and record_rate_hz is None:
+        raise ValueError("verification_stage: replay records need record_rate_hz")
+    # every truth a model's checks need, the replay's noise-only truth included
+    everything = [m for _, m in truths if m is not None] + ([NoiseModel()] if records is not None else [])
+    done = {}  # (filter model, truth model) -> Verification: NoiseModel is a frozen dataclass, equal by value
+
+    def analyse(model, ts, scen):
+        """The analyses of `model` against `ts`, and against the rest of `everything` in the same per-fix loop
+        (the reduction's accepted candidate is the reduced model, whose checks then cost no further loop)."""
+        todo = [t for t in dict.fromkeys(list(ts) + everything) if (model, t) not in done]
+        for t, v in zip(todo, covariance_analyses(model, todo, scen)):
+            done[(model, t)] = v
+        return [done[(model, t)] for t in ts]
 
     def run(model):
-        series = {}
-        for name, m in truths:
-            if m is not None:
-                series[name] = covariance_analysis(model, m, sc)
+        # every truth and the replay's noise-only truth in one per-fix loop (covariance_analyses)
+        named = [(name, m) for name, m in truths if m is not None]
         if records is not None:
-            if record_rate_hz is None:
-                raise ValueError("verification_stage: replay records need record_rate_hz")
-            series["replay"] = replay(model, records, record_rate_hz, sc, z=replay_z)
+            named.append((None, NoiseModel()))
+        res = analyse(model, [m for _, m in named], sc)
+        series = {name: v for (name, _), v in zip(named, res) if name is not None}
+        if records is not None:
+            series["replay"] = replay(model, records, record_rate_hz, sc, z=replay_z, noise_mse=res[-1].mse)
         ver = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.filter_rate_hz,
                             "fix_rate_hz": sc.filter_rate_hz / sc.fix_every,
                             "fix_s": sc.fix_s, "horizon_s": sc.outage_s,
@@ -1018,7 +1096,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                            "no reduction accepted"}
     exported_model = bound_model
     if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc)
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc, analyse=analyse)
         red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
                "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
                "verification": None}
