@@ -41,8 +41,24 @@ def scaled(m, k):
                       random_walk=m.random_walk * k, flicker=m.flicker * k)
 
 
+#: the bound and the upper envelope of each sensor: the stand-ins above, or a run's bound file (--bound-dir)
+MODELS: dict = {}
+
+
+def models(sensor, spec, bound_dir):
+    """(bound, upper envelope) of `sensor`: from ``bound_dir/{sensor}.yaml`` (a run's ``bound/{spec}/``, its
+    ``bound`` and ``upper_envelope`` models, SI) or the spec sheet x1.5 and x1.2."""
+    if bound_dir is None:
+        return scaled(spec, 1.5), scaled(spec, 1.2)
+    import yaml
+
+    doc = yaml.safe_load((Path(bound_dir) / f"{sensor}.yaml").read_text())
+    return NoiseModel.from_dict(doc["bound"]), NoiseModel.from_dict(doc["upper_envelope"])
+
+
 def job(sensor, spec, rate, fix_rate, fix_s, outage_s, records):
-    return V.verification_stage(scaled(spec, 1.5), sensor, spec=spec, upper=scaled(spec, 1.2), records=records,
+    bound, upper = MODELS[sensor]
+    return V.verification_stage(bound, sensor, spec=spec, upper=upper, records=records,
                                 record_rate_hz=rate, fix_s=fix_s, outage_s=outage_s, filter_rate_hz=rate,
                                 fix_rate_hz=fix_rate, reduce=True)
 
@@ -67,8 +83,13 @@ def main():
     ap.add_argument("--sensors", nargs="+", default=["accel", "gyro"])
     ap.add_argument("--step-fraction", type=float, default=0.01)
     ap.add_argument("--no-step-loop", action="store_true")
+    ap.add_argument("--bound-dir", default=None,
+                    help="a run's bound/<spec>/ folder (e.g. results/paper/bound/stim300 after make run): its bound "
+                         "and upper envelope instead of the spec sheet x1.5 / x1.2")
     a = ap.parse_args()
     sheet = load_spec(SPEC)
+    for sensor in a.sensors:
+        MODELS[sensor] = models(sensor, sheet.models[sensor], a.bound_dir)
     print(f"{'sensor':6} {'rate_Hz':>8} {'fix_Hz':>7} {'steps':>9} {'wall_s (median)':>16} {'cpu_s (median)':>15} "
           f"{'wall runs':>20} {'step_loop_cpu_s':>16}  note")
     for sensor in a.sensors:
