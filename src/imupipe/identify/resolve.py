@@ -179,7 +179,8 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
     (AllanFit, list of str, list of dict)
         The fit (a copy when anything changed: model, params, intervals, boundary flags, notes), the kept
         components after the re-assignment, and one record per re-assigned term (``term``, ``sigma``, ``T_s``,
-        ``T_interval_s``, ``acts_as``, ``why``, the new ``value`` and ``interval``; SI).
+        ``T_interval_s``, ``acts_as``, ``why``, ``T_open_above`` (the statistical T interval reaches the longest T
+        or is open: the data do not close the GM's box above), the new ``value`` and ``interval``; SI).
     """
     from imupipe.models import NoiseModel
 
@@ -220,10 +221,15 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             fast = False
         else:  # both ends reached: the side its estimate is nearer (log scale)
             fast = T <= math.sqrt(T_lo_range * max(T_hi_range, T_lo_range))
-        why = ("T or its interval's lower end within one octave above the shortest T the records resolve" if few else
-               "its T interval reaches " + " and ".join(
-                   (["the shortest T the records resolve"] if reaches_lo else [])
-                   + (["the longest T the records resolve"] if reaches_hi else [])))
+        why = "; ".join(
+            (["T or its interval's lower end within one octave above the shortest T the records resolve"] if few
+             else [])
+            + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
+            + (["its T interval reaches the longest T the records resolve"] if reaches_hi else []))
+        # what the statistical interval (the one the upper envelope reads) leaves open above: there the envelope
+        # of the GM box is kept (stages.identify.selected_and_envelope), the data do not close it
+        st = stat.get(f"gm_T_{i}")
+        open_above = st is None or not np.isfinite(st[1]) or st[1] >= T_hi_range * (1 - 1e-3)
         target = "white" if fast else "random_walk"
         base = float(params.get(target, 0.0) or 0.0)
         add = 2.0 * s * s * T if fast else 2.0 * s * s / T
@@ -264,7 +270,7 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             kind[k] = "re-assigned (not a GM the data resolve)"
         T_iv = intervals.get(f"gm_T_{i}") or fit.intervals.get(f"gm_T_{i}")
         rec = {"term": i, "sigma": s, "T_s": T, "T_interval_s": [float(v) for v in T_iv] if T_iv else None,
-               "acts_as": target, "why": why, "value": value, "interval": [float(v) for v in intervals[target]]}
+               "acts_as": target, "why": why, "T_open_above": bool(open_above), "value": value, "interval": [float(v) for v in intervals[target]]}
         records.append(rec)
         unit = "u/sqrt(Hz)" if fast else "u/sqrt(s)"
         formula = "N^2 = N_fit^2 + 2 sigma^2 T" if fast else "K^2 = K_fit^2 + 2 sigma^2 / T"

@@ -101,18 +101,29 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
     refit's bootstrap. `T_range` (:func:`imupipe.identify.resolve.gm_T_range`): a GM term the records do not
     resolve is re-assigned to the white noise or random walk it acts as
     (:func:`imupipe.identify.resolve.reassign_unresolved_gm`; the result's ``reassigned`` and ``kept_after``), and
-    the envelope is that of the re-assigned model."""
+    the envelope is that of the re-assigned model, dominating the GM's own envelope (its box over the T interval)
+    too where the statistical T interval is open above (:func:`imupipe.models.dominating_model`): the envelope only
+    grows where the data leave it open."""
     from imupipe.identify import refit_selected
     from imupipe.identify.resolve import reassign_unresolved_gm
 
     taus, avars, edfs = ([c[i] for c in curves] for i in (1, 2, 3))
     selected = refit_selected(fit, selection, taus, avars, edfs, rng=seed, **fit_kw)
     kept = list(selection["kept"])
-    if T_range is not None:
-        # a GM the records do not resolve is reported and bounded as the white noise or random walk it acts as
-        selected, kept, moved = reassign_unresolved_gm(selected, kept, T_range)
-        selected.reassigned, selected.kept_after = moved, kept
-    return selected, envelope(selected, kept, curves, confidence, span_s)
+    if T_range is None:
+        return selected, envelope(selected, kept, curves, confidence, span_s)
+    # a GM the records do not resolve is reported and bounded as the white noise or random walk it acts as
+    before = selected
+    selected, kept, moved = reassign_unresolved_gm(selected, kept, T_range)
+    selected.reassigned, selected.kept_after = moved, kept
+    env = envelope(selected, kept, curves, confidence, span_s)
+    if any(r["T_open_above"] for r in moved):
+        # integrity first: where the data leave the GM's T open above, its box (every longer T, for f >= 1/span)
+        # stays in the envelope; the re-assigned white noise or random walk is added to it, never in its place
+        from imupipe.models import dominating_model
+
+        env = dominating_model([env, envelope(before, list(selection["kept"]), curves, confidence, span_s)])
+    return selected, env
 
 
 def envelope_ratio(env: dict, model) -> dict:
