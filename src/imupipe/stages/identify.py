@@ -2,11 +2,15 @@ r"""The identification stage of one sensor type (rule ``identify``; :func:`imupi
 
 From the Allan-variance curves of every included axis of every record (each at its own rate and length):
 
-1. the pooled fit with every allowed component and its adequacy (:func:`imupipe.identify.fit_allan`);
+1. the pooled fit with every allowed component and its adequacy (:func:`imupipe.identify.fit_allan`), its GM time
+   constants searched over the range the curves resolve (:func:`imupipe.identify.resolve.gm_T_range`, written as
+   ``gm_T_search_s``);
 2. the model selection for the application band (:func:`imupipe.identify.select_components`);
 3. the SELECTED model refitted (:func:`imupipe.identify.refit_selected`: a random walk the selection dropped
    keeps its upper limit, the GM intervals their hull with the fit with a random walk): the parameters to
-   report and bound;
+   report and bound; a GM term the curves do not resolve (its T interval reaching an end of the range, or T within
+   an octave of its shortest T) re-assigned to the white noise or random walk it acts as
+   (:func:`imupipe.identify.resolve.reassign_unresolved_gm`, written as ``gm_reassigned``);
 4. its upper confidence envelope (:func:`imupipe.bound.upper_envelope`; a GM time constant the data leave
    open covered for :math:`f \ge 1/h`, h = ``span_s``: fix period + outage), the random walk at most what the curves'
    Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
