@@ -117,3 +117,18 @@ def test_gm_whose_T_interval_reaches_the_longest_T_is_reassigned_to_the_random_w
     lo, hi = idn.selected.intervals["random_walk"]
     assert lo <= r["value"] <= hi
     assert NoiseModel.from_dict(rec["upper_envelope_model"]).random_walk >= r["value"]
+
+
+def test_summary_flags_a_reassigned_gm_instead_of_its_boundary():
+    from imupipe.summary import flags_of
+
+    identify = {"fit": {"on_boundary": {"gm_T_1": True, "white": False}},
+                "model": {"white": 1e-3, "gm_sigma_1": 3e-3, "gm_T_1": 0.01},
+                "gm_reassigned": [{"term": 1, "sigma": 3e-3, "T_s": 0.01, "acts_as": "white",
+                                   "why": "its T interval reaches the shortest T the records resolve"}]}
+    checks = [(f.check, f.where) for f in flags_of("gyro", identify=identify)]
+    assert ("GM re-assigned", "gm_1") in checks
+    assert ("parameter on boundary", "gm_T_1") not in checks
+    identify["gm_reassigned"] = []
+    checks = [(f.check, f.where) for f in flags_of("gyro", identify=identify)]
+    assert ("parameter on boundary", "gm_T_1") in checks
