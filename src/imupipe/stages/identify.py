@@ -179,7 +179,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
     `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
-    `fit_tau_min_samples`), the filter's update rate `filter_rate_hz` (Hz) and the outage `outage_s` (s) for the
+    `fit_tau_min_samples`: the GM search's shortest T at least that many sample intervals, else the range the curves
+    resolve alone), the filter's update rate `filter_rate_hz` (Hz) and the outage `outage_s` (s) for the
     selection, and `span_s` (s; fix period + outage, the window the bound must hold over, written as
     ``upper_envelope_horizon_s``; default `outage_s`). `truth`: the simulation's
     :class:`~imupipe.models.NoiseModel` or None. `seed`: of the fit's bootstrap and refit (the pooling test's is
