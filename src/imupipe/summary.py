@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from imupipe.units import SI_UNITS
+
 __all__ = ["DETAILS_HEADING", "Flag", "discover_run", "first_screen", "flags_of", "load_sensor_files",
            "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summarise_run", "summary_sections"]
 
@@ -238,7 +240,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
     for r in moved:
         out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}",
-                        f"sigma {_num(r.get('sigma'))} SI, T {_num(r.get('T_s'))} s: {r.get('why')}; reported and "
+                        f"sigma {_num(r.get('sigma'))} {SI_UNITS.get(sensor, '(SI)')}, T {_num(r.get('T_s'))} s: "
+                        f"{r.get('why')}; reported and "
                         f"bounded as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'} it acts as"))
     moved_terms = {f"gm_{k}_{r.get('term')}" for r in moved for k in ("T", "sigma")}
     if isinstance(on_b, Mapping):
