@@ -988,8 +988,9 @@ def integrity_contract(bound, allan=None, verification=None, export=None, interv
             verified = False
             failed.append({"check": "export_rate", "verified_filter_rate_hz": export.get("verified_filter_rate_hz"),
                            "kf_rate_hz": export.get("kf_rate_hz"),
-                           "note": "the KF file's filter rate is not the verified reference filter's: set "
-                                   "verify.filter_rate_hz to application.rate_hz"})
+                           "note": "the KF file's filter rate is not the verified reference filter's: the "
+                                   "workflow verifies and exports at application.filter_rate_hz; export again at "
+                                   "the verified rate"})
     return {"bounded": bool(verified and not failed), "verified": bool(verified), "failed_checks": failed,
             "checks_run": run,
             "note": "bounded: true means every check above passed, the verification included"}
