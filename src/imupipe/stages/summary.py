@@ -145,9 +145,7 @@ def run_files(run_dir) -> tuple[dict, list, list]:
                           ("identify", "identify/*.yaml"), ("stationarity", "stationarity/*.yaml"),
                           ("lines", "lines/*/*/*.yaml"), ("outliers", "outliers/*/*/*.yaml"),
                           ("psd", "psd/*/*/*.nc"), ("kalibr", "kf/*/kalibr_imu.yaml")):
-        found = sorted(str(p) for p in base.glob(pattern))
-        if kind == "contract":  # contract/verdict.yaml is the run's verdict, not a sensor's contract
-            found = [p for p in found if Path(p).parent.name != "contract"]
+        found = sorted(str(p) for p in base.glob(pattern))  # (contract/verdict.yaml lies one level up: not matched)
         if found:
             files[kind] = found
     return files, sensors, specs
