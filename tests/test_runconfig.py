@@ -269,16 +269,6 @@ def test_remove_stale_of_named_targets_walks_nothing(tmp_path, monkeypatch):
     assert Path(other).is_file()
 
 
-def test_summary_text_after_a_failure_and_a_success(tmp_path):
-    md = tmp_path / "summary.md"
-    text = rc.summary_text(str(tmp_path / "none"), "logs/t", md, failed=True)
-    assert text.strip().startswith("RUN FAILED: the failed job's log is under logs/t/")
-    assert rc.summary_text(str(tmp_path / "none"), "logs/t", md) == ""
-    md.write_text("# summary\n")
-    ok = rc.summary_text(str(tmp_path), "logs/t", md)
-    assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report" in ok
-
-
 # ---------------------------------------------------------------------------------------------------------
 # the rule files keep rules, names, input functions and resources
 

@@ -113,9 +113,9 @@ def test_stationarity_inclusion_is_stated(on_fail_included, phrase):
     assert phrase in flag.detail and flag.where == "d/accel/x"
 
 
-def test_summarise_run_finds_the_files_of_a_results_folder(tmp_path):
+def test_summarise_results_finds_the_files_of_a_results_folder(tmp_path):
     from imupipe.io import write_yaml_atomic
-    from imupipe.summary import discover_run, summarise_run
+    from imupipe.stages.summary import run_files, summarise_results
 
     res = tmp_path / "results" / "myrun"  # a run-name level is found as well
     write_yaml_atomic({**_bound(), "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
@@ -123,12 +123,31 @@ def test_summarise_run_finds_the_files_of_a_results_folder(tmp_path):
                       res / "bound" / "stim300" / "axes" / "sim1" / "gyro" / "x.yaml")  # per-axis: not a contract
     write_yaml_atomic(IDENTIFY, res / "identify" / "gyro.yaml")
     write_yaml_atomic(STATIONARITY, res / "stationarity" / "gyro.yaml")
-    found = discover_run(tmp_path / "results")
-    assert list(found) == ["stim300"] and list(found["stim300"]) == ["gyro"]
-    text = summarise_run(tmp_path / "results")
-    assert text.startswith("# imupipe run summary: stim300")
+    files, sensors, specs = run_files(res)
+    assert specs == ["stim300"] and sensors == ["gyro"] and len(files["bound"]) == 1
+    text = summarise_results(tmp_path / "results")
+    assert text.startswith("# imupipe run summary: myrun, spec sheet stim300")
     assert "FLAG stationarity [sim2/gyro/z]" in text and "states kept: white, gauss_markov" in text
-    assert summarise_run(tmp_path / "empty") == ""
+    assert summarise_results(tmp_path / "empty") == ""
+
+
+def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
+    from imupipe.io import write_yaml_atomic
+    from imupipe.stages.summary import end_of_run_text
+
+    md = tmp_path / "summary.md"
+    text = end_of_run_text(str(tmp_path / "none"), "logs/t", md, failed=True)
+    assert text.strip().startswith("RUN FAILED: the failed job's log is under logs/t/")
+    assert end_of_run_text(str(tmp_path / "none"), "logs/t", md) == ""
+    # a failed run that left a bound file: its first screen, marked partial, before the failure line
+    res = tmp_path / "results" / "myrun"
+    write_yaml_atomic({**_bound(), "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
+    partial = end_of_run_text(str(res), "logs/t", md, failed=True)
+    assert partial.lstrip().startswith("(partial: from the files this run has written so far)\n# imupipe run summary")
+    assert "# Details" not in partial and partial.rstrip().splitlines()[-1].startswith("RUN FAILED")
+    md.write_text("# summary\n")
+    ok = end_of_run_text(str(tmp_path), "logs/t", md)
+    assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report" in ok
 
 
 def test_markdown_to_html_renders_the_summary_and_the_inflation_table():
@@ -354,7 +373,8 @@ def test_white_noise_far_above_the_spec_sheet_asks_for_the_unit_of_the_dataset(t
     # deg/s declared rad/s inflates N by 180/pi = 57.3x: a bound N 98.8x the spec's (an outside tester's run) is
     # flagged from the run's files, naming the sheet column and the dataset; the fixture's 2.73x is not
     from imupipe.io import write_yaml_atomic
-    from imupipe.summary import ABOVE_SPEC_RATIO_BOUND, ABOVE_SPEC_RATIO_DATA, summarise_run
+    from imupipe.stages.summary import summarise_results
+    from imupipe.summary import ABOVE_SPEC_RATIO_BOUND, ABOVE_SPEC_RATIO_DATA
 
     spec_n = 4.4e-5
     bad = _bound(bound={"white": 98.8 * spec_n, "gauss_markov": [], "random_walk": 1e-7},
@@ -364,7 +384,7 @@ def test_white_noise_far_above_the_spec_sheet_asks_for_the_unit_of_the_dataset(t
     res = tmp_path / "results" / "myrun"
     write_yaml_atomic({**bad, "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
     write_yaml_atomic({**_bound(), "sensor": "accel"}, res / "bound" / "stim300" / "accel.yaml")
-    text = summarise_run(tmp_path / "results")
+    text = summarise_results(tmp_path / "results")
     assert "FLAG data far above the spec sheet [lab1]: white noise N bound/spec 98.8x, data/spec 60x" in text
     assert "check the unit of gyro (dataset sheet column gyro_unit of lab1)" in text
     assert "of accel" not in text and "lab2" not in text.split("data far above")[1].split("\n")[0]

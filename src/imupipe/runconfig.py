@@ -10,7 +10,7 @@ need, testable without Snakemake.
   and step when the config leaves them unset); :func:`check_specs`: every spec sheet read once;
 - :func:`remove_stale`: the stale-output clean-up (docs/inputs.md, "Stale outputs");
 - small derived values the rules pass on (:func:`span_s`, :func:`replay_from_decimated`, :func:`lines_params`,
-  :func:`ingest_rule_groups`, :func:`sheet_column`) and the run summary printed at the end (:func:`summary_text`).
+  :func:`ingest_rule_groups`, :func:`sheet_column`).
 
 Units: rates in Hz, durations in s, as in the config.
 """
@@ -26,7 +26,7 @@ __all__ = ["AXES", "RENAMED_KEYS", "axes_of", "check_cross_keys", "check_records
            "divides", "ingest_rule_groups", "lines_params", "load_config", "merged_config", "read_sheet",
            "refuse_renamed_keys",
            "remove_stale", "replay_from_decimated", "repo_path", "sheet_column", "simulated_datasets",
-           "simulation_seeds", "span_s", "spec_path", "summary_text", "validate_schema"]
+           "simulation_seeds", "span_s", "spec_path", "validate_schema"]
 
 AXES = ("x", "y", "z")
 SCHEMAS = Path("workflow") / "schemas"
@@ -375,24 +375,3 @@ def remove_stale(roots, produced=None, rerun=(), keep=()) -> list:
                 if folder != root and not os.listdir(folder) and not os.path.ismount(folder):
                     os.rmdir(folder)
     return sorted(removed)
-
-
-def summary_text(results: str, logs: str, summary_md, failed: bool = False) -> str:
-    """The run summary printed at the end of a run: summary.md when the run wrote it, else the summary of whatever
-    files it left (:func:`imupipe.summary.summarise_run`), marked partial; after a failure where the logs are."""
-    from imupipe.summary import first_screen, summarise_run
-
-    md, text = Path(summary_md), ""
-    if not failed and md.is_file():
-        text = md.read_text()
-    elif Path(results).is_dir():
-        text = summarise_run(results)
-        text = f"(partial: from the files this run has written so far)\n{text}" if text else ""
-    # the first screen (verdicts, values to paste, checks); the details stay in summary.md
-    parts = [first_screen(text).rstrip()] if text else []
-    if failed:
-        parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); summary.md is "
-                     "written only by a complete run.")
-    elif md.is_file():
-        parts.append(f"Summary with the details: {md}; report: snakemake --report {results}/report.html (make report)")
-    return "".join(f"\n{p}\n" for p in parts).rstrip("\n")

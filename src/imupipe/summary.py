@@ -19,8 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["DETAILS_HEADING", "Flag", "discover_run", "first_screen", "flags_of", "load_sensor_files",
-           "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summarise_run", "summary_sections"]
+__all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summary_sections"]
 
 
 #: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
@@ -739,7 +738,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     ----------
     runs : mapping
         Sensor -> ``{"bound": dict, "identify": dict, "stationarity": dict}`` (each optional), the
-        run's per-sensor YAML files as read (:func:`load_sensor_files`).
+        run's per-sensor YAML files as read (:func:`imupipe.stages.summary.group_run_files`).
     title : str, optional
         First heading.
     kalibr : mapping, optional
@@ -853,66 +852,6 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                      f"{kalibr.get('rostopic')}.", ""]
     head += [f"## Checks: {n_fail} failed, {n_flag} flagged", "", *checks]
     return "\n".join(head).rstrip() + "\n", "\n".join(lines).rstrip() + "\n"
-
-
-def load_sensor_files(bound: str | Path | None = None, identify: str | Path | None = None,
-                      stationarity: str | Path | None = None) -> dict:
-    """Read one sensor's run files (any may be None or missing: then absent from the result)."""
-    from imupipe.io import read_yaml
-
-    out = {}
-    for key, path in (("bound", bound), ("identify", identify), ("stationarity", stationarity)):
-        if path is not None and Path(path).exists():
-            out[key] = read_yaml(path)
-    return out
-
-
-def discover_run(results: str | Path) -> dict:
-    """The per-sensor files of a finished run under `results`, by spec sheet.
-
-    Looks for ``contract/{spec}/{sensor}.yaml`` or ``bound/{spec}/{sensor}.yaml`` (a contract: has ``bounded`` and ``sensor``),
-    ``identify/{sensor}.yaml`` and ``stationarity/{sensor}.yaml`` anywhere below `results` (so a
-    ``results/<run name>/`` level is found as well).
-
-    Returns
-    -------
-    dict
-        ``{spec: {sensor: {"bound": path, "identify": path or None, "stationarity": path or None}}}``.
-    """
-    from imupipe.io import read_yaml
-
-    results = Path(results)
-    out: dict = {}
-    # the integrity contract (contract/{spec}/{sensor}.yaml, the verdict) after, and so in place of, the bound file
-    for path in [*sorted(results.rglob("bound/*/*.yaml")), *sorted(results.rglob("contract/*/*.yaml"))]:
-        if path.parent.name == "axes" or "axes" in path.parts[len(results.parts):-1]:
-            continue
-        try:
-            head = read_yaml(path)
-        except Exception:  # not a YAML mapping: not a contract
-            continue
-        if not isinstance(head, Mapping) or "bounded" not in head or "sensor" not in head:
-            continue
-        sensor, spec = str(head["sensor"]), path.parent.name
-        base = path.parent.parent.parent  # the folder holding bound/, identify/, stationarity/
-        ident, stat = base / "identify" / f"{sensor}.yaml", base / "stationarity" / f"{sensor}.yaml"
-        out.setdefault(spec, {})[sensor] = {"bound": path, "identify": ident if ident.is_file() else None,
-                                            "stationarity": stat if stat.is_file() else None}
-    return out
-
-
-def summarise_run(results: str | Path) -> str:
-    """The summary text of every spec sheet of a finished run under `results` ("" when none is found): the first
-    screens of every spec sheet, then :data:`DETAILS_HEADING` and their details."""
-    heads, details = [], []
-    for spec, sensors in discover_run(results).items():
-        runs = {s: load_sensor_files(**paths) for s, paths in sensors.items()}
-        head, detail = summary_sections(runs, title=f"imupipe run summary: {spec}")
-        heads.append(head.rstrip())
-        details.append(detail.rstrip())
-    if not heads:
-        return ""
-    return "\n\n".join(heads) + "\n\n" + DETAILS_HEADING + "\n\n" + "\n\n".join(details) + "\n"
 
 
 def markdown_to_html(text: str, *, title: str = "imupipe") -> str:

@@ -12,6 +12,7 @@ import re
 from pathlib import Path
 
 from imupipe import runconfig as rc
+from imupipe.stages.summary import end_of_run_text
 
 ROOT = Path(workflow.basedir)  # repository root: config paths are relative to it
 AXES = list(rc.AXES)
@@ -268,7 +269,7 @@ def on_finish():
 def print_summary(failed=False):
     """The run summary on the terminal; never raises (a handler must not hide the run's own error)."""
     try:
-        text = rc.summary_text(RESULTS, LOGS, SUMMARY_MD, failed)
+        text = end_of_run_text(RESULTS, LOGS, SUMMARY_MD, failed)
         if text:
             print(text, flush=True)
     except Exception as exc:  # pragma: no cover - a broken summary must not mask the run's status

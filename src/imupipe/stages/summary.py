@@ -6,7 +6,8 @@ kalibr, ...) are grouped per spec sheet and sensor (:func:`group_run_files`): a 
 (:data:`CHECK_KEYS`) join the sensor's checks, the PSD files' sample counts its record usage. The text
 (:func:`summary_text`) is every spec sheet's first screen (verdicts, values to paste, checks), then the details
 (:func:`imupipe.summary.summary_sections`). The report's first page carries the first screen only
-(:func:`front_page`).
+(:func:`front_page`). What a run prints at its end is :func:`end_of_run_text`: the same summary, or after a
+failure the one of the files the run left.
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ import logging
 import re
 from pathlib import Path
 
-__all__ = ["CHECK_KEYS", "front_page", "group_run_files", "psd_usage", "run_files", "summarise_results",
-           "summary_stage", "summary_text"]
+__all__ = ["CHECK_KEYS", "end_of_run_text", "front_page", "group_run_files", "psd_usage", "run_files",
+           "summarise_results", "summary_stage", "summary_text"]
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
 CHECK_KEYS = ("verified", "failed_checks", "lines", "narrowband", "excluded", "outliers", "gaps", "stuck_spans",
@@ -165,6 +166,28 @@ def summarise_results(results) -> str:
         if specs and sensors:
             texts.append(summary_text(files, sensors, specs, run_dir.name))
     return "\n\n".join(t.rstrip() for t in texts) + ("\n" if texts else "")
+
+
+def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
+    """What a run prints at its end: the first screen of `summary_md` when the run wrote it; after a failure (or
+    without it) the first screen of :func:`summarise_results` on the files the run left under `results`, marked
+    partial, and where the failed job's log is. The same text as a finished run's summary job writes, so a partial
+    summary never says something a finished one would not. "" when there is nothing to say."""
+    from imupipe.summary import first_screen
+
+    md, text = Path(summary_md), ""
+    if not failed and md.is_file():
+        text = md.read_text()
+    elif Path(results).is_dir():
+        text = summarise_results(results)
+        text = f"(partial: from the files this run has written so far)\n{text}" if text else ""
+    parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
+    if failed:
+        parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); summary.md is "
+                     "written only by a complete run.")
+    elif md.is_file():
+        parts.append(f"Summary with the details: {md}; report: snakemake --report {results}/report.html (make report)")
+    return "".join(f"\n{p}\n" for p in parts).rstrip("\n")
 
 
 def front_page(template: str, html_page: str) -> str:
