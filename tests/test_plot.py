@@ -457,6 +457,23 @@ def test_allan_deviation_figure_units_marks_and_legend(display, rate_unit, n_tex
     assert n_text in n_entry
     if display == "spec":  # N = 1e-4 rad/s/sqrt(Hz) = 1e-4 * 180/pi * 60 deg/sqrt(h) = 0.344
         assert "N = 0.344 deg/sqrt(h)" in n_entry
+    assert "the curve at" not in n_entry  # the -1/2 line holds at 1 s: the read-off is the curve's value
+
+
+def test_a_slope_read_off_off_the_curve_names_the_curve_value():
+    # white noise + a flicker plateau 3 N^2 high: the -1/2 line goes through the short taus and reads N at 1 s,
+    # while the curve at 1 s is sqrt(N^2 + 3 N^2) = 2 N; the legend gives the curve's value beside the line's
+    from imupipe.plot import READOFF_CURVE_RTOL, plot_allan_deviation
+
+    tau = np.geomspace(1e-3, 1e4, 7 * 50 + 1)
+    avar = N_WR**2 / tau + 3.0 * N_WR**2
+    fig = plot_allan_deviation(tau, avar, sensor="gyro")
+    ro = fig.readoffs["si"]
+    assert ro["white"] == pytest.approx(N_WR, rel=2e-3)  # read at tau = 1e-3 s: excess sqrt(1 + 3e-3) - 1 = 1.5e-3
+    n_entry = next(t for t in _legend(fig.axes[0]) if t.startswith("−1/2 line"))
+    # N = 1e-4 rad/s/sqrt(Hz) = 0.344 deg/sqrt(h); the curve at 1 s is 2 N = 0.688 deg/sqrt(h) (sigma(1 s) sqrt(1 s))
+    assert "N = 0.344 deg/sqrt(h) (read at τ = 1 s; the curve at τ = 1 s: 0.688 deg/sqrt(h))" in n_entry, n_entry
+    assert 2.0 - 1.0 > READOFF_CURVE_RTOL
 
 
 def test_allan_deviation_accel_in_ug():
