@@ -1,6 +1,6 @@
 /*
- * imupipe._kernels -- compiled inner loops of imupipe.allan, imupipe.identify, imupipe.simulate and
- * imupipe.stationarity
+ * imupipe._kernels -- compiled inner loops of imupipe.allan, imupipe.identify, imupipe.simulate,
+ * imupipe.stationarity, imupipe.covariance and imupipe.verify
  * (optional; each has a NumPy/SciPy path that gives the same results to rounding when this module cannot be
  * built or imported).
  *
@@ -56,6 +56,14 @@
  *     Returns chi2 = sum edf/2 ((y - m)/m)^2 (or None when an NNLS pass exceeds 50 k steps: p and m then
  *     hold the last completed pass, as the Python path keeps its last solution). Small problems (k columns
  *     <= 16, the AV basis); the Python path calls scipy.optimize.nnls per pass, ~40 us of overhead each.
+ *
+ * riccati_fixes, mismatched_fixes, replay_fixes
+ *     The per-fix loops of the exact covariance verification (imupipe.covariance.filter_variance,
+ *     imupipe.covariance.mismatched_mse_many, imupipe.verify._replay_errors; Gelb 1974, section 7.2): the
+ *     filter's Riccati recursion with its convergence test, the truths' augmented second-moment recursion
+ *     C <- B (A C A^T + S) B^T + R [0; K][0; K]^T (a rank-1 fix update), and the replay's estimate update over all
+ *     windows; one C iteration per fix, A C A^T from the nonzero entries of A's rows (section before
+ *     py_riccati_fixes). The NumPy paths give the same results to rounding (tests: 1e-12 relative).
  *
  * Design (measured on a 2-core AMD EPYC, 4.5e6 samples, 100 log-spaced lags):
  *   - the inner loop keeps W = 8 independent partial sums, so that the compiler vectorises it without
