@@ -19,8 +19,11 @@ their step-loop references (covariance_analysis_steps, replay_steps), timed once
 scenario shortened by `--step-fraction` and scaled by the step count (both loops are linear in the number of
 steps): "estimated".
 
+The per-fix loops run compiled (imupipe._kernels) when the module is built; `--numpy` times the NumPy path
+instead (the fallback where no compiler is available); the line says which ran.
+
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/verify_job.py [--rates 1 100 1000] [--fix-rate 1]
-       [--repeats 3] [--sensors accel gyro] [--step-fraction 0.01]
+       [--repeats 3] [--sensors accel gyro] [--step-fraction 0.01] [--numpy]
 """
 
 import argparse
@@ -86,7 +89,13 @@ def main():
     ap.add_argument("--bound-dir", default=None,
                     help="a run's bound/<spec>/ folder (e.g. results/paper/bound/stim300 after make run): its bound "
                          "and upper envelope instead of the spec sheet x1.5 / x1.2")
+    ap.add_argument("--numpy", action="store_true", help="the NumPy per-fix loops, not the compiled ones")
     a = ap.parse_args()
+    import imupipe.covariance as cov
+
+    if a.numpy:
+        cov._kernels = None
+    backend = cov.pick_backend("auto")
     sheet = load_spec(SPEC)
     for sensor in a.sensors:
         MODELS[sensor] = models(sensor, sheet.models[sensor], a.bound_dir)
@@ -119,7 +128,7 @@ def main():
             print(f"{sensor:6} {r:8g} {'every' if fr is None else f'{fr:g}':>7} {steps:9d} "
                   f"{statistics.median(times):16.2f} {statistics.median(cpus):15.2f} "
                   f"{' '.join(f'{t:.1f}' for t in times):>20} {ts:16.1f}  "
-                  f"{note}; exported {'reduced' if rep['exported']['reduced'] else 'bound'}, outage MSE/P: {worst}",
+                  f"{note}; {backend} loops; exported {'reduced' if rep['exported']['reduced'] else 'bound'}, outage MSE/P: {worst}",
                   flush=True)
 
 

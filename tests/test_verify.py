@@ -111,6 +111,32 @@ class TestCovarianceAnalysis:
         np.testing.assert_allclose(a.mse, b.mse, rtol=1e-10, atol=0)
         assert a.details == b.details and a.worst_ratio == pytest.approx(b.worst_ratio, rel=1e-10)
 
+    @pytest.mark.parametrize("rate,fix_rate", [(10.0, None), (10.0, 2.0), (100.0, None)])
+    @pytest.mark.parametrize("sensor", ["accel", "gyro"])
+    def test_compiled_and_numpy_replay_agree(self, sensor, rate, fix_rate, monkeypatch):
+        # the replay's fix phase compiled (imupipe._kernels.replay_fixes: window by window, the squares summed
+        # in place) against the NumPy loop (all windows per fix, then one einsum): the same sums in another order,
+        # a few ulps per term times the steps a value accumulates (imupipe.covariance docstring: <= 1e-12); the
+        # NumPy path is then held to the step loop (1e-10, test above)
+        from imupipe import covariance as cov
+        import imupipe.verify as V
+
+        if cov._kernels is None:
+            pytest.skip("the compiled kernel imupipe._kernels is not built")
+        rng = np.random.default_rng(12)
+        sc = reference_scenario(sensor, filter_rate_hz=rate, fix_s=30.0, outage_s=60.0, fix_rate_hz=fix_rate)
+        recs = [rng.normal(size=int(400 * rate)) * 1e-3, np.cumsum(rng.normal(size=int(200 * rate))) * 1e-5]
+        model = NoiseModel(white=1e-3, gauss_markov=((5e-4, 30.0),), random_walk=1e-5, flicker=2e-4)
+        V._FILTER_CACHE.clear()
+        a = replay(model, recs, rate, sc)
+        monkeypatch.setattr(cov, "_kernels", None)
+        V._FILTER_CACHE.clear()
+        b = replay(model, recs, rate, sc)
+        c = replay_steps(model, recs, rate, sc)
+        V._FILTER_CACHE.clear()
+        np.testing.assert_allclose(a.mse, b.mse, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(b.mse, c.mse, rtol=1e-10, atol=0)
+
     def test_replay_rejects_short_records(self):
         with pytest.raises(ValueError, match="at least"):
             replay(TRUTH, [np.zeros(100)], 1.0)

@@ -67,6 +67,19 @@ for all of them, the covariances stacked in one 3-D array, zero-padded to the la
 dimensions of 3-10 the per-fix cost is the interpreter's overhead per array operation, not the arithmetic, so a
 stack of four truths costs about what one does.
 
+Compiled per-fix loops. The three loops that take one iteration per fix (the filter's Riccati recursion with its
+convergence test, the truths' stacked recursion, and :func:`imupipe.verify._replay_errors`' fix phase) run in C
+(``imupipe._kernels``: ``riccati_fixes``, ``mismatched_fixes``, ``replay_fixes``) when the optional module is built,
+and in NumPy otherwise (``backend`` argument, or ``imupipe.covariance._kernels`` None). The C loops are the same
+recursions in the same order of operations per fix, with two differences that change only the rounding: the
+products :math:`A C A^T` skip the exact zeros of :math:`A`'s rows (the transitions are sparse: diagonal noise
+states, the integrator, the augmented coupling block; adding :math:`0 \cdot x` is exact), so a product costs
+:math:`O(\mathrm{nnz}(A)\, n)`, and each truth is carried at its own dimension (not zero-padded to the largest).
+The two paths agree to 1e-12 relative at every step (tests/test_covariance.py, tests/test_verify.py), and both are
+held to the step loop at 1e-9. A steady-gain freeze does not apply where it would matter most: the default bound's
+filters (white + GM + random walk), fixed at every 1000 Hz step, still move their gain by 3 % (accel) and 21 %
+(gyro) between 300 s and 600 s of fixes, so the fix phase is not a time-invariant map and cannot be doubled.
+
 The worst MSE/P is then taken over every step (all steps are computed; nothing is sampled).
 
 Reference: A. Gelb (ed.), "Applied Optimal Estimation", MIT Press 1974, section 7.2 (covariance analysis of
@@ -80,38 +93,99 @@ import math
 
 import numpy as np
 
+try:  # optional compiled per-fix loops; the NumPy path gives the same results to rounding
+    from imupipe import _kernels
+    if not hasattr(_kernels, "mismatched_fixes"):  # pragma: no cover - a module built before these loops
+        _kernels = None
+except ImportError:  # pragma: no cover - exercised by forcing backend="numpy" in the tests
+    _kernels = None
+
 __all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many",
-           "augmented"]
+           "augmented", "fix_gain_array"]
 
 P_RTOL = 1e-13
 _CHECK_EVERY = 16  # fixes between two convergence checks (a late stop costs at most 15 iterations)
 
 
+def pick_backend(backend: str) -> str:
+    """'c' or 'numpy' for `backend` ('auto': the compiled loops of ``imupipe._kernels`` when they are built)."""
+    if backend not in ("auto", "c", "numpy"):
+        raise ValueError(f"backend must be 'auto', 'c' or 'numpy', got {backend!r}")
+    if backend == "c" and _kernels is None:
+        raise RuntimeError("the compiled kernel imupipe._kernels is not available (use backend='numpy')")
+    if backend == "auto":
+        return "c" if _kernels is not None else "numpy"
+    return backend
+
+
+class FixGains(list):
+    """The filter's gain per fix, a list of (n, 1) arrays (:func:`filter_variance`): entries from `n_iter` on are
+    the same steady-gain object. `array` (n_iter, n), when set, holds the first `n_iter` gains as rows."""
+
+    n_iter: int
+    array: np.ndarray | None = None
+
+
+def _n_iter(gains) -> int:
+    """Fixes before the steady gain: `gains.n_iter`, or the first j > 0 whose gain is the object of fix j - 1."""
+    n = getattr(gains, "n_iter", None)
+    if n is not None:
+        return int(n)
+    return next((j for j in range(1, len(gains)) if gains[j] is gains[j - 1]), len(gains))
+
+
+def _iterated_array(gains, n_iter) -> np.ndarray:
+    arr = getattr(gains, "array", None)
+    if arr is None or arr.shape[0] < n_iter:
+        arr = np.array([np.asarray(g, dtype=float).reshape(-1) for g in gains[:n_iter]]).reshape(n_iter, -1)
+    return np.ascontiguousarray(arr[:n_iter], dtype=float)
+
+
+def fix_gain_array(gains) -> np.ndarray:
+    """The gains of :func:`filter_variance` as one (fixes, n) array (row j: the gain of fix j)."""
+    J = len(gains)
+    if J == 0:
+        return np.zeros((0, 0))
+    n_iter = _n_iter(gains)
+    head = _iterated_array(gains, n_iter)
+    if n_iter == J:
+        return head
+    steady = np.asarray(gains[n_iter], dtype=float).reshape(1, -1)
+    return np.concatenate([head.reshape(n_iter, -1), np.repeat(steady, J - n_iter, axis=0)])
+
+
 def row_powers(R0, M, count, block):
-    """Yield (start, G) with G[j] = R0 @ M^(start + j), shape (L, p, n), block after block."""
+    """Yield (start, G) with G[j] = R0 @ M^(start + j), shape (L, p, n), block after block.
+
+    The rows of a block are stored as one (L p, n) array, so that each step is one 2-D matrix product (a
+    stacked (L, p, n) @ (n, n) product is L small products). The blocks share two buffers: a block is valid
+    until the next one is requested."""
     R0 = np.atleast_2d(np.asarray(R0, dtype=float))
     L = max(1, min(block, count))
-    G = np.empty((L,) + R0.shape)
-    G[0] = R0
+    p, nn = R0.shape
+    G = np.empty((L * p, nn))  # the rows of G[j] at j p .. j p + p - 1: every product below is one 2-D GEMM
+    G[:p] = R0
     Ml = np.asarray(M, dtype=float)
     filled = 1
     while filled < L:
         take = min(filled, L - filled)
-        G[filled:filled + take] = G[:take] @ Ml
+        np.matmul(G[:take * p], Ml, out=G[filled * p:(filled + take) * p])
         filled += take
         Ml = Ml @ Ml  # M^filled (filled doubles until the block is full)
     # M^L for the block-to-block step
     ML = np.linalg.matrix_power(np.asarray(M, dtype=float), L)
+    G2 = np.empty_like(G)
     start = 0
     while start < count:
         n = min(L, count - start)
-        yield start, G[:n]
+        yield start, G[:n * p].reshape(n, p, nn)
         start += L
         if start < count:
-            G = G @ ML
+            np.matmul(G, ML, out=G2)
+            G, G2 = G2, G
 
 
-def quad_series(R0, M, C0, W, count, block=2048):
+def quad_series(R0, M, C0, W, count, block=16384):
     r"""out[j, s] = r_s C_j r_s^T with C_j = M^j C0 M^jT + sum_{i<j} M^i W M^iT, j = 0..count-1.
 
     R0 : (p, n) rows r_s (or one row, (n,)); returns (count, p). Exact for defective M (module docstring).
@@ -171,14 +245,17 @@ def _record_substeps(out, k0: int, m: int, M, Rs, sub, *, c=None, e0: bool = Fal
     out[lo:k0 + m] = vals[lo - k0:]
 
 
-def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTOL):
+def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTOL, backend="auto"):
     r"""The filter's a-posteriori P[0,0] at every step and its gains per fix: (pvar (n_steps,), gains list).
 
     gains[j] (n, 1) is the gain of fix j (step (j+1) m - 1); after convergence (module docstring) the list holds
     the steady gain for the remaining fixes (the same object). One Python iteration per fix until then, of
     O(n^2) work besides the propagation :math:`A^m P A^{mT} + S_m` (two n x n products): the update is
     :math:`P \leftarrow P^- - u u^T/s`, :math:`u = P^- h`, :math:`s = h^T u + R`, :math:`K = u/s` (the Joseph
-    form with the optimal gain, to rounding)."""
+    form with the optimal gain, to rounding). `backend`: 'c' runs the fix-by-fix part in
+    ``imupipe._kernels.riccati_fixes`` (the same recursion and stopping rule, sparse products), 'numpy' here,
+    'auto' the first available; they agree to rounding. The gains are a :class:`FixGains`."""
+    be = pick_backend(backend)
     n = Phi_f.shape[0]
     e0 = np.zeros(n)
     e0[0] = 1.0
@@ -189,13 +266,22 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTO
     sub = quad_series(e0, Phi_f, np.zeros((n, n)), Qd_f, m)[:, 0]  # q_s = e0^T S_s e0, s < m
     Rs = _rows(e0, Phi_f, m)  # e0^T Phi^s, s < m
     pvar = np.empty(n_steps)
-    P = np.asarray(P0_f, dtype=float).copy()
-    gains = []
+    P = np.array(P0_f, dtype=float, order="C")
+    gains = FixGains()
     d_prev = None
     j = 0
     steady = None
     tmp = np.empty((n, n))
-    while j < J:
+    if be == "c" and J > 0:
+        G = np.empty((J, n))
+        j, conv = _kernels.riccati_fixes(n, np.ascontiguousarray(Am), np.ascontiguousarray(Sm),
+                                         np.ascontiguousarray(h), float(R), P, J, m, np.ascontiguousarray(Rs),
+                                         np.ascontiguousarray(sub), pvar, G, _CHECK_EVERY, float(p_rtol))
+        gains.extend(G[:j, :, None])
+        gains.array = G[:j]
+        if conv:
+            steady = gains[-1]
+    while be == "numpy" and j < J:
         # P at sub-steps s = 0..m-1 after state j (step jm-1+s); s = 0 is the step of fix j-1
         k0 = j * m - 1
         _record_substeps(pvar, k0, m, P, Rs, sub, e0=True)
@@ -224,6 +310,7 @@ def filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, p_rtol=P_RTO
                 steady = gains[-1]
                 break
         d_prev = d
+    gains.n_iter = j
     if steady is not None and j < J:
         # steady state: P after each fix is constant (to p_rtol); same sub-step pattern every cycle
         vals = ((Rs @ P) * Rs).sum(axis=1) + sub
@@ -292,19 +379,20 @@ def augmented(Phi_t, Qd_t, P0_t, H_t, Phi_f, H_f, shared=((0, 0),)):
 
 
 def mismatched_mse(Phi_t, Qd_t, P0_t, H_t, Phi_f, Qd_f, P0_f, H_f, R, n_steps, n_fix, m=1, gains=None,
-                   p_rtol=P_RTOL, shared=((0, 0),)):
+                   p_rtol=P_RTOL, shared=((0, 0),), backend="auto"):
     """True MSE c^T C_k c of the filter's position (angle) estimate at every step, (n_steps,), and pvar.
 
     The estimate starts at 0, C_0 = diag(P0_t, 0); computed in error coordinates (:func:`augmented`, `shared`:
     (truth index, filter index) of the states both have, the kinematic ones); see the module docstring for the
     schedule and method. One truth of :func:`mismatched_mse_many`."""
     pvar, gains = (None, gains) if gains is not None else filter_variance(Phi_f, Qd_f, P0_f, H_f, R, n_steps,
-                                                                          n_fix, m, p_rtol)
-    mse = mismatched_mse_many([(Phi_t, Qd_t, P0_t, H_t, shared)], Phi_f, H_f, R, n_steps, n_fix, m, gains)[0]
+                                                                          n_fix, m, p_rtol, backend)
+    mse = mismatched_mse_many([(Phi_t, Qd_t, P0_t, H_t, shared)], Phi_f, H_f, R, n_steps, n_fix, m, gains,
+                              backend)[0]
     return mse, pvar, gains
 
 
-def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
+def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains, backend="auto"):
     r"""The true MSE of one filter against several truths at once: a list of (n_steps,) arrays.
 
     `truths`: sequence of (Phi_t, Qd_t, P0_t, H_t, shared) (:func:`mismatched_mse`); `gains` the filter's gains per
@@ -314,7 +402,9 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
     then zero padding, then the filter's states. The padding rows and columns of :math:`A^m, S_m, C_0` and
     :math:`u` are zero, so they stay exactly zero and add exact zeros to every sum: each truth's recursion is the
     one of its own unpadded matrices (to the rounding of a different summation order in the matrix products).
+    `backend` (:func:`filter_variance`): 'c' runs that loop in ``imupipe._kernels.mismatched_fixes``.
     """
+    be = pick_backend(backend)
     T = len(truths)
     nf = Phi_f.shape[0]
     J = _cycles(m, n_fix)
@@ -343,10 +433,11 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
         C_s[t][np.ix_(ix, ix)] = C
         c_s[t, ix] = c
         # B(K) = I + [0; K] u^T with u^T = [H_t - H_f E, -H_f] (a scalar fix): row nt of B(1) - I
-        u_s[t, ix] = B_of(np.ones((na - nt, 1)))[nt] - np.eye(na)[nt]
+        u = B_of(np.ones((na - nt, 1)))[nt] - np.eye(na)[nt]
+        u_s[t, ix] = u
         sub = quad_series(c, A, np.zeros((na, na)), Qa, m)[:, 0]
         Rs = _rows(c, A, m)
-        per.append((Am, Sm, sub, Rs, ix))
+        per.append((Am, Sm, sub, Rs, ix, u))
     mse = np.empty((T, n_steps))
     AmT_s = np.ascontiguousarray(np.swapaxes(Am_s, 1, 2))
     tmp = np.empty((T, n, n))
@@ -362,10 +453,28 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
     half_R = 0.5 * R
     unit_c = bool(np.all(c_s == np.eye(n)[ntm]))
     j = 0
-    while j < J:
+    j_stop = min(J, _n_iter(gains))  # the steady gain from there on
+    if be == "c" and j_stop > 0:
+        # each truth unpadded (its own dimension), packed one after the other
+        def pack(arrs):
+            return np.ascontiguousarray(np.concatenate([np.asarray(a, dtype=float).ravel() for a in arrs]))
+
+        dims = np.array([sy[0].shape[0] for sy in systems], dtype=np.int64)
+        unit_idx = np.array([sy[5] if np.array_equal(sy[3], np.eye(sy[0].shape[0])[sy[5]]) else -1
+                             for sy in systems], dtype=np.int64)
+        C_p = pack([sy[2] for sy in systems])
+        _kernels.mismatched_fixes(dims, nf, pack([q[0] for q in per]), pack([q[1] for q in per]),
+                                  pack([q[5] for q in per]), pack([sy[3] for sy in systems]), unit_idx, C_p,
+                                  _iterated_array(gains, j_stop), j_stop, float(R), m, pack([q[3] for q in per]),
+                                  pack([q[2] for q in per]), mse, n_steps)
+        lo = 0
+        for t, q in enumerate(per):
+            na = int(dims[t])
+            C_s[t][np.ix_(q[4], q[4])] = C_p[lo:lo + na * na].reshape(na, na)
+            lo += na * na
+        j = j_stop
+    while j < j_stop:
         K = gains[j]
-        if j > 0 and K is gains[j - 1]:
-            break  # steady gain from here on
         k0 = j * m - 1
         if m == 1:
             if k0 >= 0:
@@ -375,7 +484,7 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
                     np.matmul(cT, np.matmul(C_s, c3, out=Cc), out=q)  # c^T C c
                     mse[:, k0] = q[:, 0, 0]
         else:
-            for t, (_, _, sub, Rs, ix) in enumerate(per):
+            for t, (_, _, sub, Rs, ix, _) in enumerate(per):
                 _record_substeps(mse[t], k0, m, C_s[t][np.ix_(ix, ix)], Rs, sub)
         # X = A^m C A^mT + S_m; B X B^T + R kt kt^T = X + kt z^T + z kt^T, z = X u + (u^T X u + R)/2 kt
         np.matmul(Am_s, C_s, out=tmp)
@@ -393,7 +502,7 @@ def mismatched_mse_many(truths, Phi_f, H_f, R, n_steps, n_fix, m, gains):
         j += 1
     out = []
     for t, (A, Qa, _, c, B_of, nt) in enumerate(systems):
-        Am, Sm, sub, Rs, ix = per[t]
+        Am, Sm, sub, Rs, ix, _ = per[t]
         C = C_s[t][np.ix_(ix, ix)].copy()
         mse_t = mse[t]
         jj = j

@@ -293,15 +293,16 @@ def _filter_solution(Phi_f, Qd_f, P0_f, H_f, R, sc):
     A verification job analyses one filter against several truths (and the replay); the filter's Riccati
     recursion depends only on its own matrices and the schedule, so it runs once per filter. The key is the
     matrices' bytes and the schedule (exact: equal keys give bit-identical results); pvar is returned as a copy."""
-    from imupipe.covariance import filter_variance
+    from imupipe.covariance import filter_variance, pick_backend
 
     m = sc.fix_every
+    be = pick_backend("auto")  # part of the key: the compiled and the NumPy loops agree to rounding, not bits
     key = tuple(np.ascontiguousarray(a, dtype=float).tobytes() for a in (Phi_f, Qd_f, P0_f, H_f)) + (
-        float(R), sc.n_steps, sc.n_fix, m)
+        float(R), sc.n_steps, sc.n_fix, m, be)
     if key not in _FILTER_CACHE:
         if len(_FILTER_CACHE) >= _FILTER_CACHE_SIZE:
             _FILTER_CACHE.pop(next(iter(_FILTER_CACHE)))
-        _FILTER_CACHE[key] = filter_variance(Phi_f, Qd_f, P0_f, H_f, R, sc.n_steps, sc.n_fix, m)
+        _FILTER_CACHE[key] = filter_variance(Phi_f, Qd_f, P0_f, H_f, R, sc.n_steps, sc.n_fix, m, backend=be)
     pvar, fg = _FILTER_CACHE[key]
     return pvar.copy(), fg
 
@@ -619,10 +620,12 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
     """
     from imupipe.models import NoiseModel
 
+    from imupipe.covariance import fix_gain_array
+
     sc = scenario if scenario is not None else reference_scenario(sensor)
     Pf, Qf, P0f, Hf, sf = state_space(filter_model, sc)
     R = sc.sigma_fix**2
-    gains, pvar = _filter_gains(Pf, Qf, P0f, Hf, R, sc)
+    pvar, fg = _filter_solution(Pf, Qf, P0f, Hf, R, sc)
     L = sc.n_steps
     fr = sc.filter_rate_hz
     stride = max(1, int(round((stride_s if stride_s is not None else 0.25 * L / fr) * fr)))
@@ -632,7 +635,7 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
         if E.shape[0]:
             Es.append(E)
     W = sum(E.shape[0] for E in Es)
-    sq = _replay_errors(Es, Pf, Hf, gains, sc, block) if W else np.zeros(L)
+    sq = _replay_errors(Es, Pf, Hf, fix_gain_array(fg), sc, block) if W else np.zeros(L)
     if not W:
         raise ValueError(f"replay needs records of at least {L / sc.filter_rate_hz:g} s at the filter rate "
                          f"(fix_s + outage_s)")
@@ -663,7 +666,7 @@ def _replay_windows(records, rate_hz, filter_rate_hz, L, stride):
         yield np.lib.stride_tricks.sliding_window_view(y, L)[::stride], y.size
 
 
-def _replay_errors(Es, Phi_f, H_f, gains, sc, block: int = 4096):
+def _replay_errors(Es, Phi_f, H_f, fix_gains, sc, block: int = 4096, backend: str = "auto"):
     r"""Sum over windows of the squared position error of the reference filter, per step, shape (L,).
 
     `Es`: a list (one entry per record) of (W_r, L) arrays, the sensor error per window and step (u). Integration
@@ -672,18 +675,28 @@ def _replay_errors(Es, Phi_f, H_f, gains, sc, block: int = 4096):
     k > l without a fix, :math:`\Phi_f^{k-l}\hat x_l`, whose position is :math:`\hat x_l \cdot g_{k-l}`; at a fix
     step :math:`\hat x \leftarrow \hat x^- + (x_k - H_f\hat x^-) K_k`. The error is :math:`\hat x_k[0] - x_k`.
 
-    Fix phase (steps up to the last fix, the only part that needs one Python iteration per fix): the true
+    `fix_gains` (J, nf): the gain of fix j (step (j + 1) m - 1, m = ``sc.fix_every``) in row j
+    (:func:`imupipe.covariance.fix_gain_array`).
+
+    Fix phase (steps up to the last fix, the only part that needs one iteration per fix): the true
     position is integrated for every window of every record at once (cumulative sums over the steps; windows x
-    fix-phase steps floats), then one loop over the fixes updates the estimates of all windows together. The
-    outage: per record, blocks of at most `block` steps (:func:`_replay_outage`).
+    fix-phase steps floats), then one loop over the fixes updates the estimates of all windows together
+    (`backend` 'c': ``imupipe._kernels.replay_fixes``, window by window, the squared errors summed over the
+    windows in place of the windows x steps estimate array; 'numpy': one Python iteration per fix; 'auto' the
+    first available; they agree to rounding). The outage: per record, blocks of at most `block` steps
+    (:func:`_replay_outage`).
     """
+    from imupipe import covariance as cov
     from imupipe.covariance import row_powers
 
+    be = cov.pick_backend(backend)
     L = Es[0].shape[1]
     dt = sc.dt
     nf = Phi_f.shape[0]
     h = H_f[0]
-    fixes = [k for k, K in enumerate(gains) if K is not None]
+    m = sc.fix_every
+    fix_gains = np.ascontiguousarray(fix_gains, dtype=float).reshape(-1, nf) if len(fix_gains) else fix_gains
+    fixes = [(j + 1) * m - 1 for j in range(len(fix_gains))]
     sizes = [E.shape[0] for E in Es]
     W = sum(sizes)
     sq = np.empty(L)
@@ -705,25 +718,27 @@ def _replay_errors(Es, Phi_f, H_f, gains, sc, block: int = 4096):
         else:
             x *= -dt
         np.cumsum(x, axis=1, out=x)  # x_k
-        est = np.empty((W, n))
-        gap_max = int(np.max(np.diff([-1] + fixes)))
-        G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, gap_max, gap_max))[1][:, 0, :]  # g_j, j = 1..gap_max
-        powT = {}
-        for f in fixes:
-            gap = f - last
-            PT = powT.get(gap)
-            if PT is None:
-                PT = powT[gap] = np.ascontiguousarray(np.linalg.matrix_power(Phi_f, gap).T)
-            if gap > 1:
-                est[:, last + 1:f] = xh @ G[:gap - 1].T
-            prior = xh @ PT
-            xh = prior + np.multiply.outer(x[:, f] - prior @ h, gains[f][:, 0])
-            est[:, f] = xh[:, 0]
-            last = f
-        est -= x
-        sq[:n] = np.einsum("wk,wk->k", est, est)
+        G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, m, m))[1][:, 0, :]  # g_j, j = 1..m (every gap is m)
+        PT = np.ascontiguousarray(np.linalg.matrix_power(Phi_f, m).T)
+        if be == "c":
+            _kernels = cov._kernels
+            _kernels.replay_fixes(W, n, nf, x, xh, PT, np.ascontiguousarray(G), np.ascontiguousarray(h),
+                                  fix_gains, len(fixes), m, sq)
+            last = fixes[-1]
+        else:
+            est = np.empty((W, n))
+            for j, f in enumerate(fixes):
+                if m > 1:
+                    est[:, last + 1:f] = xh @ G[:m - 1].T
+                prior = xh @ PT
+                xh = prior + np.multiply.outer(x[:, f] - prior @ h, fix_gains[j])
+                est[:, f] = xh[:, 0]
+                last = f
+            est -= x
+            sq[:n] = np.einsum("wk,wk->k", est, est)
+            del est
         pos = x[:, -1].copy()
-        del est, x
+        del x
     if last + 1 < L:
         sq[last + 1:] = 0.0
         lo = 0
