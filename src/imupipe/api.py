@@ -485,7 +485,8 @@ def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, ou
     m = model_of(bound.record["bound"])
     record_s = max(y.size for y in decimated.values()) * dt
     bias = bias_initialisation(m, spec=spec_sheet.models[sensor], upper=bound.upper, turn_on_bias=turn_on,
-                               record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s)
+                               record_s=record_s, max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s,
+                               flicker_band_hz=(0.01 / outage_s, 0.5 * filter_rate_hz))
     kf = exported_kf({"model": m.to_dict(), "bias_initialisation": {
         "p0_random_walk": bias.p0(m, fix_s + outage_s)}}, kf_dt, sensor)
     return None, None, kf

@@ -28,6 +28,15 @@ Two consequences (docs/method.md, section "The bias a filter starts with"):
   envelope) plus the envelope's resolved GMs' :math:`\sigma^2`. The GM states keep their
   own :math:`\sigma^2`; the deficit goes on ``p`` (a random constant when :math:`K = 0`), which over an application
   horizon far below :math:`T_{\max}` is what a slow bias is (:func:`bias_initialisation`).
+* **A flicker starts stationary too.** The verification gives a truth's flicker :math:`B` as a bank of GM states
+  over the band :math:`[f_{lo}, f_{hi}]` (:func:`flicker_bank`: :math:`T_k = 1/(2\pi f_k)`, two per decade,
+  :math:`\sigma_k^2 = B^2\Delta/\pi`), each started at its :math:`\sigma_k^2`: a total
+  :math:`\sum_k\sigma_k^2 \approx (B^2/\pi)(\ln(f_{hi}/f_{lo}) + \Delta)` at turn-on. A filter on a bound without a
+  flicker (its PSD covers the flicker with white noise, a GM and a random walk, none of which starts with that
+  variance) must start its bias states that much higher, or its error in the first seconds of the fix phase exceeds
+  its P while its PSD bounds the truth's (measured: one ADIS16405 record, an envelope with B = 7.6e-3 m/s^2 and no
+  GM, MSE/P 1.004 at 1-7 s; the flicker's 3.0e-4 (m/s^2)^2 on top of the required variance brings it to 1). So the
+  spec sheet's and the records' parts count their flicker's bank variance when the band is given.
 * **A slow bias sits in a slow state.** The part of that variance from biases slower than the verified run (fixes
   + outage, :math:`W`: the slow family, a random walk, GMs with :math:`T \ge W`, the turn-on bias) cannot be
   carried by a filter GM state of :math:`T < W`: the filter lets such a state's estimate decay within the run
@@ -49,7 +58,8 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["SlowBiasFamily", "BiasInitialisation", "max_bias_time", "slow_bias_family", "worst_member",
-           "stationary_bias_variance", "bias_initialisation", "filter_p0", "RECORD_FACTOR"]
+           "stationary_bias_variance", "bias_initialisation", "filter_p0", "flicker_bank", "flicker_variance",
+           "RECORD_FACTOR"]
 
 #: T_max is this many times the longest record when neither the config nor the spec sheet gives a longer one.
 RECORD_FACTOR = 10.0
@@ -159,13 +169,38 @@ def worst_member(model, family: SlowBiasFamily | None):
                       flicker=getattr(model, "flicker", 0.0), narrowband=getattr(model, "narrowband", ()))
 
 
-def stationary_bias_variance(model, T_max_s: float, turn_on_bias: float = 0.0) -> float:
+def flicker_bank(B: float, f_lo: float, f_hi: float, per_decade: int = 2) -> tuple:
+    r"""GM terms ((sigma u, T s), ...) approximating a flicker PSD :math:`B^2/(2\pi f)` (two-sided, u^2/Hz) on
+    [f_lo, f_hi] Hz: corners :math:`f_k` on a log grid of `per_decade` per decade (at least 2 terms), spacing
+    :math:`\Delta = \ln(f_{k+1}/f_k)`, :math:`T_k = 1/(2\pi f_k)`, :math:`\sigma_k^2 = B^2\Delta/\pi`; then
+    :math:`\sum_k 2\sigma_k^2 T_k/(1 + (f/f_k)^2) \approx B^2/(2\pi f)` inside the band (the sum approximates
+    :math:`\int u/(1+u^2)\, d\ln u = \pi/2`). How the verification and the exported filter carry a flicker."""
+    if not B > 0:
+        return ()
+    n = max(2, int(math.ceil(math.log10(f_hi / f_lo) * per_decade)) + 1)
+    r = (f_hi / f_lo) ** (1.0 / (n - 1))
+    s2 = B * B * math.log(r) / math.pi
+    return tuple((math.sqrt(s2), 1.0 / (2 * math.pi * f_lo * r**k)) for k in range(n))
+
+
+def flicker_variance(model, band_hz, slower_than_s: float = 0.0) -> float:
+    r"""Turn-on variance of `model`'s flicker as :func:`flicker_bank` over `band_hz` = (f_lo, f_hi) Hz gives it,
+    :math:`\sum_k\sigma_k^2` over the terms with :math:`T_k \ge` `slower_than_s` (s; default all), u^2; 0 without a
+    flicker or a band."""
+    B = float(getattr(model, "flicker", 0.0) or 0.0)
+    if band_hz is None or not B > 0:
+        return 0.0
+    return float(sum(s * s for s, T in flicker_bank(B, float(band_hz[0]), float(band_hz[1])) if T >= slower_than_s))
+
+
+def stationary_bias_variance(model, T_max_s: float, turn_on_bias: float = 0.0, flicker_band_hz=None) -> float:
     r"""Total initial variance of the bias a sensor described by `model` has at turn-on, u^2:
-    :math:`\sum\sigma_i^2 + K^2 T_{\max}/2 + b_{on}^2` (a random walk counted as the GM of :math:`T_{\max}` with
-    its drift; `turn_on_bias` the sheet's turn-on bias or bias repeatability, 1 sigma, u). Flicker and
-    narrowband terms are not counted (flicker enters the filter as fast GM states of its own)."""
+    :math:`\sum\sigma_i^2 + K^2 T_{\max}/2 + b_{on}^2 + \sum_k\sigma_{B,k}^2` (a random walk counted as the GM of
+    :math:`T_{\max}` with its drift; `turn_on_bias` the sheet's turn-on bias or bias repeatability, 1 sigma, u; the
+    flicker's bank over `flicker_band_hz` (Hz), :func:`flicker_variance`, when that is given). Narrowband terms are
+    not counted (they are states of their own in the filter)."""
     v = sum(s * s for s, _ in model.gauss_markov) + model.random_walk**2 * 0.5 * T_max_s
-    return float(v + turn_on_bias**2)
+    return float(v + turn_on_bias**2 + flicker_variance(model, flicker_band_hz))
 
 
 @dataclass(frozen=True)
@@ -225,7 +260,7 @@ class BiasInitialisation:
 
 def bias_initialisation(filter_model, *, spec=None, upper=None, turn_on_bias: float = 0.0,
                         record_s: float | None = None, max_bias_time_s: float | None = None,
-                        run_s: float | None = None) -> BiasInitialisation:
+                        run_s: float | None = None, flicker_band_hz=None) -> BiasInitialisation:
     """The least initial bias variance of a filter built on `filter_model` (module docstring).
 
     Parameters
@@ -240,6 +275,10 @@ def bias_initialisation(filter_model, *, spec=None, upper=None, turn_on_bias: fl
         ``identify.max_bias_time_s``; None: :func:`max_bias_time`'s default.
     run_s : float or None
         The verified run (fixes + outage), s: the fallback of :func:`max_bias_time` without records.
+    flicker_band_hz : (float, float) or None
+        The band (Hz) over which a truth's flicker is a GM bank (:func:`flicker_bank`; the verification's
+        ``f_floor_hz`` to half the filter rate): the spec sheet's and the envelope's flicker then count their bank's
+        turn-on variance (module docstring). None: flicker not counted.
     """
     T_max, src = max_bias_time(spec, record_s, max_bias_time_s, run_s)
     # the family is the identified envelope's slow drift (the bound's own K is larger: it also pays for the
@@ -248,7 +287,7 @@ def bias_initialisation(filter_model, *, spec=None, upper=None, turn_on_bias: fl
         if record_s else None
     parts = {"model": float(sum(s * s for s, _ in filter_model.gauss_markov))}
     if spec is not None:
-        parts["spec sheet"] = stationary_bias_variance(spec, T_max, turn_on_bias)
+        parts["spec sheet"] = stationary_bias_variance(spec, T_max, turn_on_bias, flicker_band_hz)
     elif turn_on_bias:
         parts["spec sheet"] = float(turn_on_bias**2)
     rec = rec_slow = 0.0
@@ -261,12 +300,14 @@ def bias_initialisation(filter_model, *, spec=None, upper=None, turn_on_bias: fl
         if s > 0 and (record_s is None or T < record_s):
             rec += s * s
             rec_slow += s * s if T >= W else 0.0
+    rec += flicker_variance(base, flicker_band_hz)
+    rec_slow += flicker_variance(base, flicker_band_hz, W)
     if family is not None or upper is not None:
         parts["records"] = float(rec)
     slow = [rec_slow]
     if spec is not None:
         slow.append(sum(s * s for s, T in spec.gauss_markov if T >= W) + spec.random_walk**2 * 0.5 * T_max
-                    + turn_on_bias**2)
+                    + turn_on_bias**2 + flicker_variance(spec, flicker_band_hz, W))
     elif turn_on_bias:
         slow.append(turn_on_bias**2)
     rests_on = max(parts, key=parts.get)

@@ -19,7 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags", "render_summary", "summary_sections"]
+from imupipe.units import SI_UNITS
+
+__all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
+           "render_summary", "summary_sections"]
 
 
 #: PSD margin (min over every sample bin of S_bound / S_sample) from which the data are flagged as far below the
@@ -51,7 +54,7 @@ class Flag:
     sensor : str
     check : str
         ``bound``, ``stationarity``, ``fit adequacy``, ``allan check``, ``lines``, ``outliers``, ``gaps``,
-        ``stuck channel``, ``verification``, ``per-axis bound``, ``parameter on boundary``.
+        ``stuck channel``, ``verification``, ``per-axis bound``, ``parameter on boundary``, ``GM re-assigned``.
     where : str
         Curve (dataset/axis), frequency or component.
     detail : str
@@ -234,9 +237,18 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         f"chi2/dof = {_num(adequacy.get('chi2_per_dof'))}, p = {_num(adequacy.get('p_value'))}: "
                         "the model does not describe the Allan variance within its confidence"))
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
+    moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
+    for r in moved:
+        out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}",
+                        f"sigma {_num(r.get('sigma'))} {SI_UNITS.get(sensor, '(SI)')}, T {_num(r.get('T_s'))} s: "
+                        f"{r.get('why')}; reported and "
+                        f"bounded as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'} it acts as"))
+    moved_terms = {f"gm_{k}_{r.get('term')}" for r in moved for k in ("T", "sigma")}
     if isinstance(on_b, Mapping):
         model = identify.get("model") if isinstance(identify.get("model"), Mapping) else {}
         for p, v in on_b.items():
+            if p in moved_terms:  # the full fit's GM the identification re-assigned: flagged as such above
+                continue
             # a component's coefficient at its lower limit 0 is that component absent (the selection lists it as
             # dropped; the data's upper limit for it is in the envelope), not a fit pressed against its range
             if v and not (p in model and isinstance(model[p], (int, float)) and float(model[p]) == 0.0):

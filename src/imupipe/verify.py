@@ -167,14 +167,11 @@ def reference_scenario(sensor: str = "accel", **kw) -> Scenario:
 
 
 def _flicker_bank(B, f_lo, f_hi, per_decade=2):
-    r"""GM terms approximating a flicker PSD :math:`B^2/(2\pi f)` on [f_lo, f_hi] (module docstring)."""
-    if B <= 0:
-        return ()
-    n = max(2, int(math.ceil(math.log10(f_hi / f_lo) * per_decade)) + 1)
-    fk = np.logspace(math.log10(f_lo), math.log10(f_hi), n)
-    delta = math.log(fk[1] / fk[0])
-    s2 = B * B * delta / math.pi
-    return tuple((math.sqrt(s2), 1.0 / (2 * math.pi * f)) for f in fk)
+    r"""GM terms approximating a flicker PSD :math:`B^2/(2\pi f)` on [f_lo, f_hi] (module docstring;
+    :func:`imupipe.biasinit.flicker_bank`)."""
+    from imupipe.biasinit import flicker_bank
+
+    return flicker_bank(B, f_lo, f_hi, per_decade)
 
 
 def state_space(model, scenario: Scenario, role: str = "filter"):
@@ -1062,8 +1059,11 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     refuse_keywords(earlier, "verification_stage", rate_hz="record_rate_hz", horizon_s="outage_s")
     if record_s is None and records is not None and record_rate_hz:
         record_s = max(np.asarray(r).size for r in records) / float(record_rate_hz)
+    # a truth's flicker is a GM bank from the scenario's f_floor_hz (default 0.01 / outage) to half the filter rate
+    # (state_space), started stationary: its turn-on variance counts in the filter's initial bias variance
     bias = bias_initialisation(bound_model, spec=spec, upper=upper, turn_on_bias=turn_on_bias, record_s=record_s,
-                               max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s)
+                               max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s,
+                               flicker_band_hz=(0.01 / outage_s, 0.5 * filter_rate_hz))
     slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
     kw = dict(filter_rate_hz=filter_rate_hz, fix_s=fix_s, outage_s=outage_s, bias_var_floor=bias.required,
               bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s, fix_rate_hz=fix_rate_hz)

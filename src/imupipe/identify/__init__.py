@@ -12,7 +12,9 @@ graphical reading (IEEE Std 952, Kalibr, MATLAB ``allanvar`` examples) kept for 
 
 Modules: ``basis`` (the AV basis, pooling of curves, the re-weighted NNLS and the T profile), ``bootstrap``
 (replicates with the AVs' correlation, the goodness of fit), ``intervals`` (profile intervals by test
-inversion), ``fit``, ``select``, ``pooling``, ``slope``.
+inversion), ``fit``, ``select``, ``pooling``, ``slope``, ``resolve`` (the GM time constants the records resolve,
+:func:`~imupipe.identify.resolve.gm_T_range`, and a GM outside them re-assigned to the white noise or random walk
+it acts as, :func:`~imupipe.identify.resolve.reassign_unresolved_gm`).
 
 All values are SI: rate unit u (rad/s or m/s^2), N in u/sqrt(Hz), K in u/sqrt(s), sigma and B in u, T and tau
 in s, Q in u s, R in u/s.

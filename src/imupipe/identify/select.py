@@ -18,8 +18,14 @@ from imupipe.identify.fit import AllanFit, fit_allan
 __all__ = ["select_components", "refit_selected"]
 
 #: Components removed together with the tested one in the refit test of select_components: a rate
-#: ramp (tau^2) absorbs a random walk's rise at the longest taus, and is not a filter state.
-_SUBSTITUTES = {"random_walk": ("ramp",), "white": ("quantization",)}
+#: ramp (tau^2) absorbs a random walk's rise at the longest taus, and is not a filter state. A flicker floor is
+#: tested against a null without the random walk and the ramp either (with the GM time constants capped as for the
+#: random walk): over the few decades of tau a record gives, a random walk with a GM (or with the white noise's
+#: bowl) passes for a flat floor, and the one-at-a-time test then drops the flicker whichever of them is true
+#: (measured: white + flicker + GM, and white + flicker + random walk, 3 h at 10 Hz: the flicker dropped, K twice
+#: the truth). The random walk is then tested with the flicker in its null, so it is kept only where the data rise
+#: beyond the floor.
+_SUBSTITUTES = {"random_walk": ("ramp",), "white": ("quantization",), "flicker": ("random_walk", "ramp")}
 
 
 def _refit_model(sol, comps, n_gm):
@@ -249,9 +255,10 @@ def _null_fit(fit: AllanFit, c: str, t, y, e, m, lr_test: bool, significance: fl
     if comps:
         n_removed = sum(fit.n_gm * 2 if x == "gauss_markov" else 1 for x in removed if x in fit.components)
         grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
-        if c == "random_walk":
-            # the null must not rise at the long end: its GM peak (1.89 T) stays two octaves
-            # below the longest tau, so a +1/2 slope there counts as random-walk evidence
+        if c in ("random_walk", "flicker"):
+            # the null must not rise (random walk) nor hold a floor (flicker) at the long end: its GM peak
+            # (1.89 T) stays two octaves below the longest tau, so a +1/2 slope or a flat floor there counts
+            # as evidence
             grid = grid[grid <= t.max() / 8.0]
             if grid.size == 0:
                 comps = tuple(x for x in comps if x != "gauss_markov")

@@ -2,11 +2,15 @@ r"""The identification stage of one sensor type (rule ``identify``; :func:`imupi
 
 From the Allan-variance curves of every included axis of every record (each at its own rate and length):
 
-1. the pooled fit with every allowed component and its adequacy (:func:`imupipe.identify.fit_allan`);
+1. the pooled fit with every allowed component and its adequacy (:func:`imupipe.identify.fit_allan`), its GM time
+   constants searched over the range the curves resolve (:func:`imupipe.identify.resolve.gm_T_range`, written as
+   ``gm_T_search_s``);
 2. the model selection for the application band (:func:`imupipe.identify.select_components`);
 3. the SELECTED model refitted (:func:`imupipe.identify.refit_selected`: a random walk the selection dropped
    keeps its upper limit, the GM intervals their hull with the fit with a random walk): the parameters to
-   report and bound;
+   report and bound; a GM term the curves do not resolve (its T interval reaching an end of the range, or T within
+   an octave of its shortest T) re-assigned to the white noise or random walk it acts as
+   (:func:`imupipe.identify.resolve.reassign_unresolved_gm`, written as ``gm_reassigned``);
 4. its upper confidence envelope (:func:`imupipe.bound.upper_envelope`; a GM time constant the data leave
    open covered for :math:`f \ge 1/h`, h = ``span_s``: fix period + outage), the random walk at most what the curves'
    Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
@@ -94,16 +98,36 @@ def envelope(fit, kept, curves, confidence: float, span_s: float):
 
 
 def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, span_s: float,
-                          seed: int = SEED_FIT):
+                          seed: int = SEED_FIT, T_range: dict | None = None):
     """The selected refit of `fit` on `curves` (:func:`imupipe.identify.refit_selected`: a random walk the
     selection dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its
     upper envelope (:func:`envelope`); the one rule of the pooled and the per-axis identification. `seed`: the
-    refit's bootstrap."""
+    refit's bootstrap. `T_range` (:func:`imupipe.identify.resolve.gm_T_range`): a GM term the records do not
+    resolve is re-assigned to the white noise or random walk it acts as
+    (:func:`imupipe.identify.resolve.reassign_unresolved_gm`; the result's ``reassigned`` and ``kept_after``), and
+    the envelope is that of the re-assigned model, dominating the GM's own envelope (its box over the T interval)
+    too where the statistical T interval is open above (:func:`imupipe.models.dominating_model`): the envelope only
+    grows where the data leave it open."""
     from imupipe.identify import refit_selected
+    from imupipe.identify.resolve import reassign_unresolved_gm
 
     taus, avars, edfs = ([c[i] for c in curves] for i in (1, 2, 3))
     selected = refit_selected(fit, selection, taus, avars, edfs, rng=seed, **fit_kw)
-    return selected, envelope(selected, list(selection["kept"]), curves, confidence, span_s)
+    kept = list(selection["kept"])
+    if T_range is None:
+        return selected, envelope(selected, kept, curves, confidence, span_s)
+    # a GM the records do not resolve is reported and bounded as the white noise or random walk it acts as
+    before = selected
+    selected, kept, moved = reassign_unresolved_gm(selected, kept, T_range)
+    selected.reassigned, selected.kept_after = moved, kept
+    env = envelope(selected, kept, curves, confidence, span_s)
+    if any(r["T_open_above"] for r in moved):
+        # integrity first: where the data leave the GM's T open above, its box (every longer T, for f >= 1/span)
+        # stays in the envelope; the re-assigned white noise or random walk is added to it, never in its place
+        from imupipe.models import dominating_model
+
+        env = dominating_model([env, envelope(before, list(selection["kept"]), curves, confidence, span_s)])
+    return selected, env
 
 
 def envelope_ratio(env: dict, model) -> dict:
@@ -118,7 +142,7 @@ def envelope_ratio(env: dict, model) -> dict:
     return {k: (float(out[k] / est[k]) if est[k] > 0 else None) for k in out if out[k] > 0 or est[k] > 0}
 
 
-def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed):
+def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=None):
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry."""
@@ -131,7 +155,8 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
               "dt": 1.0 / ax_curves[0][5]}
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
                          components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
-        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed)
+        fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed,
+                                          T_range=T_range)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
                           "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
@@ -141,7 +166,8 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
                              if "intervals_statistical" in d else {}),
                           **({"T_search_s": d["T_search_s"]} if "T_search_s" in d else {}),
                           "random_walk_profile": d["random_walk_profile"],
-                          "upper_envelope_model": env_a.to_dict(), "notes": d["notes"]}
+                          "upper_envelope_model": env_a.to_dict(), "notes": d["notes"],
+                          **({"gm_reassigned": fa.reassigned} if getattr(fa, "reassigned", None) else {})}
     return per_axis
 
 
@@ -153,7 +179,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
     `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
-    `fit_tau_min_samples`), the filter's update rate `filter_rate_hz` (Hz) and the outage `outage_s` (s) for the
+    `fit_tau_min_samples`: the GM search's shortest T at least that many sample intervals, else the range the curves
+    resolve alone), the filter's update rate `filter_rate_hz` (Hz) and the outage `outage_s` (s) for the
     selection, and `span_s` (s; fix period + outage, the window the bound must hold over, written as
     ``upper_envelope_horizon_s``; default `outage_s`). `truth`: the simulation's
     :class:`~imupipe.models.NoiseModel` or None. `seed`: of the fit's bootstrap and refit (the pooling test's is
@@ -171,15 +198,23 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     taus, avars, edfs = [c.tau for c in curves], [c.avar for c in curves], [c.edf for c in curves]
     ns, rates = [c.n_samples for c in curves], [c.record_rate_hz for c in curves]
     components = list(components)
+    T_range, T_grid = _T_search_of(taus, edfs, confidence, fit_tau_min_samples, 1.0 / rates[0])
+    if T_grid is None and "gauss_markov" in components:
+        components = [c for c in components if c != "gauss_markov"]
+        logging.info("no GM time constant resolvable (%s): the fit has no GM", T_range["statement"])
     fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], record_rate_hz=rates, n_samples=ns,
-                  adequacy_level=adequacy_level, T_min_samples=fit_tau_min_samples)
+                  adequacy_level=adequacy_level, T_grid=T_grid)
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=seed, **fit_kw)
     selection = select_components(fit, taus, avars, edfs, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                                   significance=significance, relevance=relevance)
     kept = list(selection["kept"])
     logging.info("kept %s; dropped %s", kept, selection["dropped"])
     span = float(span_s if span_s is not None else outage_s)
-    selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, span, seed=seed)
+    selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, span, seed=seed,
+                                          T_range=T_range)
+    moved = getattr(selected, "reassigned", [])
+    if moved:
+        selection = _selection_after(selection, moved, selected.kept_after)
     pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, record_rate_hz=rates, n_samples=ns,
                            labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
     logging.info("pooling: %s", pooling["note"])
@@ -204,12 +239,15 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "pooling": pooling,
         "upper_envelope_model": env.to_dict(),
         "upper_envelope_horizon_s": span,
+        "gm_T_search_s": T_range,
+        "gm_reassigned": moved,
         "slope_line": {},
     }
     band = out["selection"]["band_hz"]
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
     if not pooling["consistent"]:
-        per_axis = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed)
+        per_axis = _per_axis(curves, components, n_gm, fit.selection or selection, fit_kw, confidence, span, seed,
+                             T_range=T_range)
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
@@ -238,6 +276,51 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     out["units"] = UNITS
     return Identification(record=out, fit=fit, selection=selection, selected=selected,
                           envelope=NoiseModel.from_dict(out["upper_envelope_model"]))
+
+
+def _T_search_of(taus, edfs, confidence, fit_tau_min_samples, dt):
+    """The GM time constants the curves resolve (:func:`imupipe.identify.resolve.gm_T_range` over every AV point of
+    every curve, at `confidence`; its shortest T at least `fit_tau_min_samples` * `dt` s when that is set) and the
+    search grid over it (8 per decade, s), or None when the range is empty (no GM resolvable). Returns
+    (range dict with a ``statement``, grid)."""
+    from imupipe.identify.resolve import gm_T_range
+    from imupipe.search import log_grid
+
+    rng = gm_T_range(np.concatenate([np.ravel(t) for t in taus]), np.concatenate([np.ravel(e) for e in edfs]),
+                     confidence)
+    if fit_tau_min_samples is not None:
+        rng["T_min_config_s"] = float(fit_tau_min_samples) * float(dt)
+        rng["T_min_s"] = max(rng["T_min_s"], rng["T_min_config_s"])
+    lo, hi = rng["T_min_s"], rng["T_max_s"]
+    rng["statement"] = (f"GM time constants searched {lo:.4g}-{hi:.4g} s: {lo / rng['tau_min_s']:.3g} x the shortest "
+                        f"tau ({rng['tau_min_s']:.4g} s) to {hi / rng['tau_max_s']:.3g} x the longest "
+                        f"({rng['tau_max_s']:.4g} s); a GM whose T interval reaches an end, or whose T is below "
+                        f"{2 * lo:.4g} s, is re-assigned to the white noise or random walk it acts as")
+    if not hi > 2.0 * lo:  # fewer than an octave: no T the records resolve
+        return rng, None
+    return rng, log_grid(np.log10(lo), np.log10(hi), 8, min_points=3)
+
+
+def _selection_after(selection: dict, moved: list, kept_after: list) -> dict:
+    """`selection` with the re-assigned GM terms (`moved`, :func:`imupipe.identify.resolve.reassign_unresolved_gm`)
+    out of ``kept`` and what they act as in; their reasons say so."""
+    sel = {**selection, "reasons": dict(selection["reasons"])}
+    sel["kept"] = list(kept_after)
+    sel["dropped"] = [c for c in selection["dropped"] if c not in kept_after]
+    if "gauss_markov" not in kept_after and "gauss_markov" not in sel["dropped"]:
+        sel["dropped"].append("gauss_markov")
+    for r in moved:
+        sel["reasons"]["gauss_markov"] = (
+            f"re-assigned: GM term {r['term']} (sigma {r['sigma']:.3g} u, T {r['T_s']:.3g} s) is not a GM the "
+            f"records resolve ({r['why']}); it acts as {'white noise' if r['acts_as'] == 'white' else 'a random walk'}"
+            f" and is reported and bounded as one ({r['acts_as']} = {r['value']:.3g} SI); was: "
+            + selection["reasons"].get("gauss_markov", ""))
+        tgt = r["acts_as"]
+        if tgt not in selection["kept"]:
+            sel["reasons"][tgt] = "kept: a re-assigned GM term acts as it (see gauss_markov); was: " + \
+                selection["reasons"].get(tgt, "")
+    sel["reduced_model"] = "random_walk" not in sel["kept"]
+    return sel
 
 
 def identification_stage(curves, **settings) -> dict:
