@@ -73,3 +73,27 @@ def test_two_records_are_both_named_and_one_sided_intervals_are_not_tested():
     assert "not tested" in res["rows"]["c"]["random_walk"]["note"]
     with pytest.raises(ValueError, match="alpha"):
         record_consistency({"a": _rec(1, 1)}, 0.95, alpha=0.0)
+
+
+def test_summary_names_the_record_and_shows_the_tables():
+    from imupipe.summary import summary_sections
+
+    rc = record_consistency({"imu1": _rec(1e-3, 1e-4), "imu2": _rec(1e-3, 1e-4), "imu3": _rec(1e-3, 2e-4)},
+                            0.95, 0.01)
+    rc["flagged"] = [{"dataset": r, "param": p, "z": z, "estimate": e, "others": o} for r, p, z, e, o in rc["flagged"]]
+    ad = {"chi2_per_dof": 900.0, "p_value": 0.0, "adequate": False}
+    identify = {"record_consistency": rc, "fit": {"adequacy": {"level": 0.01}},
+                "adequacy_lines": {"pooled": {"before": ad, "after": {**ad, "chi2_per_dof": 40.0}},
+                                   "per_axis": {"x": {"before": ad, "after": {"chi2_per_dof": 1.1, "p_value": 0.3,
+                                                                             "adequate": True}}}}}
+    first, details = summary_sections({"accel": {"identify": identify}})
+    flag = [ln for ln in first.splitlines() if "record consistency" in ln]
+    assert len(flag) == 1 and flag[0].startswith("- FLAG accel record consistency: imu3 K = "), flag
+    assert "| imu3 |" in details and "**named**" in details
+    assert "| pooled | 900 | 0 | 40 | 0 |" in details and "| axis x | 900 | 0 | 1.1 | 0.3 |" in details
+    assert "still inadequate: pooled" in details and "statistical limits" in details
+    # no named record, no FLAG
+    rc_eq = record_consistency({"imu1": _rec(1e-3, 1e-4), "imu2": _rec(1e-3, 1e-4)}, 0.95, 0.01)
+    rc_eq["flagged"] = []
+    first, _ = summary_sections({"accel": {"identify": {"record_consistency": rc_eq}}})
+    assert "record consistency" not in first

@@ -129,7 +129,7 @@ class NoiseModelResult:
         from imupipe.summary import flags_of
 
         bound = {**(self.records.get("bound") or {}), **(self.contract or {})}
-        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}"
+        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
                 for f in flags_of(self.sensor, bound, self.records.get("identify") or {}, None)]
 
     @property

@@ -123,7 +123,8 @@ def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=No
         return float("nan"), float("nan"), False, False
 
     def delta(T):
-        return _solve_fixed(t, y, e, comps, (T,), m0=m0, offset=known).chi2 - chi2_free
+        held = {} if known is None else {"offset": known}  # (a fixed part only with known lines)
+        return _solve_fixed(t, y, e, comps, (T,), m0=m0, **held).chi2 - chi2_free
 
     def edge(T_in, T_out):
         for _ in range(40):
