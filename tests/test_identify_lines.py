@@ -132,3 +132,37 @@ def test_known_none_is_the_fit_without_it():
     assert a.intervals["gm_T_1"] == pytest.approx(b.intervals["gm_T_1"], rel=1e-6)
     with pytest.raises(ValueError, match="known"):
         fit_allan(*args, known_avar=np.zeros(3), **kw)
+
+
+def test_identification_stage_takes_the_lines_files_lines_as_known_terms():
+    # two 2 h records with the line on axis x: the stage's fits know each curve's lines (keyed dataset/axis), the
+    # identify record says which and how much of the AV they carry, and chi2/dof falls with them
+    from imupipe.stages.identify import Curve, identify_sensor
+
+    n = int(2 * 3600 * RATE)
+    curves, lines = [], {}
+    for i, seed in enumerate((11, 12)):
+        x = _record(seed)[:n]
+        av = allan_variance(x, rate=RATE, taus="octave")
+        ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+        curves.append(Curve(f"rec{i}/x", av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok], n, RATE,
+                            "x"))
+        lines[f"rec{i}/x"] = find_lines(x, RATE, resolution_hz=0.005).lines
+    kw = dict(sensor="accel", components=["white", "gauss_markov", "random_walk"], n_gm=1, n_boot=20,
+              confidence=0.95, significance=0.05, relevance=0.05, filter_rate_hz=RATE, outage_s=600.0,
+              pooling_n_boot=19)
+    rec = identify_sensor(curves, lines=lines, **kw).record
+    assert set(rec["lines_known"]) == {"rec0/x", "rec1/x"}
+    assert any(abs(ln["f0_hz"] - F0) < 0.01 for ln in rec["lines_known"]["rec0/x"]["lines"])
+    assert rec["lines_known"]["rec0/x"]["max_avar_share"] > 0.3
+    al = rec["adequacy_lines"]
+    assert al["per_axis"]["x"]["after"]["chi2_per_dof"] < 0.2 * al["per_axis"]["x"]["before"]["chi2_per_dof"]
+    # the GM is the truth's (30 s), not the line's (about 1 s); the model has no line term (the bound adds it)
+    T = rec["model_selected"]["gauss_markov"][0]["T"]
+    assert 10.0 < T < 100.0, T
+    assert "narrowband" not in rec["upper_envelope_model"]
+    assert rec["record_consistency"]["flagged"] == []
+    # without the lines the stage's GM takes the line
+    blind = identify_sensor(curves, **kw).record
+    assert blind["adequacy_lines"] is None and "lines_known" not in blind
+    assert blind["model_selected"]["gauss_markov"][0]["T"] < 5.0

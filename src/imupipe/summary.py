@@ -321,7 +321,9 @@ def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[s
     rows = rc["rows"]
     params = [p for p in _CONSISTENCY_NAMES if any(p in r for r in rows.values())]
     b = {"sensor": sensor, **(bound or {})}
-    units = {p: _in_spec_units(b, p, 1.0)[1] for p in params}
+    # B (flicker, u) in the unit the contract states for the GM sigma (u too: deg/h, mg, ...)
+    key = {p: ("gm_sigma" if p == "flicker" else p) for p in params}
+    units = {p: _in_spec_units(b, key[p], 1.0)[1] for p in params}
     out = ["", f"Record consistency ({rc.get('method', 'each record fitted alone')}):", "",
            "| record | " + " | ".join(f"{_CONSISTENCY_NAMES[p]} [{units[p]}] (interval) | z" for p in params) + " |",
            "|---|" + "---|---|" * len(params)]
@@ -331,7 +333,7 @@ def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[s
             v = per.get(p) or {}
 
             def conv(x, p=p):
-                return None if x is None else _in_spec_units(b, p, float(x))[0]
+                return None if x is None else _in_spec_units(b, key[p], float(x))[0]
 
             est = conv(v.get("estimate"))
             iv = f"[{_num(conv(v.get('lower')))}, {_num(conv(v.get('upper')))}]"
@@ -341,6 +343,10 @@ def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[s
         out.append(f"| {rec} | " + " | ".join(cells) + " |")
     if rc.get("note"):
         out.append(f"- {rc['note']}")
+    bad = [d for d, ok in (rc.get("adequate") or {}).items() if ok is False]
+    if bad:
+        out.append(f"- the own fit of {', '.join(bad)} is inadequate: its intervals are widened by the "
+                   "over-dispersion (indicative), so only a difference beyond those wide intervals is named")
     return out + [""]
 
 
