@@ -79,8 +79,9 @@ def test_lines_by_curve_keys_by_dataset_and_axis_and_keep_policy_knows_none():
     out = lines_by_curve(docs, "model")
     assert set(out) == {"imu1/x", "imu1/y"} and len(out["imu1/x"]) == 1 and out["imu1/y"] == ()
     assert lines_by_curve(docs, "keep") == {}
-    with pytest.raises(ValueError, match="dataset"):
-        lines_by_curve({"f.yaml": {"lines": []}}, "model")
+    assert lines_by_curve({"lab1/x": {"lines": [ln]}}, "exclude") == {"lab1/x": out["imu1/x"]}
+    with pytest.raises(ValueError, match="lines"):
+        lines_by_curve({"f.yaml": {"n_lines": 0}}, "model")
 
 
 @pytest.fixture(scope="module")

@@ -697,8 +697,8 @@ def lines_by_curve(docs, policy: str = "model") -> dict:
     Parameters
     ----------
     docs : mapping of str to dict
-        File name -> content (:meth:`LineSearch.to_dict` with ``dataset`` and ``axis`` keys, as the lines rule
-        writes it).
+        File name (or curve label) -> content (:meth:`LineSearch.to_dict`); keyed by its ``dataset/axis`` where
+        the content names both (as the lines rule writes it), else by the mapping's key (the API's curve labels).
     policy : {"model", "exclude", "keep"}
         The sensor's line policy (config ``lines.policy``).
     """
@@ -708,12 +708,11 @@ def lines_by_curve(docs, policy: str = "model") -> dict:
     if policy == "keep":
         return out
     for name, doc in (docs or {}).items():
-        if not isinstance(doc, dict) or "lines" not in doc or not doc.get("dataset") or not doc.get("axis"):
-            raise ValueError(f"{name}: expected a lines file with 'dataset', 'axis' and a 'lines' list "
-                             "(the lines rule's output)")
+        if not isinstance(doc, dict) or "lines" not in doc:
+            raise ValueError(f"{name}: expected a lines file with a 'lines' list (the lines rule's output)")
         try:
             found = tuple(Line(**d) for d in doc.get("lines") or ())
         except TypeError as exc:
             raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
-        out[f"{doc['dataset']}/{doc['axis']}"] = found
+        out[f"{doc['dataset']}/{doc['axis']}" if doc.get("dataset") and doc.get("axis") else str(name)] = found
     return out
