@@ -161,7 +161,13 @@ def test_identification_stage_takes_the_lines_files_lines_as_known_terms():
     # the GM is the truth's (30 s), not the line's (about 1 s); the model has no line term (the bound adds it)
     T = rec["model_selected"]["gauss_markov"][0]["T"]
     assert 10.0 < T < 100.0, T
-    assert "narrowband" not in rec["upper_envelope_model"]
+    # the envelope the bound covers and the verification runs against holds the lines as lines (merged as the bound
+    # merges them), not as a GM
+    nb = rec["upper_envelope_model"]["narrowband"]
+    assert any(abs(t["f0_hz"] - F0) < 0.01 for t in nb)
+    assert all(g["T"] > 10.0 for g in rec["upper_envelope_model"]["gauss_markov"])
+    no_env = identify_sensor(curves, lines=lines, envelope_lines=False, **kw).record
+    assert "narrowband" not in no_env["upper_envelope_model"]
     assert rec["record_consistency"]["flagged"] == []
     # without the lines the stage's GM takes the line
     blind = identify_sensor(curves, **kw).record

@@ -250,7 +250,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                     significance: float, relevance: float, filter_rate_hz: float, outage_s: float,
                     adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
                     span_s: float | None = None, fit_tau_min_samples: float | None = None,
-                    truth=None, seed: int = SEED_FIT, lines=None,
+                    truth=None, seed: int = SEED_FIT, lines=None, envelope_lines: bool = True,
                     consistency_level: float = 0.01) -> Identification:
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
@@ -262,7 +262,11 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     :data:`SEED_POOLING`). `lines`: curve label (``dataset/axis``) -> the curve's spectral lines
     (:func:`imupipe.lines.lines_by_curve`: :class:`imupipe.lines.Line` or (sigma, f0_hz, zeta)), whose Allan
     variance enters every fit as a known term (``known_avar`` of :func:`imupipe.identify.fit_allan`); None: no
-    lines. `consistency_level`: the family-wise false-alarm level of the record-consistency test.
+    lines. `envelope_lines`: the lines (merged over the curves as the bound merges them,
+    :func:`imupipe.lines.merge_lines`) also enter the upper envelope as its narrowband terms, so that the envelope
+    the bound covers and the verification runs against holds them as lines (line policy ``model``; under
+    ``exclude`` the bound has no column for an excluded line, and the envelope leaves them out).
+    `consistency_level`: the family-wise false-alarm level of the record-consistency test.
 
     Raises ValueError when `curves` is empty."""
     from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
@@ -331,6 +335,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                                  "`upper_envelope_model` dominates the pooled and every per-axis envelope")
     else:
         out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+    if known is not None and envelope_lines:
+        out["upper_envelope_model"] = _with_lines(out["upper_envelope_model"], lines)
     out["upper_envelope_ratio"] = envelope_ratio(out["upper_envelope_model"], selected.model)
     if not out["adequacy"]["pooled"].get("adequate", True):
         out["upper_envelope_note"] = (
@@ -350,6 +356,20 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     out["units"] = UNITS
     return Identification(record=out, fit=fit, selection=selection, selected=selected,
                           envelope=NoiseModel.from_dict(out["upper_envelope_model"]))
+
+
+def _with_lines(env: dict, lines) -> dict:
+    """The envelope `env` (:meth:`NoiseModel.to_dict`, SI) with the curves' lines as narrowband terms: merged as
+    the bound's line policy merges them (:func:`imupipe.lines.merge_lines`: one term per group of overlapping lines,
+    its power the largest member's, its width covering every member), sigma = sqrt(power) u, f0 Hz, zeta."""
+    from imupipe.lines import Line, merge_lines
+
+    found = [ln for group in lines.values() for ln in group if isinstance(ln, Line)]
+    merged = merge_lines(found) if found else []
+    if not merged:
+        return env
+    return {**env, "narrowband": [{"sigma": float(ln.sigma), "f0_hz": float(ln.frequency_hz), "zeta": float(ln.zeta)}
+                                  for ln in merged]}
 
 
 def _lines_record(curves, lines, known) -> dict:
