@@ -291,7 +291,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     span = float(span_s if span_s is not None else outage_s)
     selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, span, seed=seed)
     pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, record_rate_hz=rates, n_samples=ns,
-                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
+                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING,
+                           known_avar=known)
     logging.info("pooling: %s", pooling["note"])
 
     out = {
