@@ -156,7 +156,8 @@ class TestCaching:
                                        "all"}),
         # warn: a report, which the run summary reads (and the run verdict, the last job)
         "outliers": ({"k": 6.0}, {"outliers", "summary", "integrity", "all"}),
-        "lines": ({"alpha": 0.05}, {"lines"} | AFTER_BOUND),  # the bounds read the lines of their sensor
+        # the identification (the lines' Allan variance, a known term of its fits) and the bounds read the lines
+        "lines": ({"alpha": 0.05}, {"lines"} | AFTER_IDENTIFY),
     }
 
     @pytest.mark.parametrize("section", sorted(SECTIONS))

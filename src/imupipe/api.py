@@ -129,7 +129,7 @@ class NoiseModelResult:
         from imupipe.summary import flags_of
 
         bound = {**(self.records.get("bound") or {}), **(self.contract or {})}
-        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}"
+        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
                 for f in flags_of(self.sensor, bound, self.records.get("identify") or {}, None)]
 
     @property
@@ -316,16 +316,19 @@ def noise_model(
                                                      detrend, psd_confidence, taus, allan_confidence)
     # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
     true_model = _truth_of(truth, sensor)
+    from imupipe.lines import lines_by_curve
+
+    lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
+                                                      lines_floor_window_bins)
     ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
                             n_gm=n_gm, n_boot=n_boot, confidence=fit_confidence, significance=significance,
                             relevance=relevance, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                             adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
                             span_s=fix_s + outage_s, fit_tau_min_samples=fit_tau_min_samples,
-                            truth=true_model, seed=seed)
+                            truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"),
+                            envelope_lines=lines_policy == "model")
     # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
-    lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
-                                                      lines_floor_window_bins)
     with _no_stdout_fd():
         bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
                              {k: sp["edf"].values for k, sp in spectra.items()}, spec_sheet.models[sensor],

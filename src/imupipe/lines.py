@@ -48,6 +48,18 @@ Block averaging over dt multiplies the PSD by :math:`\mathrm{sinc}^2(f\,dt)` and
 at 0 and 1/(2 dt)); :func:`decimated_line` widens it by 2 bins of the decimated spectrum (its own Hann main lobe)
 and lists the bins of a given frequency grid it touches.
 
+Allan variance of the lines (:func:`line_avar`): the known term of the identification
+------------------------------------------------------------------------------------
+Each line is the narrowband term (sigma, f0, zeta) above, whose Allan variance is
+:func:`imupipe.models.narrowband_avar`. For :math:`\tau \ll 1/(\zeta\omega_0)` (the oscillator's coherence time)
+it is that of a sinusoid of amplitude :math:`A = \sqrt2\,\sigma`,
+:math:`A^2 \sin^4(\pi f_0\tau)/(\pi f_0\tau)^2` (tested against a simulated sinusoid's measured AV and against this
+closed form); beyond it the oscillator's low-frequency tail adds a white-noise-like :math:`4\zeta\sigma^2/(\omega_0
+\tau)`, the same tail the bound's narrowband column carries. The identification subtracts nothing from the data:
+:func:`imupipe.identify.fit_allan` takes the lines' AV of each curve as a fixed part of the model (``known_avar``),
+so neither the Allan fit nor its intervals and envelope absorb a line in a GM, and the line stays the bound's
+narrowband term (policy ``model``).
+
 Policies (:func:`line_policy`): what each guarantees
 ----------------------------------------------------
 - ``model``: every line becomes a fixed-shape narrowband column (f0, zeta) of the bound's linear program, whose
@@ -96,6 +108,8 @@ __all__ = [
     "merge_lines",
     "line_policy",
     "POLICIES",
+    "line_avar",
+    "lines_by_curve",
 ]
 
 #: Accepted values of the per-sensor ``lines`` policy.
@@ -649,3 +663,56 @@ def line_policy_from_files(docs, dt: float, frequency=None, policy: str = "model
             raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
     band = application_band_hz if application_band_hz is not None else (0.0, 0.5 / float(dt))
     return line_policy(lines, float(dt), band, policy=policy, frequency=frequency)
+
+
+def line_avar(tau, lines) -> np.ndarray:
+    r"""Allan variance of a set of lines, u^2: the sum over lines of :func:`imupipe.models.narrowband_avar` of
+    their narrowband terms (sigma u, f0 Hz, zeta; module docstring: a sinusoid's
+    :math:`A^2\sin^4(\pi f_0\tau)/(\pi f_0\tau)^2` for tau below the coherence time :math:`1/(2\pi\zeta f_0)`).
+    Independent lines (different frequencies) add in the Allan variance as in the PSD.
+
+    Parameters
+    ----------
+    tau : array_like
+        Averaging times, s (> 0).
+    lines : iterable of Line or (sigma, f0_hz, zeta)
+        The lines (a :class:`Line` or its ``narrowband`` triple).
+    """
+    from imupipe.models import narrowband_avar
+
+    t = np.asarray(tau, dtype=np.float64)
+    out = np.zeros_like(t)
+    for ln in lines:
+        sigma, f0, zeta = ln.narrowband if isinstance(ln, Line) else (float(v) for v in ln)
+        if sigma > 0:
+            out = out + np.asarray(narrowband_avar(t, sigma, f0, min(max(zeta, 1e-9), 0.5)), dtype=np.float64)
+    return out
+
+
+def lines_by_curve(docs, policy: str = "model") -> dict:
+    """The lines of each curve (``dataset/axis``, the identification's curve label) from the workflow's per-axis
+    lines files, as :class:`Line` tuples; ``{}`` under policy ``keep`` (the paper's behaviour: the broadband terms
+    cover the lines, so the identification must not know them either).
+
+    Parameters
+    ----------
+    docs : mapping of str to dict
+        File name (or curve label) -> content (:meth:`LineSearch.to_dict`); keyed by its ``dataset/axis`` where
+        the content names both (as the lines rule writes it), else by the mapping's key (the API's curve labels).
+    policy : {"model", "exclude", "keep"}
+        The sensor's line policy (config ``lines.policy``).
+    """
+    if policy not in POLICIES:
+        raise ValueError(f"lines policy must be one of {POLICIES}, got {policy!r}")
+    out = {}
+    if policy == "keep":
+        return out
+    for name, doc in (docs or {}).items():
+        if not isinstance(doc, dict) or "lines" not in doc:
+            raise ValueError(f"{name}: expected a lines file with a 'lines' list (the lines rule's output)")
+        try:
+            found = tuple(Line(**d) for d in doc.get("lines") or ())
+        except TypeError as exc:
+            raise ValueError(f"{name}: a line entry does not match imupipe.lines.Line ({exc})") from None
+        out[f"{doc['dataset']}/{doc['axis']}" if doc.get("dataset") and doc.get("axis") else str(name)] = found
+    return out

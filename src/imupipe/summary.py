@@ -236,6 +236,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
                         f"chi2/dof = {_num(adequacy.get('chi2_per_dof'))}, p = {_num(adequacy.get('p_value'))}: "
                         "the model does not describe the Allan variance within its confidence"))
+    out += consistency_flags(sensor, identify)
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
     for r in moved:
@@ -266,6 +267,98 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 else:
                     out.append(Flag(sensor, key, "-", str(it)))
     return out
+
+
+#: How the record-consistency table and FLAG name the parameters (the identify file's keys).
+_CONSISTENCY_NAMES = {"white": "N", "flicker": "B", "random_walk": "K"}
+
+
+def consistency_flags(sensor: str, identify: Mapping | None) -> list[Flag]:
+    """The FLAG of each record that disagrees with the other records of its sensor type beyond its intervals
+    (the identify file's ``record_consistency``, :func:`imupipe.identify.consistency.record_consistency`), worded
+    ``FLAG <sensor> record consistency: <dataset> <param> ...``: one record's event must not drive the global model
+    unnoticed."""
+    rc = (identify or {}).get("record_consistency")
+    if not isinstance(rc, Mapping):
+        return []
+    out = []
+    for it in rc.get("flagged") or []:
+        if not isinstance(it, Mapping):
+            continue
+        est, oth = it.get("estimate"), it.get("others")
+        ratio = (float(est) / float(oth)) if isinstance(est, (int, float)) and isinstance(oth, (int, float)) and oth else None
+        out.append(Flag(sensor, f"{sensor} record consistency", "",
+                        f"{it.get('dataset')} {_CONSISTENCY_NAMES.get(it.get('param'), it.get('param'))} = "
+                        f"{_num(est)} SI is {_num(ratio)}x the other records' {_num(oth)} (z = {_num(it.get('z'))}, "
+                        f"beyond the critical {_num(rc.get('z_crit'))} at family-wise level {_num(rc.get('alpha'))}): "
+                        "this record pulls the pooled model; check it for an event (identify file, "
+                        "record_consistency)"))
+    return out
+
+
+def _adequacy_table(identify: Mapping) -> list[str]:
+    """The details' table of chi2/dof per axis and pooled, before (no line terms) and after (the lines known to
+    the fit), from the identify file's ``adequacy_lines``; and which envelope the bound covers where a fit stays
+    inadequate."""
+    al = identify.get("adequacy_lines")
+    if not isinstance(al, Mapping):
+        return []
+    rows = [("pooled", al.get("pooled") or {})] + [(f"axis {a}", v) for a, v in (al.get("per_axis") or {}).items()]
+    out = ["", "Allan-fit adequacy with the spectral lines as known terms (full fit, chi2/dof and p; p <= "
+           f"{_num(_g(identify, 'fit', 'adequacy', 'level'))}: inadequate):", "",
+           "| fit | chi2/dof before (no lines) | p before | chi2/dof after (lines known) | p after |",
+           "|---|---|---|---|---|"]
+    inadequate = []
+    for name, v in rows:
+        b, a = (v.get("before") or {}), (v.get("after") or {})
+        out.append(f"| {name} | {_num(b.get('chi2_per_dof'))} | {_num(b.get('p_value'))} | "
+                   f"{_num(a.get('chi2_per_dof'))} | {_num(a.get('p_value'))} |")
+        if a.get("adequate") is False:
+            inadequate.append(name)
+    if inadequate:
+        out += ["", f"- still inadequate: {', '.join(inadequate)}. There the bound covers the parametric upper "
+                "envelope of the selected model at its statistical limits (not widened; a model the data reject), "
+                "not a nonparametric envelope of the sample spectra; the replay of the records in the verification "
+                "is the model-free check"]
+    return out + [""]
+
+
+def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[str]:
+    """The details' table of each record's own N, B, K with intervals (identify file ``record_consistency``), in
+    the spec sheet's units where the contract states them."""
+    rc = identify.get("record_consistency")
+    if not isinstance(rc, Mapping) or not rc.get("rows"):
+        return []
+    rows = rc["rows"]
+    params = [p for p in _CONSISTENCY_NAMES if any(p in r for r in rows.values())]
+    b = {"sensor": sensor, **(bound or {})}
+    # B (flicker, u) in the unit the contract states for the GM sigma (u too: deg/h, mg, ...)
+    key = {p: ("gm_sigma" if p == "flicker" else p) for p in params}
+    units = {p: _in_spec_units(b, key[p], 1.0)[1] for p in params}
+    out = ["", f"Record consistency ({rc.get('method', 'each record fitted alone')}):", "",
+           "| record | " + " | ".join(f"{_CONSISTENCY_NAMES[p]} [{units[p]}] (interval) | z" for p in params) + " |",
+           "|---|" + "---|---|" * len(params)]
+    for rec, per in rows.items():
+        cells = []
+        for p in params:
+            v = per.get(p) or {}
+
+            def conv(x, p=p):
+                return None if x is None else _in_spec_units(b, key[p], float(x))[0]
+
+            est = conv(v.get("estimate"))
+            iv = f"[{_num(conv(v.get('lower')))}, {_num(conv(v.get('upper')))}]"
+            z = v.get("z")
+            cells.append(f"{_num(est)} {iv}" + (" **named**" if v.get("flagged") else ""))
+            cells.append(_num(z) if z is not None else (v.get("note") or "-"))
+        out.append(f"| {rec} | " + " | ".join(cells) + " |")
+    if rc.get("note"):
+        out.append(f"- {rc['note']}")
+    bad = [d for d, ok in (rc.get("adequate") or {}).items() if ok is False]
+    if bad:
+        out.append(f"- the own fit of {', '.join(bad)} is inadequate: its intervals are widened by the "
+                   "over-dispersion (indicative), so only a difference beyond those wide intervals is named")
+    return out + [""]
 
 
 def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
@@ -792,7 +885,8 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         n_fail = sum(f.severity == "fail" for f in flags)
         checks.append(f"{sensor}: " + (f"{n_fail} failed, {len(flags) - n_fail} flagged" if flags else
                                        "none failed or flagged."))
-        checks += [f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check} [{f.where}]: {f.detail}" for f in flags]
+        checks += [f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: "
+                   f"{f.detail}" for f in flags]
         checks.append("")
         lines.append(f"## {sensor}: {verdict}")
         lines.append("")
@@ -844,6 +938,8 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                 why = reasons.get(comp) if isinstance(reasons, Mapping) else None
                 mark = "kept" if comp in kept else "dropped"
                 lines.append(f"  - {comp} ({mark}): {why if why else '-'}")
+        lines += _adequacy_table(identify)
+        lines += _consistency_table(sensor, identify, bound)
         lines.append("")
         lines.append("Checks: " + ("on the first screen (above)." if flags else "none failed or flagged."))
         lines.append("")

@@ -1,12 +1,16 @@
 # Allan-variance identification per sensor type: the pooled fit and its adequacy, model selection for the
 # application band, the selected model refitted, the pooling test (per-axis fits where the curves differ) and
-# the identified upper envelope the bound reads (upper_envelope_model).
+# the identified upper envelope the bound reads (upper_envelope_model). The lines found by the lines stage (policy
+# model or exclude) enter every Allan fit as known terms; each record's own fit is compared with the others'
+# (record_consistency).
 
 
 rule identify:
     input:
         allan=f"{RESULTS}/allan/{{sensor}}.nc",
         truth=truth_file(),
+        # the lines stage's lines of every axis: their Allan variance is a known term of every fit
+        lines=lines_files_of,
     output:
         identified=f"{RESULTS}/identify/{{sensor}}.yaml",
     params:
@@ -25,6 +29,7 @@ rule identify:
         outage_s=OUTAGE_S,
         # the upper envelope covers a GM time constant the data leave open for f >= 1/(fix_s + outage_s)
         span_s=SPAN_S,
+        lines=LINES_PARAMS,
     threads: 1
     resources:
         mem_mb=MEM_MB["identify"],

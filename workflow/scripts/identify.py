@@ -4,8 +4,11 @@ curves of the stacked Allan file (each at its own record's rate and length), the
 from imupipe.io import run_job, write_yaml_atomic
 
 
-def main(path_allan: str, path_out: str, sensor: str, truth=None, **settings) -> None:
-    """`settings`: the keyword arguments of imupipe.stages.identify.identify_sensor (the rule's params)."""
+def main(path_allan: str, path_out: str, sensor: str, truth=None, lines=(), lines_params=None, **settings) -> None:
+    """`settings`: the keyword arguments of imupipe.stages.identify.identify_sensor (the rule's params); `lines`:
+    the per-axis lines files, read under the sensor's line policy."""
+    from imupipe.io import read_yaml
+    from imupipe.lines import lines_by_curve
     from imupipe.merge import Stacked
     from imupipe.specsheet import load_spec
     from imupipe.stages import identify
@@ -14,7 +17,10 @@ def main(path_allan: str, path_out: str, sensor: str, truth=None, **settings) ->
     if not curves:
         raise ValueError(f"{path_allan}: no included curve (stationarity.on_fail = exclude left none)")
     true = load_spec(truth).models[sensor] if truth else None
-    out = identify.identification_stage(curves, sensor=sensor, truth=true, **settings)
+    policy = (lines_params or {}).get("policy", {}).get(sensor, "model")
+    known = lines_by_curve({p: read_yaml(p) for p in lines}, policy)
+    out = identify.identification_stage(curves, sensor=sensor, truth=true, lines=known,
+                                        envelope_lines=policy == "model", **settings)
     write_yaml_atomic(out, path_out, header=f"{sensor}: Allan-variance identification of {len(curves)} curves; SI units")
 
 
@@ -25,4 +31,5 @@ if __name__ == "__main__":
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
             filter_rate_hz=p.filter_rate_hz, outage_s=p.outage_s, span_s=p.span_s,
             fit_tau_min_samples=p.fit_tau_min_samples, truth=snakemake.input.truth or None,
+            lines=list(snakemake.input.get("lines", [])), lines_params=p.lines,
             path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)

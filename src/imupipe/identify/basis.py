@@ -64,14 +64,16 @@ def _curves_of(a, name):
     return None
 
 
-def _pool(tau, avar, edf, return_curve=False):
+def _pool(tau, avar, edf, return_curve=False, known=None):
     """Concatenate one curve or several into flat arrays (curves may have different lengths: records of
     different length or rate).
 
     `avar`: one 1-D array, a 2-D array (curve, tau) or a sequence of 1-D arrays; `tau`: the same shape, or one
     1-D grid shared by every curve; `edf`: a scalar, the same shape as `avar`, or one 1-D array per tau of a
     shared grid. Points with non-finite or non-positive AV, tau or edf are dropped. With `return_curve`, the
-    curve index of every point is returned too.
+    curve index of every point is returned too. With `known` (a known part of each AV, u^2, the same shape as
+    `avar`: e.g. the Allan variance of the spectral lines, :func:`known_line_avar`), it is pooled the same way
+    and returned last (None where not given).
     """
     ys = _curves_of(avar, "avar")
     if ys is None:
@@ -106,9 +108,29 @@ def _pool(tau, avar, edf, return_curve=False):
     ok = np.isfinite(t) & np.isfinite(y) & np.isfinite(e) & (t > 0) & (y > 0) & (e > 0)
     if ok.sum() < 2:
         raise ValueError("fewer than 2 usable Allan variance points (finite, positive tau, avar, edf)")
+    kn = None
+    if known is not None:
+        ks = _curves_of(known, "known")
+        if ks is None:
+            ks = [np.ravel(np.asarray(known, dtype=np.float64))]
+        if len(ks) != len(ys) or any(a.size != b.size for a, b in zip(ks, ys)):
+            raise ValueError(f"known (curves of {[x.size for x in ks]}) does not match avar (curves of "
+                             f"{[y.size for y in ys]})")
+        kn = np.concatenate(ks)[ok]
+        if not (np.all(np.isfinite(kn)) and np.all(kn >= 0)):
+            raise ValueError("known: the known Allan variance must be finite and >= 0 (u^2) at every usable point")
     if return_curve:
-        return t[ok], y[ok], e[ok], cid[ok]
-    return t[ok], y[ok], e[ok]
+        return (t[ok], y[ok], e[ok], cid[ok]) + ((kn,) if known is not None else ())
+    return (t[ok], y[ok], e[ok]) + ((kn,) if known is not None else ())
+
+
+def _plus(known, held):
+    """The fixed part of a fit's model (u^2 per AV point): the known AV `known` (e.g. spectral lines) plus the AV
+    of a component held at a value, `held`; None when both are None (no fixed part: the fit's arithmetic is then
+    exactly that of a fit without one)."""
+    if known is None:
+        return held
+    return known if held is None else known + held
 
 
 def _check_components(components, n_gm):

@@ -30,14 +30,21 @@ def _child_rng(rng):
         return rng
 
 
-def _replicates(bootstrap, model, mean, e, cid, ms, lengths, rates, n_boot, rng):
+def _replicates(bootstrap, model, mean, e, cid, ms, lengths, rates, n_boot, rng, known=None):
     """The bootstrap's replicate Allan variances, one array per replicate (floored at 1e-300), drawn from `model`
     (SI; its ``dt`` the first curve's sample interval when unset) with the estimator's mean `mean`: ``correlated``
     (every replicate at once, with the exact correlation of the overlapping AV estimates, :func:`_correlated_draws`),
     ``series`` (a simulated record per curve and replicate, its overlapping AV at the averaging factors `ms`), else
     independent scaled chi-squared draws of `e` degrees of freedom. `cid` the curve of each point, `lengths` and
     `rates` per curve (samples, Hz). One generator for the main bootstrap and the second calibration of a GM sigma's
-    profile in :func:`fit_allan`, so both draw alike from `rng`."""
+    profile in :func:`fit_allan`, so both draw alike from `rng`.
+
+    `known` (u^2 per point, optional): a known, deterministic part of the AV (the spectral lines' Allan variance,
+    :func:`imupipe.lines.line_avar`), included in `mean`: each replicate is `known` plus a draw of the rest
+    (mean `mean` - `known`, the covariance of `model`, which holds the broadband components only), i.e. the
+    lines are a fixed offset of every replicate, as of the fit."""
+    if known is not None:
+        mean = np.maximum(mean - known, 1e-300)
     if bootstrap in ("correlated", "series"):
         sim_model = model if model.dt is not None else replace(model, dt=1.0 / float(rates[0]))
     if bootstrap == "correlated":
@@ -56,7 +63,7 @@ def _replicates(bootstrap, model, mean, e, cid, ms, lengths, rates, n_boot, rng)
                     ystar[j] = overlapping_avar(x, float(rates[ci]), int(ms[j]))
         else:
             ystar = mean * rng.chisquare(e) / e
-        yield np.maximum(ystar, 1e-300)
+        yield np.maximum(ystar if known is None else ystar + known, 1e-300)
 
 
 def _adequacy(chi2, dof, chi2_boot, chi2_cov, level):

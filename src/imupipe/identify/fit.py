@@ -142,7 +142,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from imupipe.identify.basis import (COMPONENTS, _check_components, _default_T_grid, _near_grid, _params_to_model,
-                                    _per_curve, _pool, _profile, _solution_to_params, _solve_fixed)
+                                    _per_curve, _plus, _pool, _profile, _solution_to_params, _solve_fixed)
 from imupipe.identify.bootstrap import _adequacy, _child_rng, _chi2_covariance, _replicates
 from imupipe.identify.intervals import (_gm_sigma_held, _gm_T_profile_limits, _hull, _profile_interval,
                                         _random_walk_upper, _sigma_deltas_at_k)
@@ -239,6 +239,10 @@ class AllanFit:
     #: fit is adequate): the fitted model's own statistical limits, which the bound's envelope below the
     #: lowest PSD bin uses (imupipe.bound.upper_envelope)
     intervals_statistical: dict = field(default_factory=dict)
+    #: the known AV of every pooled point (u^2; spectral lines, `known_avar` of :func:`fit_allan`), a fixed part of
+    #: every fit; empty when none was given. `model` holds the fitted components only: the fit's total AV is
+    #: ``model.avar(tau) + known``.
+    known: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     def conservative(self) -> dict:
         """The integrity side of every amplitude parameter (``white``, ``random_walk``, ``flicker``,
@@ -314,6 +318,7 @@ def fit_allan(
     n_samples=None,
     adequacy_level: float = 0.01,
     T_min_samples: float | None = None,
+    known_avar=None,
 ) -> AllanFit:
     r"""Fit noise components to one or several (pooled) Allan-variance curves: weighted NNLS of the squared
     coefficients with the GM time constants profiled, bootstrap and profile intervals, the adequacy verdict
@@ -357,6 +362,13 @@ def fit_allan(
     T_min_samples : float, optional
         With the default grid: its shortest T is at least ``T_min_samples * dt`` s (a GM of T a few sample
         intervals acts as white noise; config identify.fit_tau_min_samples). Needs `dt`. Default None (tau_min).
+    known_avar : array_like or sequence of array_like, optional
+        A known part of each AV point, u^2, shaped as `avar` (one array per curve): the Allan variance of the
+        curve's spectral lines (:func:`imupipe.lines.line_avar`). It is a fixed offset :math:`o` of the model,
+        :math:`m = o + A\theta`, in the free fit, in every profile and held fit, and in the bootstrap (each
+        replicate is :math:`o` plus a draw of the fitted components, :func:`imupipe.identify.bootstrap._replicates`),
+        so neither the fit nor its intervals absorb it. The returned ``model`` holds the fitted components only.
+        Default None (no known part: the arithmetic of a fit without it).
 
     Returns
     -------
@@ -370,13 +382,17 @@ def fit_allan(
     ValueError
         Mismatched inputs, fewer than 2 usable points, unknown components.
     """
-    t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
+    if known_avar is None:
+        t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
+        known = None
+    else:
+        t, y, e, cid, known = _pool(tau, avar, edf, return_curve=True, known=known_avar)
     comps = _check_components(components, n_gm)
     records = _records(cid, bootstrap, n_boot, record_rate_hz, n_samples)
     n_gm = int(n_gm) if "gauss_markov" in comps else 0
     grid = _T_search(t, comps, T_grid, T_min_samples, dt)
-    best, profile = _profile(t, y, e, comps, n_gm, grid)
-    pb = _Problem(t, y, e, cid, comps, n_gm, grid, best)
+    best, profile = _profile(t, y, e, comps, n_gm, grid, offset=known)
+    pb = _Problem(t, y, e, cid, comps, n_gm, grid, best, known)
     params = _solution_to_params(best, comps, n_gm)
     model = _params_to_model(params, dt)
     names = list(params)
@@ -425,6 +441,7 @@ def fit_allan(
         on_boundary=on_boundary,
         interval_kind=interval_kind,
         intervals_statistical=intervals_statistical,
+        known=np.zeros(0) if known is None else known,
     )
 
 
@@ -444,6 +461,7 @@ class _Problem:
     n_gm: int
     grid: np.ndarray
     best: object
+    known: np.ndarray | None = None
 
 
 @dataclass
@@ -529,8 +547,10 @@ def _bootstrap_statistics(pb: _Problem, params: dict, model, n_boot: int, bootst
     if bootstrap != "chi2":
         lengths, rates = records
         rep.per_curve = (np.rint(t * rates[pb.cid]).astype(np.int64), lengths, rates)
-    for b, ystar in enumerate(_replicates(bootstrap, model, pb.best.m, e, pb.cid, *rep.per_curve, n_boot, rng)):
-        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
+    known = pb.known
+    for b, ystar in enumerate(_replicates(bootstrap, model, pb.best.m, e, pb.cid, *rep.per_curve, n_boot, rng,
+                                          known=known)):
+        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid, offset=known)
         rep.chi2[b] = sol.chi2
         pb_params = _solution_to_params(sol, comps, n_gm)
         rep.params[b] = [pb_params[k] for k in names]
@@ -538,20 +558,20 @@ def _bootstrap_statistics(pb: _Problem, params: dict, model, n_boot: int, bootst
             # the replicate's fit with K held at the value it was drawn with; T searched near the
             # replicate's own optimum (a better T missed only enlarges the threshold: conservative)
             local = _near_grid(bgrid, sol.T[0]) if n_gm == 1 else bgrid
-            held = _profile(t, ystar, e, rest, n_gm, local, offset=k2_hat * t / 3.0)[0]
+            held = _profile(t, ystar, e, rest, n_gm, local, offset=_plus(known, k2_hat * t / 3.0))[0]
             rep.k_deltas[b] = max(held.chi2 - sol.chi2, 0.0)
         if rep.t_deltas is not None:
             # the replicate's fit with T held at the value it was drawn with
-            held_T = _solve_fixed(t, ystar, e, comps, (T_hat,), m0=sol.m)
+            held_T = _solve_fixed(t, ystar, e, comps, (T_hat,), m0=sol.m, offset=known)
             rep.t_deltas[b] = max(held_T.chi2 - sol.chi2, 0.0)
         if rep.n_deltas is not None:
-            held_N = _solve_fixed(t, ystar, e, no_white, sol.T, m0=sol.m, offset=n_hat * n_hat / t)
+            held_N = _solve_fixed(t, ystar, e, no_white, sol.T, m0=sol.m, offset=_plus(known, n_hat * n_hat / t))
             rep.n_deltas[b] = max(held_N.chi2 - sol.chi2, 0.0)
         if rep.s_deltas is not None:
             # the replicate's fit with sigma held at the value it was drawn with, T searched near the
             # replicate's own optimum (a better T missed only enlarges the threshold: conservative)
             local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
-            held_s = _gm_sigma_held(t, ystar, e, no_gm, s_hat * s_hat, local, m0=sol.m)
+            held_s = _gm_sigma_held(t, ystar, e, no_gm, s_hat * s_hat, local, m0=sol.m, known=known)
             rep.s_deltas[b] = max(held_s.chi2 - sol.chi2, 0.0)
     return rep
 
@@ -587,7 +607,8 @@ def _random_walk_limit(pb: _Problem, params: dict, rep: _Replicated, intervals: 
     threshold = float(np.quantile(k_deltas[np.isfinite(k_deltas)], c))
     rest = tuple(comp for comp in pb.comps if comp != "random_walk")
     k_hat = math.sqrt(params.get("random_walk", 0.0) ** 2)
-    k_up = _random_walk_upper(pb.t, pb.y, pb.e, rest, pb.n_gm, pb.grid, pb.best.chi2, k_hat, threshold)
+    k_up = _random_walk_upper(pb.t, pb.y, pb.e, rest, pb.n_gm, pb.grid, pb.best.chi2, k_hat, threshold,
+                              known=pb.known)
     lo_k, hi_k = intervals["random_walk"]
     intervals["random_walk"] = (lo_k, max(hi_k, k_up) if np.isfinite(hi_k) else k_up)
     return {"threshold": threshold, "upper": k_up, "percentile_upper": hi_k}
@@ -606,7 +627,8 @@ def _white_limits(pb: _Problem, params: dict, rep: _Replicated, intervals: dict,
     lo_p, hi_p = intervals["white"]
 
     def delta_n(x):
-        return _solve_fixed(t, y, e, no_white, best.T, m0=best.m, offset=x * x / t).chi2 - best.chi2
+        return (_solve_fixed(t, y, e, no_white, best.T, m0=best.m, offset=_plus(pb.known, x * x / t)).chi2
+                - best.chi2)
 
     step = (hi_p - n_hat) if np.isfinite(hi_p) and hi_p > n_hat else 1e-3 * n_hat
     n_lo, n_up = _profile_interval(delta_n, n_hat, threshold, step)
@@ -634,14 +656,15 @@ def _gm_sigma_limits(pb: _Problem, params: dict, rep: _Replicated, intervals: di
     if np.isfinite(k_up) and k_up > math.sqrt(params.get("random_walk", 0.0) ** 2):
         k_cal = float(k_up)
         k_deltas_up = _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, rep.bgrid, k_cal,
-                                         rep.params.shape[0], _child_rng(rng), bootstrap, dt, pb.cid, *rep.per_curve)
+                                         rep.params.shape[0], _child_rng(rng), bootstrap, dt, pb.cid, *rep.per_curve,
+                                         known=pb.known)
         if np.isfinite(k_deltas_up).any():
             threshold_k_upper = float(np.quantile(k_deltas_up[np.isfinite(k_deltas_up)], c))
     threshold = max(threshold_fitted, threshold_k_upper) if np.isfinite(threshold_k_upper) else threshold_fitted
     lo_p, hi_p = intervals["gm_sigma_1"]
 
     def delta_s(x):
-        return _gm_sigma_held(t, y, e, no_gm, x * x, grid, m0=best.m).chi2 - best.chi2
+        return _gm_sigma_held(t, y, e, no_gm, x * x, grid, m0=best.m, known=pb.known).chi2 - best.chi2
 
     step = (hi_p - s_hat) if np.isfinite(hi_p) and hi_p > s_hat else 1e-2 * s_hat
     s_lo, s_up = _profile_interval(delta_s, s_hat, threshold, step, rtol=1e-3)
@@ -661,7 +684,7 @@ def _gm_T_limits(pb: _Problem, profile, rep: _Replicated, intervals: dict, c: fl
         return {}, (False, False)
     threshold = float(np.quantile(t_deltas[np.isfinite(t_deltas)], c))
     T_lo, T_up, lo_open, up_open = _gm_T_profile_limits(pb.t, pb.y, pb.e, pb.comps, profile[0], profile[1],
-                                                        pb.best.chi2, threshold, m0=pb.best.m)
+                                                        pb.best.chi2, threshold, m0=pb.best.m, known=pb.known)
     lo_p, hi_p = intervals.get("gm_T_1", (np.nan, np.nan))
     if not (np.isfinite(T_lo) or T_lo == 0.0):
         return {}, (False, False)

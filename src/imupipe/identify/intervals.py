@@ -17,21 +17,21 @@ import math
 
 import numpy as np
 
-from imupipe.identify.basis import (_gm_column, _near_grid, _params_to_model, _profile, _solution_to_params,
-                                    _solve_fixed)
+from imupipe.identify.basis import (_gm_column, _near_grid, _params_to_model, _plus, _profile,
+                                    _solution_to_params, _solve_fixed)
 from imupipe.identify.bootstrap import _replicates
 
 __all__: list[str] = []
 
 
-def _random_walk_upper(t, y, e, rest, n_gm, grid, chi2_free, k_hat, threshold):
+def _random_walk_upper(t, y, e, rest, n_gm, grid, chi2_free, k_hat, threshold, known=None):
     r"""Upper end of the profile interval of the random walk K: the largest :math:`k \ge \hat K` with
     :math:`\Delta(k) = \chi^2(k) - \chi^2_{free} \le` `threshold`, where :math:`\chi^2(k)` is the fit with
     :math:`K^2 \tau/3` held at :math:`k` (every other component and the GM time constants refitted). Found
     by doubling, then bisection in log k to 2 %; the bracket's upper end is returned (inf when no finite k
-    reaches the threshold)."""
+    reaches the threshold). `known`: a known AV in every fit (u^2 per point, :func:`imupipe.identify.fit_allan`)."""
     def delta(k):
-        return _profile(t, y, e, rest, n_gm, grid, offset=k * k * t / 3.0)[0].chi2 - chi2_free
+        return _profile(t, y, e, rest, n_gm, grid, offset=_plus(known, k * k * t / 3.0))[0].chi2 - chi2_free
 
     # start from K-hat, or (K-hat = 0) from the K whose AV equals the data's at the longest tau
     k_lo, k_hi = k_hat, (2.0 * k_hat if k_hat > 0 else math.sqrt(3.0 * y[np.argmax(t)] / t.max()))
@@ -98,7 +98,7 @@ def _hull(percentile, profile) -> tuple:
     return (min(lo_p, lo) if np.isfinite(lo_p) else lo, max(hi_p, hi) if np.isfinite(hi_p) else hi)
 
 
-def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=None):
+def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=None, known=None):
     r"""Profile interval of a single GM time constant (test inversion; helper of :func:`fit_allan`).
 
     With :math:`\chi^2(T)` the fit with the time constant held at :math:`T` (every coefficient refitted,
@@ -123,7 +123,8 @@ def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=No
         return float("nan"), float("nan"), False, False
 
     def delta(T):
-        return _solve_fixed(t, y, e, comps, (T,), m0=m0).chi2 - chi2_free
+        held = {} if known is None else {"offset": known}  # (a fixed part only with known lines)
+        return _solve_fixed(t, y, e, comps, (T,), m0=m0, **held).chi2 - chi2_free
 
     def edge(T_in, T_out):
         for _ in range(40):
@@ -143,7 +144,7 @@ def _gm_T_profile_limits(t, y, e, comps, grid, chis, chi2_free, threshold, m0=No
     return float(lower), float(upper), lower_open, upper_open
 
 
-def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None):
+def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None, known=None):
     r"""The fit with a single GM's variance held at `s2` (u^2), its time constant and every other coefficient
     refitted (helper of the GM sigma's profile interval in :func:`fit_allan`): :math:`\min_T \chi^2` of the
     components `rest` (the fit's without ``gauss_markov``) with the fixed part :math:`s_2\, g(\tau; T)`, on
@@ -158,11 +159,11 @@ def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None):
     from imupipe.search import refine_between_neighbours
 
     if not s2 > 0.0:
-        return _solve_fixed(t, y, e, rest, (), m0=m0)
+        return _solve_fixed(t, y, e, rest, (), m0=m0, offset=known)
     tb = np.ascontiguousarray(t, dtype=np.float64).tobytes()
 
     def solve(T, m_start):
-        sol = _solve_fixed(t, y, e, rest, (), m0=m_start, offset=s2 * _gm_column(tb, float(T)))
+        sol = _solve_fixed(t, y, e, rest, (), m0=m_start, offset=_plus(known, s2 * _gm_column(tb, float(T))))
         sol.T = (float(T),)
         return sol
 
@@ -184,7 +185,7 @@ def _gm_sigma_held(t, y, e, rest, s2, grid, m0=None):
 
 
 def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot, rng, bootstrap, dt, cid, ms,
-                       lengths, rates):
+                       lengths, rates, known=None):
     r"""The GM sigma's profile statistic over bootstrap replicates drawn from the fit with the random walk held
     at `k` (u/sqrt(s); helper of the second calibration of ``gm_sigma_profile`` in :func:`fit_allan`).
 
@@ -201,16 +202,17 @@ def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot
     numpy.ndarray
         `n_boot` values of the statistic (NaN where a replicate's fit failed).
     """
-    held, _ = _profile(t, y, e, rest, n_gm, grid, offset=k * k * t / 3.0)
+    held, _ = _profile(t, y, e, rest, n_gm, grid, offset=_plus(known, k * k * t / 3.0))
     p_k = _solution_to_params(held, rest, n_gm)
     p_k["random_walk"] = float(k)
     s2 = p_k.get("gm_sigma_1", 0.0) ** 2
     model_k = _params_to_model(p_k, dt)
     mean = np.maximum(held.m, 1e-300)
     out = np.full(int(n_boot), np.nan)
-    for b, ystar in enumerate(_replicates(bootstrap, model_k, mean, e, cid, ms, lengths, rates, n_boot, rng)):
-        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid)
+    for b, ystar in enumerate(_replicates(bootstrap, model_k, mean, e, cid, ms, lengths, rates, n_boot, rng,
+                                          known=known)):
+        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid, offset=known)
         local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
-        held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m)
+        held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m, known=known)
         out[b] = max(held_s.chi2 - sol.chi2, 0.0)
     return out

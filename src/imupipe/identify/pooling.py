@@ -26,6 +26,7 @@ def pooling_test(
     level: float = 0.01,
     T_grid=None,
     rng=None,
+    known_avar=None,
 ) -> dict:
     r"""Are several AV curves (axes, units of one sensor type) consistent with one model?
 
@@ -62,6 +63,9 @@ def pooling_test(
     level : float, optional
         Level of the test. Default 0.01.
     rng : numpy.random.Generator or int, optional
+    known_avar : array_like or sequence of array_like, optional
+        A known part of each AV point, u^2, shaped as `avar` (the lines' Allan variance): a fixed offset of the pooled
+        and every per-curve fit and of every replicate, as in :func:`imupipe.identify.fit_allan`.
 
     Returns
     -------
@@ -72,7 +76,9 @@ def pooling_test(
         ``{label, params, chi2, dof, chi2_per_dof, p_value, adequate}`` with the covariance adequacy of each
         curve's own fit, SI parameters as :attr:`AllanFit.params`), ``note``.
     """
-    t, y, e, cid = _pool(tau, avar, edf, return_curve=True)
+    # known_avar (u^2 per point, as avar): a known part of every fit and replicate (the lines, fit_allan's)
+    t, y, e, cid, *kn = _pool(tau, avar, edf, return_curve=True, known=known_avar)
+    kn = kn[0] if kn else None
     n_curves = int(cid.max()) + 1
     if record_rate_hz is None or n_samples is None:
         raise ValueError("pooling_test needs record_rate_hz= (Hz) and n_samples= per curve (the bootstrap draws each "
@@ -89,8 +95,8 @@ def pooling_test(
     sels = [np.flatnonzero(cid == c) for c in range(n_curves)]
 
     def stat(yy):
-        pooled, _ = _profile(t, yy, e, comps, ngm, grid)
-        per = [_profile(t[s], yy[s], e[s], comps, ngm, grid)[0] for s in sels]
+        pooled, _ = _profile(t, yy, e, comps, ngm, grid, offset=kn)
+        per = [_profile(t[s], yy[s], e[s], comps, ngm, grid, offset=None if kn is None else kn[s])[0] for s in sels]
         n_free = pooled.p.size + ngm
         d1 = max((n_curves - 1) * n_free, 1)
         d2 = max(int(sum(s.size - (sol.p.size + ngm) for s, sol in zip(sels, per))), 1)
@@ -106,7 +112,9 @@ def pooling_test(
     ms = np.rint(t * rates[cid]).astype(np.int64)
     F_boot = np.empty(0)
     if n_boot > 0 and n_curves > 1:
-        draws = _correlated_draws(model, pooled.m, ms, cid, lengths, rates, int(n_boot), rng)
+        mean = pooled.m if kn is None else np.maximum(pooled.m - kn, 1e-300)
+        draws = _correlated_draws(model, mean, ms, cid, lengths, rates, int(n_boot), rng)
+        draws = draws if kn is None else draws + kn
         F_boot = np.array([stat(np.maximum(d, 1e-300))[0] for d in draws])
     d2 = int(sum(s.size - (sol.p.size + ngm) for s, sol in zip(sels, per)))
     p = (1.0 + np.count_nonzero(F_boot >= F)) / (1.0 + F_boot.size) if F_boot.size else float("nan")

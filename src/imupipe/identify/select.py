@@ -163,7 +163,9 @@ def select_components(
 
     t, y, e = _pool(tau, avar, edf)
     model = fit.model
-    m = np.asarray(model.avar(t), dtype=np.float64)
+    # the fit's known AV (spectral lines, fit_allan's known_avar): a fixed part of the full fit and of every null
+    known = fit.known if getattr(fit, "known", np.zeros(0)).size == t.size else None
+    m = np.asarray(model.avar(t), dtype=np.float64) + (0.0 if known is None else known)
     sd = m * np.sqrt(2.0 / e)
     present = _present(model)
     if "white" in fit.components and "white" not in present:
@@ -187,7 +189,7 @@ def select_components(
                 reasons[c] = "fitted coefficient is zero"
                 details[c] = {"z": 0.0}
             continue
-        m_null, d_chi2, chi2_crit, lr_shows = _null_fit(fit, c, t, y, e, m, lr_test, significance, n_tested)
+        m_null, d_chi2, chi2_crit, lr_shows = _null_fit(fit, c, t, y, e, m, lr_test, significance, n_tested, known)
         # the part of the component the other components cannot absorb, against the AV's spread
         z = np.abs(m - m_null) / sd
         k = int(np.argmax(z))
@@ -242,7 +244,7 @@ def _band_of(band_hz, filter_rate_hz, outage_s, t):
     return f_lo, f_hi
 
 
-def _null_fit(fit: AllanFit, c: str, t, y, e, m, lr_test: bool, significance: float, n_tested: int):
+def _null_fit(fit: AllanFit, c: str, t, y, e, m, lr_test: bool, significance: float, n_tested: int, known=None):
     r"""The refit without component `c` (and what substitutes for it, :data:`_SUBSTITUTES`) of
     :func:`select_components`: its AV at `t` (u^2; zero when nothing is left) and, with `lr_test`, its chi-squared
     rise over `fit` against :math:`\chi^2_{d}(1-\alpha/J)`. Returns (m_null, delta_chi2, critical, shows)."""
@@ -268,14 +270,16 @@ def _null_fit(fit: AllanFit, c: str, t, y, e, m, lr_test: bool, significance: fl
             grid = grid[grid >= 8.0 * t.min()]
             if grid.size == 0:
                 comps = tuple(x for x in comps if x != "gauss_markov")
-        alt, _ = _profile(t, y, e, comps, fit.n_gm, grid)
+        alt, _ = _profile(t, y, e, comps, fit.n_gm, grid, offset=known)
         m_null = np.asarray(_refit_model(alt, comps, fit.n_gm).avar(t), dtype=np.float64)
+        if known is not None:
+            m_null = m_null + known
         if lr_test:
             d_chi2 = float(alt.chi2 - fit.chi2)
             chi2_crit = float(chdtri(n_removed, significance / n_tested))
             lr_shows = bool(d_chi2 > chi2_crit)
     else:
-        m_null = np.zeros_like(m)
+        m_null = np.zeros_like(m) if known is None else known.copy()
     return m_null, d_chi2, chi2_crit, lr_shows
 
 

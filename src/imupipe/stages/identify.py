@@ -28,6 +28,7 @@ as well (:func:`identify_sensor`). SI units throughout.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -142,6 +143,106 @@ def envelope_ratio(env: dict, model) -> dict:
     return {k: (float(out[k] / est[k]) if est[k] > 0 else None) for k in out if out[k] > 0 or est[k] > 0}
 
 
+def _subset_kw(fit_kw: dict, curves, index) -> dict:
+    """`fit_kw` for the curves `curves` (a subset of the stage's, at positions `index` of its list): their rates,
+    lengths and known line AVs."""
+    kw = {**fit_kw, "record_rate_hz": [c[5] for c in curves], "n_samples": [c[4] for c in curves],
+          "dt": 1.0 / curves[0][5]}
+    if fit_kw.get("known_avar") is not None:
+        kw["known_avar"] = [fit_kw["known_avar"][i] for i in index]
+    return kw
+
+
+def _known_of(curves, lines) -> list | None:
+    """The known Allan variance of each curve's spectral lines (:func:`imupipe.lines.line_avar`, u^2 at its taus),
+    None when no curve has a line. `lines`: curve label (``dataset/axis``) -> lines."""
+    from imupipe.lines import line_avar
+
+    if not lines:
+        return None
+    known = [line_avar(c.tau, lines.get(c.label, ())) for c in curves]
+    return known if any(np.any(k > 0) for k in known) else None
+
+
+def _adequacy_entry(fit) -> dict:
+    """The adequacy numbers of a fit for the before/after table (chi2 and p dimensionless)."""
+    a = fit.adequacy
+    return {k: (float(a[k]) if isinstance(a.get(k), (float, np.floating)) else a.get(k))
+            for k in ("chi2", "dof", "chi2_per_dof", "p_value", "adequate", "method")}
+
+
+def _adequacy_with_lines(curves, fit, components, n_gm, fit_kw, seed) -> dict:
+    """chi2/dof and the adequacy verdict of the full fit (every allowed component) per axis and pooled, before
+    (no line terms) and after (the lines' AV a known term). The per-axis fits and the pooled fit without the
+    lines run without a bootstrap (p from the generalised statistic with the exact AV covariance,
+    :func:`imupipe.identify.bootstrap._adequacy`); the pooled fit with them is the identification's own."""
+    from imupipe.identify import fit_allan
+
+    def fitted(idx, known):
+        sub = [curves[i] for i in idx]
+        kw = {**_subset_kw(fit_kw, sub, idx), "n_boot": 0, "known_avar": None}
+        if known:
+            kw["known_avar"] = [fit_kw["known_avar"][i] for i in idx]
+        return fit_allan([c[1] for c in sub], [c[2] for c in sub], [c[3] for c in sub], components=components,
+                         n_gm=n_gm, rng=seed, **kw)
+
+    all_idx = list(range(len(curves)))
+    out = {"pooled": {"before": _adequacy_entry(fitted(all_idx, False)), "after": _adequacy_entry(fit)},
+           "per_axis": {}}
+    for axis in sorted({c[6] for c in curves}):
+        idx = [i for i, c in enumerate(curves) if c[6] == axis]
+        out["per_axis"][axis] = {"curves": [curves[i][0] for i in idx],
+                                 "before": _adequacy_entry(fitted(idx, False)),
+                                 "after": _adequacy_entry(fitted(idx, True))}
+    out["note"] = ("the full fit (every allowed component) before (no line terms) and after (each curve's lines "
+                   "as a known Allan-variance term); per axis without a bootstrap (p from the exact-covariance "
+                   "statistic), pooled after: the identification's fit (bootstrap p)")
+    return out
+
+
+def _fin(x):
+    """A finite float, or None (YAML)."""
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+def _record_consistency(curves, selection, components, n_gm, fit_kw, confidence, level, seed) -> dict:
+    """Each record's (dataset's) own fit, its axes pooled, of the selected components with the random walk (and
+    the known lines), and the test whether one record disagrees with the others beyond its intervals
+    (:func:`imupipe.identify.consistency.record_consistency` at family-wise level `level`)."""
+    from imupipe.identify import fit_allan
+    from imupipe.identify.consistency import CONSISTENCY_PARAMS, record_consistency
+
+    comps = [c for c in components if c in selection["kept"] or c == "random_walk"]
+    datasets = sorted({c[0].split("/")[0] for c in curves})
+    fits = {}
+    for d in datasets:
+        idx = [i for i, c in enumerate(curves) if c[0].split("/")[0] == d]
+        sub = [curves[i] for i in idx]
+        f = fit_allan([c[1] for c in sub], [c[2] for c in sub], [c[3] for c in sub], components=comps,
+                      n_gm=n_gm, rng=seed, **_subset_kw(fit_kw, sub, idx))
+        fits[d] = {p: (f.params[p], *f.intervals.get(p, (float("nan"), float("nan"))))
+                   for p in CONSISTENCY_PARAMS if p in f.params}
+        fits[d]["_adequate"] = bool(f.adequacy.get("adequate", True))
+    adequate = {d: fits[d].pop("_adequate") for d in datasets}
+    out = {"components": comps, "datasets": datasets, "adequate": adequate,
+           "units": "estimate, lower, upper, others: SI (white u/sqrt(Hz), flicker u, random_walk u/sqrt(s)); z 1"}
+    if len(datasets) < 2:
+        out["note"] = "one record: nothing to compare"
+        out["rows"] = {d: {p: {"estimate": _fin(v[0]), "lower": _fin(v[1]), "upper": _fin(v[2]), "z": None,
+                               "flagged": False,
+                               "note": "one record"} for p, v in fits[d].items()} for d in datasets}
+        out["flagged"] = []
+        return out
+    res = record_consistency(fits, confidence=confidence, alpha=level)
+    for row in res["rows"].values():  # YAML: non-finite ends (a one-sided interval, a missing term) as null
+        for v in row.values():
+            v.update({k: (float(x) if x is not None and np.isfinite(x) else None)
+                      for k, x in v.items() if k in ("estimate", "lower", "upper", "others")})
+    res["flagged"] = [{"dataset": r, "param": p, "z": z, "estimate": est, "others": oth}
+                      for r, p, z, est, oth in res["flagged"]]
+    return {**out, **res}
+
+
 def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=None):
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
@@ -150,9 +251,9 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
 
     per_axis = {}
     for axis in sorted({c[6] for c in curves}):
-        ax_curves = [c for c in curves if c[6] == axis]
-        kw = {**fit_kw, "record_rate_hz": [c[5] for c in ax_curves], "n_samples": [c[4] for c in ax_curves],
-              "dt": 1.0 / ax_curves[0][5]}
+        idx = [i for i, c in enumerate(curves) if c[6] == axis]
+        ax_curves = [curves[i] for i in idx]
+        kw = _subset_kw(fit_kw, ax_curves, idx)
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
                          components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
         fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed,
@@ -175,7 +276,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                     significance: float, relevance: float, filter_rate_hz: float, outage_s: float,
                     adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
                     span_s: float | None = None, fit_tau_min_samples: float | None = None,
-                    truth=None, seed: int = SEED_FIT) -> Identification:
+                    truth=None, seed: int = SEED_FIT, lines=None, envelope_lines: bool = True,
+                    consistency_level: float = 0.01) -> Identification:
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
     `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
@@ -184,7 +286,14 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     selection, and `span_s` (s; fix period + outage, the window the bound must hold over, written as
     ``upper_envelope_horizon_s``; default `outage_s`). `truth`: the simulation's
     :class:`~imupipe.models.NoiseModel` or None. `seed`: of the fit's bootstrap and refit (the pooling test's is
-    :data:`SEED_POOLING`).
+    :data:`SEED_POOLING`). `lines`: curve label (``dataset/axis``) -> the curve's spectral lines
+    (:func:`imupipe.lines.lines_by_curve`: :class:`imupipe.lines.Line` or (sigma, f0_hz, zeta)), whose Allan
+    variance enters every fit as a known term (``known_avar`` of :func:`imupipe.identify.fit_allan`); None: no
+    lines. `envelope_lines`: the lines (merged over the curves as the bound merges them,
+    :func:`imupipe.lines.merge_lines`) also enter the upper envelope as its narrowband terms, so that the envelope
+    the bound covers and the verification runs against holds them as lines (line policy ``model``; under
+    ``exclude`` the bound has no column for an excluded line, and the envelope leaves them out).
+    `consistency_level`: the family-wise false-alarm level of the record-consistency test.
 
     Raises ValueError when `curves` is empty."""
     from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
@@ -198,12 +307,13 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     taus, avars, edfs = [c.tau for c in curves], [c.avar for c in curves], [c.edf for c in curves]
     ns, rates = [c.n_samples for c in curves], [c.record_rate_hz for c in curves]
     components = list(components)
+    known = _known_of(curves, lines)
     T_range, T_grid = _T_search_of(taus, edfs, confidence, fit_tau_min_samples, 1.0 / rates[0])
     if T_grid is None and "gauss_markov" in components:
         components = [c for c in components if c != "gauss_markov"]
         logging.info("no GM time constant resolvable (%s): the fit has no GM", T_range["statement"])
     fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], record_rate_hz=rates, n_samples=ns,
-                  adequacy_level=adequacy_level, T_grid=T_grid)
+                  adequacy_level=adequacy_level, T_grid=T_grid, known_avar=known)
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=seed, **fit_kw)
     selection = select_components(fit, taus, avars, edfs, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                                   significance=significance, relevance=relevance)
@@ -216,7 +326,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     if moved:
         selection = _selection_after(selection, moved, selected.kept_after)
     pooling = pooling_test(taus, avars, edfs, components=tuple(kept), n_gm=n_gm, record_rate_hz=rates, n_samples=ns,
-                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING)
+                           labels=labels, n_boot=pooling_n_boot, level=pooling_level, rng=SEED_POOLING,
+                           known_avar=known)
     logging.info("pooling: %s", pooling["note"])
 
     out = {
@@ -243,6 +354,12 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "gm_reassigned": moved,
         "slope_line": {},
     }
+    if known is not None:
+        out["lines_known"] = _lines_record(curves, lines, known)
+    out["adequacy_lines"] = (_adequacy_with_lines(curves, fit, components, n_gm, fit_kw, seed)
+                             if known is not None else None)
+    out["record_consistency"] = _record_consistency(curves, selection, components, n_gm, fit_kw, confidence,
+                                                    consistency_level, seed)
     band = out["selection"]["band_hz"]
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
     if not pooling["consistent"]:
@@ -257,6 +374,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                                  "`upper_envelope_model` dominates the pooled and every per-axis envelope")
     else:
         out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+    if known is not None and envelope_lines:
+        out["upper_envelope_model"] = _with_lines(out["upper_envelope_model"], lines)
     out["upper_envelope_ratio"] = envelope_ratio(out["upper_envelope_model"], selected.model)
     if not out["adequacy"]["pooled"].get("adequate", True):
         out["upper_envelope_note"] = (
@@ -321,6 +440,37 @@ def _selection_after(selection: dict, moved: list, kept_after: list) -> dict:
                 selection["reasons"].get(tgt, "")
     sel["reduced_model"] = "random_walk" not in sel["kept"]
     return sel
+
+
+def _with_lines(env: dict, lines) -> dict:
+    """The envelope `env` (:meth:`NoiseModel.to_dict`, SI) with the curves' lines as narrowband terms: merged as
+    the bound's line policy merges them (:func:`imupipe.lines.merge_lines`: one term per group of overlapping lines,
+    its power the largest member's, its width covering every member), sigma = sqrt(power) u, f0 Hz, zeta."""
+    from imupipe.lines import Line, merge_lines
+
+    found = [ln for group in lines.values() for ln in group if isinstance(ln, Line)]
+    merged = merge_lines(found) if found else []
+    if not merged:
+        return env
+    return {**env, "narrowband": [{"sigma": float(ln.sigma), "f0_hz": float(ln.frequency_hz), "zeta": float(ln.zeta)}
+                                  for ln in merged]}
+
+
+def _lines_record(curves, lines, known) -> dict:
+    """Per curve: the lines known to the fit (f0 Hz, amplitude and sigma u, zeta 1) and the largest share of the
+    curve's Allan variance they carry (1)."""
+    from imupipe.lines import Line
+
+    out = {}
+    for c, k in zip(curves, known):
+        terms = [ln.narrowband if isinstance(ln, Line) else tuple(float(v) for v in ln)
+                 for ln in lines.get(c.label, ())]
+        if not terms:
+            continue
+        out[c.label] = {"lines": [{"f0_hz": float(f0), "amplitude": float(math.sqrt(2.0) * s), "sigma": float(s),
+                                   "zeta": float(z)} for s, f0, z in terms],
+                        "max_avar_share": float(np.max(k / np.asarray(c.avar, dtype=np.float64)))}
+    return out
 
 
 def identification_stage(curves, **settings) -> dict:

@@ -1,0 +1,175 @@
+"""The lines stage's lines as a known term of the Allan fit (imupipe.lines.line_avar, fit_allan(known_avar=)).
+
+Simulated truth: white noise + a first-order GM + a 0.5 Hz line amplitude-modulated at 0.1 Hz (the carrier and
+its +/-0.1 Hz sidebands) and a 3rd harmonic, as on the ADIS16405 accelerometer.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from imupipe.allan import allan_variance, overlapping_avar
+from imupipe.identify import fit_allan
+from imupipe.lines import Line, find_lines, line_avar, lines_by_curve
+from imupipe.models import NoiseModel
+from imupipe.simulate import simulate
+
+RATE = 10.0  # Hz
+N = int(6 * 3600 * RATE)  # a 6 h record
+TRUTH = NoiseModel(white=2e-3, gauss_markov=((1e-3, 30.0),), dt=1.0 / RATE)  # u/sqrt(Hz), (u, s)
+A, F0, DEPTH, F_MOD, A3 = 3e-3, 0.5, 0.6, 0.1, 0.9e-3  # carrier u, Hz, modulation depth, Hz, harmonic u
+# the lines of the truth: (frequency Hz, amplitude u); an AM carrier A (1 + m cos) has sidebands of A m / 2
+TRUE_LINES = ((F0 - F_MOD, A * DEPTH / 2), (F0, A), (F0 + F_MOD, A * DEPTH / 2), (3 * F0, A3))
+
+
+def _record(seed):
+    x = simulate(TRUTH, N, RATE, np.random.default_rng(seed))
+    t = np.arange(N) / RATE
+    return (x + A * (1 + DEPTH * np.cos(2 * np.pi * F_MOD * t)) * np.sin(2 * np.pi * F0 * t)
+            + A3 * np.sin(2 * np.pi * 3 * F0 * t + 1.0))
+
+
+def _fit(x, known):
+    av = allan_variance(x, rate=RATE, taus="octave")
+    ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+    tau, avar, edf = av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok]
+    kn = None if known is None else line_avar(tau, known)
+    return fit_allan(tau, avar, edf, components=("white", "gauss_markov"), n_gm=1, n_boot=100, rng=3,
+                     record_rate_hz=RATE, n_samples=N, dt=1.0 / RATE, known_avar=kn)
+
+
+@pytest.mark.parametrize("f0", [0.5, 0.37])
+def test_line_avar_is_a_sinusoids_measured_allan_variance(f0):
+    # A sinusoid of amplitude Am at f0: AVAR = Am^2 sin^4(pi f0 tau) / (pi f0 tau)^2. The project's line model (the
+    # narrowband oscillator) equals it up to O(zeta w0 tau) (the envelope's decay over 3 tau, and the oscillator's
+    # low-frequency tail 4 zeta sigma^2 / (w0 tau)): with zeta = 1e-4 and tau <= 3.3 s both are below 0.3 % of the
+    # sinusoid's AV where it is not near a zero (taus where sin^4 >= 0.05). The measured overlapping AV of a 3 h
+    # record is the closed form to the end effects of about one period over 1e6 samples; 1 % covers both.
+    rate, n, am = 100.0, int(3 * 3600 * 100), 1e-3
+    x = am * np.sin(2 * np.pi * f0 * np.arange(n) / rate + 0.3)
+    for m in (10, 30, 70, 100, 150, 330):
+        tau = m / rate
+        s4 = math.sin(math.pi * f0 * tau) ** 4
+        if s4 < 0.05:
+            continue
+        closed = am**2 * s4 / (math.pi * f0 * tau) ** 2
+        measured = overlapping_avar(x, rate, m)
+        model = line_avar([tau], [(am / math.sqrt(2.0), f0, 1e-4)])[0]
+        assert measured == pytest.approx(closed, rel=1e-2)
+        assert model == pytest.approx(closed, rel=1e-2)
+
+
+def test_line_avar_of_lines_adds_and_accepts_line_objects():
+    tau = np.array([0.3, 1.0, 3.0])
+    a = (1e-3, 0.5, 0.01)
+    b = (5e-4, 1.5, 0.003)
+    ln = Line(frequency_hz=0.5, power=1e-6, amplitude=math.sqrt(2e-6), sigma=1e-3, width_hz=0.01, zeta=0.01,
+              peak_ratio=100.0, f_lo_hz=0.49, f_hi_hz=0.51, resolution_hz=0.01)
+    np.testing.assert_allclose(line_avar(tau, [a, b]), line_avar(tau, [a]) + line_avar(tau, [b]), rtol=1e-14)
+    np.testing.assert_allclose(line_avar(tau, [ln]), line_avar(tau, [a]), rtol=1e-14)
+    assert np.all(line_avar(tau, []) == 0)
+
+
+def test_lines_by_curve_keys_by_dataset_and_axis_and_keep_policy_knows_none():
+    ln = {"frequency_hz": 0.5, "power": 1e-6, "amplitude": 1.4e-3, "sigma": 1e-3, "width_hz": 0.01, "zeta": 0.01,
+          "peak_ratio": 100.0, "f_lo_hz": 0.49, "f_hi_hz": 0.51, "resolution_hz": 0.01}
+    docs = {"lines/imu1/accel/x.yaml": {"dataset": "imu1", "sensor": "accel", "axis": "x", "lines": [ln]},
+            "lines/imu1/accel/y.yaml": {"dataset": "imu1", "sensor": "accel", "axis": "y", "lines": []}}
+    out = lines_by_curve(docs, "model")
+    assert set(out) == {"imu1/x", "imu1/y"} and len(out["imu1/x"]) == 1 and out["imu1/y"] == ()
+    assert lines_by_curve(docs, "keep") == {}
+    assert lines_by_curve({"lab1/x": {"lines": [ln]}}, "exclude") == {"lab1/x": out["imu1/x"]}
+    with pytest.raises(ValueError, match="lines"):
+        lines_by_curve({"f.yaml": {"n_lines": 0}}, "model")
+
+
+@pytest.fixture(scope="module")
+def line_record():
+    x = _record(1)
+    return x, find_lines(x, RATE, resolution_hz=0.005)
+
+
+def test_lines_found_with_amplitudes_within_10_percent(line_record):
+    _, search = line_record
+    found = {round(ln.frequency_hz, 1): ln.amplitude for ln in search.lines}
+    for f, amp in TRUE_LINES:
+        assert round(f, 1) in found, f"line at {f} Hz not found: {sorted(found)}"
+        assert found[round(f, 1)] == pytest.approx(amp, rel=0.10)
+
+
+def test_fit_with_known_lines_covers_the_gm_and_without_absorbs_the_line(line_record):
+    x, search = line_record
+    known = _fit(x, search.lines)
+    # with the lines known: the GM's and the white noise's 95 % intervals cover the truth (fixed seed; each misses
+    # in 5 % of records) and the model describes the data (p above the adequacy level 0.01)
+    for name, true in (("white", TRUTH.white), ("gm_sigma_1", 1e-3), ("gm_T_1", 30.0)):
+        lo, hi = known.intervals[name]
+        assert lo <= true <= hi, (name, lo, hi)
+    assert known.adequacy["adequate"], known.adequacy
+    assert known.known.size and np.max(known.known) > 0
+    # the fitted model holds the fitted components only (the line stays the lines stage's / the bound's term)
+    assert not known.model.narrowband
+    # without them the GM stands in for the line: T near the line's period, the truth outside T's interval, and
+    # the fit rejected
+    blind = _fit(x, None)
+    lo, hi = blind.intervals["gm_T_1"]
+    assert not lo <= 30.0 <= hi, (lo, hi)
+    assert blind.params["gm_T_1"] < 5.0
+    assert not blind.adequacy["adequate"]
+    assert blind.adequacy["chi2_per_dof"] > 10 * known.adequacy["chi2_per_dof"]
+
+
+def test_known_none_is_the_fit_without_it():
+    rng = np.random.default_rng(5)
+    x = simulate(TRUTH, 2**16, RATE, rng)
+    av = allan_variance(x, rate=RATE, taus="octave")
+    ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+    args = (av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok])
+    kw = dict(components=("white", "gauss_markov"), n_gm=1, n_boot=20, rng=1, record_rate_hz=RATE, n_samples=2**16)
+    a = fit_allan(*args, **kw)
+    b = fit_allan(*args, known_avar=np.zeros(int(ok.sum())), **kw)
+    assert a.params["white"] == pytest.approx(b.params["white"], rel=1e-9)
+    assert a.intervals["gm_T_1"] == pytest.approx(b.intervals["gm_T_1"], rel=1e-6)
+    with pytest.raises(ValueError, match="known"):
+        fit_allan(*args, known_avar=np.zeros(3), **kw)
+
+
+def test_identification_stage_takes_the_lines_files_lines_as_known_terms():
+    # two 2 h records with the line on axis x: the stage's fits know each curve's lines (keyed dataset/axis), the
+    # identify record says which and how much of the AV they carry, and chi2/dof falls with them
+    from imupipe.stages.identify import Curve, identify_sensor
+
+    n = int(2 * 3600 * RATE)
+    curves, lines = [], {}
+    for i, seed in enumerate((11, 12)):
+        x = _record(seed)[:n]
+        av = allan_variance(x, rate=RATE, taus="octave")
+        ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+        curves.append(Curve(f"rec{i}/x", av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok], n, RATE,
+                            "x"))
+        lines[f"rec{i}/x"] = find_lines(x, RATE, resolution_hz=0.005).lines
+    kw = dict(sensor="accel", components=["white", "gauss_markov", "random_walk"], n_gm=1, n_boot=20,
+              confidence=0.95, significance=0.05, relevance=0.05, filter_rate_hz=RATE, outage_s=600.0,
+              pooling_n_boot=19)
+    rec = identify_sensor(curves, lines=lines, **kw).record
+    assert set(rec["lines_known"]) == {"rec0/x", "rec1/x"}
+    assert any(abs(ln["f0_hz"] - F0) < 0.01 for ln in rec["lines_known"]["rec0/x"]["lines"])
+    assert rec["lines_known"]["rec0/x"]["max_avar_share"] > 0.3
+    al = rec["adequacy_lines"]
+    assert al["per_axis"]["x"]["after"]["chi2_per_dof"] < 0.2 * al["per_axis"]["x"]["before"]["chi2_per_dof"]
+    # the GM is the truth's (30 s), not the line's (about 1 s); the model has no line term (the bound adds it)
+    T = rec["model_selected"]["gauss_markov"][0]["T"]
+    assert 10.0 < T < 100.0, T
+    # the envelope the bound covers and the verification runs against holds the lines as lines (merged as the bound
+    # merges them), not as a GM
+    nb = rec["upper_envelope_model"]["narrowband"]
+    assert any(abs(t["f0_hz"] - F0) < 0.01 for t in nb)
+    assert all(g["T"] > 10.0 for g in rec["upper_envelope_model"]["gauss_markov"])
+    no_env = identify_sensor(curves, lines=lines, envelope_lines=False, **kw).record
+    assert "narrowband" not in no_env["upper_envelope_model"]
+    assert rec["record_consistency"]["flagged"] == []
+    # without the lines the stage's GM takes the line
+    blind = identify_sensor(curves, **kw).record
+    assert blind["adequacy_lines"] is None and "lines_known" not in blind
+    assert blind["model_selected"]["gauss_markov"][0]["T"] < 5.0
