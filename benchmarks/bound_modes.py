@@ -8,8 +8,8 @@ outage, mean P/MSE over the outage, and for auto the winner.
     OPENBLAS_NUM_THREADS=1 python benchmarks/bound_modes.py --truth nav_tactical consumer_mems --modes raw auto \
         --datasets 1 5 --seed 3232
 
-10 h records at 10 Hz (one 7 h PSD window per record, as tests/test_slow_bias.py); ``--hours`` and ``--rate`` change
-that. Prints a Markdown table (docs/performance.md).
+10 h records at 10 Hz, the Welch window by the workflow's rule (``--window rule``, 9000 s with 50 % overlap) or one 7 h
+window per record (``--window one``, as tests/test_slow_bias.py); ``--hours`` and ``--rate`` change the records. Prints a Markdown table (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def halved_spec(t: NoiseModel, sensor: str, scale: float = 0.5):
 
 
 def run_case(truth_name: str, sensor: str, n_data: int, mode: str, seed: int, hours: float = 10.0,
-             rate_hz: float = 10.0) -> dict:
+             rate_hz: float = 10.0, window: str = "rule") -> dict:
     """One case: the exported KF file's exact analysis against the truth (exact_kf.kf_against_truth)."""
     from imupipe.api import noise_model
     from imupipe.simulate import simulate
@@ -58,8 +58,12 @@ def run_case(truth_name: str, sensor: str, n_data: int, mode: str, seed: int, ho
     X = simulate(truth, int(hours * 3600 * rate_hz), rate_hz, rng=np.random.default_rng(seed), n_records=n_data)
     curves = {f"d{i}/x": X[i] for i in range(n_data)}
     t0 = time.process_time()
-    res = noise_model(curves, rate_hz, sensor, halved_spec(truth, sensor), window_s=min(25200.0, hours * 3600 * 0.7),
-                      step_s=36000.0, outage_s=OUTAGE_S, fix_s=FIX_S, n_gm=len(truth.gauss_markov), mode=mode)
+    # Welch window: "rule", the workflow's for an unset psd.window_s (imupipe.defaults.psd_window_step: 9000 s with
+    # 50 % overlap on 10 h) that imupipe init writes; "one", one 7 h window per record (tests/test_slow_bias.py)
+    win = dict(window_s=None, step_s=None) if window == "rule" else dict(window_s=min(25200.0, hours * 3600 * 0.7),
+                                                                         step_s=hours * 3600)
+    res = noise_model(curves, rate_hz, sensor, halved_spec(truth, sensor), **win, outage_s=OUTAGE_S, fix_s=FIX_S,
+                      n_gm=len(truth.gauss_markov), mode=mode)
     cpu = time.process_time() - t0
     exact = kf_against_truth(res.kf, truth, sensor, FIX_S, OUTAGE_S)
     sel = (res.verification or {}).get("auto_selection")
@@ -80,6 +84,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=3232)
     ap.add_argument("--hours", type=float, default=10.0)
     ap.add_argument("--rate", type=float, default=10.0)
+    ap.add_argument("--window", choices=["rule", "one"], default="rule")
     a = ap.parse_args(argv)
     print("| truth | sensor | datasets | mode | bounded | worst MSE/P (fixes + outage) | worst MSE/P, outage | "
           "mean P/MSE, outage | exported | candidates (bounded, mean P/MSE vs envelope) | CPU s |")
@@ -88,7 +93,7 @@ def main(argv=None) -> int:
         for sensor in a.sensors:
             for nd in a.datasets:
                 for mode in a.modes:
-                    r = run_case(tn, sensor, nd, mode, a.seed + 17 * nd, a.hours, a.rate)
+                    r = run_case(tn, sensor, nd, mode, a.seed + 17 * nd, a.hours, a.rate, a.window)
                     cand = "-" if not r["candidates"] else ", ".join(
                         f"{m} {'ok' if b else 'FAIL'} {c:.2f}" if c is not None else f"{m} {'ok' if b else 'FAIL'}"
                         for m, (b, c) in r["candidates"].items())
