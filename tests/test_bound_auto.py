@@ -153,3 +153,15 @@ def test_init_writes_auto():
 
     doc = yaml.safe_load(config_text("my", "sheet.tsv", "specs", "stim300", ["gyro"], s))
     assert doc["bound"] == {"mode": "auto"}
+
+
+def test_summary_shows_the_candidates():
+    from imupipe.summary import auto_selection_lines
+
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.5), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 1.2, passed=False),
+            "pooled": _rep(1.8, 0.9)}
+    text = "\n".join(auto_selection_lines({"auto_selection": select(cands, reps)}))
+    assert "exported **pooled**" in text
+    assert "| pooled (exported) | yes |" in text and "| confidence | NO | verification |" in text
+    assert auto_selection_lines({}) == []
