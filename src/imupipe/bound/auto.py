@@ -6,9 +6,9 @@ the verification stage verifies each the same way (:func:`imupipe.stages.verify.
 filter against the identified upper envelope, the spec sheet, the slow bias, the truth where known, and the replay of
 the records) and :func:`select` picks the exported one:
 
-* **passes** (:func:`passes`): the candidate's contract would be ``bounded`` (:func:`imupipe.verify.integrity_contract`
-  on its bound file entry and its verification: PSD margin, spec over all frequencies, Allan check, every
-  verification check of its exported model);
+* **passes**: the candidate's contract would be ``bounded`` (:func:`imupipe.stages.contract.candidate_contract`:
+  :func:`imupipe.verify.integrity_contract` on its bound file entry and its verification: PSD margin, spec over all
+  frequencies, Allan check, the identification's intervals, every verification check of its exported model);
 * **criterion**: of the passing candidates, the smallest mean conservatism :math:`\overline{P/\mathrm{MSE}}` over
   the outage of the exported model's check against the upper envelope (``upper_envelope``'s
   ``mean_conservatism``: P the filter's variance, MSE the true error variance when the envelope is the truth;
@@ -24,9 +24,7 @@ what the bound must cover below the lowest PSD bin; the spec sheet is a floor, n
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
-
-__all__ = ["AUTO_MODES", "CRITERION", "bound_view", "candidate_row", "passes", "select"]
+__all__ = ["AUTO_MODES", "CRITERION", "candidate_row", "select"]
 
 #: The candidates of ``bound.mode: auto``, in tie-break order (the paper's first).
 AUTO_MODES = ("raw", "smoothed", "confidence", "pooled")
@@ -40,36 +38,12 @@ CRITERION = ("the passing candidate (its contract bounded: PSD margin, spec over
 _ENVELOPE = "upper_envelope"
 
 
-def bound_view(b: dict):
-    """The bound file entry's margins as the attributes :func:`imupipe.verify.integrity_contract` reads (None: not
-    finite)."""
-    def num(v, default=float("nan")):
-        return default if v is None else float(v)
-
-    return SimpleNamespace(margin=num(b.get("margin")), margin_curve=b.get("margin_curve"),
-                           margin_frequency=num(b.get("margin_frequency_hz")),
-                           spec_margin=num(b.get("spec_margin"), float("inf")),
-                           spec_margin_frequency=b.get("spec_margin_frequency_hz"),
-                           allf_margin=num(b.get("all_frequency_margin"), float("inf")),
-                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
-
-
-def passes(bound: dict, report: dict) -> dict:
-    """:func:`imupipe.verify.integrity_contract` of one candidate: its bound file entry `bound` and its verification
-    report `report` (:func:`imupipe.stages.verify.verify_sensor`). The export-rate check is the contract's (the
-    same for every candidate), not repeated here."""
-    from imupipe.verify import integrity_contract
-
-    ver = report["exported"]["verification"]
-    verification = {"reference filter": ver} if ver.get("checks") else None
-    return integrity_contract(bound_view(bound), bound.get("allan_check"), verification,
-                              intervals=bound.get("identification_intervals"))
-
-
-def candidate_row(mode: str, bound: dict, report: dict) -> dict:
+def candidate_row(mode: str, bound: dict, report: dict, contract_of) -> dict:
     """What the verification file and the summary show of one candidate: bounded, failed checks, per check the
-    worst outage MSE/P and mean P/MSE of its exported model, the criterion's value, the bound's inflation."""
-    c = passes(bound, report)
+    worst outage MSE/P and mean P/MSE of its exported model, the criterion's value, the bound's inflation.
+    `contract_of(bound, report)` is the candidate's contract (``bounded``, ``failed_checks``:
+    :func:`imupipe.stages.contract.candidate_contract`)."""
+    c = contract_of(bound, report)
     checks = report["exported"]["verification"].get("checks", {})
     env = checks.get(_ENVELOPE, {})
     per = {name: {"worst_outage_ratio": ch.get("worst_outage_ratio"), "mean_conservatism": ch.get("mean_conservatism"),
@@ -87,14 +61,14 @@ def _finite(x, default):
     return float(x) if x is not None and math.isfinite(float(x)) else default
 
 
-def select(candidates: dict, reports: dict) -> dict:
+def select(candidates: dict, reports: dict, contract_of) -> dict:
     """The selection of ``bound.mode: auto`` (module docstring): `candidates` mode -> bound file entry, `reports`
-    mode -> its verification report. Returns ``{criterion, winner, bounded, reason, candidates: [row, ...]}``
+    mode -> its verification report, `contract_of` as :func:`candidate_row`'s. Returns ``{criterion, winner, bounded, reason, candidates: [row, ...]}``
     (:func:`candidate_row` per mode, in :data:`AUTO_MODES` order)."""
     order = [m for m in AUTO_MODES if m in candidates] + [m for m in candidates if m not in AUTO_MODES]
     if not order:
         raise ValueError("auto bound: no candidate (the bound file has an empty 'candidates')")
-    rows = [candidate_row(m, candidates[m], reports[m]) for m in order]
+    rows = [candidate_row(m, candidates[m], reports[m], contract_of) for m in order]
     ok = [r for r in rows if r["bounded"]]
     if ok:
         best = min(ok, key=lambda r: _finite(r["criterion_mean_conservatism"], math.inf))

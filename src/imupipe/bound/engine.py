@@ -391,7 +391,8 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         n = int(targets.size) if n_tests is None else int(n_tests)
         targets = chi2_upper(targets, rows_edf, confidence=confidence, n_tests=n, correction="sidak")
         details.update(confidence=float(confidence), n_tests=n, correction="sidak")
-    details["target_labels"] = list(target_labels)
+    if mode == "pooled":
+        details["target_labels"] = list(target_labels)  # the pooled groups the rows belong to (margin_curve)
     details["rows_edf_min"] = float(np.min(rows_edf))
     spec = spec_rows = None
     if spec_model is not None:

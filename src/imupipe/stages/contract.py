@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import logging
 import sys
+from types import SimpleNamespace
 
-__all__ = ["HEADER", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
+__all__ = ["HEADER", "candidate_contract", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
 
 #: Header of the contract file (what its fields mean, units).
 HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
@@ -46,9 +47,28 @@ winner's contract (mode: auto (winner))."""
 
 def _bound_view(b: dict):
     """The bound file's margins as the attributes imupipe.verify.integrity_contract reads (None: not finite)."""
-    from imupipe.bound.auto import bound_view
+    def num(v, default=float("nan")):
+        return default if v is None else float(v)
 
-    return bound_view(b)
+    return SimpleNamespace(margin=num(b.get("margin")), margin_curve=b.get("margin_curve"),
+                           margin_frequency=num(b.get("margin_frequency_hz")),
+                           spec_margin=num(b.get("spec_margin"), float("inf")),
+                           spec_margin_frequency=b.get("spec_margin_frequency_hz"),
+                           allf_margin=num(b.get("all_frequency_margin"), float("inf")),
+                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
+
+
+def candidate_contract(bound: dict, report: dict) -> dict:
+    """The contract checks of one candidate of ``bound.mode: auto`` (:mod:`imupipe.bound.auto`):
+    :func:`imupipe.verify.integrity_contract` on its bound file entry `bound` and its verification report `report`
+    (PSD margin, spec over all frequencies, Allan check, the identification's intervals, every verification check
+    of its exported model). The export-rate check is the contract's own, the same for every candidate."""
+    from imupipe.verify import integrity_contract
+
+    ver = report["exported"]["verification"]
+    return integrity_contract(_bound_view(bound), bound.get("allan_check"),
+                              {"reference filter": ver} if ver.get("checks") else None,
+                              intervals=bound.get("identification_intervals"))
 
 
 def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, sensor: str,

@@ -117,11 +117,12 @@ def _verify_auto(bound: dict, sensor: str, settings: dict):
     report is the winner's, with ``auto_selection`` (criterion, winner, reason, each candidate's bounded, failed
     checks, worst outage MSE/P and mean P/MSE per check); the series are the winner's."""
     from imupipe.bound.auto import select
+    from imupipe.stages.contract import candidate_contract
 
     reports, series = {}, {}
     for m, cand in bound["candidates"].items():
         reports[m], series[m] = verify_sensor(cand, sensor, **settings)
-    sel = select(bound["candidates"], reports)
+    sel = select(bound["candidates"], reports, candidate_contract)
     logging.info("auto bound: %s", sel["reason"])
     report = dict(reports[sel["winner"]])
     report["auto_selection"] = sel
