@@ -170,5 +170,5 @@ def test_summary_shows_the_candidates():
             "pooled": _rep(1.8, 0.9)}
     text = "\n".join(auto_selection_lines({"auto_selection": select(cands, reps)}))
     assert "exported **pooled**" in text
-    assert "| pooled (exported) | yes |" in text and "| confidence | NO | verification |" in text
+    assert "| pooled (exported) | yes |" in text and "| confidence | NO | verification upper_envelope |" in text
     assert auto_selection_lines({}) == []

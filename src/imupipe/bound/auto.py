@@ -50,7 +50,9 @@ def candidate_row(mode: str, bound: dict, report: dict, contract_of) -> dict:
                   "passed": ch.get("passed")} for name, ch in checks.items()}
     worst = max((v["worst_outage_ratio"] for v in per.values() if v["worst_outage_ratio"] is not None),
                 default=None)
-    return {"mode": mode, "bounded": bool(c["bounded"]), "failed_checks": [f["check"] for f in c["failed_checks"]],
+    failed = [" ".join(str(x) for x in (f["check"], f.get("against") or f.get("component") or "") if x)
+              for f in c["failed_checks"]]
+    return {"mode": mode, "bounded": bool(c["bounded"]), "failed_checks": failed,
             "criterion_mean_conservatism": env.get("mean_conservatism"),
             "envelope_worst_outage_ratio": env.get("worst_outage_ratio"), "worst_outage_ratio_any_check": worst,
             "model_reduced": bool(report["exported"].get("reduced")), "inflation": bound.get("inflation"),
