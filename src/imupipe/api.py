@@ -271,7 +271,9 @@ def noise_model(
         reference filter of the verification runs at it) and the outage it must coast through, s
         (``application.outage_s``, default 3600); together they set the band the selection keeps components for.
     mode, bound_confidence, bands_per_decade :
-        :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10).
+        :func:`imupipe.bound.bound_psd` settings (default ``raw``, 0.95, 10); ``mode="auto"``: every mode's bound
+        verified, the tightest passing exported (:mod:`imupipe.bound.auto`; the result's ``bound`` is the winner's,
+        ``records["bound"]`` holds every candidate).
     seed : int, optional
         Seed of the fit's bootstrap (default 20211, the workflow's :data:`imupipe.stages.identify.SEED_FIT`).
     lines_policy : {None, "model", "exclude", "keep"}, optional
@@ -344,12 +346,15 @@ def noise_model(
     verification, contract, kf = _verified_kf(
         bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, outage_s, sigma_fix, filter_rate_hz, reduce,
         replay_z, max_bias_time_s, fix_rate_hz, kf_dt, verify)
+    bound_record = bound.record  # bound.mode auto: every candidate's entry
+    if bound.candidates and verification and verification.get("auto_selection"):  # bound.mode auto: the winner's
+        bound = bound.candidates[verification["auto_selection"]["winner"]]
     return NoiseModelResult(sensor=sensor, spec_name=spec_sheet.name, bound=bound.result, fit=ident.fit,
                             selection=ident.selection, kf=kf, allan=allan, spectra=spectra, record_rate_hz=rate,
                             decimate_hz=float(decimate_hz), kf_dt_s=kf_dt, selected=ident.selected,
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
                             verification=verification, contract=contract,
-                            records={"identify": ident.record, "bound": bound.record, "verify": verification,
+                            records={"identify": ident.record, "bound": bound_record, "verify": verification,
                                      "contract": contract})
 
 

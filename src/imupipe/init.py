@@ -311,4 +311,8 @@ application:
   # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/outage not below the lowest PSD
   # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
   outage_s: {s.outage_s!r}
+bound:
+  # auto: every mode's bound (raw, smoothed, confidence, pooled) verified, the tightest that passes every check
+  # exported (imupipe.bound.auto; the paper's default run keeps raw)
+  mode: auto
 """

@@ -784,6 +784,23 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
     return head.rstrip() + "\n\n" + DETAILS_HEADING + "\n\n" + details.rstrip() + "\n"
 
 
+def auto_selection_lines(contract: Mapping) -> list[str]:
+    """bound.mode auto: the candidates' table (bounded, failed checks, mean P/MSE over the outage against the upper
+    envelope, worst outage MSE/P of any check) and why the winner won, from the contract's ``auto_selection``
+    (:mod:`imupipe.bound.auto`); empty otherwise."""
+    sel = contract.get("auto_selection")
+    if not isinstance(sel, Mapping) or not sel.get("candidates"):
+        return []
+    out = ["", f"- bound mode auto: exported **{sel.get('winner')}**: {sel.get('reason', '-')}", "",
+           "| candidate | bounded | failed checks | mean P/MSE vs envelope (outage) | worst MSE/P (outage, any check) |",
+           "|---|---|---|---|---|"]
+    for r in sel["candidates"]:
+        out.append(f"| {r.get('mode')}{' (exported)' if r.get('mode') == sel.get('winner') else ''} | "
+                   f"{'yes' if r.get('bounded') else 'NO'} | {', '.join(r.get('failed_checks') or []) or '-'} | "
+                   f"{_num(r.get('criterion_mean_conservatism'))} | {_num(r.get('worst_outage_ratio_any_check'))} |")
+    return out + [""]
+
+
 def _per_axis_lines(bound: Mapping) -> list[str]:
     """The details' per-axis table (when the pooling test says the axes differ) and each axis's in-band line."""
     from imupipe.inband import inband_line
@@ -927,6 +944,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
             lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "
                          f"{_num(band[1])} s")
         lines += _per_axis_lines(bound)
+        lines += auto_selection_lines(bound)
         sel = identify.get("selection") or {}
         kept = sel.get("kept") or bound.get("states_kept_by_identification")
         lines += _export_lines({"sensor": sensor, **bound}, kept)

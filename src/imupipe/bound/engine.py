@@ -18,7 +18,7 @@ from imupipe.bound.report import (  # noqa: F401
 #: Components a bound may hold (Kalman-filter states; flicker is represented by a GM).
 BOUND_COMPONENTS = ("white", "gauss_markov", "random_walk")
 #: How the sample PSDs enter the constraints.
-MODES = ("raw", "smoothed", "confidence")
+MODES = ("raw", "smoothed", "confidence", "pooled")
 
 _EPS_BOUND = 1e-9  # a margin >= 1 - _EPS_BOUND counts as bounded
 #: Low-frequency band merging of the confidence mode (degrees of freedom per band).
@@ -275,8 +275,51 @@ def _exclude_mask(f, exclude):
     return mask
 
 
+def _pool(raw, nu, groups):
+    r"""The ``pooled`` mode's curves: per group of curves (`groups`: one key per curve), the edf-weighted mean
+    periodogram :math:`\bar S = \sum_c \nu_c \hat S_c / \sum_c \nu_c` and its degrees of freedom
+    :math:`\sum_c \nu_c` (exact for independent curves of one true PSD: a sum of independent scaled
+    :math:`\chi^2_{\nu_c} S/\nu_c` terms has mean S and variance :math:`2S^2/\sum_c\nu_c`). Returns
+    (pooled (G, F), edf (G, F), group labels)."""
+    keys = list(dict.fromkeys(groups))
+    g = np.array([keys.index(k) for k in groups])
+    pooled = np.stack([(nu[g == j] * raw[g == j]).sum(axis=0) for j in range(len(keys))])
+    nus = np.stack([nu[g == j].sum(axis=0) for j in range(len(keys))])
+    return pooled / nus, nus, [f"pooled {k} ({int(np.sum(g == j))} curves)" for j, k in enumerate(keys)]
+
+
+def detrend_bias(taper, k, detrend: str = "constant", nperseg: int = 4096) -> np.ndarray:
+    r"""Mean of a tapered, detrended periodogram ordinate at bin `k` (k cycles per window) over the true PSD, for a
+    flat (white) PSD: with the taper :math:`w`, :math:`a_k = w\,e^{2\pi i k n/N}` and :math:`P` the projection
+    off the detrend basis (``constant``: 1; ``linear``: 1 and n; ``none``: nothing),
+
+    .. math:: b_k = \lVert P a_k \rVert^2 / \lVert w \rVert^2 .
+
+    Hann with a constant detrend: :math:`b_1 = 1 - |W(1)|^2/(N\lVert w\rVert^2) = 1 - (N/4)^2/(N \cdot 3N/8) =
+    5/6`, :math:`b_k = 1` for k >= 2. The detrend removes the part of the lowest ordinates that lies along its
+    basis, so their expectation falls below the PSD; a limit on the pooled estimate (whose edf is large) must
+    divide by :math:`b_k` (:func:`_prepare`, ``pooled`` mode). Evaluated at N = `nperseg` (the cosine-sum tapers'
+    :math:`b_k` change by O(1/N))."""
+    from imupipe.spectra import get_taper
+
+    w = np.ones(nperseg) if taper is None else np.asarray(get_taper(taper, nperseg), dtype=np.float64)
+    n = np.arange(nperseg)
+    if detrend == "constant":
+        Q = np.ones((nperseg, 1)) / math.sqrt(nperseg)
+    elif detrend == "linear":
+        Q, _ = np.linalg.qr(np.column_stack([np.ones(nperseg), n]))
+    elif detrend in ("none", None):
+        Q = np.zeros((nperseg, 0))
+    else:
+        raise ValueError(f"detrend: expected 'constant', 'linear' or 'none', got {detrend!r}")
+    k = np.atleast_1d(np.asarray(k, dtype=np.float64))
+    a = w[None, :] * np.exp(2j * np.pi * np.outer(k, n) / nperseg)
+    pa = a - (a @ Q) @ Q.T
+    return np.sum(np.abs(pa) ** 2, axis=1) / np.sum(w * w)
+
+
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-             n_tests=None, exclude=()):
+             n_tests=None, exclude=(), pool_groups=None, detrend="constant"):
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     f_all = np.asarray(frequency, dtype=np.float64)
@@ -293,10 +336,38 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
     if np.any(nu <= 0):
         raise ValueError("edf must be positive")
     details = {}
-    if mode == "raw" or (mode == "confidence" and bands_per_decade is None):
+    target_labels = labels
+    if mode == "pooled":  # the curves' periodograms pooled (per group) before the limit: docs/method.md
+        if pool_groups is None:
+            pool_groups = ["all"] * raw.shape[0]
+        if len(pool_groups) != raw.shape[0]:
+            raise ValueError(f"pool_groups: expected one group per curve ({raw.shape[0]}), got {len(pool_groups)}")
+        # the lowest ordinate (one cycle per window) is left to the all-frequency rows (the identified upper
+        # envelope and the spec sheet, as below it): the detrend takes from it a part that depends on the PSD's
+        # shape inside the lowest bin (detrend_bias is the flat PSD's: a red PSD loses more), which a pooled
+        # limit with its large edf would not absorb
+        k = np.rint(f / f[0]).astype(np.int64)
+        on_grid = f.size > 2 and np.allclose(k, f / f[0], rtol=0, atol=1e-6)
+        if on_grid:
+            f, raw, nu, k = f[1:], raw[:, 1:], nu[:, 1:], k[1:]
+            details.update(pooled_dropped_lowest_bin_hz=float(f_all[keep][0]))
+        pooled, nu, target_labels = _pool(raw, nu, list(pool_groups))
+        # the next ordinates' detrend bias for a flat PSD (detrend_bias; 1 for Hann and a constant detrend):
+        # divided out
+        if on_grid:
+            low = k <= 4
+            b = detrend_bias(taper if isinstance(taper, str) or taper is None else np.asarray(taper), k[low],
+                             detrend, nperseg=4096 if isinstance(taper, str) or taper is None else len(taper))
+            pooled = pooled.copy()
+            pooled[:, low] /= np.maximum(b, 1e-3)[None, :]
+            details.update(detrend_bias={int(kk): float(bb) for kk, bb in zip(k[low], b)})
+        details.update(pooled_groups=target_labels)
+    else:
+        pooled = raw
+    if mode == "raw" or (mode in ("confidence", "pooled") and bands_per_decade is None):
         starts = counts = None
         f_rows = f
-        targets = raw
+        targets = pooled
         rows_edf = nu
     else:
         if bands_per_decade is None or int(bands_per_decade) < 1:
@@ -304,7 +375,7 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         starts, counts, rows_edf = _band_groups(f, int(bands_per_decade), nu, taper, min_edf,
                                                 split=_exclude_mask(f, exclude))
         f_rows = _group_mean(f, starts, counts)
-        targets = _group_mean(raw, starts, counts)
+        targets = _group_mean(pooled, starts, counts)
         rows_edf = np.broadcast_to(rows_edf, targets.shape)
         details.update(n_bands=int(starts.size), bands_per_decade=int(bands_per_decade),
                        min_edf=None if min_edf is None else float(min_edf))
@@ -314,6 +385,14 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         n = int(targets.size) if n_tests is None else int(n_tests)
         targets = chi2_upper(targets, rows_edf, confidence=confidence, n_tests=n, correction="bonferroni")
         details.update(confidence=float(confidence), n_tests=n, correction="bonferroni")
+    if mode == "pooled":
+        from imupipe.spectra import chi2_upper
+
+        n = int(targets.size) if n_tests is None else int(n_tests)
+        targets = chi2_upper(targets, rows_edf, confidence=confidence, n_tests=n, correction="sidak")
+        details.update(confidence=float(confidence), n_tests=n, correction="sidak")
+    if mode == "pooled":
+        details["target_labels"] = list(target_labels)  # the pooled groups the rows belong to (margin_curve)
     details["rows_edf_min"] = float(np.min(rows_edf))
     spec = spec_rows = None
     if spec_model is not None:
@@ -626,7 +705,8 @@ def _evaluate(prob, model):
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(prob.targets > 0, mr[None, :] / prob.targets, np.inf)
     c, r = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
-    out.update(margin=float(ratio[c, r]), margin_curve=prob.labels[c], margin_frequency=float(prob.f_rows[r]))
+    tl = prob.details.get("target_labels") or prob.labels
+    out.update(margin=float(ratio[c, r]), margin_curve=tl[c], margin_frequency=float(prob.f_rows[r]))
     with np.errstate(divide="ignore", invalid="ignore"):
         rraw = np.where(prob.raw > 0, mb[None, :] / prob.raw, np.inf)
     c, i = np.unravel_index(int(np.argmin(rraw)), rraw.shape)
@@ -808,6 +888,8 @@ def bound_psd(
     exclude=(),
     narrowband=(),
     upper_band: str = "all",
+    pool_groups=None,
+    detrend: str = "constant",
 ) -> BoundResult:
     r"""Tightest white + GM + random-walk model whose PSD bounds sample PSDs and a spec sheet.
 
@@ -844,7 +926,7 @@ def bound_psd(
         Spec-sheet model (SI); the bound must dominate its PSD at every bin.
     dt : float, optional
         Sample interval of the (block-averaged) data, s; compares with ``psd_sampled``.
-    mode : {"raw", "smoothed", "confidence"}, optional
+    mode : {"raw", "smoothed", "confidence", "pooled"}, optional
         How the sample PSDs enter (module docstring). Default ``"raw"`` (paper).
     n_gm : int, optional
         Number of GM terms (0 allowed). Default 1.
@@ -853,7 +935,7 @@ def bound_psd(
         per decade spanning the frequency grid's corner
         frequencies :math:`1/(2\pi T)`, with half a decade below and one above.
     confidence : float, optional
-        Family-wise level of the ``confidence`` mode. Default 0.95.
+        Family-wise level of the ``confidence`` and ``pooled`` modes. Default 0.95.
     bands_per_decade : int or None, optional
         Log bands for ``smoothed`` and ``confidence`` modes (None in ``confidence`` mode: per
         ordinate). Default 10.
@@ -876,10 +958,18 @@ def bound_psd(
     add_threshold : float, optional
         Relative looseness gain required to add a component the spec lacks. Default 0.05.
     n_tests : int, optional
-        Multiplicity of the confidence mode. Default: number of (curve, band) pairs.
+        Multiplicity of the confidence and pooled modes. Default: number of (curve, band) pairs (pooled: of
+        (group, band) pairs).
     span_s : float, optional
         Fix period plus outage, s: below the lowest bin the bound holds down to 0.01/span_s (module docstring,
         "all-frequency bound"). Default None: down to a hundredth of the lowest bin.
+    pool_groups : sequence, optional
+        ``pooled`` mode: one key per curve (e.g. its axis); the curves of one key are pooled (:func:`_pool`)
+        and the limit is taken per group and band, Sidak-corrected over all of them. Default None: one group.
+        Pool only curves that share one true PSD (the identification's pooling test; else group by axis).
+    detrend : {"constant", "linear", "none"}, optional
+        ``pooled`` mode: the periodograms' detrend, whose bias of the lowest ordinates (:func:`detrend_bias`)
+        the pooled estimate divides out. Default ``"constant"`` (the workflow's ``psd.detrend``).
 
     Returns
     -------
@@ -894,9 +984,9 @@ def bound_psd(
     if isinstance(min_edf, str):
         if min_edf != "auto":
             raise ValueError(f"min_edf must be a number, None or 'auto', got {min_edf!r}")
-        min_edf = DEFAULT_MIN_EDF if mode == "confidence" else None
+        min_edf = DEFAULT_MIN_EDF if mode in ("confidence", "pooled") else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-                    n_tests, exclude=exclude)
+                    n_tests, exclude=exclude, pool_groups=pool_groups, detrend=detrend)
     allf = _setup_all_frequency(prob, spec_model, upper_model, span_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     prob.narrowband = _narrowband_of(narrowband)

@@ -57,6 +57,31 @@ class BoundStage:
     result: Any
     upper: Any
     policy: Any
+    candidates: Any = None  # bound.mode auto: mode -> BoundStage of that candidate
+
+
+def _auto(frequency, psd, edf, spec_model, identified, settings) -> BoundStage:
+    """``bound.mode: auto`` (:mod:`imupipe.bound.auto`): one candidate per mode of
+    :data:`imupipe.bound.auto.AUTO_MODES`, each the bound file entry of :func:`bound_sensor` in that mode; the
+    verification verifies each and selects the exported one. The file's top-level fields are the ``raw``
+    candidate's (the paper's; what the figures and tables of the bound show), ``mode`` is ``auto`` and
+    ``candidates`` holds every candidate's entry."""
+    from imupipe.bound.auto import AUTO_MODES
+
+    cands = {}
+    for m in AUTO_MODES:
+        kw = dict(settings, mode=m)
+        if m != "raw":
+            kw["compare_paper"] = False  # the paper's hand inflation once, beside the raw candidate
+        cands[m] = bound_sensor(frequency, psd, edf, spec_model, identified, **kw)
+    top = cands["raw"]
+    record = dict(top.record)
+    record["mode"] = "auto"
+    record["candidates"] = {m: {k: v for k, v in c.record.items() if k != "candidates"} for m, c in cands.items()}
+    record["auto_note"] = ("bound.mode auto: one candidate per mode (candidates); the verification verifies each and "
+                           "exports the tightest that passes every check (verify file: auto_selection); the "
+                           "top-level fields are the raw candidate's")
+    return BoundStage(record=record, result=top.result, upper=top.upper, policy=top.policy, candidates=cands)
 
 
 def phase_ends(history):
@@ -108,6 +133,12 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     spec_units, spec_name, spec_file :
         The spec sheet's display units (:func:`imupipe.specsheet.display_units`), name and file name.
     """
+    if mode == "auto":
+        return _auto(frequency, psd, edf, spec_model, identified, dict(
+            dt=dt, sensor=sensor, n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, span_s=span_s,
+            filter_rate_hz=filter_rate_hz, taper=taper, allan=allan, lines=lines, line_policy=line_policy,
+            application_band_hz=application_band_hz, axis_bounds=axis_bounds, compare_paper=compare_paper,
+            spec_units=spec_units, spec_name=spec_name, spec_file=spec_file))
     from imupipe.bound import (bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
                                upper_envelope_from_identification)
     from imupipe.io import plain
@@ -121,9 +152,12 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     upper = upper_envelope_from_identification(identified)
     lines = dict(lines or {})
     pol = line_policy_from_files(lines, dt, f, line_policy, application_band_hz)
+    pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
+    # pooled mode: the curves share one true PSD where the identification's pooling test accepts it; else per axis
+    pool_groups = None if pooled else [_axis_of(k) for k in curves]
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(list(edf_of.values())), keep=kept,
-                       taper=taper, span_s=span_s, upper_model=upper,
+                       taper=taper, span_s=span_s, upper_model=upper, pool_groups=pool_groups,
                        **(pol.bound_kwargs() if pol is not None else {}))
     logging.info("bound %s: margin %.4g (%s), all-frequency margin %.4g, looseness %.4g, %d LPs in %.3g s",
                  result.model, result.margin, result.margin_curve, result.allf_margin, result.looseness,
@@ -151,7 +185,6 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
         out["allan_check"] = plain(checked)
         out["allan_check_passed"] = bool(checked["passed"])
     # per-axis models where the pooling test says the axes differ (docs/method.md, "Per-axis models")
-    pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
     axes_fit = identified.get("per_axis") or {}
     out["per_axis_models"] = None
     if not pooled and axes_fit:
@@ -220,6 +253,8 @@ def axis_bound_stage(frequency, psd, edf, label: str, spec_model, identified: di
     from imupipe.lines import line_policy_from_files
 
     f = np.asarray(frequency, dtype=np.float64)
+    if mode == "auto":
+        mode = "raw"  # an axis's own bound is reported, never exported: the paper's mode (auto selects globally)
     pol = line_policy_from_files(dict(lines or {}), dt, f, line_policy, application_band_hz)
     result = bound_psd(f, {label: np.asarray(psd)}, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=edf, taper=taper, keep=identified["selection"]["kept"],

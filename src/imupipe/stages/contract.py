@@ -20,7 +20,7 @@ import logging
 import sys
 from types import SimpleNamespace
 
-__all__ = ["HEADER", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
+__all__ = ["HEADER", "candidate_contract", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
 
 #: Header of the contract file (what its fields mean, units).
 HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
@@ -39,7 +39,10 @@ inband_inflation: the effective in-band inflation of the exported model against 
 band [1/horizon_s, filter_rate_hz/2] Hz (imupipe.inband.inband_inflation): sqrt(S_model/S_spec) (vs_spec_psd) and
 sqrt(S_model)/N_spec (vs_spec_white), median, max, max_frequency_hz, min (dimensionless amplitude ratios), two-sided
 PSDs as sampled at the reference filter's interval, and each component with what it acts as in band (components:
-acts_as; corner_hz Hz, as_N u/sqrt(Hz), as_K u/sqrt(s)); per_axis_models carry the same of each axis's model."""
+acts_as; corner_hz Hz, as_N u/sqrt(Hz), as_K u/sqrt(s)); per_axis_models carry the same of each axis's model.
+auto_selection (bound.mode auto only): the exported candidate (winner), why, the criterion and each candidate's
+bounded, failed checks, mean P/MSE against the envelope and worst outage MSE/P; the rest of this file is the
+winner's contract (mode: auto (winner))."""
 
 
 def _bound_view(b: dict):
@@ -53,6 +56,19 @@ def _bound_view(b: dict):
                            spec_margin_frequency=b.get("spec_margin_frequency_hz"),
                            allf_margin=num(b.get("all_frequency_margin"), float("inf")),
                            allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
+
+
+def candidate_contract(bound: dict, report: dict) -> dict:
+    """The contract checks of one candidate of ``bound.mode: auto`` (:mod:`imupipe.bound.auto`):
+    :func:`imupipe.verify.integrity_contract` on its bound file entry `bound` and its verification report `report`
+    (PSD margin, spec over all frequencies, Allan check, the identification's intervals, every verification check
+    of its exported model). The export-rate check is the contract's own, the same for every candidate."""
+    from imupipe.verify import integrity_contract
+
+    ver = report["exported"]["verification"]
+    return integrity_contract(_bound_view(bound), bound.get("allan_check"),
+                              {"reference filter": ver} if ver.get("checks") else None,
+                              intervals=bound.get("identification_intervals"))
 
 
 def _checks(bound: dict, exported: dict | None, reduction: dict | None, spec, sensor: str,
@@ -107,6 +123,9 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     from imupipe.kf import inflation_scope
 
     ver = verification
+    sel = ver.get("auto_selection")
+    if sel and bound.get("candidates"):  # bound.mode auto: the contract is the selected candidate's
+        bound = dict(bound["candidates"][sel["winner"]], mode=f"auto ({sel['winner']})")
     exported = ver["exported"]
     band = application_band(outage_s, filter_rate_hz) if outage_s and filter_rate_hz else None
     c, in_spec_units, note, scope = _checks(bound, exported, ver.get("reduction"), spec, sensor, kf_rate_hz)
@@ -142,6 +161,12 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     }
     if note:
         out["unit_note"] = note
+    if sel:
+        out["auto_selection"] = {"winner": sel["winner"], "reason": sel["reason"], "criterion": sel["criterion"],
+                                 "candidates": [{k: r[k] for k in ("mode", "bounded", "failed_checks",
+                                                                   "criterion_mean_conservatism",
+                                                                   "worst_outage_ratio_any_check")}
+                                                for r in sel["candidates"]]}
     # what the whole exported model does in the application band against the spec sheet (imupipe.inband)
     out["inband_inflation"] = inband(exported, spec, sensor, band)
     out["per_axis_models"] = per_axis_contracts(bound, ver, spec, sensor, kf_rate_hz, band)

@@ -28,7 +28,10 @@ worst_outage_ratio: the largest MSE/P after the fixes end (the informative numbe
 worst_ratio at worst_t_s: the same over the whole run (fixes included); mean_conservatism: mean P/MSE
 over the outage. exported: the model the KF file carries (the bound's, or its reduction when every check passes).
 per_axis_models: the same per axis (each against that axis's envelope, the spec sheet and that axis's records), when
-the bound file has per-axis models; null otherwise."""
+the bound file has per-axis models; null otherwise.
+auto_selection (bound.mode auto only): every candidate mode verified the same way; criterion, winner, reason and per
+candidate bounded, failed_checks, criterion_mean_conservatism (mean P/MSE over the outage against the upper
+envelope), worst outage MSE/P of every check; the rest of this file is the winner's verification."""
 
 
 def model_of(b: dict):
@@ -75,6 +78,11 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
 
     refuse_keywords(earlier, "verify_sensor", rate_hz="record_rate_hz", horizon_s="outage_s")
     records = {k: np.asarray(v, dtype=np.float64) for k, v in (records or {}).items()}
+    if bound.get("candidates"):  # bound.mode auto: verify every candidate, export the selected one
+        return _verify_auto(bound, sensor, dict(
+            spec=spec, records=records, record_rate_hz=record_rate_hz, truth=truth, turn_on_bias=turn_on_bias,
+            fix_s=fix_s, outage_s=outage_s, sigma_fix=sigma_fix, filter_rate_hz=filter_rate_hz, reduce=reduce,
+            replay_z=replay_z, max_bias_time_s=max_bias_time_s, fix_rate_hz=fix_rate_hz))
     kw = dict(spec=spec, truth=truth, record_rate_hz=record_rate_hz, fix_s=fix_s, outage_s=outage_s,
               sigma_fix=sigma_fix,
               filter_rate_hz=filter_rate_hz, reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
@@ -101,6 +109,24 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
                      c["worst_ratio"], c["worst_t_s"], c["worst_outage_ratio"], c.get("worst_outage_t_s"),
                      c["mean_conservatism"], "pass" if c["passed"] else "FAIL")
     return report, checks
+
+
+def _verify_auto(bound: dict, sensor: str, settings: dict):
+    """``bound.mode: auto`` (:mod:`imupipe.bound.auto`): :func:`verify_sensor` of every candidate of the bound
+    file, each with the same settings (the configured filter rate), and :func:`imupipe.bound.auto.select`. The
+    report is the winner's, with ``auto_selection`` (criterion, winner, reason, each candidate's bounded, failed
+    checks, worst outage MSE/P and mean P/MSE per check); the series are the winner's."""
+    from imupipe.bound.auto import select
+    from imupipe.stages.contract import candidate_contract
+
+    reports, series = {}, {}
+    for m, cand in bound["candidates"].items():
+        reports[m], series[m] = verify_sensor(cand, sensor, **settings)
+    sel = select(bound["candidates"], reports, candidate_contract)
+    logging.info("auto bound: %s", sel["reason"])
+    report = dict(reports[sel["winner"]])
+    report["auto_selection"] = sel
+    return report, series[sel["winner"]]
 
 
 def verify_stage(bound: dict, sensor: str, **settings) -> dict:

@@ -1,0 +1,92 @@
+r"""``bound.mode: auto``: every mode's bound is a candidate, each is verified, the tightest that passes every check
+is exported (docs/method.md, "The auto bound").
+
+The bound stage computes one candidate per mode of :data:`AUTO_MODES` (:func:`imupipe.stages.bound.bound_sensor`),
+the verification stage verifies each the same way (:func:`imupipe.stages.verify.verify_sensor`: the reference
+filter against the identified upper envelope, the spec sheet, the slow bias, the truth where known, and the replay of
+the records) and :func:`select` picks the exported one:
+
+* **passes**: the candidate's contract would be ``bounded`` (:func:`imupipe.stages.contract.candidate_contract`:
+  :func:`imupipe.verify.integrity_contract` on its bound file entry and its verification: PSD margin, spec over all
+  frequencies, Allan check, the identification's intervals, every verification check of its exported model);
+* **criterion**: of the passing candidates, the smallest mean conservatism :math:`\overline{P/\mathrm{MSE}}` over
+  the outage of the exported model's check against the upper envelope (``upper_envelope``'s
+  ``mean_conservatism``: P the filter's variance, MSE the true error variance when the envelope is the truth;
+  dimensionless, >= 1 for a model that bounds the envelope everywhere in the outage). Ties (within 1e-9
+  relative) go to the earlier mode of :data:`AUTO_MODES`;
+* **none passes**: the candidate with the smallest worst outage MSE/P against the envelope is exported, marked not
+  bounded by its contract (the contract's ``failed_checks`` say why).
+
+The envelope is the criterion's reference because it is what every run has (the truth only where simulated) and is
+what the bound must cover below the lowest PSD bin; the spec sheet is a floor, not an estimate of the sensor.
+"""
+
+from __future__ import annotations
+
+import math
+__all__ = ["AUTO_MODES", "CRITERION", "candidate_row", "select"]
+
+#: The candidates of ``bound.mode: auto``, in tie-break order (the paper's first).
+AUTO_MODES = ("raw", "smoothed", "confidence", "pooled")
+
+#: The stated criterion (written into the verification file).
+CRITERION = ("the passing candidate (its contract bounded: PSD margin, spec over all frequencies, Allan check and "
+             "every verification check of its exported model) with the smallest mean P/MSE over the outage of its "
+             "exported model against the identified upper envelope; none passing: the smallest worst outage MSE/P "
+             "against the envelope, marked not bounded")
+
+_ENVELOPE = "upper_envelope"
+
+
+def candidate_row(mode: str, bound: dict, report: dict, contract_of) -> dict:
+    """What the verification file and the summary show of one candidate: bounded, failed checks, per check the
+    worst outage MSE/P and mean P/MSE of its exported model, the criterion's value, the bound's inflation.
+    `contract_of(bound, report)` is the candidate's contract (``bounded``, ``failed_checks``:
+    :func:`imupipe.stages.contract.candidate_contract`)."""
+    c = contract_of(bound, report)
+    checks = report["exported"]["verification"].get("checks", {})
+    env = checks.get(_ENVELOPE, {})
+    per = {name: {"worst_outage_ratio": ch.get("worst_outage_ratio"), "mean_conservatism": ch.get("mean_conservatism"),
+                  "passed": ch.get("passed")} for name, ch in checks.items()}
+    worst = max((v["worst_outage_ratio"] for v in per.values() if v["worst_outage_ratio"] is not None),
+                default=None)
+    failed = [" ".join(str(x) for x in (f["check"], f.get("against") or f.get("component") or "") if x)
+              for f in c["failed_checks"]]
+    return {"mode": mode, "bounded": bool(c["bounded"]), "failed_checks": failed,
+            "criterion_mean_conservatism": env.get("mean_conservatism"),
+            "envelope_worst_outage_ratio": env.get("worst_outage_ratio"), "worst_outage_ratio_any_check": worst,
+            "model_reduced": bool(report["exported"].get("reduced")), "inflation": bound.get("inflation"),
+            "checks": per}
+
+
+def _finite(x, default):
+    return float(x) if x is not None and math.isfinite(float(x)) else default
+
+
+def select(candidates: dict, reports: dict, contract_of) -> dict:
+    """The selection of ``bound.mode: auto`` (module docstring): `candidates` mode -> bound file entry, `reports`
+    mode -> its verification report, `contract_of` as :func:`candidate_row`'s. Returns ``{criterion, winner, bounded, reason, candidates: [row, ...]}``
+    (:func:`candidate_row` per mode, in :data:`AUTO_MODES` order)."""
+    order = [m for m in AUTO_MODES if m in candidates] + [m for m in candidates if m not in AUTO_MODES]
+    if not order:
+        raise ValueError("auto bound: no candidate (the bound file has an empty 'candidates')")
+    rows = [candidate_row(m, candidates[m], reports[m], contract_of) for m in order]
+    ok = [r for r in rows if r["bounded"]]
+    if ok:
+        best = min(ok, key=lambda r: _finite(r["criterion_mean_conservatism"], math.inf))
+        val = _finite(best["criterion_mean_conservatism"], math.inf)
+        best = next(r for r in ok if _finite(r["criterion_mean_conservatism"], math.inf) <= val * (1 + 1e-9))
+        others = ", ".join(f"{r['mode']} {r['criterion_mean_conservatism']:.3g}" for r in ok if r is not best)
+        failed = ", ".join(f"{r['mode']} ({'; '.join(r['failed_checks']) or 'no verification'})"
+                           for r in rows if not r["bounded"])
+        reason = (f"{best['mode']}: bounded and the tightest passing candidate, mean P/MSE {val:.3g} over the outage "
+                  f"against the upper envelope" + (f" (other passing: {others})" if others else "")
+                  + (f"; not passing: {failed}" if failed else ""))
+        bounded = True
+    else:
+        best = min(rows, key=lambda r: _finite(r["envelope_worst_outage_ratio"], math.inf))
+        reason = (f"no candidate passes every check; {best['mode']} exported (the smallest worst outage MSE/P "
+                  f"against the envelope, {best['envelope_worst_outage_ratio']}), NOT BOUNDED: "
+                  + "; ".join(f"{r['mode']}: {', '.join(r['failed_checks'])}" for r in rows))
+        bounded = False
+    return {"criterion": CRITERION, "winner": best["mode"], "bounded": bounded, "reason": reason, "candidates": rows}

@@ -1,0 +1,174 @@
+"""bound.mode auto (imupipe.bound.auto) and the pooled mode's family-wise limit (imupipe.bound.engine, docs/method.md
+"The auto bound"): the detrend bias in closed form, the pooled limit's coverage by simulation against the nominal
+level (binomial 95 % range), its tightening with more curves, the selection rule on hand-made candidates, and the
+one-call pipeline with mode auto end to end (every candidate verified, the winner exported)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import binom
+
+from imupipe.bound.auto import AUTO_MODES
+from imupipe.bound.auto import select as _select
+from imupipe.bound.engine import _prepare, detrend_bias
+from imupipe.models import NoiseModel
+from imupipe.spectra import psd
+
+
+def test_detrend_bias_closed_form():
+    # Hann, constant detrend: b_1 = 1 - (N/4)^2 / (N * 3N/8) = 5/6, b_k = 1 for k >= 2 (W(k) = 0 there)
+    b = detrend_bias("hann", [1, 2, 3])
+    assert b[0] == pytest.approx(5.0 / 6.0, rel=1e-3)  # O(1/N) at N = 4096
+    assert b[1:] == pytest.approx(1.0, abs=1e-9)
+    assert detrend_bias("hann", [1, 2], "none") == pytest.approx(1.0)
+    # a linear detrend takes more from the lowest ordinates than a constant one
+    assert np.all(detrend_bias("hann", [1, 2], "linear") < detrend_bias("hann", [1, 2]) + 1e-12)
+
+
+def _coverage(truth, n_curves, n_rep, seed, mode="pooled"):
+    """Fraction of replicates whose limits (mode's targets) lie above the true band-averaged sampled PSD at every
+    row; and the mean over replicates of the rows' mean envelope/true ratio. 4 h at 1 Hz, 1800 s Hann windows
+    with 50 % overlap, 10 bands per decade, min_edf 30 (the defaults' shape at a smaller scale)."""
+    from imupipe.simulate import simulate
+
+    rng = np.random.default_rng(seed)
+    n = 4 * 3600
+    hits, fac = 0, []
+    for _ in range(n_rep):
+        X = np.asarray(simulate(truth, n, 1.0, rng=rng, n_records=n_curves)).reshape(n_curves, n)
+        sp = [psd(X[c], 1.0, window_s=1800.0, step_s=900.0) for c in range(n_curves)]
+        f = sp[0]["frequency"].values
+        prob = _prepare(f, np.array([s["psd"].values for s in sp]), None, 1.0, mode, 0.95, 10,
+                        np.array([s["edf"].values for s in sp]), "hann", 30.0)
+        true_rows = prob.to_rows(np.asarray(truth.psd_sampled(prob.f, 1.0)))
+        hits += bool(np.all(prob.targets >= true_rows[None, :]))
+        fac.append(float(np.mean(prob.targets.max(axis=0) / true_rows)))
+    return hits / n_rep, float(np.mean(fac))
+
+
+@pytest.mark.parametrize("kind,truth", [
+    ("white", NoiseModel(white=1.0)),
+    ("red", NoiseModel(white=1.0, gauss_markov=((0.5, 300.0),), random_walk=0.003)),
+])
+def test_pooled_limit_coverage_is_nominal(kind, truth):
+    # Sidak over (group, band) pairs of nearly independent band averages: the family-wise coverage is the nominal
+    # 0.95 to within the simulation's own binomial 95 % range (400 replicates: [0.9275, 0.97])
+    n_rep = 400
+    cov, _ = _coverage(truth, 5, n_rep, seed=2718)
+    lo, hi = binom.ppf(0.025, n_rep, 0.95) / n_rep, binom.ppf(0.975, n_rep, 0.95) / n_rep
+    assert lo <= cov <= hi, (kind, cov, lo, hi)
+
+
+def test_pooled_limit_tightens_with_more_curves_and_beats_bonferroni():
+    # the pooled limit's factor nu / chi2_nu(q) falls towards 1 as nu = sum of the curves' edf grows; the per-curve
+    # Bonferroni limit's envelope (max over curves) does not
+    truth = NoiseModel(white=1.0)
+    _, one = _coverage(truth, 1, 30, seed=5)
+    _, five = _coverage(truth, 5, 30, seed=6)
+    _, bonf = _coverage(truth, 5, 30, seed=6, mode="confidence")
+    assert five < one
+    assert five < bonf
+    assert five > 1.0  # still a limit above the truth on average
+
+
+def _cand(margin=1.5, allan=True):
+    return {"margin": margin, "margin_curve": "d0/x", "margin_frequency_hz": 0.01, "spec_margin": 2.0,
+            "all_frequency_margin": 1.1, "allan_check_passed": allan,
+            "allan_check": {"passed": allan, "total": {"passed": allan, "worst_ratio": 1.0 if allan else 0.8,
+                                                       "curve": "d0/x", "tau_s": 100.0}},
+            "identification_intervals": {"n_boot": 100, "confidence": 0.9}, "inflation": {"white": 1.0}}
+
+
+def _rep(cons, worst, passed=True):
+    ch = {"upper_envelope": {"worst_outage_ratio": worst, "mean_conservatism": cons, "passed": passed,
+                             "worst_ratio": worst, "worst_t_s": 10.0, "tolerance": 1e-6,
+                             "first_exceed_s": None if passed else 10.0},
+          "spec": {"worst_outage_ratio": 0.5, "mean_conservatism": 3.0, "passed": True, "worst_ratio": 0.5,
+                   "worst_t_s": 10.0, "tolerance": 1e-6, "first_exceed_s": None}}
+    return {"exported": {"verification": {"checks": ch, "passed": all(c["passed"] for c in ch.values())},
+                         "reduced": False}}
+
+
+def select(cands, reps):
+    from imupipe.stages.contract import candidate_contract
+
+    return _select(cands, reps, candidate_contract)
+
+
+def test_select_the_tightest_passing_candidate():
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.5), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 1.2, passed=False),
+            "pooled": _rep(1.8, 0.9)}
+    sel = select(cands, reps)
+    assert sel["winner"] == "pooled" and sel["bounded"]  # confidence is tighter but fails its envelope check
+    rows = {r["mode"]: r for r in sel["candidates"]}
+    assert not rows["confidence"]["bounded"] and rows["pooled"]["criterion_mean_conservatism"] == 1.8
+    assert "pooled" in sel["reason"] and "confidence" in sel["reason"]
+    # a candidate whose PSD margin fails is not bounded either, however tight
+    cands["pooled"] = _cand(margin=0.9)
+    assert select(cands, reps)["winner"] == "smoothed"
+
+
+def test_select_none_passing_exports_the_safest_marked():
+    cands = {m: _cand(allan=False) for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.8), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 1.2), "pooled": _rep(1.8, 0.9)}
+    sel = select(cands, reps)
+    assert sel["winner"] == "smoothed" and not sel["bounded"]
+    assert "NOT BOUNDED" in sel["reason"]
+
+
+def test_select_ties_go_to_the_earlier_mode():
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {m: _rep(2.0, 0.5) for m in AUTO_MODES}
+    assert select(cands, reps)["winner"] == "raw"
+
+
+def test_noise_model_auto_end_to_end():
+    from imupipe.api import noise_model
+    from imupipe.simulate import simulate
+    from imupipe.specsheet import parse_spec
+
+    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 200.0),))
+    X = simulate(truth, 3 * 3600 * 5, 5.0, rng=np.random.default_rng(31), n_records=2)
+    spec = parse_spec({"name": "half", "accel": {
+        "white": {"value": 5e-5, "unit": "m/s^2/sqrt(Hz)"},
+        "gauss_markov": [{"sigma": {"value": 2.5e-5, "unit": "m/s^2"}, "T": {"value": 200.0, "unit": "s"}}]}})
+    res = noise_model({"a/x": X[0], "b/x": X[1]}, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
+                      truth=truth)
+    sel = res.verification["auto_selection"]
+    assert [r["mode"] for r in sel["candidates"]] == list(AUTO_MODES)
+    assert set(res.records["bound"]["candidates"]) == set(AUTO_MODES)
+    win = next(r for r in sel["candidates"] if r["mode"] == sel["winner"])
+    passing = [r["criterion_mean_conservatism"] for r in sel["candidates"] if r["bounded"]]
+    if passing:
+        assert win["bounded"] and win["criterion_mean_conservatism"] == min(passing)
+    # the contract, the KF file and the result's bound are the winner's
+    assert res.contract["mode"] == f"auto ({sel['winner']})"
+    assert res.contract["auto_selection"]["winner"] == sel["winner"]
+    assert res.bound.mode == sel["winner"]
+    # every candidate verified against the truth too (a check of each, simulated data)
+    assert all("truth" in r["checks"] for r in sel["candidates"])
+
+
+def test_init_writes_auto():
+    from imupipe.init import Settings, config_text
+
+    s = Settings(decimate_rate_hz=1.0, window_s=25200.0, step_s=12600.0, outage_s=3600.0, shortest_s=36000.0,
+                 unused={"a": 0.0})
+    import yaml
+
+    doc = yaml.safe_load(config_text("my", "sheet.tsv", "specs", "stim300", ["gyro"], s))
+    assert doc["bound"] == {"mode": "auto"}
+
+
+def test_summary_shows_the_candidates():
+    from imupipe.summary import auto_selection_lines
+
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.5), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 1.2, passed=False),
+            "pooled": _rep(1.8, 0.9)}
+    text = "\n".join(auto_selection_lines({"auto_selection": select(cands, reps)}))
+    assert "exported **pooled**" in text
+    assert "| pooled (exported) | yes |" in text and "| confidence | NO | verification upper_envelope |" in text
+    assert auto_selection_lines({}) == []
