@@ -95,17 +95,22 @@ def _flicker(rng, shape, B: float, dt: float) -> np.ndarray:
     state = rng.standard_normal(shape[:-1] + (p.size,)) @ (U * np.sqrt(np.clip(ev, 0.0, None))).T
     y = w * c
     rows = int(np.prod(shape[:-1], dtype=np.int64))
-    step = max(64, _FLICKER_CHUNK // max(rows, 1))
-    buf = np.empty(shape[:-1] + (min(step, n),))
-    for a in range(0, n, step):
-        b = min(n, a + step)
-        chunk = buf if b - a == buf.shape[-1] else np.empty(shape[:-1] + (b - a,))  # contiguous for the kernel
-        for i in range(p.size):
-            chunk[...] = w[..., a:b]
-            chunk[..., 0] += p[i] * state[..., i]
-            s = _ar1(chunk, p[i])  # in place with the kernel (chunk is contiguous)
-            state[..., i] = s[..., -1]
-            y[..., a:b] += res[i] * s
+    w2, y2, st2 = w.reshape(rows, n), y.reshape(rows, n), state.reshape(rows, p.size)
+    # blocks of whole records when a record fits a chunk (contiguous copies), else chunks of one record
+    n_rows, step = (max(1, _FLICKER_CHUNK // n), n) if n <= _FLICKER_CHUNK else (1, _FLICKER_CHUNK)
+    for r0 in range(0, rows, n_rows):
+        r1 = min(rows, r0 + n_rows)
+        for a in range(0, n, step):
+            b = min(n, a + step)
+            block = w2[r0:r1, a:b]
+            chunk, tmp = np.empty(block.shape), np.empty(block.shape)
+            for i in range(p.size):
+                chunk[...] = block
+                chunk[:, 0] += p[i] * st2[r0:r1, i]
+                s = _ar1(chunk, p[i])  # in place with the kernel (chunk is contiguous)
+                st2[r0:r1, i] = s[:, -1]
+                np.multiply(s, res[i], out=tmp)
+                y2[r0:r1, a:b] += tmp
     y *= B * gain
     return y
 
