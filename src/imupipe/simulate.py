@@ -89,11 +89,14 @@ def _flicker(rng, shape, B: float, dt: float) -> np.ndarray:
     n = shape[-1]
     p, res, c, gain = flicker_bank(n, dt)
     w = rng.standard_normal(shape)
-    # stationary states before the first sample: covariance C_ij = 1/(1 - p_i p_j) (unit white drive)
+    # each branch carries its factor: u_i = B gain res_i s_i, so u_i[k] = p_i u_i[k-1] + B gain res_i w[k]
+    scale = B * gain
+    weights = scale * res
+    # stationary states before the first sample: covariance C_ij = 1/(1 - p_i p_j) of s (unit white drive)
     cov = 1.0 / (1.0 - np.outer(p, p))
     ev, U = np.linalg.eigh(cov)
-    state = rng.standard_normal(shape[:-1] + (p.size,)) @ (U * np.sqrt(np.clip(ev, 0.0, None))).T
-    y = w * c
+    state = (rng.standard_normal(shape[:-1] + (p.size,)) @ (U * np.sqrt(np.clip(ev, 0.0, None))).T) * weights
+    y = w * (scale * c)
     rows = int(np.prod(shape[:-1], dtype=np.int64))
     w2, y2, st2 = w.reshape(rows, n), y.reshape(rows, n), state.reshape(rows, p.size)
     # blocks of whole records when a record fits a chunk (contiguous copies), else chunks of one record
@@ -103,15 +106,13 @@ def _flicker(rng, shape, B: float, dt: float) -> np.ndarray:
         for a in range(0, n, step):
             b = min(n, a + step)
             block = w2[r0:r1, a:b]
-            chunk, tmp = np.empty(block.shape), np.empty(block.shape)
+            chunk = np.empty(block.shape)
             for i in range(p.size):
-                chunk[...] = block
+                np.multiply(block, weights[i], out=chunk)
                 chunk[:, 0] += p[i] * st2[r0:r1, i]
-                s = _ar1(chunk, p[i])  # in place with the kernel (chunk is contiguous)
-                st2[r0:r1, i] = s[:, -1]
-                np.multiply(s, res[i], out=tmp)
-                y2[r0:r1, a:b] += tmp
-    y *= B * gain
+                u = _ar1(chunk, p[i])  # in place with the kernel (chunk is contiguous)
+                st2[r0:r1, i] = u[:, -1]
+                y2[r0:r1, a:b] += u
     return y
 
 
