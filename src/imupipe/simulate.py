@@ -29,7 +29,7 @@ try:  # optional compiled kernel; scipy.signal.lfilter does the same recursion
 except ImportError:  # pragma: no cover
     _kernels = None
 
-__all__ = ["flicker_bank", "simulate", "narrowband_discrete"]
+__all__ = ["flicker_bank", "simulate", "simulate_chunks", "narrowband_discrete"]
 
 #: Poles per decade of the flicker bank (:func:`flicker_bank`): ripple of the PSD +-0.09 dB at 2 per decade.
 FLICKER_POLES_PER_DECADE = 2
@@ -83,37 +83,48 @@ def flicker_bank_psd(f, dt: float, p, res, c) -> np.ndarray:
     return dt * np.abs(h) ** 2
 
 
-def _flicker(rng, shape, B: float, dt: float) -> np.ndarray:
-    """Flicker samples of coefficient B (u) by :func:`flicker_bank`: one white draw, the branches run chunk by chunk
-    (each chunk of every branch stays in cache), the branch states carried from chunk to chunk."""
-    n = shape[-1]
+def _flicker_start(rng, lead: tuple, n: int, B: float, dt: float):
+    """The bank of :func:`flicker_bank` for records of n samples, started at steady state: (poles, weights,
+    direct weight, states). Weights carry B gain (u per unit white draw): branch u_i = B gain res_i s_i, so
+    u_i[k] = p_i u_i[k-1] + B gain res_i w[k]. The states (the u_i before the first sample, shape lead + (J,)) are
+    drawn from the stationary covariance C_ij = 1/(1 - p_i p_j) of the s_i (unit white drive)."""
     p, res, c, gain = flicker_bank(n, dt)
-    w = rng.standard_normal(shape)
-    # each branch carries its factor: u_i = B gain res_i s_i, so u_i[k] = p_i u_i[k-1] + B gain res_i w[k]
     scale = B * gain
     weights = scale * res
-    # stationary states before the first sample: covariance C_ij = 1/(1 - p_i p_j) of s (unit white drive)
-    cov = 1.0 / (1.0 - np.outer(p, p))
-    ev, U = np.linalg.eigh(cov)
-    state = (rng.standard_normal(shape[:-1] + (p.size,)) @ (U * np.sqrt(np.clip(ev, 0.0, None))).T) * weights
-    y = w * (scale * c)
-    rows = int(np.prod(shape[:-1], dtype=np.int64))
-    w2, y2, st2 = w.reshape(rows, n), y.reshape(rows, n), state.reshape(rows, p.size)
-    # blocks of whole records when a record fits a chunk (contiguous copies), else chunks of one record
-    n_rows, step = (max(1, _FLICKER_CHUNK // n), n) if n <= _FLICKER_CHUNK else (1, _FLICKER_CHUNK)
+    ev, U = np.linalg.eigh(1.0 / (1.0 - np.outer(p, p)))
+    state = (rng.standard_normal(lead + (p.size,)) @ (U * np.sqrt(np.clip(ev, 0.0, None))).T) * weights
+    return p, weights, scale * c, state
+
+
+def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray) -> np.ndarray:
+    """Flicker samples driven by the white draws w (shape (rows, m)), the branch states (rows, J) updated in place:
+    blocks of whole records when a record fits a cache-sized chunk (contiguous copies), else chunks of one record;
+    each branch's pass over a block stays in cache."""
+    rows, m = w.shape
+    y = w * direct
+    n_rows, step = (max(1, _FLICKER_CHUNK // m), m) if m <= _FLICKER_CHUNK else (1, _FLICKER_CHUNK)
     for r0 in range(0, rows, n_rows):
         r1 = min(rows, r0 + n_rows)
-        for a in range(0, n, step):
-            b = min(n, a + step)
-            block = w2[r0:r1, a:b]
+        for a in range(0, m, step):
+            b = min(m, a + step)
+            block = w[r0:r1, a:b]
             chunk = np.empty(block.shape)
             for i in range(p.size):
                 np.multiply(block, weights[i], out=chunk)
-                chunk[:, 0] += p[i] * st2[r0:r1, i]
+                chunk[:, 0] += p[i] * state[r0:r1, i]
                 u = _ar1(chunk, p[i])  # in place with the kernel (chunk is contiguous)
-                st2[r0:r1, i] = u[:, -1]
-                y2[r0:r1, a:b] += u
+                state[r0:r1, i] = u[:, -1]
+                y[r0:r1, a:b] += u
     return y
+
+
+def _flicker(rng, shape, B: float, dt: float) -> np.ndarray:
+    """Flicker samples of coefficient B (u), shape `shape`, by :func:`flicker_bank` (one white draw)."""
+    n = shape[-1]
+    p, weights, direct, state = _flicker_start(rng, shape[:-1], n, B, dt)
+    rows = int(np.prod(shape[:-1], dtype=np.int64))
+    w = rng.standard_normal(shape)
+    return _flicker_run(w.reshape(rows, n), p, weights, direct, state.reshape(rows, p.size)).reshape(shape)
 
 
 def narrowband_discrete(sigma: float, f0_hz: float, zeta: float, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -250,3 +261,75 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
     if model.ramp:
         x += model.ramp * dt * np.arange(n)
     return x.astype(dtype, copy=False)
+
+
+#: Samples per piece of :func:`simulate_chunks` (2 MB of float64): part of the definition of its random stream.
+SIM_CHUNK = 1 << 18
+
+
+def simulate_chunks(model, n: int, rate: float, rng=None, chunk: int = SIM_CHUNK):
+    """One record of :func:`simulate`'s process in consecutive pieces: yields (first sample index, samples) with
+    pieces of `chunk` samples (the last shorter), so that a record is written without holding it whole (memory:
+    a few pieces, whatever n).
+
+    The components are those of :func:`simulate` (same definitions and units), each continued exactly from piece to
+    piece: the Gauss-Markov recursion and the flicker bank carry their states, the random walk its last value, the
+    quantization term its last angle error, the ramp its time. The random stream differs from :func:`simulate`'s
+    (the initial states first, then piece by piece: white, each GM, random walk, flicker, quantization), so the
+    values differ but not their distribution; the same seed and `chunk` give the same values. A narrowband
+    component is drawn over the whole record (one piece).
+    """
+    n = int(n)
+    if n < 2:
+        raise ValueError(f"simulate needs n >= 2 samples, got {n}")
+    if not rate > 0:
+        raise ValueError(f"rate must be > 0 Hz, got {rate!r}")
+    chunk = int(chunk)
+    if chunk < 1:
+        raise ValueError(f"chunk must be >= 1 sample, got {chunk}")
+    if getattr(model, "narrowband", ()):
+        yield 0, simulate(model, n, rate, rng)
+        return
+    rng = np.random.default_rng(rng)
+    dt = 1.0 / float(rate)
+    gms = [(np.exp(-dt / T), sigma * np.sqrt(-np.expm1(-2.0 * dt / T))) for sigma, T in model.gauss_markov]
+    gm_last = [sigma * rng.standard_normal() for sigma, _ in model.gauss_markov]  # steady state x_0
+    rw_sum = 0.0
+    flk = _flicker_start(rng, (1,), n, model.flicker, dt) if model.flicker else None
+    q_last = model.quantization * rng.standard_normal() if model.quantization else 0.0
+    for a in range(0, n, chunk):
+        m = min(chunk, n - a)
+        x = np.zeros(m)
+        if model.white:
+            w = rng.standard_normal(m)
+            w *= model.white / np.sqrt(dt)
+            x += w
+        for j, (phi, scale) in enumerate(gms):
+            e = rng.standard_normal(m)
+            e *= scale
+            if a == 0:
+                e[0] = gm_last[j]  # x_0 itself
+            else:
+                e[0] += phi * gm_last[j]
+            e = _ar1(e, phi)
+            gm_last[j] = float(e[-1])
+            x += e
+        if model.random_walk:
+            w = rng.standard_normal(m)
+            np.cumsum(w, out=w)
+            w += rw_sum
+            rw_sum = float(w[-1])
+            w *= model.random_walk * np.sqrt(dt)
+            x += w
+        if flk is not None:
+            p, weights, direct, state = flk
+            x += _flicker_run(rng.standard_normal((1, m)), p, weights, direct, state)[0]
+        if model.quantization:
+            e = np.empty(m + 1)
+            e[0] = q_last
+            e[1:] = model.quantization * rng.standard_normal(m)
+            q_last = float(e[-1])
+            x += np.diff(e) / dt
+        if model.ramp:
+            x += model.ramp * dt * np.arange(a, a + m)
+        yield a, x
