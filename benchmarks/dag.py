@@ -4,7 +4,8 @@
 (``--floor-jobs N``: the wall time of a DAG of N script jobs that compute nothing, :func:`job_start_floor`)
 (:func:`compare`): this checkout and the commit ``--baseline`` (checked out in a temporary git worktree, its
 library run from its own ``src/`` with this checkout's compiled kernel) are run alternately, run by run, in
-scratch copies on the same machine: cold run (every output removed but the simulated recordings), spec-sheet
+scratch copies on the same machine: simulation (every output and the simulated recordings removed, then
+``--until simulate``), cold run (every output removed but the simulated recordings), spec-sheet
 rerun (a comment appended to the spec sheet), and the critical path (the longest chain of job wall times
 from the benchmark files through the job DAG, i.e. the wall time with unlimited cores); medians of
 ``--repeats``. Peak RSS per rule from the benchmark files against one axis's samples; ``--duration-h``
@@ -299,6 +300,13 @@ def clean_outputs(scratch: Path) -> None:
         dest.rename(sim)
     if keep.exists():
         shutil.rmtree(keep)
+
+
+def clean_all(scratch: Path) -> None:
+    """Remove every output, the simulated recordings included (data/simulated/ and results/, logs/, benchmarks/)."""
+    for d in ("results", "logs", "benchmarks", "data/simulated"):
+        if (scratch / d).exists():
+            shutil.rmtree(scratch / d)
 
 
 def spec_file(scratch: Path):
@@ -739,10 +747,15 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
             logs.mkdir(parents=True, exist_ok=True)
             _run_in(scratch, base + ["--until", "simulate"], logs / "prepare.log", env)
             state[label] = {"scratch": scratch, "env": env, "base": base, "logs": logs, "cold": Timing(),
+                            "simulation": Timing(),
                             "rerun": Timing(), "critical": [], "rss": {}, "jobs": {}, "rerun_jobs": {}}
         for i in range(repeats):
             for label, st in state.items():  # alternate the trees run by run
                 scratch = st["scratch"]
+                clean_all(scratch)  # the simulation alone: `--until simulate` from nothing
+                wall, _ = _run_in(scratch, st["base"] + ["--until", "simulate"], st["logs"] / f"simulate_{i}.log",
+                                  st["env"])
+                st["simulation"].values.append(wall)
                 clean_outputs(scratch)
                 wall, text = _run_in(scratch, st["base"], st["logs"] / f"cold_{i}.log", st["env"])
                 st["cold"].values.append(wall)
@@ -774,9 +787,10 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
         crit = Timing([c["s"] for c in st["critical"]])
         chain = max(st["critical"], key=lambda c: c["s"])["chain"] if st["critical"] else []
         res["trees"][label] = {"cold": st["cold"].to_dict(), "spec_rerun": st["rerun"].to_dict(),
+                               "simulation": st["simulation"].to_dict(),
                                "critical_path": crit.to_dict(), "critical_chain": chain, "jobs_cold": st["jobs"],
                                "jobs_rerun": st["rerun_jobs"], "peak_rss_mb": st["rss"], "axis_mb": st["axis_mb"]}
-        rows.append([label, st["cold"].cell(), st["rerun"].cell(), crit.cell(),
+        rows.append([label, st["simulation"].cell(), st["cold"].cell(), st["rerun"].cell(), crit.cell(),
                      fmt(crit.median / st["cold"].median, 3), st["jobs"].get("total", "?"),
                      " -> ".join(dict.fromkeys(chain))])
         for rule, mb in sorted(st["rss"].items()):
@@ -785,10 +799,11 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
                              fmt(mb / ax, 3) if ax else "n/a"])
     dur = f", simulation.duration_h = {duration_h:g}" if duration_h is not None else ""
     lines = [f"`snakemake --cores {cores} --configfile {configfile}{dur} {' '.join(RUN_FLAGS)}` in scratch copies, "
-             f"simulated recordings prepared beforehand (not timed); {repeats} runs per tree, alternating; medians "
+             f"simulation: `--until simulate` from nothing; cold run: with the simulated recordings present; "
+             f"{repeats} runs per tree, alternating; medians "
              "[min-max]. Critical path: longest chain of job wall times (benchmark files) = wall time with unlimited "
              "cores.", "",
-             md_table(["tree", "cold run", "spec-sheet rerun", "critical path", "critical / cold", "jobs", "chain"],
+             md_table(["tree", "simulation", "cold run", "spec-sheet rerun", "critical path", "critical / cold", "jobs", "chain"],
                       rows), "",
              "Peak RSS per rule (benchmark files' max_rss, max over jobs and runs; sampled at 0 s then every 0.5 s, so "
              "sub-second jobs may show less than their peak) against one axis's samples:", "",

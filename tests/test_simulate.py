@@ -1,6 +1,7 @@
 """Simulated components have the statistics of their definitions (tolerances from sampling spread)."""
 
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,6 +9,7 @@ import pytest
 from imupipe.models import NoiseModel
 from imupipe.simulate import simulate
 
+ROOT = Path(__file__).resolve().parents[1]
 simulate_module = importlib.import_module("imupipe.simulate")  # the package exports the function of that name
 
 
@@ -130,3 +132,161 @@ def test_narrowband_discrete_matches_lyapunov():
 
     phi, Qd, P0 = narrowband_discrete(0.3, 0.56, 0.02, 0.01)
     np.testing.assert_allclose(phi @ P0 @ phi.T + Qd, P0, rtol=1e-9, atol=1e-12 * P0.max())
+
+
+# ---------------------------------------------------------------------------------------------
+# flicker: the bank of first-order recursions (imupipe.simulate.flicker_bank)
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("n, dt", [(4_500_000, 1 / 125), (36_000, 1.0), (108_000, 0.05), (100, 1.0),
+                                   *[(int(n), 1.0) for n in np.geomspace(64, 2e7, 40)]])
+def test_flicker_bank_psd_within_its_documented_accuracy(n, dt):
+    """The bank's exact PSD (closed form of the recursions) against B^2/(2 pi f), B = 1: the bounds of the
+    flicker_bank docstring, on the demo's record shapes (10 h at 125 Hz, its 1 Hz decimation, the tiny run) and
+    record lengths from 64 to 2e7 samples (the bank's shape depends on n alone)."""
+    from imupipe.simulate import flicker_bank, flicker_bank_psd
+
+    p, res, c, gain = flicker_bank(n, dt)
+    assert np.all(res > 0) and c > 0  # a positive sum: no cancellation
+
+    def db(f):
+        return 10 * np.log10(gain**2 * flicker_bank_psd(f, dt, p, res, c) * 2 * np.pi * f)
+
+    assert np.abs(db(np.geomspace(4 / (2 * n * dt), 1 / (8 * dt), 2000))).max() < 0.25
+    low = db(np.geomspace(1 / (2 * n * dt), 4 / (2 * n * dt), 200))
+    assert -0.25 < low.min() and low.max() < 0.25
+    top = db(np.geomspace(1 / (8 * dt), 1 / (2 * dt), 200))
+    assert top.min() > -0.25 and top.max() < 2.8
+
+
+def test_flicker_bank_starts_at_steady_state_and_is_reproducible(rng):
+    """Variance across records at the first and last sample = the bank's stationary variance
+    (B gain)^2 (c^2 + 2 c sum res + sum_ij res_i res_j/(1 - p_i p_j)); rel. std sqrt(2/rows): 5 sigma. The same
+    seed gives the same bytes."""
+    from imupipe.simulate import flicker_bank
+
+    B, rate, n, rows = 2e-3, 1.0, 3000, 4000
+    x = simulate(NoiseModel(flicker=B), n, rate, rng, n_records=rows)
+    p, res, c, gain = flicker_bank(n, 1 / rate)
+    var = (B * gain) ** 2 * (c**2 + 2 * c * res.sum() + res @ (1 / (1 - np.outer(p, p))) @ res)
+    for k in (0, n // 2, n - 1):
+        assert x[:, k].var() == pytest.approx(var, rel=5 * np.sqrt(2 / rows))
+    a = simulate(NoiseModel(white=1e-3, flicker=B), 70_000, 20.0, 11)
+    assert a.tobytes() == simulate(NoiseModel(white=1e-3, flicker=B), 70_000, 20.0, 11).tobytes()
+
+
+def _flicker_circulant(rng, n, rate, B, rows):
+    """The former draw (reference): white noise shaped by sqrt(B^2/(2 pi f)) on the rfft grid of 2n points (DC 0),
+    the first n samples."""
+    m, dt = 2 * n, 1 / rate
+    f = np.fft.rfftfreq(m, dt)
+    spec = np.zeros(f.size)
+    spec[1:] = np.sqrt(B**2 / (2 * np.pi * f[1:]))
+    z = rng.standard_normal((rows, f.size)) + 1j * rng.standard_normal((rows, f.size))
+    return np.fft.irfft(z * spec * np.sqrt(m / dt / 2), n=m, axis=-1)[:, :n]
+
+
+def test_flicker_allan_variance_as_the_former_circulant_draw(rng):
+    """The flicker's Allan variance is that of the former FFT draw: the mean AV of the bank's records and of the
+    former draw's records agree at every octave tau from 4 samples to n/2, within 4 standard errors of the difference
+    (from the spread over the records) plus 6 % (the bank's documented 0.25 dB PSD accuracy; an AV is a
+    weighted mean of the PSD). At 1-2 samples the AV weighs the band above rate/8, where the bank's PSD lies up to
+    2.8 dB (x 1.9) above B^2/(2 pi f): bounded by that."""
+    from imupipe.allan import overlapping_avar
+
+    B, rate, n, rows = 1e-3, 1.0, 2**13, 96
+    m = 2 ** np.arange(0, 13)
+    new = np.array([overlapping_avar(r, rate, m) for r in simulate(NoiseModel(flicker=B), n, rate, rng,
+                                                                    n_records=rows)])
+    old = np.array([overlapping_avar(r, rate, m) for r in _flicker_circulant(rng, n, rate, B, rows)])
+    se = np.sqrt(new.var(axis=0, ddof=1) / rows + old.var(axis=0, ddof=1) / rows)
+    diff = np.abs(new.mean(axis=0) - old.mean(axis=0))
+    band = m >= 4
+    assert np.all(diff[band] < 4 * se[band] + 0.06 * old.mean(axis=0)[band]), diff / old.mean(axis=0)
+    assert np.all(new.mean(axis=0)[~band] < 1.9 * old.mean(axis=0)[~band] + 4 * se[~band])
+    # and the flat level (2 ln 2/pi) B^2 at taus well inside the band (4 standard errors + 6 %)
+    inside = (m >= 4) & (m <= n // 64)
+    level = 2 * np.log(2) / np.pi * B**2
+    assert np.all(np.abs(new.mean(axis=0)[inside] - level) < 4 * new.std(axis=0, ddof=1)[inside] / np.sqrt(rows)
+                  + 0.06 * level)
+
+
+def test_demo_records_statistically_as_before(rng):
+    """The demo's channels (config/truth/stim300_like.yaml: white + GM + flicker + random walk, 125 Hz) with the bank
+    against the same model with the former flicker draw: mean Allan variances agree at every octave tau within 4
+    standard errors of the difference (+1.2 %: the flicker bank's 6 % accuracy times its share of the AV, < 20 %)."""
+    from imupipe.allan import overlapping_avar
+    from imupipe.specsheet import load_spec
+
+    truth = load_spec(str(ROOT / "config" / "truth" / "stim300_like.yaml"))
+    rate, n, rows = 125.0, 2**15, 24
+    m = 2 ** np.arange(0, 14)
+    for sensor in ("gyro", "accel"):
+        model = truth.models[sensor]
+        rest = NoiseModel(white=model.white, gauss_markov=model.gauss_markov, random_walk=model.random_walk)
+        new = np.array([overlapping_avar(r, rate, m) for r in simulate(model, n, rate, rng, n_records=rows)])
+        former = simulate(rest, n, rate, rng, n_records=rows) + _flicker_circulant(rng, n, rate, model.flicker, rows)
+        old = np.array([overlapping_avar(r, rate, m) for r in former])
+        se = np.sqrt(new.var(axis=0, ddof=1) / rows + old.var(axis=0, ddof=1) / rows)
+        diff = np.abs(new.mean(axis=0) - old.mean(axis=0))
+        assert np.all(diff < 4 * se + 0.012 * old.mean(axis=0)), (sensor, diff / se)
+
+
+# ---------------------------------------------------------------------------------------------
+# simulate_chunks: one record in pieces (the simulate rule writes the demo's records this way)
+# ---------------------------------------------------------------------------------------------
+def test_chunks_continue_each_component_across_pieces():
+    """Over 3000 seeds, records of 48 samples in pieces of 16: the variance of every sample and the lag-1
+    covariance inside a piece and across the piece boundaries equal the model's (GM: sigma^2, phi sigma^2; flicker:
+    the bank's closed forms; random walk: K^2 dt (k + 1) and K^2 dt (k + 1) for the lag-1 covariance);
+    rel. std of a variance estimate sqrt(2/seeds), of a covariance at most sqrt((1 + rho^2)/seeds)/rho: 5 sigma."""
+    from imupipe.simulate import flicker_bank, simulate_chunks
+
+    seeds, n, piece, rate = 3000, 48, 16, 1.0
+    sigma, T, B, K = 1.0, 5.0, 0.7, 0.3
+    cases = {
+        "gm": NoiseModel(gauss_markov=((sigma, T),)),
+        "flicker": NoiseModel(flicker=B),
+        "rw": NoiseModel(random_walk=K),
+    }
+    phi = np.exp(-1 / (rate * T))
+    p, res, c, gain = flicker_bank(n, 1 / rate)
+    C = 1 / (1 - np.outer(p, p))
+    f_var = (B * gain) ** 2 * (c**2 + 2 * c * res.sum() + res @ C @ res)
+    f_cov1 = (B * gain) ** 2 * np.sum(res * p * (c + C @ res))  # cov(y_k, y_{k+1}) of the bank
+    for name, model in cases.items():
+        x = np.array([np.concatenate([v for _, v in simulate_chunks(model, n, rate, s, chunk=piece)])
+                      for s in range(seeds)])
+        assert x.shape == (seeds, n)
+        k = np.arange(n)
+        if name == "gm":
+            var, cov1 = np.full(n, sigma**2), np.full(n - 1, phi * sigma**2)
+        elif name == "flicker":
+            var, cov1 = np.full(n, f_var), np.full(n - 1, f_cov1)
+        else:
+            var, cov1 = K**2 * (k + 1) / rate, K**2 * (k[:-1] + 1) / rate
+        np.testing.assert_allclose(x.var(axis=0), var, rtol=5 * np.sqrt(2 / seeds))
+        got = np.mean(x[:, 1:] * x[:, :-1], axis=0) - x[:, 1:].mean(axis=0) * x[:, :-1].mean(axis=0)
+        rho = cov1 / np.sqrt(var[1:] * var[:-1])
+        for j in (piece - 2, piece - 1, 2 * piece - 1):  # inside a piece, across the first and second boundary
+            assert got[j] == pytest.approx(cov1[j], rel=5 * np.sqrt((1 + rho[j] ** 2) / seeds) / rho[j]), (name, j)
+
+
+def test_chunks_reproducible_and_as_simulate_in_distribution(rng):
+    """The same seed and piece size give the same bytes; the demo's gyro model in pieces and whole: mean Allan
+    variances agree at every octave tau within 4 standard errors of the difference (24 records each)."""
+    from imupipe.allan import overlapping_avar
+    from imupipe.simulate import simulate_chunks
+    from imupipe.specsheet import load_spec
+
+    model = load_spec(str(ROOT / "config" / "truth" / "stim300_like.yaml")).models["gyro"]
+    rate, n, rows = 125.0, 2**15, 24
+
+    def pieces(seed):
+        return np.concatenate([v for _, v in simulate_chunks(model, n, rate, seed, chunk=5000)])
+
+    assert pieces(3).tobytes() == pieces(3).tobytes()
+    m = 2 ** np.arange(0, 14)
+    new = np.array([overlapping_avar(pieces(s), rate, m) for s in range(100, 100 + rows)])
+    old = np.array([overlapping_avar(r, rate, m) for r in simulate(model, n, rate, rng, n_records=rows)])
+    se = np.sqrt(new.var(axis=0, ddof=1) / rows + old.var(axis=0, ddof=1) / rows)
+    assert np.all(np.abs(new.mean(axis=0) - old.mean(axis=0)) < 4 * se)

@@ -226,38 +226,21 @@ class TestCaching:
 
 
 class TestBadInput:
-    def test_bad_dataset_fails_alone(self, tmp_path, rng):
+    def test_bad_dataset_fails_alone(self, bad_input_run):
         """A missing file and a file with a NaN sample fail their own ingest with a message naming the
-        file; with --keep-going the good dataset's per-axis results are still produced."""
-        n, rate = 3600, 2.0  # 30 min at 2 Hz
-        cols = ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
-        x = rng.normal(size=(n, 6)) * 1e-3
-        good = tmp_path / "good.csv"
-        bad = tmp_path / "bad.csv"
-        header = ",".join(cols)
-        np.savetxt(good, x, delimiter=",", header=header, comments="")
-        xb = x.copy()
-        xb[100, 2] = np.nan
-        np.savetxt(bad, xb, delimiter=",", header=header, comments="")
-        sheet = tmp_path / "datasets.tsv"
-        # white noise only, no gravity in the accel channels: the sheet says so (gravity_removed)
-        head = ["dataset", "path", "rate_hz", "gyro_unit", "accel_unit", "gravity_removed", *cols]
-        rows = [[name, str(p), "2", "rad/s", "m/s^2", "yes", *cols] for name, p in
-                (("good", good), ("nanrow", bad), ("missing", tmp_path / "nowhere.csv"))]
-        sheet.write_text("\n".join("\t".join(r) for r in [head, *rows]) + "\n")
-        config = tiny_config(tmp_path, datasets=str(sheet), simulation=None,
-                             psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
-                                  "confidence": 0.95})
-        proc = snakemake(tmp_path, "--keep-going", config=config, check=False)
+        file; with --keep-going the good dataset's per-axis results are still produced (the run of every
+        bad-input class, `bad_input_run`, which holds these two datasets)."""
+        folder, proc, _ = bad_input_run
         assert proc.returncode != 0
         log = proc.stdout + proc.stderr
         assert "nowhere.csv" in log
-        assert "bad.csv" in log and re.search(r"NaN|non-finite|not finite", log)
+        nan_log = (folder / LOG / "ingest" / "nanrow.log").read_text()  # the NaN file's own job
+        assert "nan.csv" in nan_log and re.search(r"NaN|non-finite|not finite", nan_log), nan_log
         for sensor in ("gyro", "accel"):
             for axis in "xyz":
-                assert (tmp_path / f"{RES}/allan/good/{sensor}/{axis}.nc").is_file()
-                assert (tmp_path / f"{RES}/psd/good/{sensor}/{axis}.nc").is_file()
-        assert not (tmp_path / RES / "series/nanrow").exists()
+                assert (folder / f"{RES}/allan/good/{sensor}/{axis}.nc").is_file()
+                assert (folder / f"{RES}/psd/good/{sensor}/{axis}.nc").is_file()
+        assert not (folder / RES / "series/nanrow").exists()
 
     def test_unknown_config_key_rejected(self, tmp_path):
         config = tiny_config(tmp_path, colour="blue")
@@ -386,6 +369,9 @@ def _bad_input_files(folder, rng):
     xi = x.copy()
     xi[10, 4] = np.inf
     write("inf.csv", xi, t)
+    xn = x.copy()
+    xn[100, 2] = np.nan
+    write("nan.csv", xn, t)
     tg = t.copy()
     tg[900:] += 30.0
     write("gap.csv", x, tg)
@@ -407,6 +393,7 @@ def _bad_input_files(folder, rng):
         "empty": ("empty.csv", {}, ["empty.csv", "empty"]),
         "trunc": ("trunc.csv", {}, ["trunc.csv", "line 501", "too few fields"]),
         "inf": ("inf.csv", {}, ["inf.csv", "accel_y", "non-finite"]),
+        "nanrow": ("nan.csv", {}, None),  # a NaN sample (TestBadInput)
         "gap": ("gap.csv", {}, ["gap.csv", "gap", "row 899"]),
         "dup": ("dup.csv", {}, ["dup.csv", "duplicate timestamp", "row 699"]),
         "nonmono": ("nonmono.csv", {}, ["nonmono.csv", "not increasing", "row 601"]),
@@ -426,16 +413,25 @@ def _bad_input_files(folder, rng):
     return cases
 
 
+@pytest.fixture(scope="module")
+def bad_input_run(tmp_path_factory):
+    """One --keep-going run over a good recording and one recording per bad-input class (a missing file and a NaN
+    sample among them): (folder, finished process, cases). Shared by TestBadInput and TestEveryBadInputClass."""
+    folder = tmp_path_factory.mktemp("bad_inputs")
+    cases = _bad_input_files(folder, np.random.default_rng(20211101))
+    config = tiny_config(folder, datasets=str(folder / "datasets.tsv"), simulation=None,
+                         psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
+                              "confidence": 0.95})
+    proc = snakemake(folder, "--keep-going", config=config, check=False)
+    return folder, proc, cases
+
+
 class TestEveryBadInputClass:
-    def test_each_class_fails_alone_and_names_its_culprit(self, tmp_path, rng):
+    def test_each_class_fails_alone_and_names_its_culprit(self, bad_input_run):
         """One run over a good recording and one recording per bad-input class: exit non-zero, every failing
         dataset's message names its file/column/row, the good dataset's per-axis results exist, and no
         failing dataset leaves an output behind."""
-        cases = _bad_input_files(tmp_path, rng)
-        config = tiny_config(tmp_path, datasets=str(tmp_path / "datasets.tsv"), simulation=None,
-                             psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
-                                  "confidence": 0.95})
-        proc = snakemake(tmp_path, "--keep-going", config=config, check=False)
+        tmp_path, proc, cases = bad_input_run
         assert proc.returncode != 0
         # parallel jobs share the terminal: a line may carry another job's output in front of it
         out = proc.stdout + proc.stderr

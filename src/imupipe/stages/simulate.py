@@ -1,7 +1,7 @@
 """Simulate one static recording from the true noise model (rule ``simulate``; the default config only).
 
-Each of the six channels is drawn by :func:`imupipe.simulate.simulate` from the truth's model of its sensor, with
-its own stream of ``numpy.random.SeedSequence(seed).spawn(6)`` (gyro x, y, z, then accel x, y, z), so records of
+Each of the six channels is drawn by :func:`imupipe.simulate.simulate_chunks` (written piece by piece) from the
+truth's model of its sensor, with its own stream of ``numpy.random.SeedSequence(seed).spawn(6)`` (gyro x, y, z, then accel x, y, z), so records of
 different seeds are independent and a record is the same whatever else runs; the accel axis `gravity_axis`
 carries -9.80665 m/s^2 (imupipe.units.STANDARD_GRAVITY). The file is netCDF with SI units (rad/s, m/s^2).
 """
@@ -22,7 +22,7 @@ def simulate_stage(truth: str, seed: int, duration_s: float, rate_hz: float, gra
     import netCDF4
 
     from imupipe.io import atomic_path
-    from imupipe.simulate import simulate
+    from imupipe.simulate import simulate_chunks
     from imupipe.specsheet import load_spec
     from imupipe.units import STANDARD_GRAVITY  # m/s^2, the one definition
 
@@ -38,10 +38,11 @@ def simulate_stage(truth: str, seed: int, duration_s: float, rate_hz: float, gra
         for i, (sensor, unit) in enumerate((("gyro", "rad/s"), ("accel", "m/s^2"))):
             model = sheet.models[sensor]
             for j, axis in enumerate(AXES):
-                x = simulate(model, n, rate_hz, np.random.default_rng(streams[3 * i + j]))
-                if sensor == "accel" and axis == gravity_axis:
-                    x -= STANDARD_GRAVITY
                 v = nc.createVariable(f"{sensor}_{axis}", "f8", ("sample",))
                 v.units = unit
                 v.long_name = f"{sensor} {axis}"
-                v[:] = x
+                # written piece by piece: a few pieces in memory, not the channel (docs/architecture.md)
+                for start, x in simulate_chunks(model, n, rate_hz, np.random.default_rng(streams[3 * i + j])):
+                    if sensor == "accel" and axis == gravity_axis:
+                        x -= STANDARD_GRAVITY
+                    v[start:start + x.size] = x
