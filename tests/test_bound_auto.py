@@ -5,6 +5,8 @@ one-call pipeline with mode auto end to end (every candidate verified, the winne
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.stats import binom
@@ -172,3 +174,28 @@ def test_summary_shows_the_candidates():
     assert "exported **pooled**" in text
     assert "| pooled (exported) | yes |" in text and "| confidence | NO | verification upper_envelope |" in text
     assert auto_selection_lines({}) == []
+
+
+def test_table_shows_the_exported_candidate_not_the_first():
+    # an auto run's bound file holds the raw candidate at its top level; the table (and the figures, through the
+    # same exported_bound) must show the candidate the contract exports, labelled with its mode
+    from imupipe.specsheet import load_spec
+    from imupipe.stages.tables import exported_bound, tables_stage
+
+    spec = load_spec(Path(__file__).resolve().parents[1] / "config" / "specs" / "stim300.yaml")
+    n_spec = spec.models["gyro"].white
+
+    def entry(mode, factor):
+        return {"mode": mode, "margin": 1.0, "psd_bounded": True,
+                "bound": {"white": factor * n_spec, "random_walk": 0.0, "gauss_markov": []}}
+
+    bound = {**entry("auto", 7.0), "candidates": {"raw": entry("raw", 7.0), "pooled": entry("pooled", 2.0)}}
+    contract = {"auto_selection": {"winner": "pooled"}}
+    assert exported_bound(bound, contract)["mode"] == "auto (pooled)"
+    assert exported_bound(entry("raw", 7.0), None)["mode"] == "raw"  # not auto: the bound file as it is
+    md = tables_stage(spec, {"gyro": bound}, {"gyro": contract})["markdown"]
+    assert "(auto (pooled) mode)" in md
+    row = next(ln for ln in md.splitlines() if "| gyro |" in ln and "white" in ln.lower())
+    assert row.rstrip(" |").endswith("2"), row  # bound/spec 2, the pooled candidate's, not the raw one's 7
+    with pytest.raises(ValueError, match="needs the contract"):
+        tables_stage(spec, {"gyro": bound})

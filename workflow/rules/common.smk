@@ -124,7 +124,18 @@ def axis_bounds_of(wildcards):
 
 
 def bounds_of_sensors(wildcards):
-    return {s: f"{RESULTS}/bound/{wildcards.spec}/{s}.yaml" for s in SENSORS}
+    """Each sensor's bound file; with bound.mode auto also its contract (which candidate is exported)."""
+    out = {s: f"{RESULTS}/bound/{wildcards.spec}/{s}.yaml" for s in SENSORS}
+    if config["bound"]["mode"] == "auto":
+        out.update({f"contract_{s}": f"{RESULTS}/contract/{wildcards.spec}/{s}.yaml" for s in SENSORS})
+    return out
+
+
+def contract_if_auto(wildcards):
+    """With bound.mode auto, the sensor's contract (which candidate the run exports, for the figures)."""
+    if config["bound"]["mode"] != "auto":
+        return {}
+    return {"contract": f"{RESULTS}/contract/{wildcards.spec}/{wildcards.sensor}.yaml"}
 
 
 def lines_of_sensor(wildcards):

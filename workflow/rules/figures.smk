@@ -9,6 +9,7 @@ rule figures:
     priority: 1
     input:
         unpack(lines_of_sensor),
+        unpack(contract_if_auto),
         spectra=f"{RESULTS}/spectra/{{sensor}}.nc",
         allan=f"{RESULTS}/allan/{{sensor}}.nc",
         identified=f"{RESULTS}/identify/{{sensor}}.yaml",

@@ -16,4 +16,4 @@ if __name__ == "__main__":
             path_bound=i.bound, path_spec=i.spec, out_psd=o.psd_bound, out_allan=o.allan_components,
             out_steps=o.inflation_steps, out_readoffs=o.allan_readoffs, copies=copies,
             lines=list(i.lines) if "lines" in i.keys() else [], units=p.units, decimate_rate_hz=p.decimate_rate_hz,
-            sensor=w.sensor, spec=w.spec)
+            sensor=w.sensor, spec=w.spec, path_contract=i.contract if "contract" in i.keys() else None)

@@ -65,17 +65,21 @@ def save_all(fig, path_png: str, copies: dict, name: str) -> None:
 
 
 def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_spec, out_psd, out_allan, out_steps,
-                  out_readoffs, copies, lines, units, decimate_rate_hz, sensor, spec) -> None:
+                  out_readoffs, copies, lines, units, decimate_rate_hz, sensor, spec, path_contract=None) -> None:
     """The four figures of one spec sheet and sensor type from the stacked spectra and Allan files, the identify and
     bound files, the spec sheet and the lines files; `copies` {figure name: path} of the configured extra format,
-    `units` ``spec`` or ``SI``, `decimate_rate_hz` (Hz) the decimated spectra's rate (the lines' aliases)."""
+    `units` ``spec`` or ``SI``, `decimate_rate_hz` (Hz) the decimated spectra's rate (the lines' aliases);
+    `path_contract` (``bound.mode: auto``): the contract naming the exported candidate, which the figures show
+    (:func:`imupipe.stages.tables.exported_bound`)."""
     from imupipe.merge import Stacked
     from imupipe.models import NoiseModel
     from imupipe.plot import plot_allan_components, plot_allan_deviation, plot_inflation_steps, plot_psd_bound
     from imupipe.specsheet import load_spec
 
     shown = "spec" if units == "spec" else None  # plot_psd_bound / plot_allan_components: None = SI
-    bound = read_yaml(path_bound)
+    from imupipe.stages.tables import exported_bound
+
+    bound = exported_bound(read_yaml(path_bound), read_yaml(path_contract) if path_contract else None)
     model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
     identify = read_yaml(path_identified)
     identified, dropped = NoiseModel.from_dict(identify["model"]), identify["selection"]["dropped"]

@@ -9,12 +9,26 @@ from __future__ import annotations
 import csv
 import io
 
-__all__ = ["tables_stage"]
+__all__ = ["exported_bound", "tables_stage"]
 
 
-def tables_stage(spec, bounds: dict) -> dict:
+def exported_bound(bound: dict, contract: dict | None) -> dict:
+    """The bound file entry of the model a run exports: with ``bound.mode: auto`` the candidate the contract's
+    ``auto_selection`` names (its ``mode`` "auto (<winner>)"), else `bound` itself (the bound file's top level of an
+    auto run is its first candidate, never what the KF file holds)."""
+    sel = (contract or {}).get("auto_selection")
+    if not sel or not bound.get("candidates"):
+        return bound
+    return {**bound["candidates"][sel["winner"]], "mode": f"auto ({sel['winner']})"}
+
+
+def tables_stage(spec, bounds: dict, contracts: dict | None = None) -> dict:
     """{"markdown", "csv", "html"}: the texts of the table of `spec` (:class:`imupipe.specsheet.SpecSheet`) against
-    `bounds` ({sensor: the bound file's dict}, in the config's sensor order)."""
+    `bounds` ({sensor: the bound file's dict}, in the config's sensor order); `contracts` ({sensor: the contract's
+    dict}, needed with ``bound.mode: auto``) select the exported candidate (:func:`exported_bound`)."""
+    bounds = {s: exported_bound(b, (contracts or {}).get(s)) for s, b in bounds.items()}
+    if any(b.get("candidates") and b.get("mode") == "auto" for b in bounds.values()):
+        raise ValueError("bound.mode auto: the table needs the contract files (the exported candidate)")
     from imupipe.models import NoiseModel
     from imupipe.specsheet import inflation_rows
     from imupipe.summary import markdown_to_html
@@ -31,7 +45,8 @@ def tables_stage(spec, bounds: dict) -> dict:
     def fmt(v):
         return "-" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
 
-    md = [f"# {spec.name}: spec sheet vs bound ({rows[0]['mode']} mode)", "",
+    modes = ", ".join(dict.fromkeys(str(r["mode"]) for r in rows))
+    md = [f"# {spec.name}: spec sheet vs bound ({modes} mode)", "",
           "| sensor | parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|---|"]
     md += [f"| {r['sensor']} | {r['parameter']} | {r['unit']} | {fmt(r['spec'])} | {fmt(r['bound'])} | "
            f"{fmt(r['ratio'])} |" for r in rows]
