@@ -70,7 +70,7 @@ stack of four truths costs about what one does.
 Compiled per-fix loops. The three loops that take one iteration per fix (the filter's Riccati recursion with its
 convergence test, the truths' stacked recursion, and :func:`imupipe.verify._replay_errors`' fix phase) run in C
 (``imupipe._kernels``: ``riccati_fixes``, ``mismatched_fixes``, ``replay_fixes``) when the optional module is built,
-and in NumPy otherwise (``backend`` argument, or ``imupipe.covariance._kernels`` None). The C loops are the same
+and in NumPy otherwise (``backend`` argument, or :func:`compiled_kernels` None). The C loops are the same
 recursions in the same order of operations per fix, with two differences that change only the rounding: the
 products :math:`A C A^T` skip the exact zeros of :math:`A`'s rows (the transitions are sparse: diagonal noise
 states, the integrator, the augmented coupling block; adding :math:`0 \cdot x` is exact), so a product costs
@@ -100,7 +100,7 @@ try:  # optional compiled per-fix loops; the NumPy path gives the same results t
 except ImportError:  # pragma: no cover - exercised by forcing backend="numpy" in the tests
     _kernels = None
 
-__all__ = ["quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many",
+__all__ = ["compiled_kernels", "quad_series", "row_powers", "power_and_sum", "filter_variance", "mismatched_mse", "mismatched_mse_many",
            "augmented", "fix_gain_array"]
 
 P_RTOL = 1e-13
@@ -528,3 +528,9 @@ def _lyap_power(M, C0, W, j):
     Mj, Sj = power_and_sum(M, W, j)
     C = Mj @ C0 @ Mj.T + Sj
     return 0.5 * (C + C.T)
+
+
+def compiled_kernels():
+    """The compiled per-fix loops (the optional C module: ``riccati_fixes``, ``mismatched_fixes``,
+    ``replay_fixes``), or None when it is not built (the NumPy path then runs)."""
+    return _kernels

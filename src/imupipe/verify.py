@@ -718,7 +718,7 @@ def _replay_errors(Es, Phi_f, H_f, fix_gains, sc, block: int = 4096, backend: st
         G = next(row_powers(np.eye(nf)[0] @ Phi_f, Phi_f, m, m))[1][:, 0, :]  # g_j, j = 1..m (every gap is m)
         PT = np.ascontiguousarray(np.linalg.matrix_power(Phi_f, m).T)
         if be == "c":
-            _kernels = cov._kernels
+            _kernels = cov.compiled_kernels()
             _kernels.replay_fixes(W, n, nf, x, xh, PT, np.ascontiguousarray(G), np.ascontiguousarray(h),
                                   fix_gains, len(fixes), m, sq)
             last = fixes[-1]

@@ -20,7 +20,7 @@ def main(path_allan: str, path_out: str, sensor: str, truth=None, lines=(), line
     policy = (lines_params or {}).get("policy", {}).get(sensor, "model")
     known = lines_by_curve({p: read_yaml(p) for p in lines}, policy)
     out = identify.identification_stage(curves, sensor=sensor, truth=true, lines=known,
-                                        envelope_lines=policy == "model", **settings)
+                                        **settings)
     write_yaml_atomic(out, path_out, header=f"{sensor}: Allan-variance identification of {len(curves)} curves; SI units")
 
 

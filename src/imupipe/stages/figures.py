@@ -79,7 +79,8 @@ def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_sp
     shown = "spec" if units == "spec" else None  # plot_psd_bound / plot_allan_components: None = SI
     from imupipe.stages.tables import exported_bound
 
-    bound = exported_bound(read_yaml(path_bound), read_yaml(path_contract) if path_contract else None)
+    whole = read_yaml(path_bound)
+    bound = exported_bound(whole, read_yaml(path_contract) if path_contract else None)
     model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
     identify = read_yaml(path_identified)
     identified, dropped = NoiseModel.from_dict(identify["model"]), identify["selection"]["dropped"]
@@ -102,7 +103,7 @@ def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_sp
                                    avar_upper=every_curve(av, "avar_upper"), dropped=dropped, display_unit=shown,
                                    title=f"{sensor}: Allan deviation, identified vs bound components ({spec})"),
              out_allan, copies, "allan_components")
-    hand = bound.get("paper_hand_inflation")
+    hand = whole.get("paper_hand_inflation")  # the paper's hand inflation (Fig. 8): the bound file's, in every mode
     history = [[p["parameter"], p["N"], p["sigma"], p["T"], p["K"], p["margin"]] for p in hand["phases"]] if hand else []
     curves = np.stack([sp.at("psd", *c.split("/")) for c in bound["curves"]])
     save_all(plot_inflation_steps(sp["frequency"], curves, spec_model, history, sensor=sensor, dt=dt,
