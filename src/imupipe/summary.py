@@ -282,17 +282,21 @@ def consistency_flags(sensor: str, identify: Mapping | None) -> list[Flag]:
     if not isinstance(rc, Mapping):
         return []
     out = []
-    for it in rc.get("flagged") or []:
-        if not isinstance(it, Mapping):
-            continue
-        est, oth = it.get("estimate"), it.get("others")
+    items = [it for it in rc.get("flagged") or [] if isinstance(it, Mapping)]
+    u = SI_UNITS.get(sensor, "u")
+    units = {"white": f"{u}/sqrt(Hz)", "flicker": u, "random_walk": f"{u}/sqrt(s)"}
+    for it in items:
+        est, oth, param = it.get("estimate"), it.get("others"), it.get("param")
         ratio = (float(est) / float(oth)) if isinstance(est, (int, float)) and isinstance(oth, (int, float)) and oth else None
+        pair = [o.get("dataset") for o in items if o.get("param") == param and o is not it]
+        who = (f"{it.get('dataset')} and {pair[0]} disagree (two records: which one is off cannot be told); "
+               if len(items) >= 2 and len(pair) == 1 and len(rc.get("datasets") or []) == 2 else "")
         out.append(Flag(sensor, f"{sensor} record consistency", "",
-                        f"{it.get('dataset')} {_CONSISTENCY_NAMES.get(it.get('param'), it.get('param'))} = "
-                        f"{_num(est)} SI is {_num(ratio)}x the other records' {_num(oth)} (z = {_num(it.get('z'))}, "
-                        f"beyond the critical {_num(rc.get('z_crit'))} at family-wise level {_num(rc.get('alpha'))}): "
-                        "this record pulls the pooled model; check it for an event (identify file, "
-                        "record_consistency)"))
+                        f"{who}{it.get('dataset')} {_CONSISTENCY_NAMES.get(param, param)} = "
+                        f"{_num(est)} {units.get(param, 'SI')} is {_num(ratio)}x the other records' {_num(oth)} "
+                        f"(test z = {_num(it.get('z'))}, beyond the critical {_num(rc.get('z_crit'))} at family-wise "
+                        f"level {_num(rc.get('alpha'))}): this record pulls the pooled model; check it for an event "
+                        "(identify file, record_consistency)"))
     return out
 
 

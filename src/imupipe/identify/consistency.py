@@ -128,7 +128,8 @@ def record_consistency(records: dict, confidence: float, alpha: float = 0.01, pa
             for r in named:
                 rows[r][p].update(flagged=True, note=("disagrees with the other record" if len(active) == 2 else
                                                       "disagrees with the other records"))
-                flagged.append((r, p, float(zs[r][0]), sd[r, p][0], float(math.exp(zs[r][1]))))
+                # the statistic that named it: the worst record's (with two records both are named by it)
+                flagged.append((r, p, float(zs[worst][0]), sd[r, p][0], float(math.exp(zs[r][1]))))
                 active.remove(r)
     for r in names:
         for p in params:
