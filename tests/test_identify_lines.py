@@ -166,8 +166,11 @@ def test_identification_stage_takes_the_lines_files_lines_as_known_terms():
     nb = rec["upper_envelope_model"]["narrowband"]
     assert any(abs(t["f0_hz"] - F0) < 0.01 for t in nb)
     assert all(g["T"] > 10.0 for g in rec["upper_envelope_model"]["gauss_markov"])
-    no_env = identify_sensor(curves, lines=lines, **kw).record  # the default (and the workflow's): off
+    no_env = identify_sensor(curves, lines=lines, **kw).record  # the default: off
     assert "narrowband" not in no_env["upper_envelope_model"]
+    # the workflow's: only the lines below the decimated Nyquist frequency (an aliased line would inflate the bound)
+    above = identify_sensor(curves, lines=lines, envelope_lines=True, envelope_lines_below_hz=0.5 * F0, **kw).record
+    assert "narrowband" not in above["upper_envelope_model"]
     assert rec["record_consistency"]["flagged"] == []
     # without the lines the stage's GM takes the line
     blind = identify_sensor(curves, **kw).record

@@ -327,7 +327,8 @@ def noise_model(
                             relevance=relevance, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
                             adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
                             span_s=fix_s + outage_s, fit_tau_min_samples=fit_tau_min_samples,
-                            truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"))
+                            truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"),
+                            envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz)
     # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
     with _no_stdout_fd():

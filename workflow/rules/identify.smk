@@ -30,6 +30,8 @@ rule identify:
         # the upper envelope covers a GM time constant the data leave open for f >= 1/(fix_s + outage_s)
         span_s=SPAN_S,
         lines=LINES_PARAMS,
+        # lines below the decimated Nyquist frequency join the upper envelope as lines (identify_sensor)
+        envelope_lines_below_hz=0.5 * config["decimate"]["rate_hz"],
     threads: 1
     resources:
         mem_mb=MEM_MB["identify"],

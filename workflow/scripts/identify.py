@@ -20,7 +20,7 @@ def main(path_allan: str, path_out: str, sensor: str, truth=None, lines=(), line
     policy = (lines_params or {}).get("policy", {}).get(sensor, "model")
     known = lines_by_curve({p: read_yaml(p) for p in lines}, policy)
     out = identify.identification_stage(curves, sensor=sensor, truth=true, lines=known,
-                                        **settings)
+                                        envelope_lines=policy == "model", **settings)
     write_yaml_atomic(out, path_out, header=f"{sensor}: Allan-variance identification of {len(curves)} curves; SI units")
 
 
@@ -30,6 +30,7 @@ if __name__ == "__main__":
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
             filter_rate_hz=p.filter_rate_hz, outage_s=p.outage_s, span_s=p.span_s,
-            fit_tau_min_samples=p.fit_tau_min_samples, truth=snakemake.input.truth or None,
+            fit_tau_min_samples=p.fit_tau_min_samples, envelope_lines_below_hz=p.envelope_lines_below_hz,
+            truth=snakemake.input.truth or None,
             lines=list(snakemake.input.get("lines", [])), lines_params=p.lines,
             path_out=snakemake.output.identified, sensor=snakemake.wildcards.sensor)

@@ -277,6 +277,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                     adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
                     span_s: float | None = None, fit_tau_min_samples: float | None = None,
                     truth=None, seed: int = SEED_FIT, lines=None, envelope_lines: bool = False,
+                    envelope_lines_below_hz: float | None = None,
                     consistency_level: float = 0.01) -> Identification:
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
@@ -292,11 +293,11 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     lines. `envelope_lines`: the lines (merged over the curves as the bound merges them,
     :func:`imupipe.lines.merge_lines`) also enter the upper envelope as its narrowband terms, so that the envelope
     the bound covers and the verification runs against holds them as lines (line policy ``model``; under
-    ``exclude`` the bound has no column for an excluded line, and the envelope leaves them out). Off by default
-    and in the workflow: a line above the decimated Nyquist frequency reaches the bound's LP only through its alias,
-    attenuated by the block average (by 6e-9 for a 22 Hz gyro line of one ADIS16405 record at 1 Hz), so covering
-    the envelope's line there inflated the bound's line to 0.91 rad/s at the filter's 100 Hz; the bound then covers
-    the lines from the sample spectra alone, as before the lines were known terms.
+    ``exclude`` the bound has no column for an excluded line, and the envelope leaves them out); with
+    `envelope_lines_below_hz` (the workflow: half the decimation rate, Hz) only the lines below it. A line above the
+    decimated Nyquist frequency reaches the bound's LP only through its alias, attenuated by the block average (by
+    6.3e-9 for a 22 Hz gyro line of one ADIS16405 record at 1 Hz): covering the envelope's line there inflated the
+    bound's line to 0.91 rad/s at the filter's 100 Hz. Such a line is covered from the sample spectra alone.
     `consistency_level`: the family-wise false-alarm level of the record-consistency test.
 
     Raises ValueError when `curves` is empty."""
@@ -379,7 +380,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     else:
         out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
     if known is not None and envelope_lines:
-        out["upper_envelope_model"] = _with_lines(out["upper_envelope_model"], lines)
+        out["upper_envelope_model"] = _with_lines(out["upper_envelope_model"], lines, envelope_lines_below_hz)
     out["upper_envelope_ratio"] = envelope_ratio(out["upper_envelope_model"], selected.model)
     if not out["adequacy"]["pooled"].get("adequate", True):
         out["upper_envelope_note"] = (
@@ -446,13 +447,14 @@ def _selection_after(selection: dict, moved: list, kept_after: list) -> dict:
     return sel
 
 
-def _with_lines(env: dict, lines) -> dict:
+def _with_lines(env: dict, lines, below_hz: float | None = None) -> dict:
     """The envelope `env` (:meth:`NoiseModel.to_dict`, SI) with the curves' lines as narrowband terms: merged as
     the bound's line policy merges them (:func:`imupipe.lines.merge_lines`: one term per group of overlapping lines,
     its power the largest member's, its width covering every member), sigma = sqrt(power) u, f0 Hz, zeta."""
     from imupipe.lines import Line, merge_lines
 
-    found = [ln for group in lines.values() for ln in group if isinstance(ln, Line)]
+    found = [ln for group in lines.values() for ln in group if isinstance(ln, Line)
+             and (below_hz is None or ln.frequency_hz < below_hz)]
     merged = merge_lines(found) if found else []
     if not merged:
         return env
