@@ -71,6 +71,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from imupipe.backend import choose_backend
+
 try:  # optional compiled kernel; the NumPy path gives the same sums to rounding
     from imupipe import _kernels
 except ImportError:  # pragma: no cover - exercised by forcing backend="numpy" in the tests
@@ -160,13 +162,7 @@ def _integrate(a: np.ndarray, out: np.ndarray | None = None) -> tuple[np.ndarray
 
 
 def _pick_backend(backend: str) -> str:
-    if backend not in ("auto", "c", "numpy"):
-        raise ValueError(f"backend must be 'auto', 'c' or 'numpy', got {backend!r}")
-    if backend == "c" and _kernels is None:
-        raise RuntimeError("the compiled kernel imupipe._kernels is not available (use backend='numpy')")
-    if backend == "auto":
-        return "c" if _kernels is not None else "numpy"
-    return backend
+    return choose_backend(backend, _kernels)  # the module's _kernels at call time (tests may unset it)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -93,6 +93,8 @@ import math
 
 import numpy as np
 
+from imupipe.backend import choose_backend
+
 try:  # optional compiled per-fix loops; the NumPy path gives the same results to rounding
     from imupipe import _kernels
     if not hasattr(_kernels, "mismatched_fixes"):  # pragma: no cover - a module built before these loops
@@ -108,14 +110,9 @@ _CHECK_EVERY = 16  # fixes between two convergence checks (a late stop costs at 
 
 
 def pick_backend(backend: str) -> str:
-    """'c' or 'numpy' for `backend` ('auto': the compiled loops of ``imupipe._kernels`` when they are built)."""
-    if backend not in ("auto", "c", "numpy"):
-        raise ValueError(f"backend must be 'auto', 'c' or 'numpy', got {backend!r}")
-    if backend == "c" and _kernels is None:
-        raise RuntimeError("the compiled kernel imupipe._kernels is not available (use backend='numpy')")
-    if backend == "auto":
-        return "c" if _kernels is not None else "numpy"
-    return backend
+    """'c' or 'numpy' for `backend` ('auto': the compiled loops of ``imupipe._kernels`` when they are built;
+    :func:`imupipe.backend.choose_backend`)."""
+    return choose_backend(backend, _kernels)
 
 
 class FixGains(list):
