@@ -203,3 +203,34 @@ def test_flags_say_what_the_summary_would_a_unit_slip_included():
     assert not [f for f in noise_model({k: v / 57.3 for k, v in curves.items()}, record_rate_hz=rate,
                                        sensor="gyro", spec=SPEC, window_s=1800.0, step_s=900.0, n_boot=20,
                                        verify=False).flags if "unit" in f]
+
+
+def test_events_a_known_step_is_reported_in_flags_and_to_dict():
+    # the workflow's outliers stage's event search (imupipe.stages.outliers), run by the library on each curve: a
+    # mean step of delta = 1e-3 rad/s at t0 = 600.3 s on one of two white-noise axes (N = 1e-4 rad/s/sqrt(Hz), 10 Hz:
+    # per-sample sd 3.2e-4 rad/s). At the scan's 1 s scale sigma_D = sqrt(2) N / sqrt(1 s) = 1.4e-4 rad/s, so the step
+    # stands ~7 sigma_D clear of a threshold near 5 sigma_D, and the CUSUM places a step of 3 per-sample sds within
+    # about sigma_1^2 / delta^2 ~ 0.1 sample: the time is asked within 1 s (the goal), the size inside its
+    # interval. The clean axis (fixed seed) has no event: the false-alarm rate is 0.01 per axis.
+    rate, n, t0, delta = 10.0, 12_000, 600.3, 1e-3
+    rng = np.random.default_rng(20261205)
+    x = 1.0e-4 * np.sqrt(rate) * rng.standard_normal((2, n))
+    x[0, int(t0 * rate):] += delta
+    curves = {"rec/x": x[0], "rec/y": x[1]}
+    res = noise_model(curves, record_rate_hz=rate, sensor="gyro", spec=SPEC, window_s=300.0, step_s=150.0,
+                      n_boot=20, components=("white",), pooling_n_boot=19, verify=False)
+    steps = [e for e in res.events if e["kind"] == "step"]
+    assert len(steps) == 1 and steps[0]["axis"] == "x" and steps[0]["dataset"] == "rec", res.events
+    assert abs(steps[0]["time_s"] - t0) <= 1.0
+    assert steps[0]["size_low"] <= delta <= steps[0]["size_high"]
+    assert not [e for e in res.events if e["axis"] == "y"]
+    flags = [f for f in res.flags if f.startswith("FLAG event [rec/gyro/x]")]
+    assert len(flags) == 1 and "mean step" in flags[0] and "600.3 s from the record's start" in flags[0], res.flags
+    d = res.to_dict()
+    assert d["events"] == res.events and d["flags"] == res.flags
+    import yaml
+
+    yaml.safe_dump(d)  # plain types only
+    with pytest.raises(ValueError, match="events: policy 'exclude'"):  # the API analyses the records as given
+        noise_model(curves, record_rate_hz=rate, sensor="gyro", spec=SPEC, window_s=300.0, step_s=150.0,
+                    events={"policy": "exclude"})

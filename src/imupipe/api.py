@@ -12,9 +12,11 @@ components, the identified envelope imposed below the lowest bin down to a hundr
 policy, the Allan check, per-axis models when the axes differ); the verification in the reference scenario
 (:func:`imupipe.stages.verify.verify_sensor`: covariance analysis, replay of the decimated records, reduction
 by integrity); the contract (:func:`imupipe.stages.contract.contract_stage`); and the Kalman-filter matrices
-of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). Stationarity tests, outlier
-screening, per-axis bounds, figures and tables are left to the workflow (the API takes the records as they are,
-every one included). tests/test_orchestration_parity.py runs the workflow and this function on the same records.
+of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). The events (bursts, steps) of every
+full-rate curve are found as the workflow's outliers stage finds them (:func:`imupipe.stages.outliers.outliers_stage`,
+events policy ``warn``): reported in :attr:`NoiseModelResult.events`, ``flags`` and ``to_dict()``, the records
+analysed as they are. Stationarity tests, outlier removal, per-axis bounds, figures and tables are left to the
+workflow (the API takes the records as they are, every one included). tests/test_orchestration_parity.py runs the workflow and this function on the same records.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
 
@@ -88,6 +90,12 @@ class NoiseModelResult:
         The stages' dicts, as the workflow's files hold them: ``identify``
         (:func:`imupipe.stages.identify.identification_stage`), ``bound``
         (:func:`imupipe.stages.bound.bound_stage`), ``verify`` and ``contract`` (None when ``verify=False``).
+    events : list of dict
+        The bursts and steps of every curve, as the workflow's outliers files list them
+        (:func:`imupipe.stages.outliers.outliers_stage`: ``dataset`` and ``axis`` from the curve label
+        ``"<dataset>/<axis>"``, ``kind``, ``time_s`` (s from the record's start), ``size`` (SI) with its interval,
+        ``display`` (deg/h, mg for steps; deg/s, g for bursts), ``action``); empty when none was found or the
+        search was not asked for (``events=False``).
     """
 
     sensor: str
@@ -107,6 +115,7 @@ class NoiseModelResult:
     verification: dict | None = None
     contract: dict | None = None
     records: dict = field(default_factory=dict, repr=False)
+    events: list = field(default_factory=list)
 
     @property
     def model(self):
@@ -124,11 +133,11 @@ class NoiseModelResult:
     def flags(self) -> list[str]:
         """Every failed or flagged check, as the workflow's summary words them (``"FAIL|FLAG check [where]:
         detail"``; :func:`imupipe.summary.flags_of` on the bound, contract and identification records): a
-        plausibility FLAG (a unit slip, data far below the sheet) does not change :attr:`bounded`, so read these
-        too. Empty when nothing failed or was flagged."""
+        plausibility FLAG (a unit slip, data far below the sheet, an event in a record: :attr:`events`) does not
+        change :attr:`bounded`, so read these too. Empty when nothing failed or was flagged."""
         from imupipe.summary import flags_of
 
-        bound = {**(self.records.get("bound") or {}), **(self.contract or {})}
+        bound = {**(self.records.get("bound") or {}), **(self.contract or {}), "events": list(self.events)}
         return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
                 for f in flags_of(self.sensor, bound, self.records.get("identify") or {}, None)]
 
@@ -139,7 +148,7 @@ class NoiseModelResult:
 
     def to_dict(self) -> dict:
         """Plain, YAML-ready dict: ``bound`` (the bound contract's fields), ``identify`` (fit, model,
-        selection), ``kf``; SI units, PSDs two-sided."""
+        selection), ``kf``, ``events`` (:attr:`events`), ``flags`` (:attr:`flags`); SI units, PSDs two-sided."""
         from imupipe.io import plain
 
         sel = {k: self.selection.get(k) for k in ("kept", "dropped", "reasons", "band_hz")}
@@ -152,6 +161,8 @@ class NoiseModelResult:
             "bound": self.bound.to_dict(sensor=self.sensor),
             "identify": {"fit": self.fit.to_dict(), "model": self.fit.model.to_dict(), "selection": plain(sel)},
             "kf": plain(self.kf),
+            "events": plain(list(self.events)),
+            "flags": list(self.flags),
         }
         if self.selected is not None:
             out["identify"]["model_selected"] = self.selected.model.to_dict()
@@ -238,6 +249,7 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
+    events: bool | Mapping = True,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -295,6 +307,13 @@ def noise_model(
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
+    events : bool or mapping, optional
+        Find the bursts and steps of every full-rate curve as the workflow's outliers stage does
+        (:func:`imupipe.stages.outliers.outliers_stage` on the record as given, :func:`imupipe.events.detect_events`:
+        derived thresholds, a false-alarm rate of ``alpha`` per record and axis). True (default): the workflow's
+        ``events`` settings (:data:`imupipe.stages.outliers.EVENT_DEFAULTS`); a mapping: those settings over them
+        (its ``policy``, if given, must be ``warn``: the API analyses the records as given); False: no search.
+        Found events are in the result's ``events``, ``flags`` and ``to_dict()``.
 
     Returns
     -------
@@ -314,6 +333,7 @@ def noise_model(
     spec_sheet = _checked_inputs(curves, record_rate_hz, sensor, spec)
     rate = float(record_rate_hz)
     window_s, step_s = _psd_window(curves, rate, decimate_hz, window_s, step_s)
+    found = _events_of(curves, rate, sensor, events)
     allan, spectra, decimated = _per_curve_estimates(curves, rate, sensor, decimate_hz, window_s, step_s, taper,
                                                      detrend, psd_confidence, taus, allan_confidence)
     # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
@@ -355,7 +375,7 @@ def noise_model(
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
                             verification=verification, contract=contract,
                             records={"identify": ident.record, "bound": bound_record, "verify": verification,
-                                     "contract": contract})
+                                     "contract": contract}, events=found)
 
 
 def _checked_inputs(curves, record_rate_hz, sensor, spec):
@@ -454,6 +474,38 @@ def _stacked_allan(allan):
         allan_curves[label] = tuple(np.full(tau.shape, np.nan) for _ in range(2))
         allan_curves[label][0][at], allan_curves[label][1][at] = av["avar"].values, av["edf"].values
     return tau, allan_curves
+
+
+def _events_of(curves, rate: float, sensor: str, events) -> list:
+    """The events of every full-rate curve as the workflow's outliers files list them (rule outliers:
+    :func:`imupipe.stages.outliers.outliers_stage` with the events policy ``warn``), in the curves' order; [] when
+    `events` is False. A curve label ``"<dataset>/<axis>"`` gives the event's dataset and axis (else the whole
+    label is the dataset)."""
+    if events is False or events is None:
+        return []
+    from imupipe.stages.outliers import EVENT_DEFAULTS, outliers_stage
+    from imupipe.units import SI_UNITS
+
+    if events is True:
+        settings = dict(EVENT_DEFAULTS)
+    elif isinstance(events, Mapping):
+        unknown = sorted(set(events) - set(EVENT_DEFAULTS))
+        if unknown:
+            raise ValueError(f"events: unknown setting(s) {unknown}; expected some of {sorted(EVENT_DEFAULTS)}")
+        settings = {**EVENT_DEFAULTS, **events}
+    else:
+        raise TypeError(f"events: expected True, False or a mapping of the events settings, got {events!r}")
+    if settings["policy"] != "warn":
+        raise ValueError(f"events: policy {settings['policy']!r}: the API analyses the records as given; only "
+                         "'warn' (report the events) is available here (the workflow's events.policy has the others)")
+    out = []
+    for label, x in curves.items():
+        dataset, _, axis = str(label).rpartition("/")
+        report, _ = outliers_stage(np.asarray(x, dtype=np.float64), rate, units=SI_UNITS[sensor],
+                                   dataset=dataset or str(label), sensor=sensor, axis=axis if dataset else None,
+                                   events=settings, series=f"curves[{label!r}]")
+        out += report.get("events") or []
+    return out
 
 
 def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_window_bins) -> dict:
