@@ -527,3 +527,29 @@ def test_a_clean_outliers_report_adds_no_flag():
     assert entry == {}
     assert render_summary({"accel": {"bound": _bound(), "stationarity": STATIONARITY}}) == \
         render_summary({"accel": {"bound": {**_bound(), **entry}, "stationarity": STATIONARITY}})
+
+
+def test_a_per_axis_model_passing_its_replay_by_tolerance_is_flagged_on_the_first_screen():
+    """An exported per-axis model whose replay's worst MSE/P (1.78, in the fix phase) passed only by the replay's
+    sampling tolerance (1 + 0.98): an outside evaluation found the summary silent on it. It is a FLAG naming the
+    axis with the contract's sentence, and the verdict table's verification column says so."""
+    from imupipe.summary import summary_sections
+
+    rep = {"worst_ratio": 1.78, "worst_t_s": 312.0, "tolerance": 0.98, "passed": True, "n_eff": 8.33,
+           "within_tolerance": "passes within the replay's sampling tolerance (ratio 1.78 at 312 s, tolerance 1 + "
+                               "0.98 = 1.98; t = 2 sqrt(2/n_eff), n_eff 8.33 independent windows)"}
+    bound = _bound(verified=True, verification={"replay": {"worst_ratio": 0.9, "tolerance": 0.5, "passed": True}},
+                   per_axis_models={"x": {"exported_in_kf": True, "verification": {"replay": rep}},
+                                    "y": {"exported_in_kf": False, "kf": "axis y: the global model",
+                                          "verification": {"replay": rep}}})
+    flags = [f for f in flags_of("accel", bound=bound) if f.check == "replay within its tolerance"]
+    assert [f.where for f in flags] == ["axis x model"]  # y exports the global model: its own replay is not used
+    assert flags[0].severity == "flag" and "ratio 1.78" in flags[0].detail and "1.98" in flags[0].detail
+    head, _ = summary_sections({"accel": {"bound": bound}})
+    assert "- FLAG replay within its tolerance [axis x model]: passes within the replay's sampling tolerance" in head
+    assert "| passed, replay (axis x model) only within its sampling tolerance (FLAG below) |" in head
+    # a contract written before the sentence existed: the numbers give it
+    old = _bound(verified=True, per_axis_models={"x": {"exported_in_kf": True, "verification": {
+        "replay": {k: rep[k] for k in ("worst_ratio", "worst_t_s", "tolerance", "passed")}}}})
+    (f,) = [f for f in flags_of("accel", bound=old) if f.check == "replay within its tolerance"]
+    assert "ratio 1.78" in f.detail and "1 + 0.98 = 1.98" in f.detail

@@ -309,3 +309,27 @@ def test_verification_report_with_replay_and_reduction():
     assert "random_walk" in rep["reduction"]["accepted"] and "gauss_markov T=5 s" in rep["reduction"]["accepted"]
     assert rep["exported"]["model"]["random_walk"] == 0 and bi["p0_random_walk"] >= bi["required_variance"] - 6e-5**2
     assert rep["reduction"]["verification"]["passed"]
+
+
+def test_a_replay_passing_only_by_its_sampling_tolerance_says_so_in_its_file():
+    # the truth itself replayed on 2 records of 6000 s (1 Hz; windows of 300 s of fixes + 900 s of outage: n_eff =
+    # 12000 / 1200 = 10, tolerance 2 sqrt(2/10) = 0.894): its worst MSE/P over the 1200 steps is 1.32 by sampling
+    # alone (the maximum of many noisy ratios), accepted by the tolerance. That pass is stated in the check's own
+    # dict (what the verify file and the contract repeat), with the ratio, the tolerance and n_eff; a filter at
+    # twice the truth stays below 1 and gets no such sentence, and an exact analysis (tolerance 1e-6) never does.
+    from imupipe.simulate import simulate
+    from imupipe.verify import within_tolerance
+
+    sc = reference_scenario("gyro", fix_s=300.0, outage_s=900.0)
+    rec = list(simulate(TRUTH, 6000, 1.0, rng=np.random.default_rng(7), n_records=2))
+    d = replay(TRUTH, rec, 1.0, sc).to_dict()
+    assert d["passed"] and 1.0 < d["worst_ratio"] <= 1.0 + d["tolerance"]
+    text = d["within_tolerance"]
+    assert text.startswith("passes within the replay's sampling tolerance (ratio ")
+    assert f"ratio {d['worst_ratio']:.3g}" in text and f"1 + {d['tolerance']:.3g} = {1 + d['tolerance']:.3g}" in text
+    assert "n_eff 10 " in text
+    double = NoiseModel(white=2e-4, gauss_markov=((1e-4, 300.0),), random_walk=2e-6)
+    assert replay(double, rec, 1.0, sc).to_dict()["within_tolerance"] is None
+    exact = covariance_analysis(TRUTH, TRUTH, sc).to_dict()
+    assert exact["within_tolerance"] is None
+    assert within_tolerance({**exact, "worst_ratio": 1.0000005, "tolerance": 1e-6}) is None

@@ -153,9 +153,7 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
         "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
         "per_axis": bound.get("per_axis"),
         **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
-        "verification": {name: {k: ch.get(k) for k in ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio",
-                                                       "first_exceed_s", "mean_conservatism", "tolerance", "passed")}
-                         for name, ch in exported["verification"].get("checks", {}).items()},
+        "verification": verification_checks(exported),
         "reduction": None if ver.get("reduction") is None else
         {k: ver["reduction"][k] for k in ("accepted", "refused", "tried")},
     }
@@ -173,6 +171,19 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     if not c["bounded"]:
         logging.warning("%s: NOT BOUNDED; failed checks: %s", sensor, failed_names(out))
     return out
+
+
+#: The keys of each verification check the contract repeats (imupipe.verify.Verification.to_dict): the numbers and,
+#: for a check that passed only by its sampling tolerance, the sentence saying so (imupipe.verify.within_tolerance).
+VERIFICATION_KEYS = ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio", "first_exceed_s",
+                     "mean_conservatism", "tolerance", "passed", "n_eff", "within_tolerance")
+
+
+def verification_checks(exported: dict | None) -> dict:
+    """Check name -> the :data:`VERIFICATION_KEYS` of the exported model's verification ({} without one)."""
+    checks = ((exported or {}).get("verification") or {}).get("checks") or {}
+    return {name: {k: ch.get(k) for k in VERIFICATION_KEYS if k in ch or k not in ("n_eff", "within_tolerance")}
+            for name, ch in checks.items()}
 
 
 def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: float | None = None, band_hz=None):
@@ -201,6 +212,7 @@ def per_axis_contracts(bound: dict, ver: dict, spec, sensor: str, kf_rate_hz: fl
                  "all_frequency_margin": pa.get("all_frequency_margin"),
                  "allan_check_passed": pa.get("allan_check_passed"),
                  "inband_inflation": inband(exported, spec, sensor, band_hz),
+                 "verification": verification_checks(exported),
                  "export": scope}
         entry["kf"] = (f"axis {ax}: its own model" if c["bounded"] else
                        f"axis {ax}: the global model (its own failed: {failed_names(entry)})")
