@@ -553,3 +553,33 @@ def test_a_per_axis_model_passing_its_replay_by_tolerance_is_flagged_on_the_firs
         "replay": {k: rep[k] for k in ("worst_ratio", "worst_t_s", "tolerance", "passed")}}}})
     (f,) = [f for f in flags_of("accel", bound=old) if f.check == "replay within its tolerance"]
     assert "ratio 1.78" in f.detail and "1 + 0.98 = 1.98" in f.detail
+
+
+def test_a_reassigned_gm_and_record_consistency_are_shown_in_spec_and_si_units():
+    """An outside evaluation read "sigma 0.00306 u" and "(white = 0.000764 SI)" in the summary of a spec sheet that
+    gives no GM term: every value of a re-assigned GM (its sigma, the white noise it acts as) and of the
+    record-consistency FLAG is shown in the spec sheet's unit (or the data sheets' usual one) and in SI. The
+    conversions are closed forms: 0.00306 rad/s x 180/pi x 3600 = 631 deg/h; 0.000764 rad/s/sqrt(Hz) x 180/pi x 60
+    = 2.63 deg/sqrt(h)."""
+    from imupipe.summary import summary_sections
+
+    moved = {"term": 1, "sigma": 0.00306, "T_s": 0.0106, "acts_as": "white", "value": 0.000764,
+             "why": "its T interval reaches the shortest T the records resolve"}
+    identify = {"gm_reassigned": [moved],
+                "selection": {"kept": ["white"], "dropped": ["gauss_markov"],
+                              "reasons": {"white": "significant",
+                                          "gauss_markov": "re-assigned: GM term 1 (sigma 0.00306 u, T 0.0106 s) acts "
+                                                          "as white noise (white = 0.000764 SI); was: kept: significant"}},
+                "record_consistency": {"datasets": ["a", "b", "c"], "z_crit": 2.9, "alpha": 0.01, "flagged": [
+                    {"dataset": "a", "param": "white", "estimate": 0.000764, "others": 0.000382, "z": 5.0}]}}
+    bound = _bound(sensor="gyro", spec_spec_units={"white": {"value": 2.0, "unit": "deg/sqrt(h)"}, "gauss_markov": []},
+                   bound_spec_units={"white": {"value": 3.0, "unit": "deg/sqrt(h)"}, "gauss_markov": []})
+    head, details = summary_sections({"gyro": {"bound": bound, "identify": identify}})
+    (gm,) = [ln for ln in head.splitlines() if ln.startswith("- FLAG GM re-assigned")]
+    assert "sigma 631 deg/h (0.00306 rad/s)" in gm and "white noise N 2.63 deg/sqrt(h) (0.000764 rad/s/sqrt(Hz))" in gm
+    (rc,) = [ln for ln in head.splitlines() if "record consistency" in ln]
+    assert "N = 2.63 deg/sqrt(h) (0.000764 rad/s/sqrt(Hz))" in rc
+    (why,) = [ln for ln in details.splitlines() if ln.startswith("  - gauss_markov (dropped)")]
+    assert "631 deg/h (0.00306 rad/s)" in why and "was: kept: significant" in why
+    for text in (head, details):
+        assert " u," not in text and " u)" not in text and " SI)" not in text

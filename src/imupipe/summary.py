@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from imupipe.units import SI_UNITS
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
            "render_summary", "summary_sections"]
@@ -253,10 +252,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
     for r in moved:
-        out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}",
-                        f"sigma {_num(r.get('sigma'))} {SI_UNITS.get(sensor, '(SI)')}, T {_num(r.get('T_s'))} s: "
-                        f"{r.get('why')}; reported and "
-                        f"bounded as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'} it acts as"))
+        out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}", reassigned_text(sensor, r, bound)))
     moved_terms = {f"gm_{k}_{r.get('term')}" for r in moved for k in ("T", "sigma")}
     if isinstance(on_b, Mapping):
         model = identify.get("model") if isinstance(identify.get("model"), Mapping) else {}
@@ -282,6 +278,18 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     return out
 
 
+def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> str:
+    """The words of one GM the identification re-assigned (identify file ``gm_reassigned``: sigma u, T_s s, why,
+    acts_as, value: the white noise N u/sqrt(Hz) or random walk K u/sqrt(s) it acts as), every value in the spec
+    sheet's unit and in SI (:func:`both_units`)."""
+    white = r.get("acts_as") == "white"
+    as_key = "white" if white else "random_walk"
+    acts = f"{'white noise N' if white else 'random walk K'}"
+    value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
+    return (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {_num(r.get('T_s'))} s: {r.get('why')}; "
+            f"reported and bounded as the {acts}{value} it acts as")
+
+
 #: How the record-consistency table and FLAG name the parameters (the identify file's keys).
 _CONSISTENCY_NAMES = {"white": "N", "flicker": "B", "random_walk": "K"}
 
@@ -296,8 +304,7 @@ def consistency_flags(sensor: str, identify: Mapping | None) -> list[Flag]:
         return []
     out = []
     items = [it for it in rc.get("flagged") or [] if isinstance(it, Mapping)]
-    u = SI_UNITS.get(sensor, "u")
-    units = {"white": f"{u}/sqrt(Hz)", "flicker": u, "random_walk": f"{u}/sqrt(s)"}
+    key = {"white": "white", "flicker": "gm_sigma", "random_walk": "random_walk"}  # B is a rate (u), as a GM sigma
     for it in items:
         est, oth, param = it.get("estimate"), it.get("others"), it.get("param")
         ratio = (float(est) / float(oth)) if isinstance(est, (int, float)) and isinstance(oth, (int, float)) and oth else None
@@ -306,7 +313,8 @@ def consistency_flags(sensor: str, identify: Mapping | None) -> list[Flag]:
                if len(items) >= 2 and len(pair) == 1 and len(rc.get("datasets") or []) == 2 else "")
         out.append(Flag(sensor, f"{sensor} record consistency", "",
                         f"{who}{it.get('dataset')} {_CONSISTENCY_NAMES.get(param, param)} = "
-                        f"{_num(est)} {units.get(param, 'SI')} is {_num(ratio)}x the other records' {_num(oth)} "
+                        f"{both_units(sensor, None, key.get(param, param), est)} is {_num(ratio)}x the other "
+                        f"records' {both_units(sensor, None, key.get(param, param), oth)} "
                         f"(test z = {_num(it.get('z'))}, beyond the critical {_num(rc.get('z_crit'))} at family-wise "
                         f"level {_num(rc.get('alpha'))}): this record pulls the pooled model; check it for an event "
                         "(identify file, record_consistency)"))
@@ -635,7 +643,7 @@ def _spec_above_data(bound: Mapping) -> str | None:
         return None
     value = (f"{_num(shown.get('value') / ratio, '{:.3g}')} {shown.get('unit')}"
              if isinstance(shown, Mapping) and isinstance(shown.get("value"), (int, float)) else
-             f"{_num(env_si, '{:.3g}')} u/sqrt(Hz) (SI)")
+             f"{_num(env_si, '{:.3g}')} {_SI_SPELLING.get((bound.get('sensor'), 'white'), 'u/sqrt(Hz)')} (SI)")
     return (f"- white noise: the records allow at most N = {value} (the identification's upper envelope), "
             f"{_num(ratio, '{:.3g}')}x below the spec sheet's: the bound's N rests on the spec sheet, not on these "
             "records")
@@ -667,12 +675,18 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
                 rows.append((name, unit or sunit or "-", sv, bv))
     else:
         si_b, si_s = bound.get("bound") or {}, bound.get("spec") or {}
-        rows.append(("white noise N (SI)", "u/sqrt(Hz)", si_s.get("white"), si_b.get("white")))
-        rows.append(("random walk K (SI)", "u/sqrt(s)", si_s.get("random_walk"), si_b.get("random_walk")))
+        sensor = bound.get("sensor")
+
+        def si(key, generic):
+            return _SI_SPELLING.get((sensor, key), generic)
+
+        rows.append(("white noise N (SI)", si("white", "u/sqrt(Hz)"), si_s.get("white"), si_b.get("white")))
+        rows.append(("random walk K (SI)", si("random_walk", "u/sqrt(s)"), si_s.get("random_walk"),
+                     si_b.get("random_walk")))
         for i, g in enumerate(si_b.get("gauss_markov") or []):
             sg = (si_s.get("gauss_markov") or [{}] * (i + 1))
             sg = sg[i] if i < len(sg) else {}
-            rows.append((f"GM sigma {i + 1} (SI)", "u", sg.get("sigma"), g.get("sigma")))
+            rows.append((f"GM sigma {i + 1} (SI)", si("gm_sigma", "u"), sg.get("sigma"), g.get("sigma")))
             rows.append((f"GM T {i + 1}", "s", sg.get("T"), g.get("T")))
     def given(v):
         try:
@@ -721,18 +735,40 @@ def _spec_unit(bound: Mapping, key: str) -> str | None:
     return None
 
 
+#: The spec-sheet-like unit a value is shown in when the contract states no spec-sheet unit for it (a spec sheet
+#: without a GM term, e.g. one that gives white noise and a bias-instability floor only): the units data sheets use.
+SPEC_LIKE_UNITS = {
+    ("gyro", "white"): "deg/sqrt(h)", ("gyro", "random_walk"): "(deg/h)/sqrt(s)", ("gyro", "gm_sigma"): "deg/h",
+    ("accel", "white"): "m/s/sqrt(h)", ("accel", "random_walk"): "m/s^2/sqrt(s)", ("accel", "gm_sigma"): "mg",
+}
+
+
 def _in_spec_units(bound: Mapping, key: str, value_si: float) -> tuple[float, str]:
-    """`value_si` (SI) in the spec sheet's unit of `key` (:func:`_spec_unit`, :func:`imupipe.units.from_si`), or
-    the SI value with its SI unit when the contract states no spec unit (or the sensor is not gyro / accel)."""
+    """`value_si` (SI) in the spec sheet's unit of `key` (:func:`_spec_unit`, :func:`imupipe.units.from_si`; where the
+    contract states none, the data sheets' usual unit :data:`SPEC_LIKE_UNITS`), or the SI value with its SI unit when
+    the sensor is not gyro / accel."""
     from imupipe.units import UnitError, from_si
 
-    sensor, unit = bound.get("sensor"), _spec_unit(bound, key)
+    sensor = bound.get("sensor")
+    unit = _spec_unit(bound, key) or SPEC_LIKE_UNITS.get((sensor, key))
     if unit and sensor in ("gyro", "accel"):
         try:
             return float(from_si(float(value_si), unit, key, sensor)), unit
         except UnitError:
             pass
     return float(value_si), _SI_SPELLING.get((sensor, key), "SI")
+
+
+def both_units(sensor: str, bound: Mapping | None, key: str, value_si) -> str:
+    """``"<value> <spec unit> (<value> <SI unit>)"``: a value of `key` (``white``, ``random_walk``, ``gm_sigma``)
+    given in SI, shown in the spec sheet's unit (:func:`_in_spec_units`) and in SI; ``"-"`` for no number."""
+    try:
+        v = float(value_si)
+    except (TypeError, ValueError):
+        return "-"
+    vs, us = _in_spec_units({**(bound or {}), "sensor": sensor}, key, v)
+    si = _SI_SPELLING.get((sensor, key), "SI")
+    return f"{_num(vs)} {us}" + ("" if us == si else f" ({_num(v)} {si})")
 
 
 def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> list[tuple]:
@@ -972,8 +1008,13 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         if kept is not None:
             lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
             reasons = sel.get("reasons") or {}
+            moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
             for comp in list(kept) + list(sel.get("dropped") or []):
                 why = reasons.get(comp) if isinstance(reasons, Mapping) else None
+                if comp == "gauss_markov" and moved and why:  # the identification's words carry SI placeholders
+                    was = str(why).partition("; was: ")[2]
+                    why = ("re-assigned: " + "; ".join(f"GM term {r.get('term')}: {reassigned_text(sensor, r, bound)}"
+                                                       for r in moved) + (f"; was: {was}" if was else ""))
                 mark = "kept" if comp in kept else "dropped"
                 lines.append(f"  - {comp} ({mark}): {why if why else '-'}")
         lines += _adequacy_table(identify)
