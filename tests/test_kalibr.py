@@ -320,3 +320,20 @@ def test_a_ratio_below_one_is_not_called_an_inflation():
     assert rn > 1 and f"#   accelerometer_noise_density: {rn:.3g} times the identified value\n" in text
     assert set(imu.below) == {"accelerometer_random_walk"}
     assert "(above 1: the bound's inflation)" in text
+
+
+def test_a_global_line_refuses_kalibr_only_when_some_axis_exports_the_global_model():
+    """Per-axis models: Kalibr's values are the per-axis exported models' (stages.kalibr.axis_models). A line state
+    of the global model that no axis exports (every axis has its own model, the verified reduction dropped the line
+    there) is no reason to refuse; an axis given the global model brings its line back, as does an axis's own."""
+    from imupipe.stages.kalibr import lines_of
+
+    line = {"sigma": 6.6e-3, "f0_hz": 0.564, "zeta": 1.8e-3}
+    own = {"model": "own", "parameters": {"white": 1e-2, "narrowband": []}}
+    kf = {"parameters": {"white": 1e-2, "narrowband": [line]}, "per_axis": {"x": own, "y": own, "z": own}}
+    assert lines_of(kf) == []
+    kf["per_axis"]["z"] = {"model": "global"}
+    assert lines_of(kf) == [line]
+    kf["per_axis"]["z"] = {"model": "own", "parameters": {"white": 1e-2, "narrowband": [line]}}
+    assert lines_of(kf) == [line]
+    assert lines_of({"parameters": {"narrowband": [line]}}) == [line]  # pooled axes: the global model's

@@ -456,11 +456,14 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
     refused = render_summary({"gyro": {"bound": contract}}, kalibr={"refused": True, "reason": "a line state"})
     assert "- FLAG kalibr export: refused: a line state" in first_screen(refused)
     assert "0 failed, 1 flagged" in refused and "gyroscope_random_walk" not in refused
-    # axes with their own model in the KF file: the first screen says the KF rows are the global model
+    # axes with their own model in the KF file: the first screen says the KF rows are the global model and which
+    # model each axis exports
     per = {**contract, "per_axis_models": {"x": {"exported_in_kf": True}, "y": {"exported_in_kf": False}}}
-    assert "gyro: the axes differ; the KF file's `per_axis` holds each axis's own model" in \
-        first_screen(render_summary({"gyro": {"bound": per}}))
-    assert "the axes differ" not in head
+    per_head = first_screen(render_summary({"gyro": {"bound": per}}))
+    assert "The axes differ: the KF file's `per_axis` exports, per axis, this model (the tables above are the " \
+           "global model" in per_head
+    assert "| gyro | x | own model |" in per_head and "| gyro | y | global model |" in per_head
+    assert "the axes differ" not in head.lower()
 
 
 def test_a_component_absent_at_zero_is_not_flagged_on_its_boundary():
@@ -583,3 +586,32 @@ def test_a_reassigned_gm_and_record_consistency_are_shown_in_spec_and_si_units()
     assert "631 deg/h (0.00306 rad/s)" in why and "was: kept: significant" in why
     for text in (head, details):
         assert " u," not in text and " u)" not in text and " SI)" not in text
+
+
+def test_the_first_screen_states_each_axis_export_and_why_kalibr_is_refused():
+    """Per-axis models: an outside evaluation saw the first screen show the global model's 0.5 Hz line while the
+    axes' own models (what the KF file exports per axis) had dropped it, and Kalibr refused without saying whose
+    line. The first screen now lists, per axis, the model exported, its values and line states (and the lines its
+    reduction dropped), and the Kalibr FLAG names the exported models holding a line."""
+    from imupipe.summary import summary_sections
+
+    line = {"sigma": 6.6e-3, "f0_hz": 0.564, "zeta": 1.8e-3}
+    glob = {"white": 0.0107, "gauss_markov": [], "random_walk": 0.00115, "narrowband": [line]}
+    own = {"exported_in_kf": True, "model": {"white": 0.00769, "gauss_markov": [{"sigma": 0.00465, "T": 9.91}],
+                                             "random_walk": 0.000788, "narrowband": []},
+           "export": {"dropped_by_reduction": ["narrowband f0=0.564 Hz"]}}
+    bound = _bound(sensor="accel", model=glob, bound_spec_units={"white": {"value": 0.642, "unit": "m/s/sqrt(h)"}},
+                   spec_spec_units={"white": {"value": 0.2, "unit": "m/s/sqrt(h)"}, "gauss_markov": []},
+                   per_axis_models={"x": own, "y": {"exported_in_kf": False, "kf": "axis y: the global model (its own "
+                                                    "failed: verification replay (1.2))"}})
+    kalibr = {"refused": True, "reason": "narrowband line state(s) in the exported accel KF model"}
+    head, _ = summary_sections({"accel": {"bound": bound}}, kalibr=kalibr)
+    rows = [ln for ln in head.splitlines() if ln.startswith("| accel | x |") or ln.startswith("| accel | y |")]
+    assert len(rows) == 2
+    x, y = rows
+    assert "own model" in x and "none; dropped by the verified reduction: 0.564 Hz" in x
+    assert "sigma 0.474 mg (0.00465 m/s^2), T 9.91 s" in x  # 0.00465 / 9.80665e-3 = 0.474 mg
+    assert "global model" in y and "0.564 Hz (sigma 0.673 mg (0.0066 m/s^2))" in y and "its own failed" in y
+    (k,) = [ln for ln in head.splitlines() if ln.startswith("- FLAG kalibr export")]
+    assert "the exported line states: accel global model (exported for axis y): 0.564 Hz" in k
+    assert "axis x" not in k

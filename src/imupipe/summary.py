@@ -750,12 +750,12 @@ def _in_spec_units(bound: Mapping, key: str, value_si: float) -> tuple[float, st
     from imupipe.units import UnitError, from_si
 
     sensor = bound.get("sensor")
-    unit = _spec_unit(bound, key) or SPEC_LIKE_UNITS.get((sensor, key))
-    if unit and sensor in ("gyro", "accel"):
-        try:
-            return float(from_si(float(value_si), unit, key, sensor)), unit
-        except UnitError:
-            pass
+    for unit in dict.fromkeys((_spec_unit(bound, key), SPEC_LIKE_UNITS.get((sensor, key)))):
+        if unit and sensor in ("gyro", "accel"):
+            try:
+                return float(from_si(float(value_si), unit, key, sensor)), unit
+            except UnitError:  # a unit of another quantity or sensor: the next one
+                continue
     return float(value_si), _SI_SPELLING.get((sensor, key), "SI")
 
 
@@ -881,6 +881,90 @@ def _per_axis_lines(bound: Mapping) -> list[str]:
     return lines
 
 
+def _line_terms(model) -> list:
+    """The narrowband line states (sigma > 0) of a model dict (SI)."""
+    m = model if isinstance(model, Mapping) else {}
+    return [t for t in m.get("narrowband") or [] if isinstance(t, Mapping) and float(t.get("sigma") or 0.0) > 0]
+
+
+def _model_cells(sensor: str, bound: Mapping, model) -> tuple[str, str, str, str]:
+    """(white noise N, GM terms, random walk K, lines) of a model dict (SI) as table cells, each value in the spec
+    sheet's unit and SI (:func:`both_units`); "-" for a term the model lacks."""
+    m = model if isinstance(model, Mapping) else {}
+    n = both_units(sensor, bound, "white", m.get("white")) if m.get("white") else "-"
+    k = both_units(sensor, bound, "random_walk", m.get("random_walk")) if m.get("random_walk") else "-"
+    gms = [f"sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, T {_num(g.get('T'))} s"
+           for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
+    lines = [f"{_num(t.get('f0_hz'), '{:.4g}')} Hz (sigma {both_units(sensor, bound, 'gm_sigma', t.get('sigma'))})"
+             for t in _line_terms(m)]
+    return n, "; ".join(gms) or "-", k, "; ".join(lines) or "none"
+
+
+def per_axis_exports(sensor: str, bound: Mapping) -> list[dict]:
+    """What the KF file exports per axis when the axes differ (the contract's ``per_axis_models``): per axis
+    ``axis``, ``own`` (its own model, bounded, or the global one), ``model`` (SI dict), ``why`` and ``dropped`` (the
+    states the exported model's verified reduction dropped); [] when the axes are pooled."""
+    per = bound.get("per_axis_models") or {}
+    out = []
+    for ax, pa in per.items():
+        if not isinstance(pa, Mapping):
+            continue
+        own = bool(pa.get("exported_in_kf"))
+        src = pa if own else bound
+        dropped = [d for d in (_g(src, "export", "dropped_by_reduction") or []) if isinstance(d, str)]
+        out.append({"axis": str(ax), "own": own, "model": src.get("model"), "dropped": dropped,
+                    "why": ("its own contract is bounded (the pooling test says the axes differ)" if own else
+                            str(pa.get("kf") or "its own contract failed"))})
+    return out
+
+
+def per_axis_export_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The first screen's per-axis export table: for each sensor whose axes differ, which model the KF file exports
+    per axis (its own or the global), why, and that model's values (spec sheet's units and SI) and line states,
+    with the lines its verified reduction dropped; empty when every sensor is pooled. The values-to-paste tables
+    hold the global model; this table says which axes use it."""
+    rows = []
+    for sensor, files in runs.items():
+        bound = files.get("bound") or {}
+        for e in per_axis_exports(sensor, bound):
+            n, gm, k, lines = _model_cells(sensor, bound, e["model"])
+            gone = [d for d in e["dropped"] if d.startswith("narrowband")]
+            if gone:
+                lines += f"; dropped by the verified reduction: {', '.join(d.split('=', 1)[-1] for d in gone)}"
+            rows.append(f"| {sensor} | {e['axis']} | {'own model' if e['own'] else 'global model'} | {n} | {gm} | "
+                        f"{k} | {lines} | {e['why']} |")
+    if not rows:
+        return []
+    return ["", "The axes differ: the KF file's `per_axis` exports, per axis, this model (the tables above are the "
+            "global model; Kalibr's values are the largest over these per-axis models):", "",
+            "| sensor | axis | exported | white noise N | GM | random walk K | line states | why |",
+            "|---|---|---|---|---|---|---|---|", *rows]
+
+
+def kalibr_line_holders(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Which exported model holds the line states that make Kalibr refuse: per sensor the global model (when some
+    axis exports it, or the axes are pooled) and each axis's own model, with the lines' frequencies (Hz)."""
+    out = []
+    for sensor, files in runs.items():
+        bound = files.get("bound") or {}
+        exports = per_axis_exports(sensor, bound)
+        if not exports:
+            terms = _line_terms(bound.get("model"))
+            if terms:
+                out.append(f"{sensor} model: " + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
+            continue
+        users = [e["axis"] for e in exports if not e["own"]]
+        terms = _line_terms(bound.get("model"))
+        if users and terms:
+            out.append(f"{sensor} global model (exported for axis {', '.join(users)}): "
+                       + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
+        for e in exports:
+            if e["own"] and _line_terms(e["model"]):
+                out.append(f"{sensor} axis {e['axis']} model: "
+                           + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in _line_terms(e["model"])))
+    return out
+
+
 def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[str]:
     """The first screen's values to paste: one table in the spec sheet's units, one in SI (rows of
     :func:`paste_rows` with the sensor in front); empty when there is nothing to paste."""
@@ -892,12 +976,7 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
                  "again.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
-        own = [s for s, f in runs.items()
-               if any(isinstance(pa, Mapping) and pa.get("exported_in_kf")
-                      for pa in ((f.get("bound") or {}).get("per_axis_models") or {}).values())]
-        if own:  # the KF rows are the global model; these axes have their own in the KF file
-            head += ["", f"{', '.join(own)}: the axes differ; the KF file's `per_axis` holds each axis's own model "
-                     "(the per-axis table in the details); the KF rows above are the global model."]
+        head += per_axis_export_lines(runs)
         head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
                  "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
@@ -1031,8 +1110,10 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     if isinstance(kalibr, Mapping):
         where = f" [{kalibr_path}]" if kalibr_path else ""
         if kalibr.get("refused"):
-            checks.append(f"- FLAG kalibr export{where}: refused: {kalibr.get('reason', '-')} (no Kalibr fields "
-                          "written; use the Kalman-filter export)")
+            holders = kalibr_line_holders(runs)
+            checks.append(f"- FLAG kalibr export{where}: refused: {kalibr.get('reason', '-')}"
+                          + (f"; the exported line states: {'; '.join(holders)}" if holders else "")
+                          + " (no Kalibr fields written; use the Kalman-filter export)")
             checks.append("")
         else:
             head += [f"Kalibr imu.yaml{where}: update_rate {_num(kalibr.get('update_rate'), '{:g}')} Hz, rostopic "

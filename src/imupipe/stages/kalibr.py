@@ -38,12 +38,17 @@ REFUSED = "refused"
 
 def lines_of(kf: dict) -> list:
     """The narrowband line states of an exported KF model (SI: sigma in u, f0 in Hz, zeta), sigma > 0 only (a
-    sigma-0 term has no state)."""
-    out = [t for t in ((kf.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
-    for e in (kf.get("per_axis") or {}).values():  # an axis's own exported model counts as well
+    sigma-0 term has no state). With per-axis models (``per_axis``) only the models the file exports for some axis
+    count, as Kalibr's values come from those (:func:`axis_models`): each axis's own, and the global model only
+    when some axis is given it."""
+    def states(doc):
+        return [t for t in ((doc.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0]
+
+    per = kf.get("per_axis") or {}
+    out = states(kf) if not per or any(e.get("model") != "own" for e in per.values()) else []
+    for e in per.values():  # an axis's own exported model counts as well
         if e.get("model") == "own":
-            out += [t for t in ((e.get("parameters") or {}).get("narrowband") or []) if float(t.get("sigma") or 0.0) > 0
-                    and t not in out]
+            out += [t for t in states(e) if t not in out]
     return out
 
 
