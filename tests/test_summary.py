@@ -615,3 +615,16 @@ def test_the_first_screen_states_each_axis_export_and_why_kalibr_is_refused():
     (k,) = [ln for ln in head.splitlines() if ln.startswith("- FLAG kalibr export")]
     assert "the exported line states: accel global model (exported for axis y): 0.564 Hz" in k
     assert "axis x" not in k
+
+
+def test_a_per_axis_gm_left_open_above_is_flagged():
+    """One record's z axis kept a GM at the longest T searched with a T interval open above (re-assigned to the
+    random walk it acts as, its envelope kept over the interval): that axis's bound, KF model and Kalibr value rose
+    3.4x over the other record's, and only the pooled fit's re-assignment was FLAGged. The axis's own is now."""
+    r = {"term": 1, "sigma": 0.00034, "T_s": 345.0, "acts_as": "random_walk", "value": 2.66e-5, "T_open_above": True,
+         "why": "its T interval reaches the longest T the records resolve"}
+    closed = {**r, "T_open_above": False, "T_s": 0.0106}
+    ident = {"per_axis": {"x": {"gm_reassigned": [closed]}, "z": {"gm_reassigned": [r]}}}
+    (f,) = [f for f in flags_of("gyro", identify=ident) if f.check == "GM re-assigned"]
+    assert f.where == "axis z gm_1" and "open above" in f.detail
+    assert "70.1 deg/h (0.00034 rad/s)" in f.detail and "random walk K 5.49 (deg/h)/sqrt(s)" in f.detail

@@ -253,6 +253,15 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
     for r in moved:
         out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}", reassigned_text(sensor, r, bound)))
+    for ax, pa in (identify.get("per_axis") or {}).items():
+        # an axis's own GM whose T interval is open above: its envelope covers the GM over that whole interval (what
+        # the per-axis bound, the KF file and Kalibr then carry); the pooled fit's may not show it
+        for r in _items(pa.get("gm_reassigned") if isinstance(pa, Mapping) else None):
+            if isinstance(r, Mapping) and r.get("T_open_above"):
+                out.append(Flag(sensor, "GM re-assigned", f"axis {ax} gm_{r.get('term')}",
+                                reassigned_text(sensor, r, bound) + "; its T interval is open above: the axis's upper "
+                                "envelope keeps the GM over that interval (identify file per_axis), and its bound "
+                                "covers that envelope"))
     moved_terms = {f"gm_{k}_{r.get('term')}" for r in moved for k in ("T", "sigma")}
     if isinstance(on_b, Mapping):
         model = identify.get("model") if isinstance(identify.get("model"), Mapping) else {}
