@@ -1,7 +1,9 @@
 """The real-sensor table of the README from finished runs: per run and sensor the white noise's bound/spec, the
 exported model's effective in-band inflation (median and max of sqrt(S_model / S_spec) over the application band),
 chi2/dof of the pooled Allan fit and per axis before/after the line terms, the components kept (flicker, random
-walk), Kalibr's two densities (SI) and the worst MSE/P in the outage against the identified upper envelope.
+walk), Kalibr's two densities (SI), the worst MSE/P in the outage against the identified upper envelope and the
+replays that passed only within their sampling tolerance (model: worst MSE/P <= 1 + tolerance; the contract's
+``within_tolerance``).
 
 ``python benchmarks/real_sensors_table.py results/adis_imu1 results/adis_imu2 results/adis16405``
 (each a run folder ``results/<name>``; one spec sheet per run).
@@ -25,6 +27,15 @@ def _chi2(ident: dict) -> str:
     return f"{a['pooled']['before']['chi2_per_dof']:.3g} -> {a['pooled']['after']['chi2_per_dof']:.3g} ({before} -> {after})"
 
 
+def _by_tolerance(c: dict) -> str:
+    models = [("global", c.get("verification"))] + [(f"axis {ax}", pa.get("verification"))
+                                                    for ax, pa in (c.get("per_axis_models") or {}).items()
+                                                    if pa.get("exported_in_kf")]
+    out = [f"{label} {ch['worst_ratio']:.3g} (<= {1 + ch['tolerance']:.3g})" for label, checks in models
+           for ch in (checks or {}).values() if ch.get("within_tolerance")]
+    return "; ".join(out) or "-"
+
+
 def rows(run: Path):
     spec = next(p.name for p in (run / "contract").iterdir() if p.is_dir())
     kalibr = read_yaml(run / "kf" / spec / "kalibr_imu.yaml")
@@ -37,7 +48,7 @@ def rows(run: Path):
         yield (run.name, sensor, "bounded" if c["bounded"] else "NOT BOUNDED", f"{c['inflation'].get('N', float('nan')):.3g}",
                f"{inb['median']:.3g} / {inb['max']:.3g}", _chi2(ident), kept,
                f"{kalibr.get(kal + '_noise_density', float('nan')):.3g} / {kalibr.get(kal + '_random_walk', float('nan')):.3g}",
-               f"{env.get('worst_outage_ratio', float('nan')):.3g}")
+               f"{env.get('worst_outage_ratio', float('nan')):.3g}", _by_tolerance(c))
 
 
 def main(argv=None) -> None:
@@ -45,7 +56,8 @@ def main(argv=None) -> None:
     ap.add_argument("runs", nargs="+", type=Path)
     args = ap.parse_args(argv)
     head = ("run", "sensor", "contract", "N bound/spec", "in band median / max", "chi2/dof pooled (per axis) before -> after lines",
-            "kept", "Kalibr density / random walk (SI)", "worst MSE/P outage, envelope")
+            "kept", "Kalibr density / random walk (SI)", "worst MSE/P outage, envelope",
+            "replay passed by tolerance: worst MSE/P (<= limit)")
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for run in args.runs:
