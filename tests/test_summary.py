@@ -571,8 +571,8 @@ def test_a_reassigned_gm_and_record_consistency_are_shown_in_spec_and_si_units()
     identify = {"gm_reassigned": [moved],
                 "selection": {"kept": ["white"], "dropped": ["gauss_markov"],
                               "reasons": {"white": "significant",
-                                          "gauss_markov": "re-assigned: GM term 1 (sigma 0.00306 u, T 0.0106 s) acts "
-                                                          "as white noise (white = 0.000764 SI); was: kept: significant"}},
+                                          "gauss_markov": "re-assigned: GM term 1 (sigma 0.00306 u, T 0.0106 s) acts as "
+                                              "white noise (white = 0.000764 SI); was: kept: significant"}},
                 "record_consistency": {"datasets": ["a", "b", "c"], "z_crit": 2.9, "alpha": 0.01, "flagged": [
                     {"dataset": "a", "param": "white", "estimate": 0.000764, "others": 0.000382, "z": 5.0}]}}
     bound = _bound(sensor="gyro", spec_spec_units={"white": {"value": 2.0, "unit": "deg/sqrt(h)"}, "gauss_markov": []},

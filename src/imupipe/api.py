@@ -16,7 +16,8 @@ of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). T
 full-rate curve are found as the workflow's outliers stage finds them (:func:`imupipe.stages.outliers.outliers_stage`,
 events policy ``warn``): reported in :attr:`NoiseModelResult.events`, ``flags`` and ``to_dict()``, the records
 analysed as they are. Stationarity tests, outlier removal, per-axis bounds, figures and tables are left to the
-workflow (the API takes the records as they are, every one included). tests/test_orchestration_parity.py runs the workflow and this function on the same records.
+workflow (the API takes the records as they are, every one included).
+tests/test_orchestration_parity.py runs the workflow and this function on the same records.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
 

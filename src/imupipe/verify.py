@@ -288,7 +288,8 @@ def within_tolerance(check) -> str | None:
     -------
     str or None
         ``"passes within the replay's sampling tolerance (ratio X, tolerance 1 + t = Y ...)"`` with t the check's
-        ``tolerance`` and Y the largest ratio it accepts; None when the check failed, has no tolerance or its worst ratio is <= 1.
+        ``tolerance`` and Y the largest ratio it accepts; None when the check failed, has no tolerance or its
+        worst ratio is <= 1.
     """
     try:
         worst, tol = float(check.get("worst_ratio")), float(check.get("tolerance") or 0.0)
