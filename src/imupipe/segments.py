@@ -66,13 +66,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BOUNDS_ATTR", "START_ATTR", "Segments", "decimate_segments", "pooled_allan", "pooled_edf",
+__all__ = ["BOUNDS_ATTR", "CURVE_ATTRS", "START_ATTR", "Segments", "decimate_segments", "pooled_allan", "pooled_edf",
            "pooled_psd", "read_segments", "segment_lines", "segment_records", "split_at_events"]
 
 #: netCDF attribute of a series: its segments' [start, stop) sample indices, flattened (start0, stop0, start1, ...)
 BOUNDS_ATTR = "record_segment_bounds"
 #: netCDF attribute of a series: each segment's start, s from the record's start
 START_ATTR = "record_segment_start_s"
+#: global attributes of a PSD or Allan file analysed over segments (one curve's, not a stack's)
+CURVE_ATTRS = ("n_samples_analysed", "n_record_segments", "record_segments", "segments_method",
+               "segments_without_window")
 
 
 @dataclass(frozen=True)
@@ -322,11 +325,11 @@ def pooled_psd(y, rate: float, seg: Segments, *, window_s: float, step_s: float,
         dv[name] = (val, dv[name][1])
     attrs = dict(base.attrs)
     attrs.update({
-        "estimator": base.attrs["estimator"] + ", averaged over the windows of every segment (none across a cut)",
         "n_segments": int(k.sum()), "edf": nu, "n_samples": int(seg.lengths.sum()),
         "n_samples_used": int(sum(p.attrs["n_samples_used"] for p in parts)),
         "n_record_segments": len(parts), "record_segments": seg.describe(),
-        "edf_method": "pooled over segments: (sum K)^2 / sum(K^2 / edf_k), K_k windows of segment k",
+        "segments_method": "the windows of every segment (none across a cut), averaged; edf (sum K)^2 / "
+                           "sum(K^2 / edf_k), K_k windows of segment k (imupipe.segments)",
     })
     if short:
         attrs["segments_without_window"] = ", ".join(short)
@@ -386,11 +389,11 @@ def pooled_allan(x, rate: float, seg: Segments, *, taus="octave", confidence: fl
     co["n_terms"] = (total.astype(np.int64), co["n_terms"][1])
     attrs = dict(base.attrs)
     attrs.update({
-        "estimator": base.attrs["estimator"] + "; pooled over segments (second differences within a segment only: "
-                     "sums and counts add)",
         "n_samples": int(lengths.max()), "n_samples_analysed": int(sum(used)), "n_record_segments": len(used),
         "record_segments": seg.describe(),
-        "edf_method": base.attrs["edf_method"] + " per segment, pooled: (sum c)^2 / sum(c^2 / edf_k), c_k terms",
+        "segments_method": "pooled over segments: second differences within a segment only, sums and counts add; "
+                           "edf (sum c)^2 / sum(c^2 / edf_k), c_k terms of segment k; n_samples: the longest "
+                           "segment's (imupipe.segments)",
     })
     return base._replace(data_vars=dv, coords=co, attrs=attrs)
 

@@ -2,14 +2,14 @@
 # outliers.policy (fail | warn | remove). The report lists counts, the first indices, the threshold, the policy
 # and the effect on the shortest-tau Allan variance. With `remove` the cleaned series (each outlier replaced by
 # its block median) is what allan, decimate and lines read; with warn and fail they read the ingested series.
-# The same job finds the axis's events (bursts, steps: imupipe.events) and applies events.policy: split (default:
-# the record is cut at each event into segments, written to segments/, that every modelling stage analyses as
-# records: imupipe.segments), warn (reported, FLAGged in the summary) or exclude (the cleaned series is the longest
+# The same job finds the axis's events (bursts, steps: imupipe.events) and applies events.policy: warn (default:
+# reported, FLAGged in the summary), split (the record is cut at each event into segments, written to segments/,
+# that every modelling stage analyses as records: imupipe.segments) or exclude (the cleaned series is the longest
 # event-free segment).
 
 OUTLIER_POLICY = config["outliers"]["policy"]
 EVENTS = dict(config.get("events") or {})
-EVENT_POLICY = EVENTS.get("policy", "split")
+EVENT_POLICY = EVENTS.get("policy", "warn")
 CLEANED = OUTLIER_POLICY == "remove" or EVENT_POLICY == "exclude"
 SPLIT = EVENT_POLICY == "split"
 

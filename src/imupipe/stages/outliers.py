@@ -10,7 +10,7 @@ The Hampel/MAD rule with the ``outliers`` policy (:func:`imupipe.outliers.screen
   record (:func:`imupipe.events.event_free_segment`, each event widened by one burst window), written as the
   cleaned series (outliers replaced first when ``outliers.policy`` is ``remove``). A segment shorter than
   ``min_segment_s`` is an error naming the axis;
-- ``split`` (the default): as ``warn``, and the record is cut at each event (widened by one burst window) into
+- ``split``: as ``warn``, and the record is cut at each event (widened by one burst window) into
   event-free segments (:func:`imupipe.segments.split_at_events`) that the modelling stages analyse as records of
   the dataset and axis (decimation, PSD windows, Allan differences, lines, stationarity and the replay never
   straddle a cut: :mod:`imupipe.segments`); segments shorter than ``min_segment_s`` are dropped and reported, and
@@ -35,7 +35,7 @@ EFFECT_NOTE = {
 }
 
 #: Settings of the ``events`` section used when a config has none (config/README.md).
-EVENT_DEFAULTS = {"policy": "split", "alpha": 0.01, "burst_window_s": 1.0, "burst_k": 7.0, "min_scale_s": 1.0,
+EVENT_DEFAULTS = {"policy": "warn", "alpha": 0.01, "burst_window_s": 1.0, "burst_k": 7.0, "min_scale_s": 1.0,
                   "min_windows": 50, "confidence": 0.95}
 
 

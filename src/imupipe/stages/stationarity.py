@@ -88,13 +88,13 @@ def paper_tests(verdicts: list, decimated: list) -> list:
         from imupipe.io import read_series
         from imupipe.stationarity import stationarity_tests
 
-        x, _, attrs = read_series(path)
+        x, rate, attrs = read_series(path)
         if (str(attrs.get("dataset")), str(attrs.get("axis"))) != (str(v["dataset"]), str(v["axis"])):
             raise ValueError(f"{path}: holds {attrs.get('dataset')}/{attrs.get('axis')}, expected the verdict's "
                              f"{v['dataset']}/{v['axis']}")
         from imupipe.segments import Segments
 
-        seg = Segments.from_attrs(attrs, x.size, 1.0, path)
+        seg = Segments.from_attrs(attrs, x.size, rate, path)
         cal = v["calibrated"]  # its alpha: the level of each segment's test (alpha/K under split)
         tests = [stationarity_tests(y, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"]))
                  for y in seg.views(x)]
