@@ -220,11 +220,14 @@ class TestEventsInTheStage:
         with pytest.raises(ValueError, match=r"leaves 12\d\d s .* shorter than the 1800 s"):
             outliers_stage(x, 100.0, units="m/s^2", events={"policy": "exclude"}, min_segment_s=1800.0)
 
-    def test_split_is_refused_with_the_alternatives(self):
+    def test_split_with_every_segment_too_short_names_the_axis(self):
         from imupipe.stages.outliers import outliers_stage
 
-        with pytest.raises(ValueError, match="'split' is not available.*'exclude'.*'warn'"):
-            outliers_stage(np.zeros(1000), 100.0, units="m/s^2", events={"policy": "split"})
+        # the step at 1234.5 s leaves 1233.5 s and 764.5 s: neither holds the 1800 s the analysis needs
+        with pytest.raises(ValueError, match=r"rec/accel/x: events.policy = 'split' leaves no segment of at least "
+                                             r"180000 samples \(1800 s"):
+            outliers_stage(self._record(), 100.0, units="m/s^2", dataset="rec", sensor="accel", axis="x",
+                           events={"policy": "split"}, min_segment_s=1800.0)
 
     def test_summary_flags_each_event(self):
         from imupipe.stages.outliers import outliers_stage
@@ -269,7 +272,7 @@ class TestEventsInTheWorkflow:
             hit += rep["n_events"] > 0
         assert hit <= binom.ppf(0.999, 12, 0.01)
 
-    def test_exclude_feeds_the_segment_and_split_is_refused(self, tiny_run):
+    def test_exclude_feeds_the_segment_and_split_the_segments(self, tiny_run):
         pytest.importorskip("snakemake")
         from workflow_helpers import RES, snakemake
 
@@ -279,10 +282,12 @@ class TestEventsInTheWorkflow:
         for rule in ("allan", "decimate", "lines"):
             block = out.split(f"rule {rule}:", 1)[1].split("\n\n", 1)[0]
             assert f"input: {RES}/cleaned/" in block, (rule, block)
+        # split: the full-rate stages read the series as recorded and the axis's segments file
         split = self._changed(work, config, "split", events={"policy": "split"})
-        proc = snakemake(work, "-n", config=split, snakefile=work / "Snakefile", check=False)
-        assert proc.returncode != 0
-        assert "events.policy = 'split' is not available" in proc.stdout + proc.stderr
+        out = snakemake(work, "-n", config=split, snakefile=work / "Snakefile").stdout
+        for rule in ("allan", "decimate", "lines"):
+            block = out.split(f"rule {rule}:", 1)[1].split("\n\n", 1)[0]
+            assert f"{RES}/series/" in block and f"{RES}/segments/" in block, (rule, block)
 
     def test_summary_script_flags_the_events_of_the_outliers_files(self, tmp_path):
         # the rule summary reads the outliers files (SUMMARY_INPUTS): each event becomes one FLAG line naming

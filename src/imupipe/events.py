@@ -115,7 +115,7 @@ import numpy as np
 __all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "find_bursts", "find_steps", "event_free_segment", "event_flags",
            "display_unit", "MAD_EFFICIENCY"]
 
-#: What a found event does (config ``events.policy``); ``split`` is refused (config/README.md says why).
+#: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
 POLICIES = ("warn", "exclude", "split")
 #: Asymptotic efficiency of the MAD as a scale estimator for Gaussian data (Rousseeuw & Croux 1993).
 MAD_EFFICIENCY = 0.37

@@ -10,7 +10,9 @@ from typing import NamedTuple
 
 __all__ = ["Stacked"]
 
-_PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "n_filled", "filled_rows")
+# (the last five: a curve analysed over the segments of its record, imupipe.segments.CURVE_ATTRS)
+_PER_FILE = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "n_filled", "filled_rows",
+             "n_samples_analysed", "n_record_segments", "record_segments", "segments_method", "segments_without_window")
 _RATE_ATTRS = {"long_name": "sampling rate of the curve's record", "units": "Hz"}
 _INCLUDED_ATTRS = {"long_name": "curve used by the bound (stationarity.on_fail)", "units": "1"}
 _LABEL_ATTRS = {"dataset": {"long_name": "dataset"}, "axis": {"long_name": "sensor axis"}}

@@ -81,8 +81,7 @@ def divides(fast_hz: float, slow_hz: float) -> bool:
 
 def check_cross_keys(cfg: dict) -> None:
     """The checks the schema cannot state: exactly one of ``datasets`` and ``simulation``; ``verify.fix_rate_hz``
-    dividing ``application.filter_rate_hz`` (a fix every whole number of filter steps); ``events.policy`` not
-    ``split`` (not available: the records of a run are fixed before any job runs)."""
+    dividing ``application.filter_rate_hz`` (a fix every whole number of filter steps)."""
     if cfg.get("simulation") and cfg.get("datasets"):
         raise ValueError("config: give either 'datasets' (a sheet of recordings) or 'simulation', not both")
     if not cfg.get("simulation") and not cfg.get("datasets"):
@@ -92,11 +91,6 @@ def check_cross_keys(cfg: dict) -> None:
         raise ValueError(f"config: verify.fix_rate_hz = {fix} Hz must divide application.filter_rate_hz = {rate} Hz "
                          "(a fix every whole number of filter steps); e.g. fix_rate_hz 1 with filter_rate_hz 100, or "
                          "null for a fix every step")
-    if (cfg.get("events") or {}).get("policy") == "split":
-        raise ValueError("config key events.policy = 'split' is not available yet: the records of a run are fixed by "
-                         "the dataset sheet before any job runs, so the segments found at an event cannot become "
-                         "records of the same run; use 'exclude' (the longest event-free segment) or 'warn' "
-                         "(config/README.md)")
 
 
 def merged_config(given: dict, root, where: str = "config") -> dict:

@@ -4,7 +4,7 @@
 
 rule allan:
     input:
-        series=FULL_RATE_SERIES,
+        **FULL_RATE_INPUTS,  # the series and, under events.policy split, its segments
     output:
         allan=f"{RESULTS}/allan/{{dataset}}/{{sensor}}/{{axis}}.nc",
     params:

@@ -1,9 +1,10 @@
-# Block average of one full-rate axis to decimate.rate_hz (the PSD and stationarity stages' input).
+# Block average of one full-rate axis to decimate.rate_hz (the PSD and stationarity stages' input); under
+# events.policy split each segment on its own, the decimated file carrying the segments (imupipe.segments).
 
 
 rule decimate:
     input:
-        series=FULL_RATE_SERIES,
+        **FULL_RATE_INPUTS,
     output:
         decimated=f"{RESULTS}/decimated/{{dataset}}/{{sensor}}/{{axis}}.nc",
     params:

@@ -11,7 +11,7 @@ RUNTIME_MIN["lines"] = full_rate_runtime
 
 rule lines:
     input:
-        series=FULL_RATE_SERIES,
+        **FULL_RATE_INPUTS,  # the series and, under events.policy split, its segments
     output:
         lines=f"{RESULTS}/lines/{{dataset}}/{{sensor}}/{{axis}}.yaml",
     params:

@@ -2,22 +2,39 @@
 # outliers.policy (fail | warn | remove). The report lists counts, the first indices, the threshold, the policy
 # and the effect on the shortest-tau Allan variance. With `remove` the cleaned series (each outlier replaced by
 # its block median) is what allan, decimate and lines read; with warn and fail they read the ingested series.
-# The same job finds the axis's events (bursts, steps: imupipe.events) and applies events.policy: warn (reported,
-# FLAGged in the summary) or exclude (the cleaned series is the longest event-free segment); split is refused.
+# The same job finds the axis's events (bursts, steps: imupipe.events) and applies events.policy: warn (default:
+# reported, FLAGged in the summary), split (the record is cut at each event into segments, written to segments/,
+# that every modelling stage analyses as records: imupipe.segments) or exclude (the cleaned series is the longest
+# event-free segment).
 
 OUTLIER_POLICY = config["outliers"]["policy"]
 EVENTS = dict(config.get("events") or {})
 EVENT_POLICY = EVENTS.get("policy", "warn")
-# events.policy split is refused at start-up (imupipe.runconfig.check_cross_keys)
 CLEANED = OUTLIER_POLICY == "remove" or EVENT_POLICY == "exclude"
+SPLIT = EVENT_POLICY == "split"
 
 
 # The full-rate axis the modelling stages (allan, decimate, lines) read.
 FULL_RATE_SERIES = f"{RESULTS}/{'cleaned' if CLEANED else 'series'}/{{dataset}}/{{sensor}}/{{axis}}.nc"
-# The report, and with `remove` or events `exclude` the cleaned series.
+# Under split: the axis's segments (imupipe.segments.Segments as YAML; the whole record when it has no event).
+SEGMENTS_FILE = f"{RESULTS}/segments/{{dataset}}/{{sensor}}/{{axis}}.yaml"
+# The inputs of a stage that reads the full-rate axis: the series and, under split, its segments.
+FULL_RATE_INPUTS = {"series": FULL_RATE_SERIES, **({"segments": SEGMENTS_FILE} if SPLIT else {})}
+# The report, with `remove` or events `exclude` the cleaned series, with split the segments.
 OUTLIER_OUTPUTS = {"report": f"{RESULTS}/outliers/{{dataset}}/{{sensor}}/{{axis}}.yaml"}
 if CLEANED:
     OUTLIER_OUTPUTS["cleaned"] = f"{RESULTS}/cleaned/{{dataset}}/{{sensor}}/{{axis}}.nc"
+if SPLIT:
+    OUTLIER_OUTPUTS["segments"] = SEGMENTS_FILE
+
+
+def verify_segments(wildcards):
+    """The segments files of the full-rate records the replay reads (split, replay not from the decimated series,
+    whose files carry their segments); [] otherwise."""
+    if not SPLIT or REPLAY_FROM_DECIMATED:
+        return []
+    return [SEGMENTS_FILE.format(dataset=d, sensor=wildcards.sensor, axis=a)
+            for d in DATASETS for a in AXES_OF[d][wildcards.sensor]]
 
 # memory: the axis, one batch of the rule's work arrays (imupipe.outliers.HAMPEL_BATCH), the event scans'
 # cumulative sum, block deviations and median copies (imupipe.events) and the cleaned copy; measured at 125 Hz:
@@ -38,9 +55,9 @@ rule outliers:
         window_samples=config["outliers"]["window_samples"],
         max_indices=config["outliers"]["max_indices"],
         events=EVENTS,
-        # the PSD stage needs one window of the record: the shortest event-free segment `exclude` accepts (a
-        # param only under exclude, so that psd.window_s re-runs no outliers job under warn)
-        min_segment_s=float(config["psd"]["window_s"]) if EVENT_POLICY == "exclude" else 0.0,
+        # the PSD stage needs one window of the record: the shortest event-free segment `exclude` and `split` keep (a
+        # param only under those, so that psd.window_s re-runs no outliers job under warn)
+        min_segment_s=float(config["psd"]["window_s"]) if EVENT_POLICY in ("exclude", "split") else 0.0,
     group:
         "per_axis"
     threads: 1

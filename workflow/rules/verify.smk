@@ -16,6 +16,7 @@ rule verify:
         spec=spec_file,
         truth=truth_file(),
         records=verify_records,
+        segments=verify_segments,  # events.policy split: the full-rate records' segments (outliers.smk)
     output:
         verify=f"{RESULTS}/verify/{{spec}}/{{sensor}}.yaml",
         figure=report(

@@ -1,17 +1,19 @@
-"""Two-sided Welch PSD of one decimated axis with chi-squared limits (rule psd); netCDF4 alone, no xarray."""
+"""Two-sided Welch PSD of one decimated axis with chi-squared limits (rule psd); netCDF4 alone, no xarray. A
+series cut into segments (events.policy split): the windows of every segment, none across a cut
+(imupipe.segments.pooled_psd)."""
 
 from imupipe.io import read_series, run_job
-from imupipe.spectra import psd_labelled
+from imupipe.segments import Segments, pooled_psd
 
 
 def main(path_decimated: str, window_s: float, step_s: float, taper: str, detrend: str, confidence: float,
          path_psd: str) -> None:
     y, rate, attrs = read_series(path_decimated)
+    seg = Segments.from_attrs(attrs, y.size, rate, path_decimated)
     labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
     try:
-        sp = psd_labelled(y, rate, window_s=window_s, step_s=step_s, taper=taper,
-                          detrend=None if detrend == "none" else detrend, confidence=confidence,
-                          units=attrs["units"])
+        sp = pooled_psd(y, rate, seg, window_s=window_s, step_s=step_s, taper=taper,
+                        detrend=None if detrend == "none" else detrend, confidence=confidence, units=attrs["units"])
     except ValueError as exc:  # e.g. a record shorter than psd.window_s: name the recording and the channel
         where = "/".join(str(labels.get(k, "?")) for k in ("dataset", "sensor", "axis"))
         raise ValueError(f"{attrs.get('source', path_decimated)} ({where}, config psd): {exc}") from exc

@@ -1,5 +1,5 @@
 """Stationarity verdict of one decimated axis (rule stationarity): imupipe.stages.stationarity on the decimated
-series and (calibrated test) the axis's Allan-variance file."""
+series (each of its segments under events.policy split) and (calibrated test) the axis's Allan-variance file."""
 
 from imupipe.io import read_series, run_job, write_yaml_atomic
 
@@ -8,7 +8,10 @@ def main(path_decimated: str, path_allan: str, n_segments: int, alpha: float, te
          path_out: str, n_sim_max: int | None = None, close_z: float = 2.0) -> None:
     from imupipe.stages.stationarity import stationarity_stage
 
+    from imupipe.segments import Segments
+
     x, rate, attrs = read_series(path_decimated)
+    seg = Segments.from_attrs(attrs, x.size, rate, path_decimated)
     allan = None
     if test == "calibrated":
         from imupipe.merge import Stacked
@@ -18,7 +21,7 @@ def main(path_decimated: str, path_allan: str, n_segments: int, alpha: float, te
         allan = (st["tau"], st.at("avar", d, a), st.at("edf", d, a))
     out = stationarity_stage(x, rate, dataset=attrs.get("dataset"), sensor=attrs.get("sensor"),
                              axis=attrs.get("axis"), allan=allan, n_segments=n_segments, alpha=alpha, test=test,
-                             n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z)
+                             n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, segments=seg)
     write_yaml_atomic(out, path_out, header="stationarity verdict; p-values are probabilities, rate in Hz")
 
 

@@ -12,4 +12,4 @@ if __name__ == "__main__":
             spec_name=snakemake.wildcards.spec, sensor=snakemake.wildcards.sensor, fix_s=p.fix_s,
             outage_s=p.outage_s, sigma_fix_m=p.sigma_fix_m, sigma_fix_rad=p.sigma_fix_rad,
             filter_rate_hz=p.filter_rate_hz, reduce=p.reduce, replay_z=p.replay_z,
-            max_bias_time_s=p.max_bias_time_s, fix_rate_hz=p.fix_rate_hz)
+            max_bias_time_s=p.max_bias_time_s, fix_rate_hz=p.fix_rate_hz, segments=list(i.get("segments") or []))

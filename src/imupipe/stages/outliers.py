@@ -10,15 +10,21 @@ The Hampel/MAD rule with the ``outliers`` policy (:func:`imupipe.outliers.screen
   record (:func:`imupipe.events.event_free_segment`, each event widened by one burst window), written as the
   cleaned series (outliers replaced first when ``outliers.policy`` is ``remove``). A segment shorter than
   ``min_segment_s`` is an error naming the axis;
-- ``split`` (the record cut at each event into segments analysed as records) is refused: the workflow's records
-  are fixed by the dataset sheet before any job runs, so segments found by a job cannot become records of the same
-  run (config/README.md).
+- ``split``: as ``warn``, and the record is cut at each event (widened by one burst window) into
+  event-free segments (:func:`imupipe.segments.split_at_events`) that the modelling stages analyse as records of
+  the dataset and axis (decimation, PSD windows, Allan differences, lines, stationarity and the replay never
+  straddle a cut: :mod:`imupipe.segments`); segments shorter than ``min_segment_s`` are dropped and reported, and
+  none left is an error naming the axis. The report's ``events_segments`` holds the segments (the workflow writes
+  them to the axis's segments file). Without events the one segment is the whole record: the analysis is
+  ``warn``'s, to the byte.
 
 Plain values in (the series in SI, its rate in Hz, its labels and the settings), the report's dict and the series
 the modelling stages read out (:func:`outliers_stage`).
 """
 
 from __future__ import annotations
+
+import math
 
 __all__ = ["EVENT_DEFAULTS", "EFFECT_NOTE", "outliers_stage"]
 
@@ -40,7 +46,7 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     stages read: (report dict, x_out), x_out None when they read the series as recorded (module docstring).
 
     `events` holds the ``events`` settings (:data:`EVENT_DEFAULTS` fill what it lacks); `min_segment_s` (s) is the
-    shortest event-free segment ``exclude`` accepts; `series` names the file in messages."""
+    shortest event-free segment ``exclude`` and ``split`` keep; `series` names the file in messages."""
     from imupipe.events import POLICIES, detect_events, event_free_segment
     from imupipe.outliers import removal_effect, screen_outliers, stuck_spans
 
@@ -49,9 +55,6 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     label = "/".join(str(v) for v in (dataset, sensor, axis) if v is not None) or (series or "series")
     if ev_policy not in POLICIES:
         raise ValueError(f"events.policy must be one of {POLICIES}, got {ev_policy!r}")
-    if ev_policy == "split":
-        raise ValueError("events.policy = 'split' is not available: the records of a run are fixed by the dataset "
-                         "sheet before any job runs; use 'exclude' (longest event-free segment) or 'warn'")
     try:
         x_out, report = screen_outliers(x, policy=policy, k=k, window=window_samples, label=label, units=units)
     except ValueError as exc:
@@ -77,8 +80,15 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                         min_windows=ev_cfg["min_windows"], confidence=ev_cfg["confidence"], sensor=sensor)
     n = int(x.size)
     seg = (0, n)
+    guard = int(round(ev_cfg["burst_window_s"] * rate))
+    segments = None
+    if ev_policy == "split":
+        from imupipe.segments import Segments, split_at_events
+
+        segments = (split_at_events(n, rate, det["events"], guard=guard,
+                                    min_samples=int(math.ceil(min_segment_s * rate - 1e-9)), where=series or label)
+                    if det["events"] else Segments.whole(n, rate))
     if ev_policy == "exclude" and det["events"]:
-        guard = int(round(ev_cfg["burst_window_s"] * rate))
         seg = event_free_segment(n, det["events"], guard=guard)
         if (seg[1] - seg[0]) / rate < min_segment_s:
             raise ValueError(
@@ -87,9 +97,16 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                 f"{min_segment_s:g} s the analysis needs (psd.window_s); use events.policy = 'warn'")
     keep = {"kind", "time_s", "start_s", "stop_s", "size", "size_low", "size_high", "confidence", "z",
             "threshold_z", "scale_s", "size_scale_s", "display"}
-    action = ("kept in the analysis (events.policy warn)" if ev_policy == "warn" else
-              f"excluded: the analysis uses {seg[0] / rate:.1f}-{seg[1] / rate:.1f} s, the longest event-free "
-              f"segment ({100.0 * (seg[1] - seg[0]) / n:.3g} % of the record)")
+    if ev_policy == "split":
+        kept = int(segments.lengths.sum())
+        action = (f"cut: the record is analysed as {len(segments.bounds)} segment(s) ({segments.describe()}, "
+                  f"{100.0 * kept / n:.3g} % of the record)" + (
+                      f"; {len(segments.dropped)} event-free stretch(es) shorter than {min_segment_s:g} s dropped"
+                      if segments.dropped else ""))
+    else:
+        action = ("kept in the analysis (events.policy warn)" if ev_policy == "warn" else
+                  f"excluded: the analysis uses {seg[0] / rate:.1f}-{seg[1] / rate:.1f} s, the longest event-free "
+                  f"segment ({100.0 * (seg[1] - seg[0]) / n:.3g} % of the record)")
     out["events"] = [{"dataset": dataset, "sensor": sensor, "axis": axis,
                       **{k2: v for k2, v in e.items() if k2 in keep}, "units": units, "policy": ev_policy,
                       "action": action} for e in det["events"]]
@@ -98,6 +115,9 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     out["events_scan"] = {"false_alarm_rate_per_record": det["false_alarm_rate"], "burst_scan": det["burst_scan"],
                           "step_scan": det["step_scan"]}
     out["events_segment"] = {"start_s": seg[0] / rate, "stop_s": seg[1] / rate, "fraction": (seg[1] - seg[0]) / n}
+    if segments is not None:
+        out["events_segments"] = {"dataset": dataset, "sensor": sensor, "axis": axis, "series": series,
+                                  **segments.to_dict()}
     out["units"] = {**out["units"], "rate_hz": "Hz", "threshold": "robust standard deviations (1.4826 MAD)",
                     "stuck_spans": {"start_s": "s from the record's start", "stop_s": "s from the record's start",
                                     "value": units, "n_samples": "samples", "fraction": "of the record's samples"},

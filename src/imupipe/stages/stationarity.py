@@ -13,6 +13,12 @@ Per sensor type (rule ``stationarity_summary``): every axis's verdict with ``sta
 which curves the stacked files mark ``included`` (:func:`summary_stage`), and the paper's test of each axis beside
 the calibrated verdict (:func:`paper_tests`), run once per sensor type so that only that job imports scipy.stats.
 
+Segments (``events.policy: split``, :mod:`imupipe.segments`): each segment of the record is tested on its own at
+level alpha/K (Bonferroni over its K segments: no segment boundary inside a test), and the axis is stationary when
+every segment is; its p-value is min(1, K min_k p_k), the Bonferroni-adjusted smallest one, and the verdict's other
+fields are those of that segment, with ``segments`` listing each one's span (s from the record's start), verdict
+and p-value.
+
 Plain values in (the decimated record, its rate and labels, its Allan curve), the verdict file's dict out
 (:func:`stationarity_stage`). p-values are probabilities, the rate in Hz.
 """
@@ -29,11 +35,18 @@ NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
 
 def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, allan=None, n_segments: int = 2,
                        alpha: float = 0.05, test: str = "calibrated", n_sim: int = 199, n_sim_max: int | None = None,
-                       close_z: float = 2.0) -> dict:
+                       close_z: float = 2.0, segments=None) -> dict:
     """The verdict of the decimated record `x` (u) at `rate` (Hz) of `dataset`/`sensor`/`axis`: the
     ``stationarity`` settings (`n_segments`, `alpha`, `test` ``calibrated`` or ``paper``, `n_sim`, `n_sim_max`,
     `close_z`), `allan` the axis's (tau s, avar u^2, edf) on its grid (NaN where missing: the fit drops them;
-    needed by ``calibrated``)."""
+    needed by ``calibrated``); `segments` (:class:`imupipe.segments.Segments` of `x`, None: the whole record) each
+    tested as a record (module docstring)."""
+    if segments is not None and not segments.is_whole:
+        k = len(segments.bounds)
+        parts = [stationarity_stage(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan,
+                                    n_segments=n_segments, alpha=alpha / k, test=test, n_sim=n_sim,
+                                    n_sim_max=n_sim_max, close_z=close_z) for v in segments.views(x)]
+        return {**_segment_verdict(parts, segments, "p_value"), "n_samples": int(x.size)}
     out = {"dataset": dataset, "sensor": sensor, "axis": axis, "rate_hz": rate, "n_samples": int(x.size),
            "test": test}
     if test == "calibrated":
@@ -75,12 +88,35 @@ def paper_tests(verdicts: list, decimated: list) -> list:
         from imupipe.io import read_series
         from imupipe.stationarity import stationarity_tests
 
-        x, _, attrs = read_series(path)
+        x, rate, attrs = read_series(path)
         if (str(attrs.get("dataset")), str(attrs.get("axis"))) != (str(v["dataset"]), str(v["axis"])):
             raise ValueError(f"{path}: holds {attrs.get('dataset')}/{attrs.get('axis')}, expected the verdict's "
                              f"{v['dataset']}/{v['axis']}")
-        cal = v["calibrated"]
-        out.append(stationarity_tests(x, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"])))
+        from imupipe.segments import Segments
+
+        seg = Segments.from_attrs(attrs, x.size, rate, path)
+        cal = v["calibrated"]  # its alpha: the level of each segment's test (alpha/K under split)
+        tests = [stationarity_tests(y, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"]))
+                 for y in seg.views(x)]
+        out.append(tests[0] if seg.is_whole else _segment_verdict(
+            [{**t, "p_value": min(t["levene_p"], min(t["ks_p"]))} for t in tests], seg, "p_value"))
+    return out
+
+
+def _segment_verdict(parts: list, segments, key: str) -> dict:
+    """The axis's verdict from its segments' verdicts `parts` (each with ``stationary`` and the p-value `key`):
+    that of the segment with the smallest p, with ``stationary`` = every segment's, `key` = min(1, K min p) and
+    ``segments`` (module docstring)."""
+    k = len(parts)
+    worst = min(range(k), key=lambda i: float(parts[i][key]))
+    out = dict(parts[worst])
+    out["stationary"] = all(bool(p["stationary"]) for p in parts)
+    out[key] = min(1.0, k * float(parts[worst][key]))
+    out["segments"] = [{"start_s": float(s), "stop_s": float(s + n / segments.rate_hz),
+                        "stationary": bool(p["stationary"]), "p_value": float(p[key])}
+                       for s, n, p in zip(segments.start_s, segments.lengths, parts)]
+    out["segments_rule"] = (f"each of the {k} segments tested at alpha/{k}; p_value = min(1, {k} x the smallest "
+                            "segment p-value) (Bonferroni)")
     return out
 
 

@@ -134,21 +134,27 @@ def verify_stage(bound: dict, sensor: str, **settings) -> dict:
     return verify_sensor(bound, sensor, **settings)[0]
 
 
-def read_records(paths, path_spectra: str, filter_rate_hz: float):
+def read_records(paths, path_spectra: str, filter_rate_hz: float, segments=None):
     """(label -> record, rate in Hz) of the record files `paths` (:func:`imupipe.io.read_series`) whose
     ``dataset/axis`` is an included curve of the stacked spectra file `path_spectra`, each block-averaged to
     `filter_rate_hz` on reading when faster (one full-rate record in memory at a time); one rate, or a ValueError
-    naming the record whose rate differs (:func:`records_at_one_rate`)."""
+    naming the record whose rate differs (:func:`records_at_one_rate`). A record cut into segments
+    (events.policy split: the decimated file's attributes, or the segments file of `segments`, aligned with
+    `paths`) is replayed as one record per segment (``dataset#k/axis``: :func:`imupipe.segments.segment_records`),
+    never across a cut."""
     from imupipe.io import read_series
     from imupipe.merge import Stacked
-    from imupipe.spectra import decimate
+    from imupipe.segments import Segments, decimate_segments, read_segments, segment_records
 
     included = {f"{d}/{a}" for d, a in Stacked(path_spectra).curves(included_only=True)}
     series = {}
-    for path in paths:
+    for path, seg_path in zip(paths, segments or [None] * len(paths), strict=True):
         y, r, at = read_series(path)
+        seg = read_segments(seg_path, y.size, r, path) if seg_path else Segments.from_attrs(at, y.size, r, path)
         if (label := f"{at.get('dataset')}/{at.get('axis')}") in included:
-            series[label] = decimate(y, r, filter_rate_hz) if r > filter_rate_hz * (1 + 1e-9) else (y, r)
+            if r > filter_rate_hz * (1 + 1e-9):
+                y, r, seg = decimate_segments(y, r, filter_rate_hz, seg)
+            series.update({lab: (v, r) for lab, v in segment_records(y, seg, label).items()})
         del y
     return records_at_one_rate(series)
 
@@ -156,7 +162,7 @@ def read_records(paths, path_spectra: str, filter_rate_hz: float):
 def verify_job(path_bound: str, path_spectra: str, path_spec: str, path_truth, records: list, path_out: str,
                path_figure: str, spec_name: str, sensor: str, *, fix_s: float, outage_s: float, sigma_fix_m: float,
                sigma_fix_rad: float, filter_rate_hz: float, reduce: bool, replay_z: float,
-               max_bias_time_s: float | None = None, fix_rate_hz: float | None = None) -> dict:
+               max_bias_time_s: float | None = None, fix_rate_hz: float | None = None, segments=None) -> dict:
     """Rule ``verify`` for one spec sheet and sensor: :func:`verify_sensor` on the bound file `path_bound`, the
     spec sheet `path_spec` (its model and turn-on bias of `sensor`), the simulation's truth sheet `path_truth` (or
     None) and the included curves' records (:func:`read_records`); writes the report (YAML with :data:`HEADER`,
@@ -169,7 +175,7 @@ def verify_job(path_bound: str, path_spectra: str, path_spec: str, path_truth, r
     from imupipe.specsheet import load_spec
 
     sheet = load_spec(path_spec)
-    series, rate = read_records(records, path_spectra, filter_rate_hz)
+    series, rate = read_records(records, path_spectra, filter_rate_hz, segments=segments or None)
     report, checks = verify_sensor(
         read_yaml(path_bound), sensor, spec=sheet.models[sensor], records=series, record_rate_hz=rate,
         truth=load_spec(path_truth).models[sensor] if path_truth else None,
