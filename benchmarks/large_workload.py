@@ -14,9 +14,10 @@ the configurations ``--large`` and ``--default``, no wall time.
 Printed (markdown): per rule, from Snakemake's benchmark files (``results/<name>/benchmarks/<rule>/...``): jobs,
 total job wall time (sum of the files' ``s``) and CPU time (sum of ``cpu_time``: steadier than wall time on a
 shared machine), largest ``max_rss`` (MB), for the large run and the default run, and the time per sample of
-the large run over the default run's, where samples = datasets x record length x rate (samples per axis summed
-over the datasets; the two runs have the same axes). A ratio near 1 is cost linear in
-the record length; the rules after the per-axis stages (identify onwards) work on decimated or summarised data
+the large run over the default run's: per rule, a job's mean time over one record's samples (record length x
+rate), so that a run stopped part way gives it too; for the whole run, the total job time over samples =
+datasets x record length x rate (samples per axis summed over the datasets; the two runs have the same
+axes). A ratio near 1 is cost linear in the record length; the rules after the per-axis stages (identify onwards) work on decimated or summarised data
 and cost less per sample on longer records. ``max_rss`` is sampled by Snakemake at 0 s and every 0.5 s after,
 so for sub-second jobs it mostly shows the launching process.
 """
@@ -85,28 +86,39 @@ def cold_run(config: Path, out: Path, cores: int) -> tuple:
     return work, time.perf_counter() - t0
 
 
-def table(large: dict, default: dict, n_large: int, n_default: int) -> str:
+def table(large: dict, default: dict, n_large: int, n_default: int, rec_large: int, rec_default: int) -> str:
+    """Per rule: the sums, the largest max_rss, and the time per sample of a job: the mean job time over one
+    record's samples (`rec_*`, samples per axis of one dataset), large over default (the same with the mean job
+    time, so a rule's ratio holds for a run stopped part way too). The last row: the run's total job time
+    over its samples (`n_*`, over the datasets), large over default."""
     def mb(v):
         return "-" if v is None else f"{v:.0f}"
 
-    def ratio(a, b, key):
+    def per_job(a, b, key):
+        if not (a.get(key) and b.get(key)):
+            return "-"
+        return f"{(a[key] / a['jobs'] / rec_large) / (b[key] / b['jobs'] / rec_default):.2f}"
+
+    def total(a, b, key):
         return f"{(a[key] / n_large) / (b[key] / n_default):.2f}" if a.get(key) and b.get(key) else "-"
 
     rows = ["| rule | jobs (large / default) | job wall, large / default (s) | job CPU, large / default (s) "
-            "| max RSS, large / default (MB) | wall per sample, large / default | CPU per sample, large / default |",
+            "| max RSS, large / default (MB) | wall per sample of a job, large / default "
+            "| CPU per sample of a job, large / default |",
             "|---|---|---|---|---|---|---|"]
     rules = sorted(set(large) | set(default), key=lambda r: -(large.get(r, {}).get("cpu", 0.0)))
     for rule in rules:
         a, b = large.get(rule, {}), default.get(rule, {})
         rows.append(f"| {rule} | {a.get('jobs', 0)} / {b.get('jobs', 0)} | {a.get('s', 0.0):.1f} / {b.get('s', 0.0):.1f} "
                     f"| {a.get('cpu', 0.0):.1f} / {b.get('cpu', 0.0):.1f} | {mb(a.get('rss'))} / {mb(b.get('rss'))} "
-                    f"| {ratio(a, b, 's')} | {ratio(a, b, 'cpu')} |")
+                    f"| {per_job(a, b, 's')} | {per_job(a, b, 'cpu')} |")
     tot = [{"jobs": sum(r["jobs"] for r in d.values()), "s": sum(r["s"] for r in d.values()),
             "cpu": sum(r["cpu"] for r in d.values()),
             "rss": max((r["rss"] for r in d.values() if r["rss"]), default=None)} for d in (large, default)]
     a, b = tot
-    rows.append(f"| **all** | {a['jobs']} / {b['jobs']} | {a['s']:.1f} / {b['s']:.1f} | {a['cpu']:.1f} / {b['cpu']:.1f} "
-                f"| {mb(a['rss'])} / {mb(b['rss'])} | {ratio(a, b, 's')} | {ratio(a, b, 'cpu')} |")
+    rows.append(f"| **all** (per sample: the run's job time over its samples) | {a['jobs']} / {b['jobs']} "
+                f"| {a['s']:.1f} / {b['s']:.1f} | {a['cpu']:.1f} / {b['cpu']:.1f} "
+                f"| {mb(a['rss'])} / {mb(b['rss'])} | {total(a, b, 's')} | {total(a, b, 'cpu')} |")
     return "\n".join(rows)
 
 
@@ -145,7 +157,8 @@ def main(argv=None) -> int:
         wl, wd = walls[args.large.stem], walls[args.default.stem]
         print(f"wall time per sample, large / default: {(wl / n[0]) / (wd / n[1]):.2f}")
     print()
-    print(table(rules[0], rules[1], n[0], n[1]))
+    rec = [n_ // c["simulation"]["n_datasets"] for n_, c in zip(n, cfgs)]
+    print(table(rules[0], rules[1], n[0], n[1], rec[0], rec[1]))
     return 0
 
 
