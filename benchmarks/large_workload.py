@@ -7,19 +7,19 @@
 Without ``--read``: for each of the two configurations (``--large``, on top of config/config.yaml: 2 simulated
 datasets of 24 h at 200 Hz; ``--default``: 5 x 10 h at 125 Hz), a scratch copy of the workflow under ``--out``
 (benchmarks/dag.py, ``make_scratch``) with nothing in it (no simulated records, no results), then one cold run
-``snakemake --cores <cores> --configfile <config>`` with the Makefile's flags, simulation included; its wall time.
-With ``--read``: two finished runs' working directories (the folders holding ``results/<name>/benchmarks/``) of
-the configurations ``--large`` and ``--default``, no wall time.
+``snakemake --cores <cores> --configfile <config>`` with the Makefile's flags, simulation included; its wall
+time. With ``--read``: two finished runs' working directories (the folders holding
+``results/<name>/benchmarks/``) of the configurations ``--large`` and ``--default``, no wall time.
 
-Printed (markdown): per rule, from Snakemake's benchmark files (``results/<name>/benchmarks/<rule>/...``): jobs,
-total job wall time (sum of the files' ``s``) and CPU time (sum of ``cpu_time``: steadier than wall time on a
-shared machine), largest ``max_rss`` (MB), for the large run and the default run, and the time per sample of
-the large run over the default run's: per rule, a job's mean time over one record's samples (record length x
-rate), so that a run stopped part way gives it too; for the whole run, the total job time over samples =
-datasets x record length x rate (samples per axis summed over the datasets; the two runs have the same
-axes). A ratio near 1 is cost linear in the record length; the rules after the per-axis stages (identify onwards) work on decimated or summarised data
-and cost less per sample on longer records. ``max_rss`` is sampled by Snakemake at 0 s and every 0.5 s after,
-so for sub-second jobs it mostly shows the launching process.
+Printed (markdown): per rule, from Snakemake's benchmark files (``results/<name>/benchmarks/<rule>/...``):
+jobs, total job wall time (sum of the files' ``s``) and CPU time (sum of ``cpu_time``: steadier than wall time
+on a shared machine), largest ``max_rss`` (MB), for the large run and the default run, and the time per sample
+of the large run over the default run's: per rule, a job's mean time over one record's samples (record length
+x rate), so that a run stopped part way gives it too; for the whole run, the total job time over samples =
+datasets x record length x rate (samples per axis summed over the datasets; the two runs have the same axes).
+A ratio near 1 is cost linear in the record length; the rules after the per-axis stages (identify onwards)
+work on decimated or summarised data and cost less per sample on longer records. ``max_rss`` is sampled by
+Snakemake at 0 s and every 0.5 s after, so for sub-second jobs it mostly shows the launching process.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ def run_config(config: Path) -> dict:
 
 
 def samples_of(cfg: dict) -> int:
-    """Samples per axis summed over the simulated datasets: n_datasets x duration_h x 3600 x record_rate_hz."""
+    """Samples per axis summed over the simulated datasets: n_datasets x duration_h x 3600 x record_rate_hz
+    (an int)."""
     sim = cfg.get("simulation")
     if not sim:
         raise SystemExit("the configuration does not simulate its datasets: samples per axis unknown")
@@ -88,9 +89,9 @@ def cold_run(config: Path, out: Path, cores: int) -> tuple:
 
 def table(large: dict, default: dict, n_large: int, n_default: int, rec_large: int, rec_default: int) -> str:
     """Per rule: the sums, the largest max_rss, and the time per sample of a job: the mean job time over one
-    record's samples (`rec_*`, samples per axis of one dataset), large over default (the same with the mean job
-    time, so a rule's ratio holds for a run stopped part way too). The last row: the run's total job time
-    over its samples (`n_*`, over the datasets), large over default."""
+    record's samples (`rec_*`, samples per axis of one dataset), large over default (a mean, so it holds for a
+    run stopped part way too). The last row: the run's total job time over its samples (`n_*`, over the
+    datasets), large over default."""
     def mb(v):
         return "-" if v is None else f"{v:.0f}"
 
@@ -109,8 +110,10 @@ def table(large: dict, default: dict, n_large: int, n_default: int, rec_large: i
     rules = sorted(set(large) | set(default), key=lambda r: -(large.get(r, {}).get("cpu", 0.0)))
     for rule in rules:
         a, b = large.get(rule, {}), default.get(rule, {})
-        rows.append(f"| {rule} | {a.get('jobs', 0)} / {b.get('jobs', 0)} | {a.get('s', 0.0):.1f} / {b.get('s', 0.0):.1f} "
-                    f"| {a.get('cpu', 0.0):.1f} / {b.get('cpu', 0.0):.1f} | {mb(a.get('rss'))} / {mb(b.get('rss'))} "
+        rows.append(f"| {rule} | {a.get('jobs', 0)} / {b.get('jobs', 0)} "
+                    f"| {a.get('s', 0.0):.1f} / {b.get('s', 0.0):.1f} "
+                    f"| {a.get('cpu', 0.0):.1f} / {b.get('cpu', 0.0):.1f} "
+                    f"| {mb(a.get('rss'))} / {mb(b.get('rss'))} "
                     f"| {per_job(a, b, 's')} | {per_job(a, b, 'cpu')} |")
     tot = [{"jobs": sum(r["jobs"] for r in d.values()), "s": sum(r["s"] for r in d.values()),
             "cpu": sum(r["cpu"] for r in d.values()),
@@ -151,7 +154,8 @@ def main(argv=None) -> int:
         sim = c["simulation"]
         wall = walls.get((args.large if label == "large" else args.default).stem)
         print(f"{label} ({c.get('name')}): {sim['n_datasets']} x {sim['duration_h']:g} h at "
-              f"{sim['record_rate_hz']:g} Hz = {k / sim['n_datasets'] / 1e6:.2f} M samples per axis and dataset, "
+              f"{sim['record_rate_hz']:g} Hz = {k / sim['n_datasets'] / 1e6:.2f} M samples per axis and "
+              "dataset, "
               f"{k / 1e6:.2f} M over the datasets" + (f"; cold run {wall:.1f} s wall" if wall else ""))
     if len(walls) == 2:
         wl, wd = walls[args.large.stem], walls[args.default.stem]
