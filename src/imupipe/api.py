@@ -238,6 +238,7 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
+    envelope: str = "marginal",
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -295,6 +296,10 @@ def noise_model(
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
+    envelope : {"marginal", "joint"}, optional
+        The upper envelope's construction (``identify.envelope``, :func:`imupipe.stages.identify.envelope`):
+        ``"marginal"`` (default, the paper's) every kept component at its upper limit at once; ``"joint"`` the model
+        above the simultaneous band of the fit's PSD over its bootstrap replicates (:mod:`imupipe.identify.joint`).
 
     Returns
     -------
@@ -328,7 +333,8 @@ def noise_model(
                             adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
                             span_s=fix_s + outage_s, fit_tau_min_samples=fit_tau_min_samples,
                             truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"),
-                            envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz)
+                            envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz,
+                            envelope_kind=envelope)
     # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
     with _no_stdout_fd():
