@@ -238,7 +238,7 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
-    envelope: str = "marginal",
+    envelope: str = _D["identify.envelope"],
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
