@@ -230,7 +230,10 @@ def auto_prediction(model, fit, record_rate_hz: float, sensor: str, *, confidenc
 
     sc = reference_scenario(sensor)
     span = float(sc.fix_s + sc.outage_s)
-    env, rec = joint_envelope(fit, None, span, 0.5 * float(record_rate_hz), confidence)
+    from imupipe.bound import upper_envelope
+
+    k_up = upper_envelope(fit, None, span_s=span).random_walk  # as the identification: below the band, K's limit
+    env, rec = joint_envelope(fit, None, span, 0.5 * float(record_rate_hz), confidence, random_walk_min=k_up)
     nan = float("nan")
     if env is None:
         return {"inflation": nan, "conservatism": nan, "worst": nan, "c_percentile": nan}

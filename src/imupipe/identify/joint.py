@@ -22,6 +22,12 @@ the same way, :mod:`imupipe.identify.fit`), on a grid of frequencies F (log-spac
   covers what the basic one misses at a parameter on its boundary (a random walk fitted as 0: the replicates that
   refit a K > 0 raise it); the basic one corrects the percentile band's bias where the estimator is skewed.
 
+Below the band the envelope is its model's extrapolation; its random walk is at least `random_walk_min` (the
+identification passes the marginal envelope's K: its upper limit at the same level, capped by the Allan variances),
+so a random walk the records cannot exclude still rises below the band as in the marginal envelope (without it, a
+plan's envelope of GM terms alone fell to 0.33 x a white + GM + random-walk model at 2e-5 Hz, and a filter on it
+under-stated that model's error 2.3x over a 600 s fix + 3600 s outage).
+
 The level is **family-wise over the grid F**: :math:`P(S(f;\theta_0) \le U(f)\ \forall f\in F) \approx`
 `confidence` (a simultaneous band; the order statistic :math:`\lceil (B+1)c \rceil` of B replicates). Between grid
 points (`per_decade` = 100) neither curve's logarithm moves by more than 2 x 0.01 decades (slopes of the PSDs
@@ -126,7 +132,8 @@ def _basis(f, T_grid, flicker: bool):
     return np.stack(cols, axis=1), names
 
 
-def joint_envelope(fit, kept, span_s: float, f_max_hz: float, confidence: float, f_min_hz: float | None = None):
+def joint_envelope(fit, kept, span_s: float, f_max_hz: float, confidence: float, f_min_hz: float | None = None,
+                   random_walk_min: float = 0.0):
     r"""The joint upper envelope (module docstring) as a :class:`~imupipe.models.NoiseModel` (SI) and its record.
 
     Parameters
@@ -141,6 +148,10 @@ def joint_envelope(fit, kept, span_s: float, f_max_hz: float, confidence: float,
         Highest frequency of the band, Hz (half the records' or the filter's rate).
     confidence : float
         Family-wise level of the band over its frequencies.
+    random_walk_min : float, optional
+        Least random walk of the envelope, u/sqrt(s): below the band the envelope is its model's extrapolation,
+        and a random walk the records cannot exclude rises there (the identification passes the marginal
+        envelope's K, its upper limit at `confidence` capped by the Allan variances). Default 0.
     f_min_hz : float, optional
         Lowest frequency of the band, Hz; default 1/`span_s`: below it the records of a GM or random walk the data
         leave open say nothing the filter needs (the marginal envelope's statement too), and a band taken lower
@@ -179,7 +190,9 @@ def joint_envelope(fit, kept, span_s: float, f_max_hz: float, confidence: float,
     An = A / U[:, None]  # rows scaled by U: constraint An a >= 1, objective mean(An a)
     col = np.max(An, axis=0)
     An_s = An / col[None, :]  # columns scaled for the solver's conditioning
-    res = linprog(An_s.mean(axis=0), A_ub=-An_s, b_ub=-np.ones(n), bounds=(0, None), method="highs")
+    bounds = [(0.0, None)] * A.shape[1]
+    bounds[1] = (float(random_walk_min) ** 2 / col[1], None)  # the random walk's column, scaled as An_s
+    res = linprog(An_s.mean(axis=0), A_ub=-An_s, b_ub=-np.ones(n), bounds=bounds, method="highs")
     if res.status != 0:
         raise RuntimeError(f"joint_envelope: the envelope's linear programme failed: {res.message}")
     a = np.maximum(res.x, 0.0) / col

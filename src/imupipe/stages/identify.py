@@ -106,15 +106,18 @@ def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "m
 
     if kind not in ENVELOPE_KINDS:
         raise ValueError(f"identify.envelope: expected one of {ENVELOPE_KINDS}, got {kind!r}")
+    cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
+    marginal = upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
     if kind == "joint":
         from imupipe.identify.joint import joint_envelope
 
-        env, rec = joint_envelope(fit, kept, span_s, 0.5 * min(float(c[5]) for c in curves), confidence)
+        # below the band: the marginal envelope's random walk (its upper limit, capped by the Allan variances)
+        env, rec = joint_envelope(fit, kept, span_s, 0.5 * min(float(c[5]) for c in curves), confidence,
+                                  random_walk_min=marginal.random_walk)
         fit.joint_envelope = rec  # the band's record (identify file: ``upper_envelope_joint``)
         if env is not None:
             return env
-    cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
-    return upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
+    return marginal
 
 
 def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, span_s: float,
