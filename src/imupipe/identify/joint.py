@@ -191,7 +191,7 @@ def joint_envelope(fit, kept, span_s: float, f_max_hz: float, confidence: float,
     col = np.max(An, axis=0)
     An_s = An / col[None, :]  # columns scaled for the solver's conditioning
     bounds = [(0.0, None)] * A.shape[1]
-    bounds[1] = (float(random_walk_min) ** 2 / col[1], None)  # the random walk's column, scaled as An_s
+    bounds[1] = (float(random_walk_min) ** 2 * col[1], None)  # the random walk's column (a = x / col)
     res = linprog(An_s.mean(axis=0), A_ub=-An_s, b_ub=-np.ones(n), bounds=bounds, method="highs")
     if res.status != 0:
         raise RuntimeError(f"joint_envelope: the envelope's linear programme failed: {res.message}")
