@@ -17,7 +17,7 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "identify.significance": "significance", "identify.relevance": "relevance",
            "identify.adequacy_level": "adequacy_level", "identify.pooling_level": "pooling_level",
            "identify.pooling_n_boot": "pooling_n_boot", "identify.n_boot": "n_boot", "verify.reduce": "reduce", "verify.replay_z": "replay_z",
-           "lines.floor_window_bins": "lines_floor_window_bins",
+           "lines.floor_window_bins": "lines_floor_window_bins", "identify.envelope": "envelope",
            "application.filter_rate_hz": "filter_rate_hz", "application.outage_s": "outage_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}

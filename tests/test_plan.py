@@ -240,3 +240,15 @@ def test_replicates_replace_a_confounded_cell_by_a_median():
     assert predict(_white(), 1.0, 1, 1.0, 1, replicates=3, n_boot=20)["method"] == "expected Allan variance"
     with pytest.raises(ValueError, match="--replicates"):
         predict(_white(), 1.0, 1, 1.0, 1, replicates=-1)
+
+
+def test_auto_prediction_is_safe_and_tightens_with_more_records():
+    # the auto bound's expected conservatism (the joint envelope of the expected-data fit as the filter's model,
+    # the model as the truth): the envelope dominates the model over its band, so the filter is safe against it
+    # (worst MSE/P <= 1, to the verification's 1e-6) and its mean P/MSE >= 1; five records narrow the bootstrap
+    # band (its width falls like 1/sqrt(records) to first order), so the inflation and the conservatism fall
+    m = NoiseModel(white=2e-4, gauss_markov=((1e-4, 300.0),), random_walk=2e-6)
+    one, five = (predict(m, 4.0, r, 10.0, 1, sensor="accel", n_boot=100)["auto"] for r in (1, 5))
+    for a in (one, five):
+        assert a["worst"] <= 1 + 1e-6 and a["conservatism"] >= 1.0 and a["inflation"] >= 1.0
+    assert five["inflation"] < one["inflation"] and five["conservatism"] < one["conservatism"]

@@ -250,7 +250,11 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
+<<<<<<< HEAD
     events: bool | Mapping = True,
+=======
+    envelope: str = _D["identify.envelope"],
+>>>>>>> tight
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -308,6 +312,7 @@ def noise_model(
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
+<<<<<<< HEAD
     events : bool or mapping, optional
         Find the bursts and steps of every full-rate curve as the workflow's outliers stage does
         (:func:`imupipe.stages.outliers.outliers_stage` on the record as given, :func:`imupipe.events.detect_events`:
@@ -315,6 +320,12 @@ def noise_model(
         ``events`` settings (:data:`imupipe.stages.outliers.EVENT_DEFAULTS`); a mapping: those settings over them
         (its ``policy``, if given, must be ``warn``: the API analyses the records as given); False: no search.
         Found events are in the result's ``events``, ``flags`` and ``to_dict()``.
+=======
+    envelope : {"marginal", "joint"}, optional
+        The upper envelope's construction (``identify.envelope``, :func:`imupipe.stages.identify.envelope`):
+        ``"marginal"`` (default, the paper's) every kept component at its upper limit at once; ``"joint"`` the model
+        above the simultaneous band of the fit's PSD over its bootstrap replicates (:mod:`imupipe.identify.joint`).
+>>>>>>> tight
 
     Returns
     -------
@@ -349,7 +360,8 @@ def noise_model(
                             adequacy_level=adequacy_level, pooling_level=pooling_level, pooling_n_boot=pooling_n_boot,
                             span_s=fix_s + outage_s, fit_tau_min_samples=fit_tau_min_samples,
                             truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"),
-                            envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz)
+                            envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz,
+                            envelope_kind=envelope)
     # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
     with _no_stdout_fd():

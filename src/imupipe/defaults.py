@@ -33,6 +33,7 @@ DEFAULTS: dict[str, object] = {
     "identify.pooling_level": 0.01,
     "identify.n_boot": 100,
     "identify.pooling_n_boot": 99,
+    "identify.envelope": "marginal",
     "application.filter_rate_hz": 1.0,
     "application.outage_s": 3600.0,
     "bound.mode": "raw",

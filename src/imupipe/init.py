@@ -315,4 +315,8 @@ bound:
   # auto: every mode's bound (raw, smoothed, confidence, pooled) verified, the tightest that passes every check
   # exported (imupipe.bound.auto; the paper's default run keeps raw)
   mode: auto
+identify:
+  # joint: the upper envelope above the simultaneous band of the fit's bootstrap replicates (imupipe.identify.joint),
+  # not every component at its upper limit at once: the auto bound's reference, tighter as the records grow
+  envelope: joint
 """

@@ -52,7 +52,7 @@ import warnings
 from dataclasses import replace
 
 __all__ = ["PARAMS", "expected_allan", "fit_components", "identify_intervals", "half_widths", "predict",
-           "plan_table", "parse_target", "shortest_plan", "load_model", "format_table", "add_subcommand"]
+           "plan_table", "auto_prediction", "parse_target", "shortest_plan", "load_model", "format_table", "add_subcommand"]
 
 #: Plan parameter -> fit_allan parameter name and the unit key of a spec sheet (imupipe.specsheet.display_units).
 PARAMS = {"N": ("white", "white"), "B": ("gm_sigma_1", "gm_sigma"), "K": ("random_walk", "random_walk")}
@@ -147,7 +147,7 @@ def _truth_values(model) -> dict:
 
 
 def predict(model, hours: float, records: int, record_rate_hz: float, axes: int = 1, *, replicates: int = 0,
-            n_boot: int = N_BOOT, confidence: float = CONFIDENCE, seed=SEED) -> dict:
+            n_boot: int = N_BOOT, confidence: float = CONFIDENCE, seed=SEED, sensor: str | None = None) -> dict:
     """The predicted half-widths of one plan (module docstring): ``{"hours", "records", "axes",
     "record_rate_hz", "half_width": {N, B, K} (SI), "relative": {N, B, K} (half-width / the model's value; NaN
     where the model has no such term), "interval_kind": {N, B, K} (the expected-data fit's label), "confounded":
@@ -156,7 +156,10 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
     `replicates` > 0: where the expected-data fit finds an interval one-sided or confounded, the half-widths are
     instead the median over `replicates` draws of the plan's curves from their sampling distribution (each curve
     :func:`imupipe.avcov.correlated_replicates`: chi-squared marginals, the exact covariance of
-    :func:`imupipe.avcov.avar_covariance`), each fitted like a record (`replicates` fits more)."""
+    :func:`imupipe.avcov.avar_covariance`), each fitted like a record (`replicates` fits more).
+
+    `sensor` ("gyro" or "accel"): the row also gets ``auto``, :func:`auto_prediction` of the expected-data fit (the
+    auto bound's expected effective inflation and conservatism)."""
     import numpy as np
 
     records = _check_positive(records, "--records", integer=True)
@@ -193,8 +196,54 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
         hw = {p: float(v) for p, v in zip(PARAMS, med)}
         method = f"median over {replicates} replicate Allan-variance curve sets"
     rel = {p: (hw[p] / truth[p] if truth[p] > 0 else float("nan")) for p in hw}
-    return {"hours": float(hours), "records": records, "axes": axes, "record_rate_hz": float(record_rate_hz),
-            "half_width": hw, "relative": rel, "interval_kind": kind, "confounded": confounded, "method": method}
+    out = {"hours": float(hours), "records": records, "axes": axes, "record_rate_hz": float(record_rate_hz),
+           "half_width": hw, "relative": rel, "interval_kind": kind, "confounded": confounded, "method": method}
+    if sensor is not None:
+        out["auto"] = auto_prediction(model, fit, record_rate_hz, sensor, confidence=confidence)
+    return out
+
+
+def auto_prediction(model, fit, record_rate_hz: float, sensor: str, *, confidence: float = CONFIDENCE) -> dict:
+    r"""The expected effective inflation and conservatism of the auto bound for the plan whose expected-data fit is
+    `fit` (:func:`identify_intervals`), from the same machinery as the run's.
+
+    The auto bound under ``identify.envelope: joint`` lies on or above the joint upper envelope (it must pass the
+    check against it; in docs/performance.md its candidates' mean P/MSE against the envelope are 1.0-1.4 where the
+    envelope sets the level), and the envelope is what the records' statistics move. So the plan evaluates the
+    envelope on the expected data: :func:`imupipe.identify.joint.joint_envelope` of `fit` (its bootstrap drawn
+    around the model from the plan's records and axes: the band's width is the records' expected scatter) over
+    [1/span, `record_rate_hz`/2], span = fix + outage of the reference scenario
+    (:func:`imupipe.verify.reference_scenario`), and
+
+    - ``inflation``: the median over [1/outage, filter_rate/2] (100 frequencies per decade) of
+      :math:`\sqrt{S_{env}(f)/S_{model}(f)}` (the in-band effective inflation of the summary, against the model);
+    - ``conservatism``: the mean P/MSE over the outage of the reference filter built on the envelope with the model
+      as the truth (:func:`imupipe.verify.covariance_analysis`): the auto bound's conservatism to first order (a
+      lower estimate: the exported model is at or above the envelope);
+    - ``worst``: that filter's worst MSE/P (<= 1 when the envelope dominates the model).
+
+    Returns ``{"inflation", "conservatism", "worst", "c_percentile"}`` (NaN without a bootstrap)."""
+    import numpy as np
+
+    from imupipe.identify.joint import joint_envelope
+    from imupipe.verify import covariance_analysis, reference_scenario
+
+    sc = reference_scenario(sensor)
+    span = float(sc.fix_s + sc.outage_s)
+    from imupipe.bound import upper_envelope
+
+    k_up = upper_envelope(fit, None, span_s=span).random_walk  # as the identification: below the band, K's limit
+    env, rec = joint_envelope(fit, None, span, 0.5 * float(record_rate_hz), confidence, random_walk_min=k_up)
+    nan = float("nan")
+    if env is None:
+        return {"inflation": nan, "conservatism": nan, "worst": nan, "c_percentile": nan}
+    f_hi = 0.5 / float(sc.dt)
+    f = np.geomspace(1.0 / float(sc.outage_s), f_hi, int(100 * np.log10(f_hi * sc.outage_s)) + 1)
+    m = replace(model, narrowband=(), ramp=0.0, quantization=0.0)
+    infl = float(np.median(np.sqrt(env.psd(f) / m.psd(f))))
+    v = covariance_analysis(env, m, sc)
+    return {"inflation": infl, "conservatism": float(v.mean_conservatism), "worst": float(v.worst_outage_ratio),
+            "c_percentile": rec["c_percentile"]}
 
 
 def _confounded(fit, name: str) -> bool:
@@ -289,6 +338,8 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
     head = ["hours", "records"]
     for p, (_, q) in PARAMS.items():
         head += [f"{p} +/- ({units[q]})", f"{p} +/- %"]
+    if rows and "auto" in rows[0]:
+        head += ["auto: in-band inflation", "auto: P/MSE"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [f"{r['hours']:g}", f"{r['records']}"]
@@ -298,6 +349,8 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
                          f"{float(from_si(hw, units[q], q, sensor)):.3g}" if np.isfinite(hw) else "-")
             mark = " ~" if r.get("confounded", {}).get(p) else ""
             cells.append(f"{100 * rel:.3g}{mark}" if not np.isnan(rel) else "-")
+        if "auto" in r:
+            cells += [f"{r['auto']['inflation']:.3g}", f"{r['auto']['conservatism']:.3g}"]
         lines.append("| " + " | ".join(cells) + " |")
     if any(any(r.get("confounded", {}).values()) for r in rows):
         how = next((r["method"] for r in rows if r.get("method", "").startswith("median")), None)
@@ -348,7 +401,8 @@ def _cmd_plan(args) -> int:
         _check_positive(h, "--hours")
     for r in args.records:
         _check_positive(r, "--records", integer=True)
-    rows = plan_table(model, args.hours, args.records, rate, args.axes, replicates=args.replicates)
+    rows = plan_table(model, args.hours, args.records, rate, args.axes, replicates=args.replicates,
+                      sensor=args.sensor)
     print(f"# plan for the {args.sensor} model of the {source}, records at {rate:g} Hz, {args.axes} axis curve(s) "
           f"pooled per record: expected half-width of the {100 * CONFIDENCE:g} % interval (imupipe.plan)")
     print(format_table(rows, units, args.sensor))

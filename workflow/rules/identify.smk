@@ -25,6 +25,7 @@ rule identify:
         fit_tau_min_samples=config["identify"].get("fit_tau_min_samples"),
         pooling_level=config["identify"]["pooling_level"],
         pooling_n_boot=config["identify"]["pooling_n_boot"],
+        envelope_kind=config["identify"].get("envelope", "marginal"),
         filter_rate_hz=FILTER_RATE_HZ,
         outage_s=OUTAGE_S,
         # the upper envelope covers a GM time constant the data leave open for f >= 1/(fix_s + outage_s)

@@ -29,6 +29,7 @@ if __name__ == "__main__":
     run_job(main, snakemake.log[0], path_allan=snakemake.input.allan, components=list(p.components), n_gm=p.n_gm,
             n_boot=p.n_boot, confidence=p.confidence, significance=p.significance, relevance=p.relevance,
             adequacy_level=p.adequacy_level, pooling_level=p.pooling_level, pooling_n_boot=p.pooling_n_boot,
+            envelope_kind=p.envelope_kind,
             filter_rate_hz=p.filter_rate_hz, outage_s=p.outage_s, span_s=p.span_s,
             fit_tau_min_samples=p.fit_tau_min_samples, envelope_lines_below_hz=p.envelope_lines_below_hz,
             truth=snakemake.input.truth or None,

@@ -18,7 +18,11 @@ the records) and :func:`select` picks the exported one:
   bounded by its contract (the contract's ``failed_checks`` say why).
 
 The envelope is the criterion's reference because it is what every run has (the truth only where simulated) and is
-what the bound must cover below the lowest PSD bin; the spec sheet is a floor, not an estimate of the sensor.
+what the bound must cover below the lowest PSD bin; the spec sheet is a floor, not an estimate of the sensor. Where
+the envelope sets the level (a random walk or a long GM a few records barely resolve), every candidate sits on it
+and the conservatism is the envelope's: ``identify.envelope: joint`` (:mod:`imupipe.identify.joint`, what
+``imupipe init`` writes with ``auto``) makes it the simultaneous band of the fit's bootstrap instead of every
+component at its upper limit at once.
 """
 
 from __future__ import annotations

@@ -88,18 +88,40 @@ def curves_of(av) -> list[Curve]:
     return out
 
 
-def envelope(fit, kept, curves, confidence: float, span_s: float):
-    """The upper confidence envelope of the kept components of `fit` (:func:`imupipe.bound.upper_envelope`; a
-    GM time constant the data leave open covered for f >= 1/span_s, span_s in s: fix period + outage), its random
-    walk at most what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap` at `confidence`)."""
+#: The upper envelope's constructions (``identify.envelope``): every kept component at its marginal upper limit
+#: at once, or the joint band of the fit's bootstrap (:mod:`imupipe.identify.joint`).
+ENVELOPE_KINDS = ("marginal", "joint")
+
+
+def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "marginal"):
+    """The upper confidence envelope of the kept components of `fit`, SI :class:`~imupipe.models.NoiseModel`.
+
+    `kind` ``"marginal"`` (default, the paper's): :func:`imupipe.bound.upper_envelope`, every component at its
+    upper limit at once (a GM time constant the data leave open covered for f >= 1/span_s, span_s in s: fix period
+    + outage), its random walk at most what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap`
+    at `confidence`). ``"joint"``: :func:`imupipe.identify.joint.joint_envelope`, the model above the simultaneous
+    band of the fit's PSD over its bootstrap replicates at `confidence` (family-wise over 1/span_s .. half
+    the records' rate); the marginal one where the fit has no bootstrap."""
     from imupipe.bound import random_walk_cap, upper_envelope
 
+    if kind not in ENVELOPE_KINDS:
+        raise ValueError(f"identify.envelope: expected one of {ENVELOPE_KINDS}, got {kind!r}")
     cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
-    return upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
+    marginal = upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
+    if kind == "joint":
+        from imupipe.identify.joint import joint_envelope
+
+        # below the band: the marginal envelope's random walk (its upper limit, capped by the Allan variances)
+        env, rec = joint_envelope(fit, kept, span_s, 0.5 * min(float(c[5]) for c in curves), confidence,
+                                  random_walk_min=marginal.random_walk)
+        fit.joint_envelope = rec  # the band's record (identify file: ``upper_envelope_joint``)
+        if env is not None:
+            return env
+    return marginal
 
 
 def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, span_s: float,
-                          seed: int = SEED_FIT, T_range: dict | None = None):
+                          seed: int = SEED_FIT, T_range: dict | None = None, envelope_kind: str = "marginal"):
     """The selected refit of `fit` on `curves` (:func:`imupipe.identify.refit_selected`: a random walk the
     selection dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its
     upper envelope (:func:`envelope`); the one rule of the pooled and the per-axis identification. `seed`: the
@@ -108,7 +130,8 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
     (:func:`imupipe.identify.resolve.reassign_unresolved_gm`; the result's ``reassigned`` and ``kept_after``), and
     the envelope is that of the re-assigned model, dominating the GM's own envelope (its box over the T interval)
     too where the statistical T interval is open above (:func:`imupipe.models.dominating_model`): the envelope only
-    grows where the data leave it open."""
+    grows where the data leave it open. `envelope_kind`: :func:`envelope`'s `kind`; ``"joint"`` takes the band of
+    the refit before any re-assignment (its replicates are of the model fitted to the data)."""
     from imupipe.identify import refit_selected
     from imupipe.identify.resolve import reassign_unresolved_gm
 
@@ -116,11 +139,17 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
     selected = refit_selected(fit, selection, taus, avars, edfs, rng=seed, **fit_kw)
     kept = list(selection["kept"])
     if T_range is None:
-        return selected, envelope(selected, kept, curves, confidence, span_s)
+        selected.envelope_fit, selected.envelope_kept = selected, kept
+        return selected, envelope(selected, kept, curves, confidence, span_s, envelope_kind)
     # a GM the records do not resolve is reported and bounded as the white noise or random walk it acts as
     before = selected
     selected, kept, moved = reassign_unresolved_gm(selected, kept, T_range)
     selected.reassigned, selected.kept_after = moved, kept
+    selected.envelope_fit, selected.envelope_kept = before, list(selection["kept"])
+    if envelope_kind == "joint":
+        env = envelope(before, list(selection["kept"]), curves, confidence, span_s, envelope_kind)
+        selected.joint_envelope = getattr(before, "joint_envelope", None)
+        return selected, env
     env = envelope(selected, kept, curves, confidence, span_s)
     if any(r["T_open_above"] for r in moved):
         # integrity first: where the data leave the GM's T open above, its box (every longer T, for f >= 1/span)
@@ -129,6 +158,13 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
 
         env = dominating_model([env, envelope(before, list(selection["kept"]), curves, confidence, span_s)])
     return selected, env
+
+
+def _yaml_ready(rec):
+    """The joint band's record with plain floats (non-finite as None)."""
+    if rec is None:
+        return None
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in rec.items()}
 
 
 def envelope_ratio(env: dict, model) -> dict:
@@ -243,7 +279,8 @@ def _record_consistency(curves, selection, components, n_gm, fit_kw, confidence,
     return {**out, **res}
 
 
-def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=None):
+def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=None,
+              envelope_kind="marginal"):
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry."""
@@ -257,7 +294,7 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
                          components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
         fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed,
-                                          T_range=T_range)
+                                          T_range=T_range, envelope_kind=envelope_kind)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
                           "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
@@ -278,7 +315,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                     span_s: float | None = None, fit_tau_min_samples: float | None = None,
                     truth=None, seed: int = SEED_FIT, lines=None, envelope_lines: bool = False,
                     envelope_lines_below_hz: float | None = None,
-                    consistency_level: float = 0.01) -> Identification:
+                    consistency_level: float = 0.01, envelope_kind: str = "marginal") -> Identification:
     """The identification of one sensor type (module docstring, steps 1-6) on `curves` (:class:`Curve` or
     tuples in its order), with the workflow's settings: ``identify.*`` (`components`, `n_gm`, `n_boot`,
     `confidence`, `significance`, `relevance`, `adequacy_level`, `pooling_level`, `pooling_n_boot`,
@@ -298,7 +335,9 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     decimated Nyquist frequency reaches the bound's LP only through its alias, attenuated by the block average (by
     6.3e-9 for a 22 Hz gyro line of one ADIS16405 record at 1 Hz): covering the envelope's line there inflated the
     bound's line to 0.91 rad/s at the filter's 100 Hz. Such a line is covered from the sample spectra alone.
-    `consistency_level`: the family-wise false-alarm level of the record-consistency test.
+    `consistency_level`: the family-wise false-alarm level of the record-consistency test. `envelope_kind`
+    (``identify.envelope``): the upper envelope's construction, :func:`envelope`'s `kind` (``marginal``, the
+    paper's, or ``joint``).
 
     Raises ValueError when `curves` is empty."""
     from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
@@ -326,7 +365,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     logging.info("kept %s; dropped %s", kept, selection["dropped"])
     span = float(span_s if span_s is not None else outage_s)
     selected, env = selected_and_envelope(fit, selection, curves, fit_kw, confidence, span, seed=seed,
-                                          T_range=T_range)
+                                          T_range=T_range, envelope_kind=envelope_kind)
     moved = getattr(selected, "reassigned", [])
     if moved:
         selection = _selection_after(selection, moved, selected.kept_after)
@@ -355,6 +394,9 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "pooling": pooling,
         "upper_envelope_model": env.to_dict(),
         "upper_envelope_horizon_s": span,
+        **({"upper_envelope_kind": envelope_kind,
+            "upper_envelope_joint": _yaml_ready(getattr(selected, "joint_envelope", None))}
+           if envelope_kind != "marginal" else {}),
         "gm_T_search_s": T_range,
         "gm_reassigned": moved,
         "slope_line": {},
@@ -369,7 +411,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
     if not pooling["consistent"]:
         per_axis = _per_axis(curves, components, n_gm, fit.selection or selection, fit_kw, confidence, span, seed,
-                             T_range=T_range)
+                             T_range=T_range, envelope_kind=envelope_kind)
         out["per_axis"] = per_axis
         # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
         env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
