@@ -721,6 +721,16 @@ def _baseline_tree(repo: Path, commit: str, where: Path) -> Path:
     return where
 
 
+def _job_cpu(jobs: list) -> float:
+    """Sum of the benchmark files' ``cpu_time`` (s) over `jobs` (:func:`collect_jobs`); jobs without one count 0."""
+    total = 0.0
+    for j in jobs:
+        c = j.get("bench", {}).get("cpu_time")
+        if isinstance(c, float) and c == c:
+            total += c
+    return total
+
+
 def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: str | None = "8de70ed",
             configfile: str = "config/config.yaml", duration_h=None, spec_name: str = "stim300.yaml") -> dict:
     """Cold run, spec-sheet rerun and critical path of this checkout and (unless `baseline` is None) of the
@@ -748,20 +758,23 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
             _run_in(scratch, base + ["--until", "simulate"], logs / "prepare.log", env)
             state[label] = {"scratch": scratch, "env": env, "base": base, "logs": logs, "cold": Timing(),
                             "simulation": Timing(),
-                            "rerun": Timing(), "critical": [], "rss": {}, "jobs": {}, "rerun_jobs": {}}
+                            "rerun": Timing(), "cold_cpu": Timing(), "rerun_cpu": Timing(), "sim_cpu": Timing(),
+                            "critical": [], "rss": {}, "jobs": {}, "rerun_jobs": {}}
         for i in range(repeats):
             for label, st in state.items():  # alternate the trees run by run
                 scratch = st["scratch"]
                 clean_all(scratch)  # the simulation alone: `--until simulate` from nothing
-                wall, _ = _run_in(scratch, st["base"] + ["--until", "simulate"], st["logs"] / f"simulate_{i}.log",
-                                  st["env"])
+                wall, text = _run_in(scratch, st["base"] + ["--until", "simulate"], st["logs"] / f"simulate_{i}.log",
+                                     st["env"])
                 st["simulation"].values.append(wall)
+                st["sim_cpu"].values.append(_job_cpu(collect_jobs(scratch, text)))
                 clean_outputs(scratch)
                 wall, text = _run_in(scratch, st["base"], st["logs"] / f"cold_{i}.log", st["env"])
                 st["cold"].values.append(wall)
                 st["jobs"] = parse_job_stats(text)
                 jobs = collect_jobs(scratch, text)
                 st["critical"].append(critical_path(jobs))
+                st["cold_cpu"].values.append(_job_cpu(jobs))
                 for j in jobs:
                     rss = j.get("bench", {}).get("max_rss")
                     if isinstance(rss, float):
@@ -775,6 +788,7 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
                 wall, text = _run_in(scratch, st["base"], st["logs"] / f"spec_rerun_{i}.log", st["env"])
                 st["rerun"].values.append(wall)
                 st["rerun_jobs"] = parse_job_stats(text)
+                st["rerun_cpu"].values.append(_job_cpu(collect_jobs(scratch, text)))
     finally:
         if baseline and (tmp / "baseline").exists():
             subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(tmp / "baseline")],
@@ -788,10 +802,14 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
         chain = max(st["critical"], key=lambda c: c["s"])["chain"] if st["critical"] else []
         res["trees"][label] = {"cold": st["cold"].to_dict(), "spec_rerun": st["rerun"].to_dict(),
                                "simulation": st["simulation"].to_dict(),
+                               "simulation_job_cpu": st["sim_cpu"].to_dict(), "cold_job_cpu": st["cold_cpu"].to_dict(),
+                               "spec_rerun_job_cpu": st["rerun_cpu"].to_dict(),
                                "critical_path": crit.to_dict(), "critical_chain": chain, "jobs_cold": st["jobs"],
                                "jobs_rerun": st["rerun_jobs"], "peak_rss_mb": st["rss"], "axis_mb": st["axis_mb"]}
         rows.append([label, st["simulation"].cell(), st["cold"].cell(), st["rerun"].cell(), crit.cell(),
-                     fmt(crit.median / st["cold"].median, 3), st["jobs"].get("total", "?"),
+                     fmt(crit.median / st["cold"].median, 3), st["sim_cpu"].cell(), st["cold_cpu"].cell(),
+                     st["rerun_cpu"].cell(),
+                     st["jobs"].get("total", "?"),
                      " -> ".join(dict.fromkeys(chain))])
         for rule, mb in sorted(st["rss"].items()):
             ax = st["axis_mb"]
@@ -802,8 +820,10 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
              f"simulation: `--until simulate` from nothing; cold run: with the simulated recordings present; "
              f"{repeats} runs per tree, alternating; medians "
              "[min-max]. Critical path: longest chain of job wall times (benchmark files) = wall time with unlimited "
-             "cores.", "",
-             md_table(["tree", "simulation", "cold run", "spec-sheet rerun", "critical path", "critical / cold", "jobs", "chain"],
+             "cores. Job CPU: the sum of the benchmark files' cpu_time over the run's jobs (steadier than wall time "
+             "on a shared machine).", "",
+             md_table(["tree", "simulation", "cold run", "spec-sheet rerun", "critical path", "critical / cold",
+                       "simulation job CPU", "cold job CPU", "rerun job CPU", "jobs", "chain"],
                       rows), "",
              "Peak RSS per rule (benchmark files' max_rss, max over jobs and runs; sampled at 0 s then every 0.5 s, so "
              "sub-second jobs may show less than their peak) against one axis's samples:", "",

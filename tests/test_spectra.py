@@ -500,3 +500,26 @@ def test_shared_band_helpers_match_closed_forms():
     assert list(bin_correlation(None, 2)) == [1.0, 0.0, 0.0] and band_edf_factor(bin_correlation(None, 4), 4) == 1.0
     # decade edges belong to the upper band, also where log10 rounds just below the integer
     assert list(log_band_index(np.array([0.1, 0.99, 1.0, 1.2589254117941673, 10.0]), 10)) == [-10, -1, 0, 1, 10]
+
+
+def test_chi2_sf_closed_form_against_scipy():
+    """chi2_sf(k, x) against scipy.special.chdtrc for k = 1..200 over 12 decades of x. Tolerance: each term is
+    exp(A) with |A| <= x/2 + k log(x/2) + lgamma(k) < 2000 here, so a relative error of about |A| eps = 4e-13
+    per term; the terms are positive, so the sum keeps that relative error: 1e-12."""
+    from scipy.special import chdtrc
+
+    from imupipe.spectra import chi2_sf
+
+    for k in range(1, 201):
+        for x in np.concatenate([np.geomspace(1e-6, 1500.0, 60), [k - 0.5, float(k), k + 0.5]]):
+            ref = float(chdtrc(k, x))
+            if ref > 1e-290:
+                assert chi2_sf(k, x) == pytest.approx(ref, rel=1e-12, abs=0.0), (k, x)
+    # exact values: k = 2 is exp(-x/2); k = 1 is erfc(sqrt(x/2)); the edges
+    assert chi2_sf(2, 3.0) == pytest.approx(math.exp(-1.5), rel=1e-15)
+    assert chi2_sf(1, 3.0) == pytest.approx(math.erfc(math.sqrt(1.5)), rel=1e-15)
+    assert chi2_sf(5, 0.0) == 1.0 and chi2_sf(5, -1.0) == 1.0 and chi2_sf(5, math.inf) == 0.0
+    with pytest.raises(ValueError, match="integer number of degrees of freedom"):
+        chi2_sf(2.5, 1.0)
+    with pytest.raises(ValueError, match="integer number of degrees of freedom"):
+        chi2_sf(0, 1.0)
