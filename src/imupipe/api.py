@@ -250,11 +250,8 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None,
     reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
-<<<<<<< HEAD
     events: bool | Mapping = True,
-=======
     envelope: str = _D["identify.envelope"],
->>>>>>> tight
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -312,7 +309,6 @@ def noise_model(
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
-<<<<<<< HEAD
     events : bool or mapping, optional
         Find the bursts and steps of every full-rate curve as the workflow's outliers stage does
         (:func:`imupipe.stages.outliers.outliers_stage` on the record as given, :func:`imupipe.events.detect_events`:
@@ -320,12 +316,10 @@ def noise_model(
         ``events`` settings (:data:`imupipe.stages.outliers.EVENT_DEFAULTS`); a mapping: those settings over them
         (its ``policy``, if given, must be ``warn``: the API analyses the records as given); False: no search.
         Found events are in the result's ``events``, ``flags`` and ``to_dict()``.
-=======
     envelope : {"marginal", "joint"}, optional
         The upper envelope's construction (``identify.envelope``, :func:`imupipe.stages.identify.envelope`):
         ``"marginal"`` (default, the paper's) every kept component at its upper limit at once; ``"joint"`` the model
         above the simultaneous band of the fit's PSD over its bootstrap replicates (:mod:`imupipe.identify.joint`).
->>>>>>> tight
 
     Returns
     -------
