@@ -50,7 +50,7 @@ FLICKER = 2e-4  # B, u: floor 0.664 B = 1.33e-4 u above the white noise's ADEV f
 CARRIER_HZ, SIDEBAND_HZ = 0.5, 0.1
 CARRIER_AMP = 1e-3  # A, u
 MODULATION = 0.6  # m: sidebands of amplitude A m / 2
-STEP_FACTOR = 15.0  # delta = 15 x the floor's ADEV 0.664 B (the issue's tilt step: 17x the bias stability)
+STEP_FACTOR = 5.0  # delta = 5 N sqrt(Hz): the least-squares change point then has sd sqrt(26) N^2 / delta^2 = 0.2 s
 MIN_SIDE_S = 1800.0  # a side of the split shorter than this is left out
 COMPONENTS = ["white", "gauss_markov", "flicker", "random_walk", "quantization", "ramp"]  # the workflow's default
 LINES_RESOLUTION_HZ = 0.002  # the workflow's lines.resolution_hz
@@ -83,7 +83,7 @@ def one_record(truth, rng, n_boot):
     x0 += CARRIER_AMP * (1.0 + MODULATION * np.cos(2 * np.pi * SIDEBAND_HZ * t + ph_m)) * np.cos(
         2 * np.pi * CARRIER_HZ * t + ph_c)
     k0 = int(rng.integers(n // 4, 3 * n // 4))
-    delta = float(rng.choice([-1.0, 1.0])) * STEP_FACTOR * 0.664 * truth.flicker
+    delta = float(rng.choice([-1.0, 1.0])) * STEP_FACTOR * truth.white  # u (N in u/sqrt(Hz) times 1 sqrt(Hz))
     x = x0.copy()
     x[k0:] += delta
     # 1. events on the record as read
@@ -123,57 +123,90 @@ def inside(triple, value):
     return bool(lo <= value <= hi)
 
 
+HEAD = ("| seed | rec | step at s | dt step s | sides | B est [interval] | B in | N in | B in (no step) | "
+        "N in (no step) | amp err % | K est | K interval (no step) | K in | kept |")
+
+
+def yn(flag):
+    return "y" if flag else "NO"
+
+
+def row_text(seed, r, o):
+    """One table row of record `r` (:func:`one_record`'s dict)."""
+    b, k, k0 = o["B"], o["K"], o["K0"]
+    return (f"| {seed} | {r} | {o['k0_s']:.0f} | {o['dt_step_s']:+.2f} | {o['n_sides']} | "
+            f"{b[0]:.3g} [{b[1]:.3g}, {b[2]:.3g}] | {yn(inside(b, FLICKER))} | {yn(inside(o['N'], WHITE))} | "
+            f"{yn(inside(o['B0'], FLICKER))} | {yn(inside(o['N0'], WHITE))} | {100 * o['amp_err']:+.1f} | "
+            f"{k[0]:.3g} | [{k0[1]:.3g}, {k0[2]:.3g}] | {yn(inside(k0, k[0]))} | {','.join(o['kept'])} |")
+
+
+def summary_text(rows) -> str:
+    """The coverage table over the rows: parsed rows (dicts of column -> text, :func:`parse_rows`)."""
+    n = len(rows)
+    lo, hi = binomial_range(n, 0.95)
+    out = [f"over {n} records (nominal 0.95; binomial 95 % range {lo}-{hi} of {n}):",
+           "| quantity | split record | record without the step | within the binomial range |", "|---|---|---|---|"]
+    for name, col in (("flicker B interval covers the truth", "B in"), ("white N interval covers the truth", "N in")):
+        c1 = sum(r[col] == "y" for r in rows)
+        c0 = sum(r[col + " (no step)"] == "y" for r in rows)
+        out.append(f"| {name} | {c1}/{n} | {c0}/{n} | {yn(lo <= c1 <= hi)} / {yn(lo <= c0 <= hi)} |")
+    dts = np.array([float(r["dt step s"]) for r in rows])
+    amp = np.array([float(r["amp err %"]) for r in rows])
+    out.append(f"| step found within 1 s | {int(np.sum(np.abs(dts) <= 1.0))}/{n} (largest error "
+               f"{np.nanmax(np.abs(dts)):.2f} s; not found {int(np.sum(~np.isfinite(dts)))}) | | |")
+    out.append(f"| carrier amplitude within 10 % | {int(np.sum(np.abs(amp) <= 10.0))}/{n} (largest error "
+               f"{np.nanmax(np.abs(amp)):.1f} %) | | |")
+    out.append(f"| K of the split record inside the K interval of the record without the step | "
+               f"{sum(r['K in'] == 'y' for r in rows)}/{n} | | |")
+    out.append(f"| flicker kept | {sum('flicker' in r['kept'] for r in rows)}/{n} | | |")
+    out.append(f"| random walk kept | {sum('random_walk' in r['kept'] for r in rows)}/{n} | | |")
+    return "\n".join(out)
+
+
+def parse_rows(lines):
+    """The rows of :data:`HEAD` in printed text (a log of one or several runs), as dicts column -> text."""
+    cols = [c.strip() for c in HEAD.strip("|").split("|")]
+    rows = []
+    for line in lines:
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("| ") and len(cells) == len(cols) and cells[0].isdigit():
+            rows.append(dict(zip(cols, cells)))
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--records", type=int, default=50)
     ap.add_argument("--seed", type=int, default=101)
     ap.add_argument("--n-boot", type=int, default=100, help="bootstrap replicates (the workflow's identify.n_boot)")
     ap.add_argument("--random-walk", type=float, default=0.0, help="K of the truth, u/sqrt(s)")
+    ap.add_argument("--summarise", nargs="+", metavar="LOG", help="only the coverage table of the rows in these "
+                    "logs (runs of this script on other seeds)")
     a = ap.parse_args(argv)
+    if a.summarise:
+        rows = []
+        for path in a.summarise:
+            with open(path) as fh:
+                rows += parse_rows(fh)
+        print(summary_text(rows))
+        return rows
     truth = NoiseModel(white=WHITE, flicker=FLICKER, random_walk=a.random_walk)
     rng = np.random.default_rng(a.seed)
     print(f"truth: N = {WHITE:g} u/sqrt(Hz), B = {FLICKER:g} u, K = {a.random_walk:g} u/sqrt(s); {HOURS:g} h at "
           f"{RATE_HZ:g} Hz; line {CARRIER_HZ} Hz A = {CARRIER_AMP:g} u, sidebands +-{SIDEBAND_HZ} Hz "
-          f"A m/2 = {CARRIER_AMP * MODULATION / 2:g} u; step +-{STEP_FACTOR * 0.664 * FLICKER:.3g} u; seed {a.seed}")
-    head = ("| rec | step at s | dt step s | sides | B est [interval] | B in | amp err % | K est | "
-            "K interval (no step) | K in | kept |")
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
-    rows = []
+          f"A m/2 = {CARRIER_AMP * MODULATION / 2:g} u; step +-{STEP_FACTOR * WHITE:.3g} u "
+          f"({STEP_FACTOR * WHITE / (0.664 * FLICKER):.3g} x the floor); seed {a.seed}; n_boot {a.n_boot}")
+    print(HEAD)
+    print("|" + "---|" * (HEAD.count("|") - 1))
+    rows, text = [], []
     for r in range(a.records):
         t0 = time.perf_counter()
         o = one_record(truth, rng, a.n_boot)
         rows.append(o)
-        b, k, k0 = o["B"], o["K"], o["K0"]
-        print(f"| {r} | {o['k0_s']:.0f} | {o['dt_step_s']:+.2f} | {o['n_sides']} | {b[0]:.3g} [{b[1]:.3g}, {b[2]:.3g}]"
-              f" | {'y' if inside(b, FLICKER) else 'NO'} | {100 * o['amp_err']:+.1f} | {k[0]:.3g} | "
-              f"[{k0[1]:.3g}, {k0[2]:.3g}] | {'y' if inside(k0, k[0]) else 'NO'} | {','.join(o['kept'])} |"
-              f"  ({time.perf_counter() - t0:.0f} s)", flush=True)
-    n = len(rows)
-    lo, hi = binomial_range(n, 0.95)
-    print(f"\nover {n} records (nominal 0.95; binomial 95 % range {lo}-{hi} of {n}):")
-    print("| quantity | split record | record without the step | within range |")
-    print("|---|---|---|---|")
-
-    def cov(key, value):
-        return sum(inside(o[key], value) for o in rows)
-
-    for name, key, val in (("flicker B interval covers", "B", FLICKER), ("white N interval covers", "N", WHITE)):
-        c1, c0 = cov(key, val), cov(key + "0", val)
-        print(f"| {name} | {c1}/{n} | {c0}/{n} | {'yes' if lo <= c1 <= hi else 'NO'} / "
-              f"{'yes' if lo <= c0 <= hi else 'NO'} |")
-    dts = np.array([o["dt_step_s"] for o in rows])
-    amp = np.array([o["amp_err"] for o in rows])
-    print(f"| step found within 1 s | {int(np.sum(np.abs(dts) <= 1.0))}/{n} (max abs {np.nanmax(np.abs(dts)):.2f} s;"
-          f" missed {int(np.sum(~np.isfinite(dts)))}) | | |")
-    print(f"| carrier amplitude within 10 % | {int(np.sum(np.abs(amp) <= 0.1))}/{n} (max abs "
-          f"{100 * np.nanmax(np.abs(amp)):.1f} %) | | |")
-    print(f"| K of split record inside K interval without the step | {sum(inside(o['K0'], o['K'][0]) for o in rows)}/{n}"
-          f" | | |")
-    print(f"| flicker kept | {sum('flicker' in o['kept'] for o in rows)}/{n} | "
-          f"{sum('flicker' in o['kept0'] for o in rows)}/{n} | |")
-    print(f"| random walk kept | {sum('random_walk' in o['kept'] for o in rows)}/{n} | "
-          f"{sum('random_walk' in o['kept0'] for o in rows)}/{n} | |")
+        text.append(row_text(a.seed, r, o))
+        print(text[-1] + f"  ({time.perf_counter() - t0:.0f} s)", flush=True)
+    print()
+    print(summary_text(parse_rows(text)))
     return rows
 
 
