@@ -168,6 +168,7 @@ def parse_rows(lines):
     cols = [c.strip() for c in HEAD.strip("|").split("|")]
     rows = []
     for line in lines:
+        line = line[:line.rfind("|") + 1]  # without the record's time after the row
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if line.startswith("| ") and len(cells) == len(cols) and cells[0].isdigit():
             rows.append(dict(zip(cols, cells)))
