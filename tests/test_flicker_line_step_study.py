@@ -7,7 +7,7 @@ for K: the split record's K (0 where no random walk is kept) inside the 95 % K i
 the step is, with the step handled, the coverage of that interval (truth K = 0). The step's time: the least-squares
 change point has sd sqrt(26) N^2 / delta^2 = 0.2 s at this step, but the 0.5 Hz line and the flicker put 2 of 60
 simulated records beyond 1 s (docs/performance.md): at most one of 10 beyond 1 s (P(X >= 2) = 4 % at 2/60). The
-carrier's amplitude error: largest 4.6 % over 50 records, the issue's 10 % on every record.
+carrier's amplitude error: largest 4.6 % over 35 records, the issue's 10 % on every record.
 """
 import os
 import sys
