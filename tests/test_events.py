@@ -213,3 +213,29 @@ class TestReportHelpers:
         y[100_000:] += 6e-3 * G * np.exp(-np.arange(900_000) / (0.3 * rate))
         [s] = find_steps(y, rate)["steps"]
         assert s["kind"] == "transient" and abs(s["index"] - 100_000) <= rate and s["size_low"] > 0, s
+
+
+class TestStepLocalisation:
+    def test_change_point_is_the_least_squares_one_on_white_noise(self):
+        """On white noise with one step the least-squares change point of the whole record (the CUSUM maximiser,
+        Hinkley 1970) is the maximum-likelihood one (error sd sqrt(26) sigma_1^2 / delta^2 samples: the argmax of a
+        two-sided Brownian motion with drift -|s|/2 has variance 26). The scan's refinement must reach it: its means
+        either side come from the detecting window (1280 samples a side on these 4 h records at 10 Hz), which differ
+        from the whole record's by ~sigma_1 / sqrt(1280) = 0.03 delta, less than the step's CUSUM slope changes over
+        one sample (delta / 2). Refining in ever narrower windows (20 samples a side at the end, the two means then
+        resting on 20 samples) put 3 of these 20 records 2, 9 and 14 samples off it (measured; issue 28)."""
+        from imupipe.events import _cusum_argmax
+
+        rate, n, sigma1 = 10.0, 144_000, 1e-3 * np.sqrt(10.0)
+        delta = sigma1  # least-squares error sd sqrt(26) = 5 samples
+        rng = np.random.default_rng(28)
+        off = []
+        for r in range(20):
+            x = rng.standard_normal(n) * sigma1
+            i0 = int(rng.integers(n // 4, 3 * n // 4))
+            x[i0:] += delta
+            steps = find_steps(x, rate, alpha=0.005)["steps"]
+            assert steps, r
+            s = min(steps, key=lambda s: abs(s["index"] - i0))
+            off.append(abs(s["index"] - _cusum_argmax(x)))
+        assert max(off) <= 1, off

@@ -73,10 +73,15 @@ Localisation and size. Exceeding grid positions of one scale form clusters (no m
 is a candidate at its largest :math:`|D|`; candidates of all scales are taken by decreasing :math:`|D|/\sigma_D`,
 one being dropped when it lies within max(m, m') of one already taken. The time of a candidate is refined by the
 least-squares single change point (the CUSUM maximiser :math:`\arg\max_k |S_k - (k/L) S_L|/\sqrt{k(L-k)/L}`,
-Hinkley 1970 [4]_) in windows of half-width m, m/4, m/16, ... centred at the previous estimate, down to
-:math:`\max(2 f_s,\ 50\,\hat\sigma_1^2/\hat\delta^2)` samples (:math:`\hat\sigma_1` the per-sample white sd from
-the first differences: the CUSUM error on white noise is of order :math:`\sigma_1^2/\delta^2` samples; narrower
-windows see less of the slow noise). The size is :math:`\hat\delta = D_{m^*}(\hat t_0)` at the scale
+Hinkley 1970 [4]_) over the detecting window (half-width m centred at the candidate, clipped at the neighbouring
+candidates and the record's ends: the two means come from all of it), the maximiser searched within half-widths
+m, m/4, m/16, ... of the previous estimate, down to :math:`\max(2 f_s,\ 50\,\hat\sigma_1^2/\hat\delta^2)`
+samples (:math:`\hat\sigma_1` the per-sample white sd from the first differences: the CUSUM error on white noise
+has the sd :math:`\sqrt{26}\,\sigma_1^2/\delta^2` samples, the variance of the argmax of a two-sided Brownian
+motion with drift :math:`-|s|/2` being 26). Only the searched range narrows: narrowing the window itself left the
+two means resting on a few tens of samples, and the estimate then fell up to 14 samples off the least-squares one
+of the whole record on white noise (tests/test_events.py::TestStepLocalisation; slow noise moves the window's
+tent-shaped CUSUM by less than the step's slope :math:`\delta/2` per sample wherever the scan detected it). The size is :math:`\hat\delta = D_{m^*}(\hat t_0)` at the scale
 :math:`m^*` of smallest :math:`\hat\sigma_D` whose windows fit between the neighbouring events and the record's
 ends (chosen from the noise alone, not from D, so there is no selection bias), with the interval
 :math:`\hat\delta \pm t_{\nu, 1-(1-c)/2}\,\hat\sigma_D(m^*)` at confidence c. When that interval holds 0
@@ -255,12 +260,16 @@ def _d_at(cs: np.ndarray, t, m: int):
     return (cs[t + m] - 2.0 * cs[t] + cs[t - m]) / m
 
 
-def _cusum_argmax(seg: np.ndarray) -> int:
-    """Least-squares single change point of a segment: k in [1, L-1] (the first k samples before the change)."""
+def _cusum_argmax(seg: np.ndarray, lo: int = 1, hi: int | None = None) -> int:
+    """Least-squares single change point of a segment: k in [max(lo, 1), min(hi, L-1)] (the first k samples before
+    the change); the whole segment's samples estimate the two means whatever the searched range."""
     L = seg.size
     s = np.cumsum(seg - seg.mean())[:-1]
     k = np.arange(1, L)
-    return int(np.argmax(np.abs(s) / np.sqrt(k * (L - k) / L))) + 1
+    stat = np.abs(s) / np.sqrt(k * (L - k) / L)
+    lo = max(int(lo), 1)
+    hi = L - 1 if hi is None else min(int(hi), L - 1)
+    return int(np.argmax(stat[lo - 1:hi])) + lo
 
 
 def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> list[int]:
@@ -365,10 +374,15 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         delta = _d_at(cs, t0, m)
         half = m
         floor = max(2 * int(rate_hz), int(50.0 * s1**2 / max(delta**2, 1e-300)), 8)
+        # the means either side come from the whole detecting window (clipped at the neighbouring candidates):
+        # narrowing the window itself, not only the searched range, left ~20 samples a side to estimate them, and
+        # the change point's error then had 10x the tail of the least-squares one (docs/performance.md)
+        prev_c = max([u for u in times if u < tc], default=0)
+        next_c = min([u for u in times if u > tc], default=n)
         while True:
-            a, b = max(0, t0 - half), min(n, t0 + half)
+            a, b = max(prev_c, t0 - m, 0), min(next_c, t0 + m, n)
             if b - a >= 4:
-                t0 = a + _cusum_argmax(x[a:b])
+                t0 = a + _cusum_argmax(x[a:b], t0 - half - a, t0 + half - a)
             if half <= floor:
                 break
             half = max(floor, half // 4)
