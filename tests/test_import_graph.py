@@ -30,11 +30,11 @@ SHARED_PRIVATE = {"_kernels"}
 LAYERS = [
     {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
-     "events", "segments", "summary"},
+     "events", "segments", "summary", "verdict"},
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
-    {"bound", "kf", "kalibr", "biasinit", "plan"},
-    {"verify", "plot"},
+    {"bound", "kf", "kalibr", "biasinit"},
+    {"verify", "plot", "plan"},
     {"stages"},
     {"api", "cli", "__main__"},
 ]

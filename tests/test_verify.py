@@ -318,7 +318,7 @@ def test_a_replay_passing_only_by_its_sampling_tolerance_says_so_in_its_file():
     # dict (what the verify file and the contract repeat), with the ratio, the tolerance and n_eff; a filter at
     # twice the truth stays below 1 and gets no such sentence, and an exact analysis (tolerance 1e-6) never does.
     from imupipe.simulate import simulate
-    from imupipe.verify import within_tolerance
+    from imupipe.verdict import within_tolerance
 
     sc = reference_scenario("gyro", fix_s=300.0, outage_s=900.0)
     rec = list(simulate(TRUTH, 6000, 1.0, rng=np.random.default_rng(7), n_records=2))

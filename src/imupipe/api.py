@@ -248,10 +248,8 @@ def noise_model(
     seed: int = 20211, lines_policy: str | None = None, lines_resolution_hz: float = _D["lines.resolution_hz"],
     lines_alpha: float = _D["lines.alpha"], lines_floor_window_bins: int = _D["lines.floor_window_bins"],
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
-    fix_rate_hz: float | None = None,
-    reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"], truth=None,
-    events: bool | Mapping = True,
-    envelope: str = _D["identify.envelope"],
+    fix_rate_hz: float | None = None, reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"],
+    truth=None, events: bool | Mapping = True, envelope: str = _D["identify.envelope"],
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 

@@ -135,8 +135,8 @@ def _export_rate_detail(exp: Mapping) -> str:
 def _tolerance_passes(bound: Mapping) -> list[tuple[str, str, str]]:
     """(model, check, statement) of every verification check of the exported models (the global one and each
     per-axis model of the contract) that passed only by its sampling tolerance: worst MSE/P above 1 within
-    ``tolerance`` (:func:`imupipe.verify.within_tolerance`; the contract's own sentence where it has one)."""
-    from imupipe.verify import within_tolerance
+    ``tolerance`` (:func:`imupipe.verdict.within_tolerance`; the contract's own sentence where it has one)."""
+    from imupipe.verdict import within_tolerance
 
     models = [("global model", bound.get("verification"))]
     models += [(f"axis {ax} model", pa.get("verification")) for ax, pa in (bound.get("per_axis_models") or {}).items()
@@ -157,7 +157,7 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
     """FLAG each check of an exported model (global or per axis, the KF file's) that passed only by its sampling
     tolerance: a worst MSE/P above 1 within ``tolerance`` (the replay's 1 + replay_z sqrt(2 / n_eff): with few
     windows of short records the tolerance is wide, and the records themselves then show the filter under-stating
-    its error without the check failing). Worded as :func:`imupipe.verify.within_tolerance`."""
+    its error without the check failing). Worded as :func:`imupipe.verdict.within_tolerance`."""
     return [Flag(sensor, f"{name} within its tolerance", label, text, "flag")
             for label, name, text in _tolerance_passes(bound)]
 

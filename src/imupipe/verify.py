@@ -67,6 +67,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from imupipe.verdict import within_tolerance
+
 __all__ = [
     "Scenario",
     "reference_scenario",
@@ -84,7 +86,6 @@ __all__ = [
     "min_bootstrap",
     "verification_report",
     "Verification",
-    "within_tolerance",
 ]
 
 
@@ -266,47 +267,6 @@ class Verification:
                                                   "passed": self.passed, "worst_t_s": self.worst_t_s,
                                                   **self.details}),
         }
-
-
-def within_tolerance(check) -> str | None:
-    r"""The statement of a check that passed only by its sampling tolerance, else None.
-
-    A Monte Carlo or replay check estimates the true MSE from a finite sample and passes while the worst ratio
-    MSE/P is at most 1 + ``tolerance`` (:func:`replay`: ``tolerance`` = z sqrt(2/n_eff)). A worst ratio above 1 that
-    passes is not a confirmation: the sample shows the filter under-stating its error and is too small to say that
-    this is not chance. Every place a verdict is read (the verify and contract files, the run summary's FLAG lines)
-    carries this sentence so that it is never only a number in a nested field.
-
-    Parameters
-    ----------
-    check : mapping
-        A check as :meth:`Verification.to_dict` writes it: ``worst_ratio``, ``tolerance`` (the allowance on the
-        ratio, dimensionless), ``passed``, optionally ``method`` (an ``exact`` analysis has no sampling tolerance),
-        ``n_eff``, ``relative_standard_error`` and ``worst_t_s`` (s).
-
-    Returns
-    -------
-    str or None
-        ``"passes within the replay's sampling tolerance (ratio X, tolerance 1 + t = Y ...)"`` with t the check's
-        ``tolerance`` and Y the largest ratio it accepts; None when the check failed, has no tolerance or its
-        worst ratio is <= 1.
-    """
-    try:
-        worst, tol = float(check.get("worst_ratio")), float(check.get("tolerance") or 0.0)
-    except (TypeError, ValueError):
-        return None
-    method = str(check.get("method") or "")
-    if not check.get("passed") or not tol > 0 or not worst > 1.0 or "exact" in method:
-        return None  # an exact analysis's tolerance is a rounding allowance (1e-6), not a sampling one
-    what = "the replay's" if "replay" in method else "the Monte Carlo's" if method else "its"
-    n_eff, rse = check.get("n_eff"), check.get("relative_standard_error")
-    how = (f"; t = {tol / float(rse):.3g} sqrt(2/n_eff), n_eff {float(n_eff):.3g} independent windows"
-           if n_eff is not None and rse else "")
-    at = f" at {float(check['worst_t_s']):.4g} s" if check.get("worst_t_s") is not None else ""
-    return (f"passes within {what} sampling tolerance (ratio {worst:.3g}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
-            f"{how}): the "
-            "records show the filter under-stating its error by that ratio and are too few to tell it from chance; "
-            "not a confirmation")
 
 
 def _summary(sc, mse, P, tol=0.0, details=None):
@@ -647,7 +607,7 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
     integrity. Against it, the worst ratio is the largest of many noisy per-step ratios, which exceeds 1 by
     sampling alone for a filter that exactly matches its records (tests/test_verify.py: 1.32 with n_eff = 10).
     A pass with a worst ratio above 1 is therefore no confirmation: it is stated wherever the verdict is read
-    (:func:`within_tolerance`, the verify and contract files' ``within_tolerance``, the run summary's FLAG).
+    (:func:`imupipe.verdict.within_tolerance`, the verify and contract files' ``within_tolerance``, the run summary's FLAG).
 
     Parameters
     ----------

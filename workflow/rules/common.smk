@@ -285,3 +285,13 @@ def print_summary(failed=False):
             print(text, flush=True)
     except Exception as exc:  # pragma: no cover - a broken summary must not mask the run's status
         print(f"(run summary unavailable: {exc})", flush=True)
+
+
+# events.policy split (SPLIT and SEGMENTS_FILE: outliers.smk, read when the DAG is built)
+def verify_segments(wildcards):
+    """The segments files of the full-rate records the replay reads (split, replay not from the decimated series,
+    whose files carry their segments); [] otherwise."""
+    if not SPLIT or REPLAY_FROM_DECIMATED:
+        return []
+    return [SEGMENTS_FILE.format(dataset=d, sensor=wildcards.sensor, axis=a)
+            for d in DATASETS for a in AXES_OF[d][wildcards.sensor]]

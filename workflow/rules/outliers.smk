@@ -28,14 +28,6 @@ if SPLIT:
     OUTLIER_OUTPUTS["segments"] = SEGMENTS_FILE
 
 
-def verify_segments(wildcards):
-    """The segments files of the full-rate records the replay reads (split, replay not from the decimated series,
-    whose files carry their segments); [] otherwise."""
-    if not SPLIT or REPLAY_FROM_DECIMATED:
-        return []
-    return [SEGMENTS_FILE.format(dataset=d, sensor=wildcards.sensor, axis=a)
-            for d in DATASETS for a in AXES_OF[d][wildcards.sensor]]
-
 # memory: the axis, one batch of the rule's work arrays (imupipe.outliers.HAMPEL_BATCH), the event scans'
 # cumulative sum, block deviations and median copies (imupipe.events) and the cleaned copy; measured at 125 Hz:
 # 111 MB at 2.2 h (8 MB file), 226 MB at 10 h (36 MB; outliers.policy remove + events.policy exclude alike):

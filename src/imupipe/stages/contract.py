@@ -174,7 +174,7 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
 
 
 #: The keys of each verification check the contract repeats (imupipe.verify.Verification.to_dict): the numbers and,
-#: for a check that passed only by its sampling tolerance, the sentence saying so (imupipe.verify.within_tolerance).
+#: for a check that passed only by its sampling tolerance, the sentence saying so (imupipe.verdict.within_tolerance).
 VERIFICATION_KEYS = ("worst_outage_ratio", "worst_outage_t_s", "worst_t_s", "worst_ratio", "first_exceed_s",
                      "mean_conservatism", "tolerance", "passed", "n_eff", "within_tolerance")
 
