@@ -127,6 +127,38 @@ class TestCsv:
         assert rec.rate_hz == pytest.approx(RATE, rel=1e-12)
 
 
+    def test_header_units_agreeing_with_the_sheet_are_read(self, tmp_path, signals):
+        data, t = signals
+        cols = {"t [s]": t} | {f"{NAMES[k]} [{UNITS[k[0]]}]": data[k] for k in ALL_KEYS}
+        names = {k: f"{NAMES[k]} [{UNITS[k[0]]}]" for k in ALL_KEYS}
+        path = write_csv(tmp_path / "imu.csv", cols)
+        # the sheet's unit spelled otherwise (dps = deg/s): the same factor, accepted
+        rec = read_dataset(path, "csv", RATE, names, {"gyro": "dps", "accel": "g"}, time_column="t [s]")
+        assert_si(rec, data)
+        # no unit in the sheet: the header's is read (as a netCDF units attribute is)
+        rec = read_dataset(path, "csv", RATE, names, None, time_column="t [s]")
+        assert_si(rec, data)
+        assert rec.file_units[("gyro", "x")] == "deg/s"
+
+    def test_header_unit_contradicting_the_sheet_is_an_error(self, tmp_path, signals):
+        """A header 'wx [deg/s]' under a sheet saying rad/s: read as rad/s, the data would be 57x too large (or, the
+        other way round, 57x too small: a model that understates); refused, naming the file, column and both units."""
+        data, t = signals
+        cols = {"t": t} | {f"{NAMES[k]} [{UNITS[k[0]]}]": data[k] for k in ALL_KEYS}
+        names = {k: f"{NAMES[k]} [{UNITS[k[0]]}]" for k in ALL_KEYS}
+        path = write_csv(tmp_path / "imu.csv", cols)
+        with pytest.raises(DataError, match=r"imu\.csv.*gyro_unit = 'rad/s' in the sheet but 'wx \[deg/s\]' states "
+                                            r"'deg/s'"):
+            read_dataset(path, "csv", RATE, names, {"gyro": "rad/s", "accel": "g"}, time_column="t")
+
+    def test_a_bracketed_note_is_not_a_unit(self, tmp_path, signals):
+        data, t = signals
+        cols = {"t": t} | {f"{NAMES[k]} (filtered)": data[k] for k in ALL_KEYS}
+        names = {k: f"{NAMES[k]} (filtered)" for k in ALL_KEYS}
+        rec = read_dataset(write_csv(tmp_path / "imu.csv", cols), "csv", RATE, names, UNITS, time_column="t")
+        assert_si(rec, data)
+
+
 class TestNumpy:
     def test_npy_columns_by_index_with_time(self, tmp_path, signals):
         data, t = signals
@@ -186,7 +218,7 @@ class TestNetcdf:
     def test_sheet_unit_contradicting_the_file_is_an_error(self, tmp_path, signals):
         path = self.write(tmp_path / "imu.nc", *signals)
         with pytest.raises(
-            DataError, match=r"gyro_unit = 'rad/s' in the sheet but variable 'wx' has units 'deg/s'"
+            DataError, match=r"gyro_unit = 'rad/s' in the sheet but 'wx' states 'deg/s'"
         ):
             read_dataset(path, "netcdf", RATE, NAMES, {"gyro": "rad/s", "accel": "g"})
 

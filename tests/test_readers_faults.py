@@ -91,7 +91,7 @@ class TestSilentlyWrong:
 
     def test_netcdf_units_contradicting_the_sheet(self, tmp_path, table):
         path = write_nc(tmp_path / "imu.nc", table, {"gyro": "deg s-1", "accel": "m s-2"})
-        with pytest.raises(DataError, match=r"imu\.nc: gyro_unit = 'rad/s' in the sheet but variable 'wx' has units 'deg s-1'"):
+        with pytest.raises(DataError, match=r"imu\.nc: gyro_unit = 'rad/s' in the sheet but 'wx' states 'deg s-1'"):
             read_dataset(path, "netcdf", 100.0, CHANNELS, {"gyro": "rad/s", "accel": "m/s^2"})
 
     def test_netcdf_unparseable_units_refused_naming_file_and_variable(self, tmp_path, table):

@@ -162,7 +162,7 @@ BAD = [
     ("gyro_inf", _bad_csv_value(np.inf, 1, 5), r"v1_5\.csv: gyro_x \(column 'wx'\) has a non-finite sample \(inf\) at row 5"),
     ("subnormal", _subnormal, r"subnormal\.csv: gyro_x \(column 'wx'\): the largest sample is .*expected a channel scale >= 1e-150"),
     ("numhead", _numeric_header, r"numhead\.csv: gyro_x column 'wx' not found; available: '0', '1'"),
-    ("degunits", _nc_units, r"degunits\.nc: gyro_unit = 'rad/s' in the sheet but variable 'wx' has units 'deg s-1'"),
+    ("degunits", _nc_units, r"degunits\.nc: gyro_unit = 'rad/s' in the sheet but 'wx' states 'deg s-1'"),
     ("fifo", _fifo, r"fifo\.npy: is a FIFO \(named pipe\), not a regular file; refused"),
     ("symloop", _loop, r"loop_a\.csv: symbolic link loop"),
     ("gzipped", _gzip, r"packed\.csv: is gzip-compressed, not a text file"),

@@ -54,13 +54,6 @@ _GYRO = r"(?:gyro(?:scope)?|gyr|g|w|omega|angular_velocity|ang_vel|angvel|rate)"
 _ACCEL = r"(?:accel(?:erometer|eration)?|acc|a|f|linear_acceleration|lin_acc)"
 _TIME = {"t", "time", "timestamp", "stamp"}
 _TIME_SUFFIX = {"s": "s", "sec": "s", "ms": "ms", "us": "us", "ns": "ns"}
-_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]+?)\s*[\])]\s*$")
-
-
-def _split_unit(name: str) -> tuple[str, str | None]:
-    """(name without a bracketed unit suffix, the unit or None): ``"gx [deg/s]"`` -> ``("gx", "deg/s")``."""
-    m = _UNIT_SUFFIX.match(name)
-    return (m.group(1), m.group(2)) if m else (name, None)
 
 
 def _norm(name: str) -> str:
@@ -86,12 +79,12 @@ def guess_channels(names) -> tuple[dict[str, str], dict[str, str], str | None, s
     time_unit : str or None
         Of the time column, when its name states it (``t [s]``, ``time_ms``).
     """
-    from imupipe.units import rate_factor
+    from imupipe.units import rate_factor, split_unit_suffix
 
     channels, suffix, time_column, time_unit = {}, {}, None, None
     pats = {s: re.compile(rf"^{p}_?([xyz])$") for s, p in (("gyro", _GYRO), ("accel", _ACCEL))}
     for name in names:
-        base, unit = _split_unit(str(name))
+        base, unit = split_unit_suffix(str(name))
         key = _norm(base)
         stem, _, tail = key.rpartition("_")
         if time_column is None and (key in _TIME or (stem in _TIME and tail in _TIME_SUFFIX)):

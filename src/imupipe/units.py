@@ -88,6 +88,8 @@ from typing import NamedTuple
 
 __all__ = [
     "UnitError",
+    "split_unit_suffix",
+    "header_rate_unit",
     "ParsedUnit",
     "QUANTITIES",
     "SENSORS",
@@ -577,3 +579,27 @@ def rate_factor(unit, sensor, key=None):
         Unparseable unit, or not a rate of ``sensor`` (angle/time for gyro, length/time^2 for accel).
     """
     return float(_check(unit, "rate", sensor, key))
+
+
+_UNIT_SUFFIX = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]+?)\s*[\])]\s*$")
+
+
+def split_unit_suffix(name: str) -> tuple[str, str | None]:
+    """(name without a bracketed unit suffix, the unit or None) of a column header: ``"gx [deg/s]"`` ->
+    ``("gx", "deg/s")``, ``"t (s)"`` -> ``("t", "s")``, ``"gx"`` -> ``("gx", None)``."""
+    m = _UNIT_SUFFIX.match(str(name))
+    return (m.group(1), m.group(2)) if m else (str(name), None)
+
+
+def header_rate_unit(name: str, sensor: str) -> str | None:
+    """The rate unit a column header states for `sensor` (``"gx [rad/s]"`` -> ``"rad/s"``), or None when the header
+    has no bracketed suffix or its suffix is not a rate unit of `sensor` (``"gx (filtered)"``: a note, not a unit).
+    A header's unit is the file's statement of its unit, as a netCDF variable's ``units`` attribute is."""
+    unit = split_unit_suffix(name)[1]
+    if unit is None:
+        return None
+    try:
+        rate_factor(unit, sensor)
+    except UnitError:
+        return None
+    return unit

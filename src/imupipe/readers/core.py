@@ -494,8 +494,9 @@ def _to_si(raw, sheet_units, where, row_text):
         elif raw.file_units.get(key):
             if not math.isclose(stored_factor, _unit_factor(unit, sensor, origin), rel_tol=1e-9):
                 raise DataError(
-                    f"{where}: {sensor}_unit = {unit!r} in the sheet but variable {raw.names[key]} "
-                    f"has units {raw.file_units[key]!r}"
+                    f"{where}: {sensor}_unit = {unit!r} in the sheet but {raw.names[key]} states "
+                    f"{raw.file_units[key]!r} (its column header or units attribute); the two must agree: correct "
+                    f"the sheet's {sensor}_unit, or leave it empty to take the file's"
                 )
         factor = _unit_factor(unit, sensor, origin)
         # x * factor is a new array; in SI already, a fresh array is kept as it is and only a read-only view

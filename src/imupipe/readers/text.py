@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from imupipe.units import header_rate_unit
 from imupipe.readers._common import *  # noqa: F403
 from imupipe.readers._common import _Raw, _blank, _chname, _default_specs, _resolve, _time_factor, Key, _DELIMITERS
 
@@ -129,9 +130,12 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
             time = time * _time_factor(time_unit, where)  # a new array: a channel shares the column
         else:
             time *= _time_factor(time_unit, where)  # in place: no second record-length array while parsed
+    # a bracketed unit in a column's header is the file's statement of its unit (checked against the sheet's)
+    stated = {k: header_rate_unit(names[i], k[0]) for k, i in cols.items()} if names is not None else {}
     return _Raw(
         data={k: values[i] for k, i in cols.items()},
         names={k: label(i) for k, i in cols.items()},
+        file_units={k: u for k, u in stated.items() if u is not None},
         time=time,
         time_name=None if tcol is None else label(tcol),
         line_of_row=line_of_row,
