@@ -475,9 +475,10 @@ def kalibr_text(imu: KalibrIMU, *, source: str = "", notes=()) -> str:
         lo, hi = imu.band_hz
         lines += [
             "# Rule: (N, K) is the pair whose two-sided PSD N^2 + K^2/(2 pi f)^2 bounds the exported model's PSD at every",
-            f"# frequency of the application band [{lo:.4g}, {hi:.4g}] Hz (1/horizon to the filter rate / 2), minimising",
-            "# the band's log-frequency mean of (N^2 + K^2/(2 pi f)^2) / S_model(f) (an LP, HiGHS; GM, flicker and",
-            "# quantization terms are carried by N and K wherever they lie in band).",
+            f"# frequency of the band [{lo:.4g}, {hi:.4g}] Hz (1/horizon to update_rate / 2: Kalibr's filter runs at the",
+            "# IMU's rate, not at the application's filter rate), minimising the band's log-frequency mean of",
+            "# (N^2 + K^2/(2 pi f)^2) / S_model(f) (an LP, HiGHS; GM, flicker and quantization terms are carried by N and",
+            "# K wherever they lie in band).",
         ]
         for prefix, per in imu.pairs.items():
             if len(per) > 1:  # one value per sensor: the largest of each over the per-axis exported models
