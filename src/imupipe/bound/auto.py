@@ -28,10 +28,48 @@ component at its upper limit at once.
 from __future__ import annotations
 
 import math
-__all__ = ["AUTO_MODES", "CRITERION", "candidate_row", "select"]
+__all__ = ["AUTO_MODES", "CRITERION", "ENVELOPE_MODE", "candidate_modes", "candidate_row", "select"]
 
-#: The candidates of ``bound.mode: auto``, in tie-break order (the paper's first).
+#: The candidates of ``bound.mode: auto`` built from the sample PSDs, in tie-break order (the paper's first).
 AUTO_MODES = ("raw", "smoothed", "confidence", "pooled")
+
+#: The candidate whose target is the joint upper envelope (:func:`candidate_modes`), after :data:`AUTO_MODES` in
+#: the tie-break order.
+ENVELOPE_MODE = "envelope"
+
+
+def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]:
+    r"""The modes ``bound.mode: auto`` builds a candidate of, and why the ``envelope`` candidate is or is not one.
+
+    :data:`AUTO_MODES` always. :data:`ENVELOPE_MODE` (:func:`imupipe.bound.bound_psd` ``mode="envelope"``: the
+    tightest model of the same components above the identified upper envelope and the spec sheet at every
+    frequency; docs/method.md "The auto bound") when its level is the joint band's, family-wise over the band's
+    frequencies and one statement for every curve:
+
+    * the identify record's envelope is the joint one (``upper_envelope_kind: joint`` and its band record without a
+      fallback note: at least 20 finite bootstrap replicates);
+    * the pooling test accepts one model for every curve (``pooling.consistent``): otherwise the envelope the bound
+      reads dominates per-axis envelopes whose kind is not recorded;
+    * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the
+      envelope is a broadband model and carries no line, which only the sample PSDs' rows would bound.
+
+    Returns (modes, reason)."""
+    kind = identified.get("upper_envelope_kind", "marginal")
+    rec = identified.get("upper_envelope_joint")
+    n_lines = sum(len((doc or {}).get("lines") or ()) for doc in (lines or {}).values())
+    if kind != "joint":
+        why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
+    elif not isinstance(rec, dict) or rec.get("note") or rec.get("worst_ratio_to_band") is None:
+        why = "not built: the joint band fell back to the marginal envelope (" + str((rec or {}).get("note")) + ")"
+    elif (identified.get("pooling") or {}).get("consistent", True) is False:
+        why = "not built: the pooling test rejects one model for every curve (per-axis envelopes)"
+    elif n_lines:
+        why = f"not built: {n_lines} spectral line(s) found, which the broadband envelope does not carry"
+    else:
+        return AUTO_MODES + (ENVELOPE_MODE,), (
+            f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
+            f"{rec.get('band_hz')} Hz) is the target")
+    return AUTO_MODES, why
 
 #: The stated criterion (written into the verification file).
 CRITERION = ("the passing candidate (its contract bounded: PSD margin, spec over all frequencies, Allan check and "

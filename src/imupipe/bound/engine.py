@@ -17,8 +17,9 @@ from imupipe.bound.report import (  # noqa: F401
 
 #: Components a bound may hold (Kalman-filter states; flicker is represented by a GM).
 BOUND_COMPONENTS = ("white", "gauss_markov", "random_walk")
-#: How the sample PSDs enter the constraints.
-MODES = ("raw", "smoothed", "confidence", "pooled")
+#: How the sample PSDs enter the constraints (``envelope``: they do not; the identified upper envelope is the
+#: target at the bins: a candidate of ``bound.mode: auto``, docs/method.md "The auto bound").
+MODES = ("raw", "smoothed", "confidence", "pooled", "envelope")
 
 _EPS_BOUND = 1e-9  # a margin >= 1 - _EPS_BOUND counts as bounded
 #: Low-frequency band merging of the confidence mode (degrees of freedom per band).
@@ -319,7 +320,7 @@ def detrend_bias(taper, k, detrend: str = "constant", nperseg: int = 4096) -> np
 
 
 def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-             n_tests=None, exclude=(), pool_groups=None, detrend="constant"):
+             n_tests=None, exclude=(), pool_groups=None, detrend="constant", upper_model=None):
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     f_all = np.asarray(frequency, dtype=np.float64)
@@ -362,9 +363,17 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
             pooled[:, low] /= np.maximum(b, 1e-3)[None, :]
             details.update(detrend_bias={int(kk): float(bb) for kk, bb in zip(k[low], b)})
         details.update(pooled_groups=target_labels)
+    elif mode == "envelope":  # the identified upper envelope at the bins is the one target (docs/method.md)
+        if upper_model is None:
+            raise ValueError("mode 'envelope' needs the identified upper envelope (upper_model)")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.asarray(upper_model.psd(f) if dt is None else upper_model.psd_sampled(f, dt), dtype=np.float64)
+        pooled = np.where(np.isfinite(u) & (u > 0), u, 0.0)[None, :]
+        target_labels = ["upper envelope"]
+        details.update(targets="the identified upper envelope's PSD at the bins (the sample PSDs are not targets)")
     else:
         pooled = raw
-    if mode == "raw" or (mode in ("confidence", "pooled") and bands_per_decade is None):
+    if mode in ("raw", "envelope") or (mode in ("confidence", "pooled") and bands_per_decade is None):
         starts = counts = None
         f_rows = f
         targets = pooled
@@ -391,9 +400,10 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         n = int(targets.size) if n_tests is None else int(n_tests)
         targets = chi2_upper(targets, rows_edf, confidence=confidence, n_tests=n, correction="sidak")
         details.update(confidence=float(confidence), n_tests=n, correction="sidak")
-    if mode == "pooled":
+    if mode in ("pooled", "envelope"):
         details["target_labels"] = list(target_labels)  # the pooled groups the rows belong to (margin_curve)
-    details["rows_edf_min"] = float(np.min(rows_edf))
+    if mode != "envelope":  # the envelope's rows are a model's PSD, not estimates
+        details["rows_edf_min"] = float(np.min(rows_edf))
     spec = spec_rows = None
     if spec_model is not None:
         spec = np.asarray(spec_model.psd(f) if dt is None else spec_model.psd_sampled(f, dt), dtype=np.float64)
@@ -926,8 +936,12 @@ def bound_psd(
         Spec-sheet model (SI); the bound must dominate its PSD at every bin.
     dt : float, optional
         Sample interval of the (block-averaged) data, s; compares with ``psd_sampled``.
-    mode : {"raw", "smoothed", "confidence", "pooled"}, optional
-        How the sample PSDs enter (module docstring). Default ``"raw"`` (paper).
+    mode : {"raw", "smoothed", "confidence", "pooled", "envelope"}, optional
+        How the sample PSDs enter (module docstring). Default ``"raw"`` (paper). ``"envelope"``: they do not
+        (their margin is still reported as ``raw_margin``); the target at the bins is `upper_model`'s PSD (sampled
+        over `dt` when given), so the bound is the tightest model above the identified upper envelope and the spec
+        sheet at every frequency: a candidate of ``bound.mode: auto`` whose level is the envelope's
+        (docs/method.md, "The auto bound"). Needs `upper_model`.
     n_gm : int, optional
         Number of GM terms (0 allowed). Default 1.
     T_grid : array_like, optional
@@ -986,7 +1000,8 @@ def bound_psd(
             raise ValueError(f"min_edf must be a number, None or 'auto', got {min_edf!r}")
         min_edf = DEFAULT_MIN_EDF if mode in ("confidence", "pooled") else None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
-                    n_tests, exclude=exclude, pool_groups=pool_groups, detrend=detrend)
+                    n_tests, exclude=exclude, pool_groups=pool_groups, detrend=detrend,
+                    upper_model=upper_model if mode == "envelope" else None)
     allf = _setup_all_frequency(prob, spec_model, upper_model, span_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     prob.narrowband = _narrowband_of(narrowband)

@@ -62,14 +62,15 @@ class BoundStage:
 
 def _auto(frequency, psd, edf, spec_model, identified, settings) -> BoundStage:
     """``bound.mode: auto`` (:mod:`imupipe.bound.auto`): one candidate per mode of
-    :data:`imupipe.bound.auto.AUTO_MODES`, each the bound file entry of :func:`bound_sensor` in that mode; the
+    :func:`imupipe.bound.auto.candidate_modes`, each the bound file entry of :func:`bound_sensor` in that mode; the
     verification verifies each and selects the exported one. The file's top-level fields are the ``raw``
     candidate's (the paper's; what the figures and tables of the bound show), ``mode`` is ``auto`` and
     ``candidates`` holds every candidate's entry."""
-    from imupipe.bound.auto import AUTO_MODES
+    from imupipe.bound.auto import candidate_modes
 
+    modes, why = candidate_modes(identified, settings.get("lines"))
     cands = {}
-    for m in AUTO_MODES:
+    for m in modes:
         kw = dict(settings, mode=m)
         if m != "raw":
             kw["compare_paper"] = False  # the paper's hand inflation once, beside the raw candidate
@@ -81,6 +82,7 @@ def _auto(frequency, psd, edf, spec_model, identified, settings) -> BoundStage:
     record["auto_note"] = ("bound.mode auto: one candidate per mode (candidates); the verification verifies each and "
                            "exports the tightest that passes every check (verify file: auto_selection); the "
                            "top-level fields are the raw candidate's")
+    record["auto_envelope_candidate"] = why
     return BoundStage(record=record, result=top.result, upper=top.upper, policy=top.policy, candidates=cands)
 
 
