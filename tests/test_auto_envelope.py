@@ -18,7 +18,7 @@ RATE = 1.0
 SPAN = 4200.0  # fix + outage, s
 
 
-def _curves(truth, n_curves=2, hours=3.0, seed=11):
+def _curves(truth, n_curves=2, hours=2.0, seed=11):
     X = np.asarray(simulate(truth, int(hours * 3600 * RATE), RATE, rng=np.random.default_rng(seed),
                             n_records=n_curves)).reshape(n_curves, -1)
     sp = [psd(x, RATE, window_s=3600.0, step_s=1800.0) for x in X]
@@ -49,7 +49,7 @@ def test_an_envelope_the_components_represent_comes_back_as_itself():
     assert _psd_ratio(res.model, upper, fd).min() >= 1.0
     assert _psd_ratio(res.model, spec, fd).min() >= 1.0
     # the sample periodograms are not targets: with two 3 h records some ordinates exceed the truth's envelope
-    # (the largest of ~2 x 3 x 1800 chi2_2/2-ish ordinates is several times the mean)
+    # (the largest of 2 x 1800 ordinates, each an average of 3 Hann windows (edf about 5), is several times the mean)
     assert res.raw_margin < 1
 
 
@@ -58,7 +58,7 @@ def test_the_envelope_candidate_lies_below_the_per_curve_candidates():
     # envelope (the truth x 1.3, above which no estimate is required) it is at most as loose as they are
     truth = NoiseModel(white=1e-3, gauss_markov=((5e-4, 100.0),))
     upper = NoiseModel(white=1.3e-3, gauss_markov=((1.3 * 5e-4, 100.0),))
-    f, curves, edf = _curves(truth, n_curves=3)
+    f, curves, edf = _curves(truth, n_curves=2)
     kw = dict(dt=1.0 / RATE, n_gm=1, edf=edf, span_s=SPAN, upper_model=upper, keep=["white", "gauss_markov"])
     env = bound_psd(f, curves, None, mode="envelope", **kw)
     ff = np.geomspace(1.0 / SPAN, 0.5, 200)
@@ -98,3 +98,29 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
                                (_identified(), {"d0/x": {"lines": [{"frequency_hz": 0.1}]}}, "line")):
         modes, why = candidate_modes(ident, lines)
         assert modes == AUTO_MODES and why.startswith("not built") and word in why, why
+
+
+@pytest.mark.slow
+def test_noise_model_auto_builds_verifies_and_may_export_the_envelope_candidate():
+    # the one-call pipeline with the joint envelope: the envelope candidate is built, verified like the others (the
+    # truth check included) and the exported model is the tightest passing one; against the truth it is bounded
+    from imupipe.api import noise_model
+    from imupipe.specsheet import parse_spec
+
+    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 200.0),))
+    X = simulate(truth, 3 * 3600 * 5, 5.0, rng=np.random.default_rng(31), n_records=2)
+    spec = parse_spec({"name": "half", "accel": {
+        "white": {"value": 5e-5, "unit": "m/s^2/sqrt(Hz)"},
+        "gauss_markov": [{"sigma": {"value": 2.5e-5, "unit": "m/s^2"}, "T": {"value": 200.0, "unit": "s"}}]}})
+    res = noise_model({"a/x": X[0], "b/x": X[1]}, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
+                      truth=truth, envelope="joint")
+    bound = res.records["bound"]
+    assert bound["auto_envelope_candidate"].startswith("built"), bound["auto_envelope_candidate"]
+    sel = res.verification["auto_selection"]
+    rows = {r["mode"]: r for r in sel["candidates"]}
+    assert list(rows) == list(AUTO_MODES) + [ENVELOPE_MODE]
+    assert "truth" in rows[ENVELOPE_MODE]["checks"]
+    assert bound["candidates"][ENVELOPE_MODE]["margin_curve"] == "upper envelope"
+    passing = [r["criterion_mean_conservatism"] for r in rows.values() if r["bounded"]]
+    assert passing and rows[sel["winner"]]["criterion_mean_conservatism"] == min(passing)
+    assert res.bounded and rows[sel["winner"]]["checks"]["truth"]["worst_outage_ratio"] <= 1.0
