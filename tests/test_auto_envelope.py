@@ -71,6 +71,25 @@ def test_the_envelope_candidate_lies_below_the_per_curve_candidates():
     assert np.all(_psd_ratio(env.model, upper, ff) >= 1 - 1e-6)
 
 
+def test_the_random_walk_does_not_stand_in_for_a_long_gm():
+    # the envelope's stationary part (white + a GM of T = 3000 s, longer than the records' windows) must be covered
+    # by the bound's white and GM terms at every frequency down to the all-frequency floor 0.01 / span, and its
+    # random walk carried beside (K_B = max(K_E, K_spec)): a random walk from 0 carries none of the GM's variance at
+    # t = 0, so covering the GM's low-frequency plateau with it would not bound a filter's error (engine docstring)
+    truth = NoiseModel(white=1e-3, gauss_markov=((3e-4, 3000.0),), random_walk=1e-6)
+    upper = NoiseModel(white=1.3e-3, gauss_markov=((4e-4, 3000.0),), random_walk=2e-6)
+    spec = NoiseModel(white=0.5e-3, random_walk=0.5e-6)
+    f, curves, edf = _curves(truth)
+    res = bound_psd(f, curves, spec, dt=1.0 / RATE, mode="envelope", n_gm=1, edf=edf, span_s=SPAN,
+                    upper_model=upper, keep=["white", "gauss_markov", "random_walk"])
+    stat = NoiseModel(white=res.model.white, gauss_markov=res.model.gauss_markov)
+    fd = np.geomspace(0.01 / SPAN, 500.0, 2001)
+    e_stat = NoiseModel(white=upper.white, gauss_markov=upper.gauss_markov)
+    assert _psd_ratio(stat, e_stat, fd).min() >= 1.0
+    assert res.model.random_walk == pytest.approx(upper.random_walk, rel=1e-12)
+    assert res.details["random_walk"] == upper.random_walk
+
+
 def test_envelope_mode_needs_the_envelope():
     f, curves, edf = _curves(NoiseModel(white=1.0), n_curves=1, hours=1.5)
     with pytest.raises(ValueError, match="upper envelope"):
