@@ -1044,11 +1044,18 @@ def _envelope_split(keep, spec_model, upper_model):
     found MSE/P = 1.0004 at 68 s, in the fixes, on a two-GM truth). With B_stat >= E_stat at every frequency and
     K_B >= K_E, B - E is an independent stationary process plus an independent random walk from 0, so every linear
     functional of the errors (the filter's error among them) has at least the envelope's variance under the model:
-    MSE/P <= 1 at every time, fixes included."""
+    MSE/P <= 1 at every time, fixes included. Where the envelope has GM terms the stationary part may use GM terms
+    (``n_gm`` of them) even if `keep` has none (a GM the identification re-assigned to white noise or a random walk)."""
     from dataclasses import replace
 
     comps = _normalise_keep(keep) if keep is not None else _spec_components(spec_model)
-    stat = [c for c in comps if c != "random_walk"] or ["white"]
+    stat = {c for c in comps if c != "random_walk"} or {"white"}
+    if any(sg > 0 for sg, _ in upper_model.gauss_markov):
+        # the envelope's stationary part is a sum of GMs: covering it with white noise alone (where the identification
+        # re-assigned an unresolved GM to the white noise or random walk it acts as) would be above it by the ratio
+        # of the white noise to the GMs' high-frequency tail; GM terms may follow it (the bound's n_gm of them)
+        stat.add("gauss_markov")
+    stat = [c for c in BOUND_COMPONENTS if c in stat]
     k = max(float(upper_model.random_walk), float(spec_model.random_walk) if spec_model is not None else 0.0)
     spec_stat = replace(spec_model, random_walk=0.0) if spec_model is not None else None
     return stat, spec_stat, replace(upper_model, random_walk=0.0), k
