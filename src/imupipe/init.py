@@ -305,8 +305,9 @@ application:
   # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
   outage_s: {s.outage_s!r}
 bound:
-  # auto: every mode's bound (raw, smoothed, confidence, pooled) verified, the tightest that passes every check
-  # exported (imupipe.bound.auto; the paper's default run keeps raw)
+  # auto: every mode's bound (raw, smoothed, confidence, pooled, and with the joint envelope the envelope
+  # candidate) verified, the tightest that passes every check exported (imupipe.bound.auto; the paper's default
+  # run keeps raw)
   mode: auto
 identify:
   # joint: the upper envelope above the simultaneous band of the fit's bootstrap replicates (imupipe.identify.joint),
