@@ -63,6 +63,7 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     if report.n_outliers and policy != "remove":
         removed, _ = screen_outliers(x, policy="remove", k=k, window=window_samples, label=label, units=units)
     effect = removal_effect(x, removed, rate)
+    del removed  # a copy of the record under warn with outliers: not held through the event scan
     effect["note"] = EFFECT_NOTE[policy]
     effect["units"] = {"tau0_s": "s", "avar_tau0_before": f"({units})^2", "avar_tau0_after": f"({units})^2",
                        "avar_ratio": "1", "white_noise_ratio": "1"}
