@@ -290,6 +290,16 @@ def _d_at(cs: np.ndarray, t, m: int):
     return (cs[t + m] - 2.0 * cs[t] + cs[t - m]) / m
 
 
+def _abs_d_grid(cs: np.ndarray, m: int, h: int, K: int) -> np.ndarray:
+    """|D_m(t)| at the K positions t = m + j h (:func:`_d_at`'s operations in its order on strided views of cs:
+    the same values, one array of K elements and no index arrays)."""
+    d = 2.0 * cs[m : m + (K - 1) * h + 1 : h]
+    np.subtract(cs[2 * m : 2 * m + (K - 1) * h + 1 : h], d, out=d)
+    d += cs[0 : (K - 1) * h + 1 : h]
+    d /= m
+    return np.abs(d, out=d)
+
+
 def _cusum_argmax(seg: np.ndarray, lo: int = 1, hi: int | None = None) -> int:
     """Least-squares single change point of a segment: k in [max(lo, 1), min(hi, L-1)] (the first k samples before
     the change); the whole segment's samples estimate the two means whatever the searched range."""
@@ -392,17 +402,13 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
     for m in scales:
         h = max(1, m // 4)
         K = len(range(m, n - m + 1, h))  # positions t = m + j h
-        # D_m(t) of every position (_d_at with strided views: the same operations, no index arrays)
-        z = cs[2 * m : 2 * m + (K - 1) * h + 1 : h] - 2.0 * cs[m : m + (K - 1) * h + 1 : h]
-        z += cs[0 : (K - 1) * h + 1 : h]
-        z /= m
-        np.abs(z, out=z)
-        sd = MAD_TO_SIGMA * float(np.median(z))
+        sd = MAD_TO_SIGMA * float(np.median(_abs_d_grid(cs, m, h, K), overwrite_input=True))
         nu = MAD_EFFICIENCY * (n - 2 * m) / (2 * m)
         zt = _t_isf(alpha / (2.0 * S * K), nu)
         table.append({"m": m, "sigma_d": sd, "threshold_z": zt, "positions": int(K), "nu": nu})
         if sd <= 0:
             continue
+        z = _abs_d_grid(cs, m, h, K)  # again: one array of the K positions at a time (its median reorders it)
         z /= sd
         hit = np.flatnonzero(z > zt)
         if hit.size:
