@@ -6,10 +6,10 @@
 For each duration: one simulated accelerometer axis (white 2e-3 m/s^2/sqrt(Hz), a GM of 3e-4 m/s^2 with
 T = 100 s, a random walk of 3e-6 m/s^2/sqrt(s): the ADIS16405-like truth of tests/test_events.py) with a knock
 (0.5 g at 5 Hz for 0.2 s) at a third of the record and a mean step of 3.4 mg at two thirds, float64 as the
-workflow reads it. ``imupipe.stages.outliers.outliers_stage`` (what the outliers job runs between reading the
-series and writing its files: Hampel rule, stuck spans, bursts and steps) is called under ``tracemalloc``, which
-sees numpy's buffers; the peak of the allocations made during the call is the job's memory beyond the series
-itself. Columns: samples n, the axis (8 n bytes) in MB, the peak during the call in MB and over the axis, the
+workflow reads it. ``imupipe.stages.outliers.outliers_stage`` (what the outliers job runs between reading
+the series and writing its files: Hampel rule, stuck spans, bursts and steps) is called under
+``tracemalloc``, which sees numpy's buffers; the peak of the allocations made during the call is the job's
+memory beyond the series itself. Columns: samples n, the axis (8 n bytes) in MB, the peak during the call in MB and over the axis, the
 series plus that peak over the axis (the job's data memory over one axis; the budget of issue 31 is 2 x one
 axis + fixed), the median wall time of the call over ``--repeats`` calls (traced: tracemalloc slows numpy's
 allocations a little), and the events found (kind@time s), so two trees can be compared for equal results.
@@ -83,8 +83,8 @@ def main(argv=None) -> None:
 
     print(f"imupipe from {imupipe.__file__.rsplit('/', 2)[0]}; outliers.policy {a.policy}, events.policy "
           f"{a.events_policy}; {a.rate_hz:g} Hz; tracemalloc peak during outliers_stage\n")
-    print("| record (h) | samples | axis (MB) | peak during the call (MB) | peak / axis | (series + peak) / axis "
-          "| time (s, median) | outliers | events |")
+    print("| record (h) | samples | axis (MB) | peak during the call (MB) | peak / axis "
+          "| (series + peak) / axis | time (s, median) | outliers | events |")
     print("|---|---|---|---|---|---|---|---|---|")
     for h in a.duration_h:
         x = record(h, a.rate_hz)
@@ -96,8 +96,9 @@ def main(argv=None) -> None:
             times.append(dt)
         ev = ", ".join(f"{e['kind']}@{e['time_s']:.2f}" for e in out["events"])
         peak = max(peaks)
-        print(f"| {h:g} | {x.size} | {axis:.0f} | {peak:.0f} | {peak / axis:.2f} | {(axis + peak) / axis:.2f} | "
-              f"{statistics.median(times):.1f} | {out['n_outliers']} | {ev} |", flush=True)
+        print(f"| {h:g} | {x.size} | {axis:.0f} | {peak:.0f} | {peak / axis:.2f} | "
+              f"{(axis + peak) / axis:.2f} | {statistics.median(times):.1f} | {out['n_outliers']} | {ev} |",
+              flush=True)
         del x
 
 

@@ -25,13 +25,14 @@ RATE = 100.0
 
 def _record(seed, n=200_000):
     """White 2e-3 m/s^2/sqrt(Hz) + a GM (3e-4 m/s^2, T = 100 s) + a random walk 3e-6 m/s^2/sqrt(s) (the
-    ADIS16405-like axis of tests/test_events.py, drawn with numpy alone), a knock (0.5 g at 5 Hz for 0.2 s) at a
-    third, a mean step of 3.4 mg at two thirds and two single spikes of 0.2 m/s^2."""
+    ADIS16405-like axis of tests/test_events.py, drawn with numpy alone), a knock (0.5 g at 5 Hz for 0.2 s) at
+    a third, a mean step of 3.4 mg at two thirds and two single spikes of 0.2 m/s^2."""
     rng = np.random.default_rng(seed)
     dt = 1.0 / RATE
     phi = np.exp(-dt / 100.0)
     gm = lfilter([3e-4 * np.sqrt(1 - phi**2)], [1.0, -phi], rng.standard_normal(n))
-    x = 2e-3 / np.sqrt(dt) * rng.standard_normal(n) + gm + 3e-6 * np.sqrt(dt) * np.cumsum(rng.standard_normal(n))
+    x = 2e-3 / np.sqrt(dt) * rng.standard_normal(n) + gm  # the white noise drawn before the random walk
+    x += 3e-6 * np.sqrt(dt) * np.cumsum(rng.standard_normal(n))
     k0 = n // 3 + 101 * seed
     x[k0:k0 + 20] += 0.5 * G * np.sin(2 * np.pi * 5.0 * np.arange(20) / RATE)
     x[2 * n // 3 + 37 * seed:] += 3.4e-3 * G
@@ -42,25 +43,29 @@ def _record(seed, n=200_000):
 #: seed -> (outlier count, first outlier indices, events (kind, index, stop index, size in m/s^2)) of the
 #: whole-array scan
 BEFORE = {
-    0: (20, [1000, 66667, 66668, 66669, 66670, 66671, 66672, 66673, 66674, 66675, 66677, 66678, 66679, 66680, 66681,
-             66682, 66683, 66684, 66685, 100000],
+    0: (20, [1000, 66667, 66668, 66669, 66670, 66671, 66672, 66673, 66674, 66675, 66677, 66678, 66679, 66680,
+             66681, 66682, 66683, 66684, 66685, 100000],
         [("burst", 1000, 1001, "0x1.9eea1711e7245p-3"), ("burst", 66667, 66686, "0x1.3a147f92ee0c9p+2"),
-         ("burst", 100000, 100001, "0x1.697d7989ce8dfp-3"), ("step", 133332, 133332, "0x1.10fee963f4b9ap-5")]),
-    1: (20, [1001, 66768, 66769, 66770, 66771, 66772, 66773, 66774, 66775, 66776, 66778, 66779, 66780, 66781, 66782,
-             66783, 66784, 66785, 66786, 100000],
+         ("burst", 100000, 100001, "0x1.697d7989ce8dfp-3"),
+         ("step", 133332, 133332, "0x1.10fee963f4b9ap-5")]),
+    1: (20, [1001, 66768, 66769, 66770, 66771, 66772, 66773, 66774, 66775, 66776, 66778, 66779, 66780, 66781,
+             66782, 66783, 66784, 66785, 66786, 100000],
         [("burst", 1001, 1002, "0x1.c983ee2eb1012p-3"), ("burst", 66768, 66787, "0x1.3a73d45241327p+2"),
-         ("burst", 100000, 100001, "0x1.6d5e3eed61896p-3"), ("step", 133374, 133374, "0x1.066d3bdb9d8f6p-5")]),
-    2: (20, [1002, 66869, 66870, 66871, 66872, 66873, 66874, 66875, 66876, 66877, 66879, 66880, 66881, 66882, 66883,
-             66884, 66885, 66886, 66887, 100000],
+         ("burst", 100000, 100001, "0x1.6d5e3eed61896p-3"),
+         ("step", 133374, 133374, "0x1.066d3bdb9d8f6p-5")]),
+    2: (20, [1002, 66869, 66870, 66871, 66872, 66873, 66874, 66875, 66876, 66877, 66879, 66880, 66881, 66882,
+             66883, 66884, 66885, 66886, 66887, 100000],
         [("burst", 1002, 1003, "0x1.c2b74ad867d57p-3"), ("burst", 66869, 66888, "0x1.39582911bd650p+2"),
-         ("burst", 100000, 100001, "0x1.c31a51ae7f148p-3"), ("step", 133407, 133407, "0x1.162bbf4b54ce1p-5")]),
+         ("burst", 100000, 100001, "0x1.c31a51ae7f148p-3"),
+         ("step", 133407, 133407, "0x1.162bbf4b54ce1p-5")]),
 }
 
 
 def _check(seed, events):
     _, _, want = BEFORE[seed]
     assert [(e["kind"], e["index"], e["stop_index"]) for e in events] == [w[:3] for w in want]
-    np.testing.assert_allclose([e["size"] for e in events], [float.fromhex(w[3]) for w in want], rtol=1e-12, atol=0)
+    sizes = [float.fromhex(w[3]) for w in want]
+    np.testing.assert_allclose([e["size"] for e in events], sizes, rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("seed", sorted(BEFORE))
@@ -81,11 +86,12 @@ def test_the_burst_scan_in_batches_of_a_few_blocks_gives_the_same_events(monkeyp
 
 
 def test_detect_events_holds_one_cumulative_sum_beyond_the_record():
-    """Peak of the allocations (tracemalloc sees numpy's buffers) during detect_events on 2**22 samples (33.5 MB)
-    with a knock and a step: the cumulative sum (n + 1 float64), the step scan's |D| at the shortest scale (one array
-    of n / 25 positions: 0.04 n), and fixed work arrays (a batch of the burst scan, 2**18
-    samples, and the 2000 blocks of its covariance estimate with their FFTs: below 12 MB). The whole-array scan
-    held the block deviations of the record and a cleaned copy besides the cumulative sum (> 2 x the record)."""
+    """Peak of the allocations (tracemalloc sees numpy's buffers) during detect_events on 2**22 samples
+    (33.5 MB) with a knock and a step: the cumulative sum (n + 1 float64), the step scan's |D| at the shortest
+    scale (one array of n / 25 positions: 0.04 n), and fixed work arrays (a batch of the burst scan, 2**18
+    samples, and the 2000 blocks of its covariance estimate with their FFTs: below 12 MB). The whole-array
+    scan held the block deviations of the record and a cleaned copy besides the cumulative sum (> 2 x the
+    record)."""
     rng = np.random.default_rng(4)
     n = 1 << 22
     x = 0.02 * rng.standard_normal(n)

@@ -118,8 +118,8 @@ def _run(capsys, *argv):
 def test_cli_table_target_and_pilot_give_the_same_plan(tmp_path, capsys):
     spec = tmp_path / "wrw.yaml"
     spec.write_text(yaml.safe_dump(WRW))
-    # two replicates where a cell is one-sided or confounded (the CLI's default 50 cost most of this test's time;
-    # the replicates' median itself is tested in test_replicates_replace_a_confounded_cell_by_a_median)
+    # two replicates where a cell is one-sided or confounded (the CLI's default 50 cost most of this test's
+    # time; the replicates' median itself is tested in test_replicates_replace_a_confounded_cell_by_a_median)
     args = ["--sensor", "gyro", "--rate-hz", "1", "--hours", "1", "3", "--records", "1", "2", "--axes", "1",
             "--replicates", "2"]
     code, out, _ = _run(capsys, "--spec", str(spec), *args, "--target", "N:0.5")

@@ -157,7 +157,8 @@ def _robust_center_scale(y: np.ndarray) -> tuple[float, float]:
 
 def _white_sd(x: np.ndarray, fills=()) -> float:
     """Per-sample white-noise sd from the first differences: 1.4826 MAD(diff x) / sqrt(2), u, of x with the
-    ``fills`` (:func:`_span_fills`) applied. One work array of n - 1 differences, its medians found in place."""
+    ``fills`` (:func:`_span_fills`) applied. One work array of n - 1 differences, its medians found in
+    place."""
     dx = np.diff(x)
     n = x.size
     for a, b, _ in fills:  # the differences that touch a filled span, from the filled values
@@ -291,8 +292,8 @@ def _d_at(cs: np.ndarray, t, m: int):
 
 
 def _abs_d_grid(cs: np.ndarray, m: int, h: int, K: int) -> np.ndarray:
-    """|D_m(t)| at the K positions t = m + j h (:func:`_d_at`'s operations in its order on strided views of cs:
-    the same values, one array of K elements and no index arrays)."""
+    """|D_m(t)| at the K positions t = m + j h (:func:`_d_at`'s operations in its order on strided views of
+    cs: the same values, one array of K elements and no index arrays)."""
     d = 2.0 * cs[m : m + (K - 1) * h + 1 : h]
     np.subtract(cs[2 * m : 2 * m + (K - 1) * h + 1 : h], d, out=d)
     d += cs[0 : (K - 1) * h + 1 : h]
@@ -323,10 +324,10 @@ def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> lis
 
 
 def _span_fills(x: np.ndarray, spans, pad: int) -> list:
-    """Each span [start - pad, stop + pad) replaced, its first half by the median of the pad samples before it and
-    its second half by the median of the pad samples after it (a step inside a burst is then placed at the burst's
-    middle, within half its span): the list of (a, b, value), x[a:b] = value applied in order. The step scan reads
-    x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the record."""
+    """Each span [start - pad, stop + pad) replaced, its first half by the median of the pad samples before it
+    and its second half by the median of the pad samples after it (a step inside a burst is then placed at the
+    burst's middle, within half its span): the list of (a, b, value), x[a:b] = value applied in order. The
+    step scan reads x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the record."""
     if not spans:
         return []
     fills = []
@@ -338,8 +339,9 @@ def _span_fills(x: np.ndarray, spans, pad: int) -> list:
         mid = (a + b) // 2
         if not before.size and not after.size and whole is None:
             whole = float(np.median(x))
-        fills.append((a, mid, np.median(before) if before.size else (np.median(after) if after.size else whole)))
-        fills.append((mid, b, np.median(after) if after.size else (np.median(before) if before.size else whole)))
+        first = np.median(before) if before.size else (np.median(after) if after.size else whole)
+        second = np.median(after) if after.size else (np.median(before) if before.size else whole)
+        fills += [(a, mid, first), (mid, b, second)]
     return fills
 
 
@@ -365,7 +367,8 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         Most steps reported (the strongest).
     fills : sequence of (int, int, float)
         Spans replaced by a constant before the scan, (a, b, value): the series scanned is x with
-        ``x[a:b] = value`` (applied in order) without a copy of x (:func:`detect_events` cleans the bursts so).
+        ``x[a:b] = value`` (applied in order) without a copy of x (:func:`detect_events` cleans the bursts
+        so).
 
     Returns
     -------
