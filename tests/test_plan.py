@@ -217,8 +217,8 @@ def test_format_table_marks_confounded_cells():
 
 
 def test_plan_check_benchmark_runs(tmp_path, capsys):
-    """benchmarks/plan_check.py on a tiny case (2 sets of a half-hour record at 1 Hz), then its --load / --figure
-    path: it must not rot (no accuracy claim at this size)."""
+    """benchmarks/plan_check.py on a tiny case (2 sets of a half-hour record at 1 Hz, 10 bootstrap replicates),
+    then its --load / --figure path: it must not rot (no accuracy claim at this size)."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("plan_check", ROOT / "benchmarks" / "plan_check.py")
@@ -226,8 +226,8 @@ def test_plan_check_benchmark_runs(tmp_path, capsys):
     spec.loader.exec_module(mod)
     js, fig = tmp_path / "c.json", tmp_path / "c.png"
     assert mod.main(["--n", "2", "--rate-hz", "1", "--hours", "0.5", "--truth", "mems_like", "--json", str(js),
-                     "--replicates", "2"]) == 0
-    assert mod.main(["--load", str(js), "--figure", str(fig), "--replicates", "2"]) == 0
+                     "--replicates", "2", "--n-boot", "10"]) == 0
+    assert mod.main(["--load", str(js), "--figure", str(fig), "--replicates", "2", "--n-boot", "10"]) == 0
     out = capsys.readouterr().out
     assert out.count("| mems_like | 0.5 | 1 |") == 6  # 3 parameters, printed by the run and by --load
     assert fig.stat().st_size > 0
