@@ -5,8 +5,8 @@ For each truth (the STIM-300-like default truth and a MEMS-like one defined here
 workflow does (imupipe.allan.allan_variance, octave grid), run the same identification call the plan uses
 (imupipe.plan.identify_intervals: fit_allan with the truth's components, 100 correlated-bootstrap replicates
 (--n-boot), 95 %) and take the median half-width of each interval; the plan (imupipe.plan.predict, 1 record,
-1 axis) predicts it from the expected Allan variance, and where that fit finds an interval one-sided or confounded (column ~) from
-the median over --replicates replicate AV curves. Prints a markdown table (ratio = predicted / simulated median,
+1 axis) predicts it from the expected Allan variance, and where that fit finds an interval one-sided or
+confounded (column ~) from the median over --replicates replicate AV curves. Prints a markdown table (ratio = predicted / simulated median,
 the goal 0.75-1.25; the expected-curve value beside it); with --figure it
 draws imupipe.plot.plot_plan_check. One truth per process (two cores), then the table and figure of both:
 
