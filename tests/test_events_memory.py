@@ -108,3 +108,23 @@ def test_detect_events_holds_one_cumulative_sum_beyond_the_record():
     assert [e["kind"] for e in ev] == ["burst", "step"]
     assert abs(ev[1]["index"] - 2 * n // 3) <= RATE  # within 1 s (the events tests' requirement)
     assert peak <= 1.04 * x.nbytes + 12e6, f"peak {peak / 1e6:.1f} MB for a {x.nbytes / 1e6:.1f} MB record"
+
+
+@pytest.mark.parametrize("policy, events", [("remove", "warn"), ("remove", "exclude"), ("warn", "exclude")])
+def test_the_stage_returns_the_cleaned_segment_it_returned_with_a_held_copy(policy, events):
+    """The stage rebuilds its cleaned series after the event scan from the replaced samples: the same values
+    as the cleaned copy of :func:`imupipe.outliers.screen_outliers` (block medians at the outliers) cut to the
+    segment the events leave."""
+    from imupipe.outliers import screen_outliers
+
+    x = _record(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out, x_seg = outliers_stage(x, RATE, units="m/s^2", sensor="accel", policy=policy,
+                                    events={"policy": events})
+        cleaned, _ = screen_outliers(x, policy=policy)
+    a, b = (round(out["events_segment"][k] * RATE) for k in ("start_s", "stop_s"))
+    assert (a, b) != (0, x.size) if events == "exclude" else (a, b) == (0, x.size)
+    np.testing.assert_array_equal(x_seg, cleaned[a:b])
+    if events == "warn":  # the whole record: every outlier replaced by its block median
+        assert int((x_seg != x).sum()) == out["n_outliers"] == 20
