@@ -3,10 +3,10 @@
 For each truth (the STIM-300-like default truth and a MEMS-like one defined here) and record length, simulate
 `--n` single-axis records (imupipe.simulate.simulate, fixed seeds), compute each record's Allan variance as the
 workflow does (imupipe.allan.allan_variance, octave grid), run the same identification call the plan uses
-(imupipe.plan.identify_intervals: fit_allan with the truth's components, 100 correlated-bootstrap replicates,
-95 %) and take the median half-width of each interval; the plan (imupipe.plan.predict, 1 record, 1 axis) predicts
-it from the expected Allan variance, and where that fit finds an interval one-sided or confounded (column ~) from
-the median over --replicates replicate AV curves. Prints a markdown table (ratio = predicted / simulated median,
+(imupipe.plan.identify_intervals: fit_allan with the truth's components, 100 correlated-bootstrap replicates
+(--n-boot), 95 %) and take the median half-width of each interval; the plan (imupipe.plan.predict, 1 record,
+1 axis) predicts it from the expected Allan variance, and where that fit finds an interval one-sided or
+confounded (column ~) from the median over --replicates replicate AV curves. Prints a markdown table (ratio = predicted / simulated median,
 the goal 0.75-1.25; the expected-curve value beside it); with --figure it
 draws imupipe.plot.plot_plan_check. One truth per process (two cores), then the table and figure of both:
 
@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from imupipe.allan import allan_variance
-from imupipe.plan import PARAMS, fit_components, half_widths, identify_intervals, predict
+from imupipe.plan import N_BOOT, PARAMS, fit_components, half_widths, identify_intervals, predict
 from imupipe.simulate import simulate
 from imupipe.specsheet import load_spec, parse_spec
 
@@ -44,7 +44,7 @@ def truths():
             "stim300_spec": load_spec("config/specs/stim300.yaml").models["gyro"]}
 
 
-def simulated(model, hours, rate, n_rec, seed, records=1):
+def simulated(model, hours, rate, n_rec, seed, records=1, n_boot=N_BOOT):
     """Half-widths (SI) of `n_rec` simulated sets of `records` pooled single-axis records, shape (n_rec, 3)."""
     n = int(round(hours * 3600 * rate))
     comps = fit_components(model)
@@ -55,7 +55,7 @@ def simulated(model, hours, rate, n_rec, seed, records=1):
             x = simulate(model, n, rate, rng=seed + i * records + j)
             av = allan_variance(x, rate)
             curves.append((av.tau.values, av.avar.values, av.edf.values))
-        fit = identify_intervals(curves, n, rate, comps)
+        fit = identify_intervals(curves, n, rate, comps, n_boot=n_boot)
         out.append([half_widths(fit)[p] for p in PARAMS])
     return np.array(out)
 
@@ -71,12 +71,13 @@ def _print(rows):
               f"{r['simulated']:.3g} ({r['q25']:.3g}-{r['q75']:.3g}) | {r['ratio']:.2f} | {r['n']} |", flush=True)
 
 
-def _predict_rows(models, rows, rate, replicates):
+def _predict_rows(models, rows, rate, replicates, n_boot=N_BOOT):
     """The plan's prediction for each (truth, hours, records) of `rows`: the expected-curve value (`expected`),
     the plan's value with `replicates` for ~ cells (`predicted`, `ratio`) and the ~ flag (`confounded`)."""
     for key in dict.fromkeys((r["truth"], r["hours"], r["records"]) for r in rows):
-        p0 = predict(models[key[0]], key[1], key[2], rate)
-        pr = predict(models[key[0]], key[1], key[2], rate, replicates=replicates) if replicates else p0
+        p0 = predict(models[key[0]], key[1], key[2], rate, n_boot=n_boot)
+        pr = (predict(models[key[0]], key[1], key[2], rate, replicates=replicates, n_boot=n_boot) if replicates
+              else p0)
         for r in rows:
             if (r["truth"], r["hours"], r["records"]) == key:
                 r["confounded"] = bool(p0["confounded"][r["param"]])
@@ -93,6 +94,8 @@ def main(argv=None):
     ap.add_argument("--records", type=int, default=1, help="records pooled in each simulated set (and the plan)")
     ap.add_argument("--replicates", type=int, default=50,
                     help="the plan's replicates for one-sided or confounded cells (imupipe.plan.predict)")
+    ap.add_argument("--n-boot", type=int, default=N_BOOT, help="bootstrap replicates of each identification, "
+                    "simulated and predicted alike (default: the plan's, 100)")
     ap.add_argument("--truth", nargs="+", default=None, help="truth names (default: stim300_like mems_like)")
     ap.add_argument("--json", default=None, help="write the numbers here")
     ap.add_argument("--figure", default=None, help="write the figure here (PNG)")
@@ -111,7 +114,7 @@ def main(argv=None):
             rows += [{"records": 1, **r} for r in doc["rows"]]
         names = list(dict.fromkeys(r["truth"] for r in rows))
         a.hours = sorted({r["hours"] for r in rows})
-        _predict_rows(models, rows, a.rate_hz, a.replicates)
+        _predict_rows(models, rows, a.rate_hz, a.replicates, a.n_boot)
         print(f"records at {a.rate_hz:g} Hz; ~: the plan marks the interval one-sided or confounded")
         _print(rows)
     for name in [] if a.load else names:
@@ -119,7 +122,8 @@ def main(argv=None):
         model = models[name]
         for hi, h in enumerate(a.hours):
             t0 = time.process_time()
-            sims = simulated(model, h, a.rate_hz, a.n, seed=1000 * (ti + 1) + 100 * hi, records=a.records)
+            sims = simulated(model, h, a.rate_hz, a.n, seed=1000 * (ti + 1) + 100 * hi, records=a.records,
+                             n_boot=a.n_boot)
             med = np.nanmedian(sims, axis=0)
             new = []
             for j, p in enumerate(PARAMS):
@@ -127,7 +131,7 @@ def main(argv=None):
                             "n": int(np.isfinite(sims[:, j]).sum()),
                             "q25": float(np.nanpercentile(sims[:, j], 25)),
                             "q75": float(np.nanpercentile(sims[:, j], 75))})
-            _predict_rows(models, new, a.rate_hz, a.replicates)
+            _predict_rows(models, new, a.rate_hz, a.replicates, a.n_boot)
             _print(new)
             rows += new
             print(f"<!-- {name} {h:g} h: {time.process_time() - t0:.0f} s CPU -->", file=sys.stderr, flush=True)

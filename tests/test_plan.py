@@ -118,7 +118,10 @@ def _run(capsys, *argv):
 def test_cli_table_target_and_pilot_give_the_same_plan(tmp_path, capsys):
     spec = tmp_path / "wrw.yaml"
     spec.write_text(yaml.safe_dump(WRW))
-    args = ["--sensor", "gyro", "--rate-hz", "1", "--hours", "1", "3", "--records", "1", "2", "--axes", "1"]
+    # two replicates where a cell is one-sided or confounded (the CLI's default 50 cost most of this test's
+    # time; the replicates' median itself is tested in test_replicates_replace_a_confounded_cell_by_a_median)
+    args = ["--sensor", "gyro", "--rate-hz", "1", "--hours", "1", "3", "--records", "1", "2", "--axes", "1",
+            "--replicates", "2"]
     code, out, _ = _run(capsys, "--spec", str(spec), *args, "--target", "N:0.5")
     assert code == 0
     assert "| hours | records | N +/- (deg/sqrt(h)) |" in out
@@ -131,15 +134,16 @@ def test_cli_table_target_and_pilot_give_the_same_plan(tmp_path, capsys):
                                      "model_selected": model.to_dict()}))
     # no --rate-hz: the pilot's rate
     code2, out2, _ = _run(capsys, "--from", str(pilot), "--sensor", "gyro", "--hours", "1", "3", "--records", "1",
-                          "2", "--axes", "1")
+                          "2", "--axes", "1", "--replicates", "2")
     assert code2 == 0
     table = [ln for ln in out.splitlines() if ln.startswith("|")]
     assert [ln for ln in out2.splitlines() if ln.startswith("|")] == table
 
 
 def test_cli_target_not_met(capsys):
+    # the STIM-300 GM is confounded at 1 h: two replicates instead of the CLI's 50 (the message is the test)
     code, out, _ = _run(capsys, "--spec", str(STIM), "--sensor", "gyro", "--rate-hz", "1", "--hours", "1",
-                        "--records", "1", "--axes", "1", "--target", "K:0.0001")
+                        "--records", "1", "--axes", "1", "--target", "K:0.0001", "--replicates", "2")
     assert code == 1
     assert "no plan of the table gives K within +/-0.01 %" in out
 
@@ -213,8 +217,8 @@ def test_format_table_marks_confounded_cells():
 
 
 def test_plan_check_benchmark_runs(tmp_path, capsys):
-    """benchmarks/plan_check.py on a tiny case (2 sets of a half-hour record at 1 Hz), then its --load / --figure
-    path: it must not rot (no accuracy claim at this size)."""
+    """benchmarks/plan_check.py on a tiny case (2 sets of a half-hour record at 1 Hz, 10 bootstrap replicates),
+    then its --load / --figure path: it must not rot (no accuracy claim at this size)."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("plan_check", ROOT / "benchmarks" / "plan_check.py")
@@ -222,8 +226,8 @@ def test_plan_check_benchmark_runs(tmp_path, capsys):
     spec.loader.exec_module(mod)
     js, fig = tmp_path / "c.json", tmp_path / "c.png"
     assert mod.main(["--n", "2", "--rate-hz", "1", "--hours", "0.5", "--truth", "mems_like", "--json", str(js),
-                     "--replicates", "2"]) == 0
-    assert mod.main(["--load", str(js), "--figure", str(fig), "--replicates", "2"]) == 0
+                     "--replicates", "2", "--n-boot", "10"]) == 0
+    assert mod.main(["--load", str(js), "--figure", str(fig), "--replicates", "2", "--n-boot", "10"]) == 0
     out = capsys.readouterr().out
     assert out.count("| mems_like | 0.5 | 1 |") == 6  # 3 parameters, printed by the run and by --load
     assert fig.stat().st_size > 0

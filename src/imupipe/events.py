@@ -155,12 +155,31 @@ def _robust_center_scale(y: np.ndarray) -> tuple[float, float]:
     return med, MAD_TO_SIGMA * float(np.median(np.abs(y - med)))
 
 
-def _white_sd(x: np.ndarray) -> float:
-    """Per-sample white-noise sd from the first differences: 1.4826 MAD(diff x) / sqrt(2), u."""
+def _white_sd(x: np.ndarray, fills=()) -> float:
+    """Per-sample white-noise sd from the first differences: 1.4826 MAD(diff x) / sqrt(2), u, of x with the
+    ``fills`` (:func:`_span_fills`) applied. One work array of n - 1 differences, its medians found in
+    place."""
     dx = np.diff(x)
-    dx -= np.median(dx)
+    n = x.size
+    for a, b, _ in fills:  # the differences that touch a filled span, from the filled values
+        lo, hi = max(a - 1, 0), min(b + 1, n)
+        if hi - lo >= 2:
+            dx[lo:hi - 1] = np.diff(_patched(x, fills, lo, hi))
+    dx -= np.median(dx, overwrite_input=True)  # the same order statistics as on a copy: the same value
     np.abs(dx, out=dx)
-    return MAD_TO_SIGMA * float(np.median(dx)) / math.sqrt(2.0)
+    return MAD_TO_SIGMA * float(np.median(dx, overwrite_input=True)) / math.sqrt(2.0)
+
+
+def _patched(x: np.ndarray, fills, lo: int, hi: int) -> np.ndarray:
+    """x[lo:hi] with the fills (a, b, value: x[a:b] = value, applied in order) that reach it; a view of x when
+    none does, else a copy of the slice."""
+    seg = x[lo:hi]
+    hit = [(max(a, lo), min(b, hi), v) for a, b, v in fills if max(a, lo) < min(b, hi)]
+    if hit:
+        seg = seg.copy()
+        for a, b, v in hit:
+            seg[a - lo:b - lo] = v
+    return seg
 
 
 # ---------------------------------------------------------------------------------------------------- bursts
@@ -194,10 +213,15 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
     if K < 20:
         return {"bursts": [], "threshold_z": float("inf"), "n_blocks": int(K), "window": w,
                 "note": f"record of {n} samples holds fewer than 20 blocks of {w}: no burst scan"}
-    dev = x[: K * w].reshape(K, w) - x[: K * w].reshape(K, w).mean(axis=1, keepdims=True)
-    E = np.einsum("ij,ij->i", dev, dev)
+    E = np.empty(K)
+    step = max(1, EVENTS_BATCH // w)
+    for j0 in range(0, K, step):  # whole blocks at a time: no array of the record's length
+        j1 = min(K, j0 + step)
+        dev = _centred_blocks(x[j0 * w : j1 * w].reshape(j1 - j0, w))
+        E[j0:j1] = np.einsum("ij,ij->i", dev, dev)
+    del dev
     zb = _t_isf(alpha / K, MAD_EFFICIENCY * K)
-    z, h = _energy_z(E, dev, zb)
+    z, h = _energy_z(E, lambda idx: _centred_blocks(x[idx[:, None] * w + np.arange(w)]), w, zb)
     if z is None:
         return {"bursts": [], "threshold_z": zb, "n_blocks": int(K), "window": w, "power": h,
                 "note": "block energies have no spread (constant record): no burst scan"}
@@ -222,12 +246,20 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
 
 #: Blocks whose lag products estimate the within-block covariance of the burst scan (evenly spaced).
 ACOV_BLOCKS = 2000
+#: Samples per pass of the burst scan's block energies (whole blocks, at least one): its work arrays are a few
+#: times 8 x this many bytes, whatever the record's length.
+EVENTS_BATCH = 1 << 18
 
 
-def _energy_z(E: np.ndarray, dev: np.ndarray, zb: float):
+def _centred_blocks(blocks: np.ndarray) -> np.ndarray:
+    """Each row (a block of w samples) less its mean."""
+    return blocks - blocks.mean(axis=1, keepdims=True)
+
+
+def _energy_z(E: np.ndarray, rows, w: int, zb: float):
     """Robust z of the transformed block energies E^h (module docstring, "Bursts"): (z, h), z None when the
     transformed energies have no spread. h from the within-block covariance of the blocks a first pass (h = 1/3)
-    leaves below the threshold zb."""
+    leaves below the threshold zb; ``rows(idx)`` gives those blocks (w samples each) less their means."""
     def zscore(h):
         # increasing in E whatever the sign of h; h -> 0 is the log
         y = np.log(np.maximum(E, 1e-300)) if abs(h) < 0.02 else (E**h if h > 0 else -(np.maximum(E, 1e-300) ** h))
@@ -237,12 +269,11 @@ def _energy_z(E: np.ndarray, dev: np.ndarray, zb: float):
     z, h = zscore(1.0 / 3.0)
     if z is None:
         return z, h
-    K, w = dev.shape
     quiet = np.flatnonzero(z <= zb)
     pick = quiet[np.linspace(0, quiet.size - 1, min(quiet.size, ACOV_BLOCKS)).astype(int)] if quiet.size else None
     if pick is None:
         return z, h
-    F = np.fft.rfft(dev[pick], n=2 * w, axis=1)
+    F = np.fft.rfft(rows(pick), n=2 * w, axis=1)
     lag = np.fft.irfft(np.abs(F) ** 2, n=2 * w, axis=1)[:, :w].mean(axis=0) / (w - np.arange(w))
     from scipy.linalg import toeplitz
 
@@ -258,6 +289,16 @@ def _energy_z(E: np.ndarray, dev: np.ndarray, zb: float):
 def _d_at(cs: np.ndarray, t, m: int):
     """D_m(t) from the cumulative sum cs (cs[0] = 0, cs[i] = sum x[:i])."""
     return (cs[t + m] - 2.0 * cs[t] + cs[t - m]) / m
+
+
+def _abs_d_grid(cs: np.ndarray, m: int, h: int, K: int) -> np.ndarray:
+    """|D_m(t)| at the K positions t = m + j h (:func:`_d_at`'s operations in its order on strided views of
+    cs: the same values, one array of K elements and no index arrays)."""
+    d = 2.0 * cs[m : m + (K - 1) * h + 1 : h]
+    np.subtract(cs[2 * m : 2 * m + (K - 1) * h + 1 : h], d, out=d)
+    d += cs[0 : (K - 1) * h + 1 : h]
+    d /= m
+    return np.abs(d, out=d)
 
 
 def _cusum_argmax(seg: np.ndarray, lo: int = 1, hi: int | None = None) -> int:
@@ -282,26 +323,30 @@ def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> lis
     return out
 
 
-def _clean_spans(x: np.ndarray, spans, pad: int) -> np.ndarray:
-    """A copy of x with each span [start - pad, stop + pad) replaced, its first half by the median of the pad
-    samples before it and its second half by the median of the pad samples after it (a step inside a burst is
-    then placed at the burst's middle, within half its span)."""
+def _span_fills(x: np.ndarray, spans, pad: int) -> list:
+    """Each span [start - pad, stop + pad) replaced, its first half by the median of the pad samples before it
+    and its second half by the median of the pad samples after it (a step inside a burst is then placed at the
+    burst's middle, within half its span): the list of (a, b, value), x[a:b] = value applied in order. The
+    step scan reads x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the record."""
     if not spans:
-        return x
-    y = x.copy()
+        return []
+    fills = []
     n = x.size
-    whole = float(np.median(x))
+    whole = None
     for s0, s1 in spans:
         a, b = max(0, s0 - pad), min(n, s1 + pad)
         before, after = x[max(0, a - pad):a], x[b:min(n, b + pad)]
         mid = (a + b) // 2
-        y[a:mid] = np.median(before) if before.size else (np.median(after) if after.size else whole)
-        y[mid:b] = np.median(after) if after.size else (np.median(before) if before.size else whole)
-    return y
+        if not before.size and not after.size and whole is None:
+            whole = float(np.median(x))
+        first = np.median(before) if before.size else (np.median(after) if after.size else whole)
+        second = np.median(after) if after.size else (np.median(before) if before.size else whole)
+        fills += [(a, mid, first), (mid, b, second)]
+    return fills
 
 
 def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 1.0, min_windows: int = 50,
-               confidence: float = 0.95, max_steps: int = 20) -> dict:
+               confidence: float = 0.95, max_steps: int = 20, fills=()) -> dict:
     """Mean steps of one full-rate axis (module docstring, "Steps").
 
     Parameters
@@ -320,6 +365,10 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         Level of the size intervals.
     max_steps : int
         Most steps reported (the strongest).
+    fills : sequence of (int, int, float)
+        Spans replaced by a constant before the scan, (a, b, value): the series scanned is x with
+        ``x[a:b] = value`` (applied in order) without a copy of x (:func:`detect_events` cleans the bursts
+        so).
 
     Returns
     -------
@@ -335,28 +384,41 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
     scales = _scales(n, rate_hz, min_scale_s, min_windows)
     if not scales:
         return {"steps": [], "scales": [], "note": f"record of {n} samples too short for a step scan"}
+    fills = list(fills)
+    # per-sample white sd from the first differences (robust); before the cumulative sum, so that the record
+    # and one work array of its length are all the scan ever holds
+    s1 = _white_sd(x, fills)
     cs = np.zeros(n + 1)  # cs[i] = sum of the first i samples less the median (no other sample-length array)
-    cs[1:] = x
-    cs[1:] -= np.median(x)
+
+    def fill_cs():
+        cs[1:] = x
+        for a, b, v in fills:
+            cs[1 + a : 1 + b] = v
+
+    fill_cs()
+    med = np.median(cs[1:], overwrite_input=True)  # the median of the (filled) record, found in place
+    fill_cs()
+    cs[1:] -= med
     np.cumsum(cs[1:], out=cs[1:])
     S = len(scales)
     table, cands = [], []
     for m in scales:
         h = max(1, m // 4)
-        t = np.arange(m, n - m + 1, h)
-        D = _d_at(cs, t, m)
-        sd = MAD_TO_SIGMA * float(np.median(np.abs(D)))
+        K = len(range(m, n - m + 1, h))  # positions t = m + j h
+        sd = MAD_TO_SIGMA * float(np.median(_abs_d_grid(cs, m, h, K), overwrite_input=True))
         nu = MAD_EFFICIENCY * (n - 2 * m) / (2 * m)
-        zt = _t_isf(alpha / (2.0 * S * t.size), nu)
-        table.append({"m": m, "sigma_d": sd, "threshold_z": zt, "positions": int(t.size), "nu": nu})
+        zt = _t_isf(alpha / (2.0 * S * K), nu)
+        table.append({"m": m, "sigma_d": sd, "threshold_z": zt, "positions": int(K), "nu": nu})
         if sd <= 0:
             continue
-        z = np.abs(D) / sd
+        z = _abs_d_grid(cs, m, h, K)  # again: one array of the K positions at a time (its median reorders it)
+        z /= sd
         hit = np.flatnonzero(z > zt)
         if hit.size:
             for g in np.split(hit, np.flatnonzero(np.diff(hit) > 8) + 1):  # 8 grid steps = 2m
                 j = int(g[np.argmax(z[g])])
-                cands.append((float(z[j]), int(t[j]), m))
+                cands.append((float(z[j]), m + j * h, m))
+        del z
     cands.sort(key=lambda c: -c[0])
     taken = []
     for zc, tc, m in cands:
@@ -364,8 +426,6 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
             taken.append((zc, tc, m))
         if len(taken) >= max_steps:
             break
-    # per-sample white sd from the first differences (robust)
-    s1 = _white_sd(x)
     sd_of = {row["m"]: row for row in table}
     steps = []
     times = sorted(tc for _, tc, _ in taken)
@@ -382,7 +442,7 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         while True:
             a, b = max(prev_c, t0 - m, 0), min(next_c, t0 + m, n)
             if b - a >= 4:
-                t0 = a + _cusum_argmax(x[a:b], t0 - half - a, t0 + half - a)
+                t0 = a + _cusum_argmax(_patched(x, fills, a, b), t0 - half - a, t0 + half - a)
             if half <= floor:
                 break
             half = max(floor, half // 4)
@@ -446,9 +506,9 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     rate_hz = float(rate_hz)
     b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
     pad = max(5, b["window"] // 10)  # ringing just below burst_k around the span
-    xc = _clean_spans(x, [(e["start"], e["stop"]) for e in b["bursts"]], pad)
-    s = find_steps(xc, rate_hz, alpha=alpha / 2.0, min_scale_s=min_scale_s, min_windows=min_windows,
-                   confidence=confidence)
+    fills = _span_fills(x, [(e["start"], e["stop"]) for e in b["bursts"]], pad)
+    s = find_steps(x, rate_hz, alpha=alpha / 2.0, min_scale_s=min_scale_s, min_windows=min_windows,
+                   confidence=confidence, fills=fills)
     events = []
     for e in b["bursts"]:
         events.append({"kind": "burst", "time_s": e["start"] / rate_hz, "start_s": e["start"] / rate_hz,

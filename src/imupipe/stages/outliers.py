@@ -50,6 +50,9 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     from imupipe.events import POLICIES, detect_events, event_free_segment
     from imupipe.outliers import removal_effect, screen_outliers, stuck_spans
 
+    import numpy as np
+
+    x = np.asarray(x, dtype=np.float64).ravel()  # what every call below reads (copied only if x is not)
     ev_cfg = {**EVENT_DEFAULTS, **(events or {})}
     ev_policy = ev_cfg["policy"]
     label = "/".join(str(v) for v in (dataset, sensor, axis) if v is not None) or (series or "series")
@@ -63,6 +66,10 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     if report.n_outliers and policy != "remove":
         removed, _ = screen_outliers(x, policy="remove", k=k, window=window_samples, label=label, units=units)
     effect = removal_effect(x, removed, rate)
+    # no copy of the record is held through the event scan: under remove the cleaned copy is rebuilt at the
+    # end from its replaced samples (the same values)
+    replaced = (report.indices, x_out[report.indices]) if x_out is not x else None
+    del removed, x_out
     effect["note"] = EFFECT_NOTE[policy]
     effect["units"] = {"tau0_s": "s", "avar_tau0_before": f"({units})^2", "avar_tau0_after": f"({units})^2",
                        "avar_ratio": "1", "white_noise_ratio": "1"}
@@ -126,5 +133,10 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                     "events_segment": "s from the record's start"}
     x_seg = None
     if ev_policy == "exclude" or policy == "remove":
-        x_seg = x_out[seg[0]:seg[1]]
+        if replaced is None:
+            x_seg = x[seg[0]:seg[1]]
+        else:
+            x_seg = x[seg[0]:seg[1]].copy()
+            inside = (replaced[0] >= seg[0]) & (replaced[0] < seg[1])
+            x_seg[replaced[0][inside] - seg[0]] = replaced[1][inside]
     return out, x_seg
