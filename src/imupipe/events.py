@@ -552,8 +552,8 @@ def _effect_text(it: Mapping) -> str:
         if disp:
             k += f" ({float(disp['random_walk_equivalent']):.3g} {disp['unit']})"
         return (f": in the Allan variance a {'step' if eff['kind'] == 'step' else 'mean excursion'} in this "
-                f"{float(eff['record_s']):.4g} s record acts as a random walk K = {k} (d^2 tau / (3 T)), and at "
-                "long tau as a GM or flicker: it can inflate K, a GM or a flicker and the bound")
+                f"{float(eff['record_s']):.4g} s record acts as a random walk K = {k} (d^2 tau / (3 T)): it can "
+                "inflate K (or a long-T GM or a ramp that takes up the rise) and the bound")
     return ""
 
 
