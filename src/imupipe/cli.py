@@ -97,6 +97,7 @@ def check_config(config: str | Path) -> list[str]:
 
     import yaml
 
+    from imupipe.readers import FROM_FILE
     from imupipe.units import UnitError, rate_factor
 
     config = Path(config)
@@ -127,7 +128,7 @@ def check_config(config: str | Path) -> list[str]:
                 raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
             for sensor in ("gyro", "accel"):  # the stored unit, as the ingest job reads it (imupipe.units)
                 unit = row.get(f"{sensor}_unit")
-                if unit and unit != "FILL_ME":
+                if unit and unit not in ("FILL_ME", FROM_FILE):  # from_file: the file's own unit, read by ingest
                     try:
                         rate_factor(unit, sensor)
                     except UnitError as exc:
