@@ -28,7 +28,7 @@ WORKFLOW = ROOT / "workflow"
 SHARED_PRIVATE = {"_kernels"}
 
 LAYERS = [
-    {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults"},
+    {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults", "markdown"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
      "events", "segments", "summary", "verdict"},
     {"avcov", "specsheet", "init", "runconfig"},

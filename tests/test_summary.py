@@ -43,7 +43,8 @@ def test_clean_run_says_bounded_with_inflation_table_and_states():
     # inflation table in the spec sheet's units, ratio bound/spec = 0.41 / 0.15 = 2.73
     assert "| white noise N | deg/sqrt(h) | 0.15 | 0.41 | 2.73 |" in text
     assert "| GM sigma | deg/h | 1.5 | 4.1 | 2.73 |" in text
-    assert "- states kept: white, gauss_markov" in text
+    assert "- components the identification kept (identify file, selection: what the bound covers, not the " \
+           "filter's states): white, gauss_markov" in text
     assert "random_walk (dropped): contributes < 5 % in the application band" in text
     assert "gyro: none failed or flagged." in first_screen(text)
 
@@ -127,7 +128,8 @@ def test_summarise_results_finds_the_files_of_a_results_folder(tmp_path):
     assert specs == ["stim300"] and sensors == ["gyro"] and len(files["bound"]) == 1
     text = summarise_results(tmp_path / "results")
     assert text.startswith("# imupipe run summary: myrun, spec sheet stim300")
-    assert "FLAG stationarity [sim2/gyro/z]" in text and "states kept: white, gauss_markov" in text
+    assert "FLAG stationarity [sim2/gyro/z]" in text
+    assert "not the filter's states): white, gauss_markov" in text
     assert summarise_results(tmp_path / "empty") == ""
 
 

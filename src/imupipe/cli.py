@@ -95,10 +95,18 @@ def check_config(config: str | Path) -> list[str]:
     from imupipe.io import read_yaml
     from imupipe.readers import check_file, sheet_row_to_kwargs
 
+    import yaml
+
+    from imupipe.readers import FROM_FILE
+    from imupipe.units import UnitError, rate_factor
+
     config = Path(config)
     if not config.is_file():
         raise ValueError(f"{config}: config file not found")
-    given = read_yaml(config)
+    try:
+        given = read_yaml(config)  # a key given twice is refused there, naming both lines
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{config}: not valid YAML ({' '.join(str(exc).split())})") from None
     root = _root()
     cfg = rc.merged_config(given, root, where=str(config))
     done = [f"config {config}: YAML mapping with {len(given)} keys"
@@ -118,6 +126,14 @@ def check_config(config: str | Path) -> list[str]:
                 check_file(sheet_row_to_kwargs(row, base_dir=root)["path"])  # a symlink loop, a Windows path
             except ValueError as exc:
                 raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
+            for sensor in ("gyro", "accel"):  # the stored unit, as the ingest job reads it (imupipe.units)
+                unit = row.get(f"{sensor}_unit")
+                if unit and unit not in ("FILL_ME", FROM_FILE):  # from_file: the file's own unit, read by ingest
+                    try:
+                        rate_factor(unit, sensor)
+                    except UnitError as exc:
+                        raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}), column "
+                                         f"{sensor}_unit: {exc}") from None
         done.append(f"dataset sheet {sheet_path.name}: {len(rows)} rows, every file present")
     elif not cfg.get("simulation"):
         raise ValueError(f"{config}: 'datasets' is null and 'simulation' is empty: nothing to analyse")
@@ -127,6 +143,10 @@ def check_config(config: str | Path) -> list[str]:
     rc.check_cross_keys(cfg)
     done.append("config keys: " + ("the schema and the checks across keys" if schema else
                                    "the checks across keys (the schema needs jsonschema, installed with Snakemake)"))
+    # the workflow's start-up probe of every record against the config (length, rates), as common.smk runs it
+    datasets = rc.datasets_of(cfg, root, f"results/{cfg.get('name', 'run')}")
+    rc.check_records(cfg, datasets)
+    done.append(f"records against the config: {len(datasets)} probed (length for psd.window_s, rates)")
     return done
 
 
@@ -376,6 +396,9 @@ def _cmd_run(args) -> int:
     config = Path(args.config).resolve()
     if not config.is_file():
         raise ValueError(f"{args.config}: config file not found")
+    # the workflow's start-up checks (config keys, spec sheets, dataset sheet, files, records against the config)
+    # in this process first: a bad input is one line naming the file and key, not Snakemake's traceback
+    check_config(config)
     extra = list(args.snakemake_args or [])
     if args.dry_run:
         extra.append("--dry-run")
@@ -593,7 +616,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.snakemake_args = passthrough
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, KeyError) as exc:
+    except (ValueError, OSError, KeyError) as exc:
         print(f"imupipe: error: {exc}", file=sys.stderr)
         return 1
 

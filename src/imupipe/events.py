@@ -117,7 +117,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "find_bursts", "find_steps", "event_free_segment", "event_flags",
+__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "find_bursts", "find_steps", "event_free_segment", "event_flags",
            "display_unit", "MAD_EFFICIENCY"]
 
 #: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
@@ -555,6 +555,68 @@ def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:
     return best
 
 
+def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str | None = None) -> dict:
+    r"""What one event kept in the data (``events.policy: warn``) does to the noise model's parameters.
+
+    - A burst: the Allan variance at the shortest tau :math:`\tau_0 = 1/f_s`, where the white noise N is read
+      (:math:`\sigma^2(\tau_0) = N^2/\tau_0` for white noise), with and without the burst's samples:
+      :math:`\sigma^2(\tau_0) = \tfrac12\,\overline{(x_{k+1}-x_k)^2}`, the mean over every pair of adjacent
+      samples, or over the pairs outside the burst's span widened by `guard` samples. ``white_noise_ratio`` =
+      :math:`\sqrt{\sigma^2_{with}/\sigma^2_{without}}`: the factor by which the burst raises N read there
+      (measured on the record, 1 for a burst that adds no energy).
+    - A step of size d (u) in a record of duration :math:`T = n/f_s` (s): each overlapping Allan difference at
+      :math:`\tau = m/f_s` that straddles the step carries d times a triangle of half-width m and peak 1 (sum of
+      squares :math:`2m/3`), so over the :math:`n - 2m + 1` differences the step adds
+      :math:`d^2 m / (3(n-2m+1)) \approx d^2\tau/(3T)` (:math:`\tau \ll T`) to the Allan variance: the random
+      walk's :math:`K^2\tau/3` with ``random_walk_equivalent`` :math:`K = |d|/\sqrt{T}` (u/sqrt(s)). A
+      transient (a step and its return) adds twice that for :math:`\tau` below its duration:
+      :math:`K = |d|\sqrt{2/T}`.
+
+    Returns a dict with ``kind`` and either ``white_noise_ratio`` (1) or ``random_walk_equivalent`` (u/sqrt(s)),
+    ``record_s`` (s) and, with `sensor`, ``display`` (the value in deg/h/sqrt(s) or mg/sqrt(s)).
+    Reference: IEEE Std 952-1997, annex C (the Allan variance of white noise and of a random walk)."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    n, rate_hz = x.size, float(rate_hz)
+    kind = event.get("kind")
+    if kind == "burst":
+        d2 = np.diff(x) ** 2
+        i0 = max(0, int(event["index"]) - int(guard))
+        i1 = min(n, int(event.get("stop_index", event["index"])) + int(guard))
+        keep = np.ones(d2.size, dtype=bool)
+        keep[max(0, i0 - 1):max(0, i1)] = False  # pair k = (x_k, x_k+1) touches the span when i0 - 1 <= k < i1
+        if not keep.any():
+            return {"kind": kind}
+        ratio = float(np.sqrt(d2.mean() / d2[keep].mean())) if d2[keep].mean() > 0 else float("inf")
+        return {"kind": kind, "white_noise_ratio": ratio, "tau_s": 1.0 / rate_hz}
+    T = n / rate_hz
+    k = abs(float(event["size"])) * (np.sqrt(2.0 / T) if kind == "transient" else 1.0 / np.sqrt(T))
+    out = {"kind": kind, "random_walk_equivalent": float(k), "record_s": float(T)}
+    du = display_unit(sensor, "step")
+    if du is not None:
+        out["display"] = {"unit": f"{du[0]}/sqrt(s)", "random_walk_equivalent": float(k) / du[1]}
+    return out
+
+
+def _effect_text(it: Mapping) -> str:
+    """The words of an event's effect on the model (:func:`event_effect`, kept under ``warn``)."""
+    eff = it.get("effect") if isinstance(it.get("effect"), Mapping) else None
+    if not eff:
+        return ""
+    if eff.get("white_noise_ratio") is not None:
+        return (f": with its samples the Allan deviation at the shortest tau ({float(eff['tau_s']):.3g} s, where the "
+                f"white noise N is read) is {float(eff['white_noise_ratio']):.3g}x the record's without them, and it "
+                "raises every PSD bin: it can inflate N and the bound")
+    if eff.get("random_walk_equivalent") is not None:
+        disp = eff.get("display") if isinstance(eff.get("display"), Mapping) else None
+        k = f"{float(eff['random_walk_equivalent']):.3g} {it.get('units') or 'SI'}/sqrt(s)"
+        if disp:
+            k += f" ({float(disp['random_walk_equivalent']):.3g} {disp['unit']})"
+        return (f": in the Allan variance a {'step' if eff['kind'] == 'step' else 'mean excursion'} in this "
+                f"{float(eff['record_s']):.4g} s record acts as a random walk K = {k} (d^2 tau / (3 T)): it can "
+                "inflate K (or a long-T GM or a ramp that takes up the rise) and the bound")
+    return ""
+
+
 #: more events than this on one record and sensor are summarised in one FLAG line (each stays in the report)
 MAX_EVENT_FLAGS = 3
 
@@ -581,7 +643,7 @@ def _event_text(it: Mapping) -> str:
         when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
     text = f"{size} {when} from the record's start"
     if it.get("action"):
-        text += f"; {it['action']}"
+        text += f"; {it['action']}" + _effect_text(it)
     return text
 
 

@@ -96,9 +96,7 @@ def check_cross_keys(cfg: dict) -> None:
 def merged_config(given: dict, root, where: str = "config") -> dict:
     """`given` (a config file's keys, renamed keys refused) merged over ``{root}/config/config.yaml``
     (:func:`imupipe.io.merged_with_defaults`; `given` alone when there is no such file)."""
-    import yaml
-
-    from imupipe.io import merged_with_defaults
+    from imupipe.io import merged_with_defaults, read_yaml
 
     if not isinstance(given, dict):
         raise ValueError(f"{where}: expected a YAML mapping of config keys")
@@ -106,7 +104,7 @@ def merged_config(given: dict, root, where: str = "config") -> dict:
     defaults_path = Path(root) / "config" / "config.yaml"
     if not defaults_path.is_file():
         return dict(given)
-    return merged_with_defaults(yaml.safe_load(defaults_path.read_text()), given)
+    return merged_with_defaults(read_yaml(defaults_path), given)
 
 
 def load_config(given: dict, root, where: str = "config") -> dict:

@@ -210,8 +210,12 @@ def load_spec(path) -> SpecSheet:
     p = Path(path)
     if not p.is_file():
         raise SpecError(f"spec sheet {str(p)!r} not found")
+    from imupipe.io import DuplicateKeyError, read_yaml
+
     try:
-        data = yaml.safe_load(p.read_text())
+        data = read_yaml(p)  # the project's one YAML loader: a key given twice is refused, naming both lines
+    except DuplicateKeyError as exc:
+        raise SpecError(str(exc)) from None
     except yaml.YAMLError as exc:
         raise SpecError(f"{p}: not valid YAML ({exc})") from None
     sheet = parse_spec(data, where=str(p))

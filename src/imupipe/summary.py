@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
+
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
            "render_summary", "summary_sections"]
@@ -258,8 +260,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         # the per-axis bound, the KF file and Kalibr then carry); the pooled fit's may not show it
         for r in _items(pa.get("gm_reassigned") if isinstance(pa, Mapping) else None):
             if isinstance(r, Mapping) and r.get("T_open_above"):
+                own = (bound.get("per_axis_models") or {}).get(ax)  # the axis's own exported model, where it has one
+                src = {**bound, **own} if isinstance(own, Mapping) and own.get("exported_in_kf") else bound
                 out.append(Flag(sensor, "GM re-assigned", f"axis {ax} gm_{r.get('term')}",
-                                reassigned_text(sensor, r, bound) + "; its T interval is open above: the axis's upper "
+                                reassigned_text(sensor, r, src) + "; its T interval is open above: the axis's upper "
                                 "envelope keeps the GM over that interval (identify file per_axis), and its bound "
                                 "covers that envelope"))
     moved_terms = {f"gm_{k}_{r.get('term')}" for r in moved for k in ("T", "sigma")}
@@ -270,8 +274,13 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 continue
             # a component's coefficient at its lower limit 0 is that component absent (the selection lists it as
             # dropped; the data's upper limit for it is in the envelope), not a fit pressed against its range
-            if v and not (p in model and isinstance(model[p], (int, float)) and float(model[p]) == 0.0):
-                out.append(Flag(sensor, "parameter on boundary", str(p), "fitted value at a limit of its range"))
+            if not v:
+                continue
+            value = _g(identify, "fit", "params", p, default=model.get(p))
+            if isinstance(value, (int, float)) and float(value) == 0.0 and not str(p).startswith("gm_T"):
+                continue  # a coefficient at 0: the component absent (a GM sigma too), not a fit pressed to its range
+            out.append(Flag(sensor, "parameter on boundary", str(p), boundary_text(sensor, bound, identify, str(p),
+                                                                                    value)))
     line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
                   for it in _items(src.get(key)) if isinstance(it, Mapping)]
     for f in _line_flags(sensor, line_items):
@@ -287,16 +296,84 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     return out
 
 
+#: The identify file's parameter names -> (the key of :func:`both_units`, the words).
+_PARAM_WORDS = {"white": ("white", "white noise N"), "random_walk": ("random_walk", "random walk K"),
+                "flicker": ("gm_sigma", "flicker B"), "gm_sigma": ("gm_sigma", "GM sigma"), "gm_T": (None, "GM T"),
+                "quantization": (None, "quantization Q"), "ramp": (None, "rate ramp R")}
+
+
+def boundary_text(sensor: str, bound: Mapping | None, identify: Mapping, p: str, value) -> str:
+    """The words of a parameter on a limit of its range (identify file ``fit.on_boundary``): its value with its
+    unit (spec sheet's and SI, :func:`both_units`; a GM T in s; quantization u s, ramp u/s in SI), which limit and
+    the range searched (a GM T: ``fit.T_search_s``, s; a coefficient: [0, inf)), its interval and its kind
+    (``fit.intervals``, ``fit.interval_kind``)."""
+    base = p.rsplit("_", 1)[0] if p.startswith("gm_") else p
+    key, words = _PARAM_WORDS.get(base, (None, p))
+    si = {"quantization": "u s", "ramp": "u/s"}.get(base, "SI")
+
+    def show(x):
+        if base == "gm_T":
+            return f"{_num(x)} s"
+        return both_units(sensor, bound, key, x) if key else f"{_num(x)} {si}"
+
+    shown = show(value) if isinstance(value, (int, float)) else "-"
+    iv = _g(identify, "fit", "intervals", p)
+    kind = _g(identify, "fit", "interval_kind", p)
+    if base == "gm_T":
+        lo, hi = (_g(identify, "fit", "T_search_s") or [None, None])[:2]
+        where = ("the shortest" if isinstance(value, (int, float)) and isinstance(lo, (int, float))
+                 and isinstance(hi, (int, float)) and abs(float(value) - float(lo)) <= abs(float(value) - float(hi))
+                 else "the longest")
+        text = (f"{words} {shown} sits on {where} time constant searched (range {_num(lo)}-{_num(hi)} s, "
+                "identify file fit.T_search_s)")
+    else:
+        text = f"{words} {shown} at a limit of its range [0, inf) (a non-negative coefficient)"
+    if isinstance(iv, (list, tuple)) and len(iv) == 2:
+        text += f"; interval [{show(iv[0]) if iv[0] is not None else '-'}, {show(iv[1]) if iv[1] is not None else 'inf'}]"
+    if kind and kind != "two-sided":
+        text += f", {kind}"
+    return text
+
+
 def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> str:
     """The words of one GM the identification re-assigned (identify file ``gm_reassigned``: sigma u, T_s s, why,
     acts_as, value: the white noise N u/sqrt(Hz) or random walk K u/sqrt(s) it acts as), every value in the spec
-    sheet's unit and in SI (:func:`both_units`)."""
+    sheet's unit and in SI (:func:`both_units`), then what the exported filter model carries instead
+    (:func:`exported_instead`): the identification reports the GM as the term it acts as; the bound covers the
+    identification's upper envelope, and its own GM terms (the KF file's) are not this GM."""
     white = r.get("acts_as") == "white"
     as_key = "white" if white else "random_walk"
     acts = f"{'white noise N' if white else 'random walk K'}"
     value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
-    return (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {_num(r.get('T_s'))} s: {r.get('why')}; "
-            f"reported and bounded as the {acts}{value} it acts as")
+    text = (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {_num(r.get('T_s'))} s: "
+            f"{r.get('why')}; the identification reports it as the {acts}{value} it acts as (identify file, "
+            "gm_reassigned)")
+    instead = exported_instead(sensor, bound, as_key)
+    return text + (f"; {instead}" if instead else "")
+
+
+def exported_instead(sensor: str, bound: Mapping | None, as_key: str) -> str:
+    """What the exported filter model (the contract's ``model``, the KF file's) carries where the identification
+    re-assigned a GM to the term `as_key` (``white`` / ``random_walk``): that term's exported value, and the
+    exported GM states, each named as the bound's own term (its LP chooses sigma and T to cover the
+    identification's upper envelope and the spec sheet together, so a GM in the KF file is not the re-assigned
+    one); "" when the contract states no exported model."""
+    m = (bound or {}).get("model")
+    if not isinstance(m, Mapping):
+        return ""
+    name = "white noise N" if as_key == "white" else "random walk K"
+    v = m.get(as_key)
+    parts = [f"the exported filter model (KF file) has {name} "
+             + (both_units(sensor, bound, as_key, v) if v else "none")]
+    gms = [g for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
+    if gms:
+        parts.append("and " + "; ".join(f"a GM of sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, "
+                                        f"T {_num(g.get('T'))} s" for g in gms)
+                     + ": the bound's own GM term" + ("s" if len(gms) > 1 else "")
+                     + " (chosen to cover the upper envelope and the spec sheet together), not this GM")
+    else:
+        parts.append("and no GM state")
+    return " ".join(parts)
 
 
 #: How the record-consistency table and FLAG name the parameters (the identify file's keys).
@@ -524,6 +601,70 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
         else:
             head = "- random walk: the data showed none (identification dropped it); the bound's K rests on the spec sheet alone"
         out.append(head + ("; the exported filter drops it (reduction above)" if dropped else ""))
+    return out
+
+
+def exported_state_lines(sensor: str, bound: Mapping, identify: Mapping | None = None) -> list[str]:
+    """The details' lines on the states of the exported filter model (the contract's ``model``, what the KF file
+    carries), each with what it stands for, beside the identification's components (which are what the bound must
+    cover, not states: a flicker has no Kalman-filter state and a GM the records do not resolve is re-assigned).
+
+    The GM states' sources, as far as the run files state them: a GM the identification kept (``selection.kept``),
+    its flicker (covered by GM terms over the band), the spec sheet's GM (the contract's ``spec``), the GM terms of
+    the identification's upper envelope (``upper_envelope``); a re-assigned GM is named as not one of them. The
+    white noise and random walk: the identification's when it kept them, else the upper envelope's limit or the
+    spec sheet's. [] when the contract states no exported model."""
+    m = bound.get("model")
+    if not isinstance(m, Mapping):
+        return []
+    identify = identify or {}
+    kept = list(_g(identify, "selection", "kept", default=None) or bound.get("states_kept_by_identification") or [])
+    spec = bound.get("spec") if isinstance(bound.get("spec"), Mapping) else {}
+    env = bound.get("upper_envelope") if isinstance(bound.get("upper_envelope"), Mapping) else {}
+    moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
+    n, gm, k, lines = _model_cells(sensor, bound, m)
+    out = [f"- states of the exported filter model (KF file): white noise N {n}; GM {gm}; random walk K {k}; "
+           f"line states {lines}"]
+
+    def source(comp, spec_has, env_has):
+        src = []
+        if comp in kept:
+            src.append("the identification kept it")
+        if spec_has:
+            src.append("the spec sheet has one")
+        if env_has:
+            src.append("the identification's upper envelope has one")
+        return src
+
+    if m.get("white"):
+        src = source("white", bool(spec.get("white")), bool(env.get("white")))
+        out.append(f"  - white noise: {'; '.join(src) or 'the bound (LP)'}")
+    gms = [g for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
+    if gms:
+        src = []
+        if "gauss_markov" in kept:
+            src.append("a GM the identification kept")
+        if "flicker" in kept:
+            src.append("the identified flicker (no Kalman-filter state: GM terms cover it over the band)")
+        if spec.get("gauss_markov"):
+            src.append("the spec sheet's GM")
+        if env.get("gauss_markov"):
+            src.append(f"the {len(env['gauss_markov'])} GM term(s) of the identification's upper envelope")
+        text = ("the bound's own term(s), sigma and T chosen by its LP to cover " + ", ".join(src)
+                if src else "the bound's own term(s), chosen by its LP")
+        if moved:
+            text += ("; not the GM the identification re-assigned (" + ", ".join(
+                f"T {_num(r.get('T_s'))} s, reported as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'}"
+                " it acts as" for r in moved) + ")")
+        out.append(f"  - GM: {text}")
+    elif "flicker" in kept or "gauss_markov" in kept:
+        out.append("  - no GM state: the bound covers the identified " + " and ".join(
+            c for c in ("gauss_markov", "flicker") if c in kept) + " with its white noise and random walk")
+    if m.get("random_walk"):
+        src = source("random_walk", bool(spec.get("random_walk")), bool(env.get("random_walk")))
+        if moved and any(r.get("acts_as") != "white" for r in moved):
+            src.append("a re-assigned GM acts as one")
+        out.append(f"  - random walk: {'; '.join(src) or 'the bound (LP)'}")
     return out
 
 
@@ -1094,7 +1235,8 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         lines += _export_lines({"sensor": sensor, **bound}, kept)
         lines += _bias_lines(bound)
         if kept is not None:
-            lines.append(f"- states kept: {', '.join(kept) if kept else 'none'}")
+            lines.append("- components the identification kept (identify file, selection: what the bound covers, not "
+                         f"the filter's states): {', '.join(kept) if kept else 'none'}")
             reasons = sel.get("reasons") or {}
             moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
             for comp in list(kept) + list(sel.get("dropped") or []):
@@ -1105,6 +1247,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                                                        for r in moved) + (f"; was: {was}" if was else ""))
                 mark = "kept" if comp in kept else "dropped"
                 lines.append(f"  - {comp} ({mark}): {why if why else '-'}")
+        lines += exported_state_lines(sensor, bound, identify)
         lines += _adequacy_table(identify)
         lines += _consistency_table(sensor, identify, bound)
         lines.append("")
@@ -1129,80 +1272,3 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                      f"{kalibr.get('rostopic')}.", ""]
     head += [f"## Checks: {n_fail} failed, {n_flag} flagged", "", *checks]
     return "\n".join(head).rstrip() + "\n", "\n".join(lines).rstrip() + "\n"
-
-
-def markdown_to_html(text: str, *, title: str = "imupipe") -> str:
-    """A self-contained HTML page of the small markdown subset the run files use (for the HTML report).
-
-    Handles ``#``/``##``/``###`` headings, ``|``-tables with a ``|---|`` separator line, ``-`` bullet lists
-    (two-space indented items nested), ``**bold**``, inline ``code`` and paragraphs; everything else is
-    escaped text. Lines starting with ``- FAIL`` / ``- FLAG`` get the classes ``fail`` / ``flag``.
-    """
-    import html
-    import re
-
-    def inline(s: str) -> str:
-        s = html.escape(s)
-        s = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", s)
-        return re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
-
-    out, lines, i = [], text.splitlines(), 0
-    para: list[str] = []
-
-    def flush():
-        if para:
-            out.append(f"<p>{inline(' '.join(para))}</p>")
-            para.clear()
-
-    while i < len(lines):
-        ln = lines[i]
-        m = re.match(r"^(#{1,3}) (.*)$", ln)
-        if m:
-            flush()
-            n = len(m.group(1))
-            out.append(f"<h{n}>{inline(m.group(2))}</h{n}>")
-            i += 1
-        elif ln.startswith("|") and i + 1 < len(lines) and re.match(r"^\|(\s*:?-+:?\s*\|)+\s*$", lines[i + 1]):
-            flush()
-            cells = [c.strip() for c in ln.strip().strip("|").split("|")]
-            rows = ["<tr>" + "".join(f"<th>{inline(c)}</th>" for c in cells) + "</tr>"]
-            i += 2
-            while i < len(lines) and lines[i].startswith("|"):
-                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
-                rows.append("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in cells) + "</tr>")
-                i += 1
-            out.append("<table>" + "".join(rows) + "</table>")
-        elif re.match(r"^\s*- ", ln):
-            flush()
-            items = []
-            while i < len(lines) and re.match(r"^\s*- ", lines[i]):
-                item = lines[i]
-                nested = item.startswith("  ")
-                body = item.strip()[2:]
-                cls = " class=\"fail\"" if body.startswith("FAIL") else " class=\"flag\"" if body.startswith("FLAG") else ""
-                items.append((nested, f"<li{cls}>{inline(body)}</li>"))
-                i += 1
-            html_items, open_nested = [], False
-            for nested, li in items:
-                if nested and not open_nested:
-                    html_items.append("<ul>")
-                    open_nested = True
-                if not nested and open_nested:
-                    html_items.append("</ul>")
-                    open_nested = False
-                html_items.append(li)
-            if open_nested:
-                html_items.append("</ul>")
-            out.append("<ul>" + "".join(html_items) + "</ul>")
-        elif not ln.strip():
-            flush()
-            i += 1
-        else:
-            para.append(ln.strip())
-            i += 1
-    flush()
-    style = ("body{font-family:sans-serif;max-width:60em;margin:1em auto}table{border-collapse:collapse}"
-             "td,th{border:1px solid #999;padding:2px 8px;text-align:right}th{background:#eee}"
-             "td:first-child,th:first-child{text-align:left}.fail{color:#b00;font-weight:bold}.flag{color:#a60}")
-    return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")
