@@ -555,6 +555,16 @@ def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:
     return best
 
 
+def _sum_sq_diff(x, a: int, b: int) -> float:
+    """sum_{k=a}^{b-1} (x[k+1] - x[k])^2 (u^2), in batches of :data:`EVENTS_BATCH` pairs: no record-length array."""
+    total = 0.0
+    for lo in range(a, b, EVENTS_BATCH):
+        hi = min(b, lo + EVENTS_BATCH)
+        d = np.diff(x[lo:hi + 1])
+        total += float(np.dot(d, d))
+    return total
+
+
 def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str | None = None) -> dict:
     r"""What one event kept in the data (``events.policy: warn``) does to the noise model's parameters.
 
@@ -579,14 +589,16 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
     n, rate_hz = x.size, float(rate_hz)
     kind = event.get("kind")
     if kind == "burst":
-        d2 = np.diff(x) ** 2
         i0 = max(0, int(event["index"]) - int(guard))
         i1 = min(n, int(event.get("stop_index", event["index"])) + int(guard))
-        keep = np.ones(d2.size, dtype=bool)
-        keep[max(0, i0 - 1):max(0, i1)] = False  # pair k = (x_k, x_k+1) touches the span when i0 - 1 <= k < i1
-        if not keep.any():
+        # pair k = (x_k, x_k+1) touches the span when i0 - 1 <= k < i1; sums in batches (no record-length copy)
+        a, b = max(0, i0 - 1), min(max(0, i1), n - 1)
+        n_kept = (n - 1) - max(0, b - a)
+        if n < 2 or n_kept <= 0:
             return {"kind": kind}
-        ratio = float(np.sqrt(d2.mean() / d2[keep].mean())) if d2[keep].mean() > 0 else float("inf")
+        total, span = _sum_sq_diff(x, 0, n - 1), _sum_sq_diff(x, a, b)
+        rest = max(total - span, 0.0)
+        ratio = float(np.sqrt((total / (n - 1)) / (rest / n_kept))) if rest > 0 else float("inf")
         return {"kind": kind, "white_noise_ratio": ratio, "tau_s": 1.0 / rate_hz}
     T = n / rate_hz
     k = abs(float(event["size"])) * (np.sqrt(2.0 / T) if kind == "transient" else 1.0 / np.sqrt(T))
