@@ -175,17 +175,92 @@ def random_walk_cap(curves, confidence: float = 0.95) -> float:
     float
         K cap, u/sqrt(s); inf when no curve has a finite point.
     """
+    caps = [float(np.min(np.sqrt(3.0 * upper / tau))) for tau, upper in _upper_avar_limits(curves, confidence)]
+    return max(caps) if caps else math.inf
+
+
+def _upper_avar_limits(curves, confidence: float) -> list:
+    r"""Per curve the taus (s) and the upper confidence limits (u^2) of its Allan variances, at family-wise level
+    `confidence` over the curve's M finite taus (Bonferroni: each point at :math:`\alpha' = (1 - c)/M`):
+    :math:`\hat\sigma^2 \nu / \chi^2_\nu(\alpha')`, :math:`\chi^2_\nu(\alpha')` the chi-squared quantile of
+    probability :math:`\alpha'` with :math:`\nu` the point's equivalent degrees of freedom. Curves without a finite
+    point are left out. The one rule of :func:`random_walk_cap` and :func:`gm_sigma_cap`."""
     from scipy.special import chdtri
 
-    caps = []
+    out = []
     for tau, avar, edf in curves:
         tau, avar, edf = (np.asarray(a, dtype=float) for a in (tau, avar, edf))
         ok = np.isfinite(tau) & np.isfinite(avar) & np.isfinite(edf) & (tau > 0) & (avar > 0) & (edf > 0)
         if not ok.any():
             continue
         a = (1.0 - confidence) / int(ok.sum())
-        upper = avar[ok] * edf[ok] / chdtri(edf[ok], 1.0 - a)  # chi2 quantile at probability a
-        caps.append(float(np.min(np.sqrt(3.0 * upper / tau[ok]))))
+        out.append((tau[ok], avar[ok] * edf[ok] / chdtri(edf[ok], 1.0 - a)))  # chi2 quantile at probability a
+    return out
+
+
+def gm_sigma_cap(curves, T_lo: float, T_hi: float | None = None, confidence: float = 0.95) -> float:
+    r"""The largest Gauss-Markov sigma (u) the recorded Allan variances allow for a time constant in
+    [`T_lo`, `T_hi`] (s): the GM counterpart of :func:`random_walk_cap`.
+
+    A first-order GM (sigma, T) alone has the Allan variance :math:`\sigma^2 g(\tau, T)`,
+    :math:`g(\tau, T) = (2T/\tau)[1 - (T/2\tau)(3 - 4e^{-\tau/T} + e^{-2\tau/T})]` (:func:`imupipe.models.gm_avar`
+    with sigma = 1), and every other component adds to it. A curve whose AV at :math:`\tau` has the upper
+    confidence limit :math:`U(\tau) = \hat\sigma^2\nu/\chi^2_\nu(\alpha')` therefore excludes every
+    :math:`\sigma^2 > U(\tau)/g(\tau, T)`; over its taus
+
+    .. math::
+
+        \sigma_{max}(T)^2 = \min_\tau U(\tau) / g(\tau, T).
+
+    For a range :math:`T \in [T_1, T_2]` the cap is :math:`\sup_{T}\sigma_{max}(T)`, bounded from above in closed
+    form: :math:`g(\tau, T) = h(\tau/T)` with :math:`h` unimodal (it rises like :math:`2x/3`, peaks at
+    :math:`x = 1.893` and falls like :math:`2/x`), so :math:`g(\tau, T) \ge \min(g(\tau, T_1), g(\tau, T_2))` on
+    the range and
+
+    .. math::
+
+        \sup_{T_1 \le T \le T_2} \sigma_{max}(T)^2 \le \min_\tau U(\tau) / \min(g(\tau, T_1), g(\tau, T_2)),
+
+    the value returned (a cap that is, if anything, too high: it never removes a sigma the data allow).
+
+    **Confidence.** :math:`\alpha' = (1 - c)/M` over the M taus of each curve (Bonferroni), so each curve's upper
+    limits hold at every tau at once with probability at least `confidence`; on that one event every GM of the
+    truth, at every T, has :math:`\sigma \le \sigma_{max}(T)` (its AV is part of the total): the cap holds
+    simultaneously for every T, every GM term and the random walk of :func:`random_walk_cap` at the same level
+    (family-wise over the taus; no further correction over T or terms is needed). Over several curves (the
+    envelope must cover each) the largest per-curve cap, each at level `confidence`, as in
+    :func:`random_walk_cap`. Like it a model-free limit: it holds however badly a model fits.
+
+    Parameters
+    ----------
+    curves : sequence of (tau, avar, edf)
+        Averaging times (s), Allan variances (u^2) and their equivalent degrees of freedom, per curve.
+    T_lo : float
+        Time constant (s), > 0; alone: the cap at that T.
+    T_hi : float, optional
+        Upper end of the T range (s), >= `T_lo`; default `T_lo`. ``inf`` gives ``inf`` (a GM with T -> inf and
+        :math:`\sigma^2 \propto T` has a vanishing AV at every recorded tau: nothing is excluded).
+    confidence : float, optional
+        Family-wise level of each curve's upper limits. Default 0.95.
+
+    Returns
+    -------
+    float
+        sigma cap, u; inf when no curve has a finite point.
+    """
+    from imupipe.models import gm_avar
+
+    T_lo = float(T_lo)
+    T_hi = T_lo if T_hi is None else float(T_hi)
+    if not (T_lo > 0 and math.isfinite(T_lo) and T_hi >= T_lo):
+        raise ValueError(f"gm_sigma_cap: need 0 < T_lo <= T_hi (s), got T_lo={T_lo!r}, T_hi={T_hi!r}")
+    if not math.isfinite(T_hi):
+        return math.inf
+    caps = []
+    for tau, upper in _upper_avar_limits(curves, confidence):
+        g = np.minimum(gm_avar(tau, 1.0, T_lo), gm_avar(tau, 1.0, T_hi))
+        with np.errstate(divide="ignore"):
+            caps.append(float(np.sqrt(np.min(np.where(g > 0, upper / g, np.inf)))))
     return max(caps) if caps else math.inf
 
 
@@ -321,8 +396,75 @@ def split_gm_box(sigma_up: float, a: float, c: float, max_ratio: float = BOX_SPL
     return tuple((s * r**0.25, a * r ** (j + 0.5)) for j in range(k))
 
 
+def cap_gm_terms(terms, sigma_up: float, a: float, c: float, upper_open: bool, gm_cap, estimate=None,
+                 record: list | None = None) -> tuple:
+    r"""The GM terms of :func:`split_gm_box` over the box :math:`\sigma \le \sigma_{up}`, :math:`T \in [a, c]`
+    (s), each reduced to cover its sub-box only at the sigma the recorded Allan variances allow there.
+
+    Term j (:math:`T_j = a r^{j+1/2}`, sub-box :math:`[T_j/\sqrt r, T_j\sqrt r]`) dominates every GM of its
+    sub-box with :math:`\sigma \le \sigma_{eff}` when :math:`\sigma_j^2 = \sigma_{eff}^2\sqrt r` (the closed-box
+    rule of :func:`gm_box_envelope`). With the cap :math:`C(T_1, T_2)` of `gm_cap` (:func:`gm_sigma_cap`: on the
+    event that the recorded AV upper limits hold, no GM of the truth with T in the sub-box has a larger sigma):
+    :math:`\sigma_{eff} = \min(\sigma_{up}, C(T_1, T_2))`, and at least the fit's `estimate` sigma in the sub-box
+    that holds its T (the envelope stays above the fitted model).
+
+    **Open upper end.** The top term also covers every T' > c for :math:`\omega \ge 1/c` (:func:`gm_box_envelope`).
+    Its cap extends there: :math:`T\,g(\tau, T)` is non-decreasing in T (the AV is a positive-kernel integral of
+    the PSD, and :math:`T \cdot 2T/(1 + \omega^2T^2)` increases with T at every :math:`\omega`), so
+    :math:`\sigma_{max}(T')^2 \le (T'/c)\,\sigma_{max}(c)^2` and such a GM's PSD is at most
+    :math:`2T'\sigma_{max}(T')^2/(\omega^2T'^2) \le 2\sigma_{max}(c)^2/(c\,\omega^2)`; a GM
+    :math:`(\sqrt 2\,\sigma_{max}(c), c)` is above that for :math:`\omega c \ge 1`. The top term's
+    :math:`\sigma_{eff}^2 = \min(\sigma_{up}^2, \max(C(T_1, c)^2, 2\sigma_{max}(c)^2))`.
+
+    Parameters
+    ----------
+    terms : sequence of (sigma u, T s)
+        :func:`split_gm_box` (`sigma_up`, `a`, `c`), by increasing T.
+    sigma_up : float
+        The box's sigma (u).
+    a, c : float
+        The box's ends (s), as closed by :func:`gm_box_envelope`.
+    upper_open : bool
+        Whether the box stands for a T interval open above.
+    gm_cap : callable
+        ``gm_cap(T_lo_s, T_hi_s)`` -> sigma (u); ``gm_cap(T, T)`` the pointwise cap.
+    estimate : tuple of (sigma u, T s), optional
+        The fit's GM estimate.
+    record : list, optional
+        One dict per term is appended: ``T_range_s``, ``sigma_box``, ``sigma_cap``, ``sigma_used`` (u).
+
+    Returns
+    -------
+    tuple of (sigma u, T s)
+    """
+    k = len(terms)
+    if k == 0:
+        return tuple(terms)
+    r = (float(c) / float(a)) ** (1.0 / k)
+    s_up = float(sigma_up)
+    sig_hat, T_hat = estimate if estimate is not None else (0.0, float("nan"))
+    out = []
+    for j, (_, T_j) in enumerate(terms):
+        lo, hi = T_j / math.sqrt(r), T_j * math.sqrt(r)
+        cap = float(gm_cap(lo, hi))
+        top_open = upper_open and j == k - 1
+        if top_open:
+            cap = max(cap, math.sqrt(2.0) * float(gm_cap(hi, hi)))
+        eff = min(s_up, cap)
+        holds_estimate = lo * (1 - 1e-12) <= T_hat and (top_open or T_hat <= hi * (1 + 1e-12))
+        if holds_estimate:
+            eff = max(eff, min(s_up, float(sig_hat)))
+        out.append((eff * r**0.25, T_j))
+        if record is not None:
+            record.append({"T_range_s": [float(lo), float("inf") if top_open else float(hi)],
+                           "sigma_box": s_up, "sigma_cap": cap, "sigma_used": eff,
+                           "term": {"sigma": eff * r**0.25, "T": float(T_j)}})
+    return tuple(out)
+
+
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
-                   span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO):
+                   span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO, gm_cap=None,
+                   cap_record: list | None = None):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -367,6 +509,13 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
         the longest T searched.
     max_box_ratio : float, optional
         Largest T_hi/T_lo of one envelope GM term (:func:`split_gm_box`). Default :data:`BOX_SPLIT_RATIO` (10).
+    gm_cap : callable, optional
+        ``gm_cap(T_lo_s, T_hi_s)``: the largest GM sigma (u) the recorded Allan variances allow for a T in the
+        range (:func:`gm_sigma_cap` of the curves). Each GM term of a box then covers its sub-box at
+        :math:`\min(\sigma_{up}, \text{cap})` instead of :math:`\sigma_{up}` (:func:`cap_gm_terms`, never below
+        the fit's estimate in the sub-box that holds it). Default: no cap.
+    cap_record : list, optional
+        With `gm_cap`: one dict per GM term is appended (its T range s, the box's sigma, the cap, the sigma used, u).
 
     Returns
     -------
@@ -407,10 +556,17 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 T_lo, T_hi = (float(v) for v in iv.get(f"gm_T_{i}", (float("nan"), float("nan"))))
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
-                a, c, w, _, _ = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
+                a, c, w, _, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
                 # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
                 # over a box of several decades is far above every GM of it in between
-                gm.extend(split_gm_box(s, a, c, max_box_ratio))
+                terms = split_gm_box(s, a, c, max_box_ratio)
+                if gm_cap is not None:
+                    # each term at most what the recorded Allan variances allow over its sub-box (docs/method.md,
+                    # section "The upper envelope")
+                    terms = cap_gm_terms(terms, s, a, c, upper_open, gm_cap,
+                                         estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
+                                         record=cap_record)
+                gm.extend(terms)
                 white_add += w * s * s
             i += 1
     k = up("random_walk")
