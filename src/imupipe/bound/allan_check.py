@@ -462,6 +462,121 @@ def cap_gm_terms(terms, sigma_up: float, a: float, c: float, upper_open: bool, g
     return tuple(out)
 
 
+#: Time constants per decade of the GM bank of :func:`gm_bank_envelope`, and frequency nodes per decade of its LP.
+BANK_PER_DECADE, BANK_NODES_PER_DECADE = 2, 40
+
+
+def gm_bank_envelope(sigma_up: float, a: float, c: float, lower_open: bool, upper_open: bool, gm_cap=None,
+                     estimate=None, f_min_hz: float | None = None, fine_ratio: float = 1.05) -> tuple:
+    r"""A bank of GM terms whose summed PSD lies above every GM the data allow in a box left open by the data:
+    :math:`\sigma \le \sigma(T') = \min(\sigma_{up}, \sigma_{max}(T'))`, :math:`T' \in [a, c]` (s), and beyond an
+    open end as :func:`gm_box_envelope` covers it; the weights by a linear programme, not by sub-box over-cover.
+
+    **Target.** :math:`F(\omega)` (two-sided PSD, u^2/Hz, :math:`\omega = 2\pi f`), an upper bound of the
+    supremum over the allowed GMs: [a, c] split into fine sub-boxes :math:`[T_1, T_2]` of ratio <= `fine_ratio`,
+    each at :math:`\sigma_k = \min(\sigma_{up}, C(T_1, T_2))` (:func:`gm_sigma_cap`'s range bound via `gm_cap`;
+    :math:`\sigma_{up}` without it), whose supremum is :math:`2\sigma_k^2 t/(1 + \omega^2 t^2)`,
+    :math:`t = \mathrm{clip}(1/\omega, T_1, T_2)` (the GM's PSD is increasing in T below :math:`T = 1/\omega`,
+    decreasing above); with an open lower end also the GM :math:`(\sigma_{up}, a)` (the white noise
+    :math:`\kappa\sigma_{up}^2 a` the caller adds covers the rest of every shorter T, :func:`gm_box_envelope`);
+    with an open upper end, for :math:`\omega \ge 2\pi f_{min}` (:math:`\ge 1/c`), every T' > c:
+    :math:`\min(2\sigma_{up}^2 c/(1 + \omega^2c^2), 2\sigma_{max}(c)^2/(c\omega^2))` (:func:`cap_gm_terms`); the
+    fit's `estimate` GM at every frequency.
+
+    **Bank.** Terms at :data:`BANK_PER_DECADE` time constants per decade over [a, c], weights
+    :math:`w_j = \sigma_j^2 \ge 0` minimising the summed relative overshoot over the nodes. Both the bank's PSD
+    :math:`S_b` and F decrease with :math:`\omega`, so on nodes :math:`\omega_0 < \dots < \omega_N`
+    (:data:`BANK_NODES_PER_DECADE` per decade) the constraints :math:`S_b(\omega_{i+1}) \ge F(\omega_i)` give
+    :math:`S_b \ge F` on every :math:`[\omega_i, \omega_{i+1}]` exactly; below :math:`\omega_0`
+    :math:`S_b(\omega_0) \ge \sup F` (closed part: :math:`F(0)`); above :math:`\omega_N`,
+    :math:`\omega^2 S_b(\omega)` is increasing and :math:`\omega^2 F(\omega) \le \max 2\sigma^2/T`, so
+    :math:`\omega_N^2 S_b(\omega_N) \ge \max 2\sigma^2/T` ends it. After the LP the constraints are evaluated again
+    and the weights scaled up by any shortfall (the LP's tolerance), so the bank dominates F at every
+    :math:`\omega` (open upper end: the tail from :math:`f_{min}` on, as before).
+
+    An equal-weight bank of ratio :math:`\rho` over a flat :math:`\sigma` needs only
+    :math:`w \approx \sigma^2 \ln\rho/\pi` (its sum is :math:`w\pi/(\omega\ln\rho)` against the supremum
+    :math:`\sigma^2/\omega`), where the sub-box rule of :func:`split_gm_box` gives :math:`\sigma^2\sqrt r` per term.
+
+    Parameters
+    ----------
+    sigma_up : float
+        The box's sigma (u).
+    a, c : float
+        The box's ends (s), closed as :func:`gm_box_envelope` closes an open end.
+    lower_open, upper_open : bool
+        Whether the T interval was open below / above.
+    gm_cap : callable, optional
+        ``gm_cap(T_lo_s, T_hi_s)`` -> sigma (u) (:func:`gm_sigma_cap` of the curves). Default: no cap.
+    estimate : tuple of (sigma u, T s), optional
+        The fit's GM, dominated at every frequency.
+    f_min_hz : float, optional
+        Lowest frequency (Hz) from which on an open upper end is covered: 1/h (h the horizon). Default 1/(2 pi c).
+    fine_ratio : float, optional
+        Largest T ratio of the target's fine sub-boxes. Default 1.05.
+
+    Returns
+    -------
+    tuple of (sigma u, T s)
+        The bank's terms of non-zero weight, by increasing T.
+    """
+    from scipy.optimize import linprog
+
+    s_up, a, c = float(sigma_up), float(a), float(c)
+    c = max(c, a)
+    cap = gm_cap if gm_cap is not None else (lambda lo, hi: math.inf)
+    n_f = max(1, math.ceil(math.log(c / a) / math.log(fine_ratio) - 1e-12)) if c > a else 1
+    edges = a * (c / a) ** (np.arange(n_f + 1) / n_f) if c > a else np.array([a, a])
+    t1, t2 = edges[:-1], edges[1:]
+    sig2 = np.array([min(s_up, float(cap(lo, hi))) ** 2 for lo, hi in zip(t1, t2)])
+    w_h = 2.0 * math.pi * float(f_min_hz) if f_min_hz is not None else 1.0 / c
+    w_h = max(w_h, 1.0 / c)
+    s_tail2 = min(s_up, float(cap(c, c))) ** 2 if upper_open else 0.0
+    sig_hat, T_hat = estimate if estimate is not None else (0.0, a)
+
+    def target(w):
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        t = np.clip(1.0 / w[:, None], t1[None, :], t2[None, :])
+        out = np.max(2.0 * sig2[None, :] * t / (1.0 + (w[:, None] * t) ** 2), axis=1)
+        if lower_open:
+            out = np.maximum(out, 2.0 * s_up**2 * a / (1.0 + (w * a) ** 2))
+        out = np.maximum(out, 2.0 * sig_hat**2 * T_hat / (1.0 + (w * T_hat) ** 2))
+        if upper_open:
+            tail = np.minimum(2.0 * s_up**2 * c / (1.0 + (w * c) ** 2), 2.0 * s_tail2 / (c * w**2))
+            out = np.maximum(out, np.where(w >= w_h * (1 - 1e-12), tail, 0.0))
+        return out
+
+    q = 10.0 ** (1.0 / BANK_NODES_PER_DECADE)
+    lo_w, hi_w = min(w_h, 0.1 / c), 10.0 / a
+    i0, i1 = math.ceil(math.log(w_h / lo_w) / math.log(q)), math.ceil(math.log(hi_w / w_h) / math.log(q))
+    nodes = w_h * q ** np.arange(-i0, i1 + 1)  # w_h itself a node: the tail starts there
+    n_T = max(2, math.ceil(BANK_PER_DECADE * math.log10(c / a)) + 1) if c > a else 1
+    T = a * (c / a) ** (np.arange(n_T) / max(n_T - 1, 1)) if c > a else np.array([a])
+
+    def bank(w, Tj):
+        return 2.0 * Tj[None, :] / (1.0 + (w[:, None] * Tj[None, :]) ** 2)
+
+    F = target(nodes)
+    # rows: S_b(w_{i+1}) >= F(w_i); S_b(w_0) >= F(0) (closed part, the estimate, the open lower end's GM);
+    # w_N^2 S_b(w_N) >= sup w^2 F
+    f0 = max(float(np.max(2.0 * sig2 * t2)), 2.0 * sig_hat**2 * T_hat, 2.0 * s_up**2 * a if lower_open else 0.0)
+    top = max(float(np.max(2.0 * sig2 / t1)), 2.0 * sig_hat**2 / T_hat if sig_hat > 0 else 0.0,
+              2.0 * s_up**2 / a if lower_open else 0.0, 2.0 * min(s_up**2, s_tail2) / c if upper_open else 0.0)
+    A = np.vstack([bank(nodes[1:], T) / F[:-1, None], bank(nodes[:1], T) / f0,
+                   nodes[-1] ** 2 * bank(nodes[-1:], T) / top])
+    scale = s_up**2
+    cost = np.sum(bank(nodes, T) / F[:, None], axis=0)
+    res = linprog(cost, A_ub=-A * scale, b_ub=-np.ones(A.shape[0]), bounds=(0, None), method="highs")
+    if res.status != 0:
+        raise RuntimeError(f"gm_bank_envelope: the bank's linear programme failed ({res.message})")
+    w = np.maximum(res.x, 0.0) * scale
+    short = float(np.min(A @ w))  # >= 1 - the LP's tolerance; scale up by any shortfall
+    if short < 1.0:
+        w = w / short * (1.0 + 1e-12)
+    keep = w > 1e-12 * float(np.max(w))
+    return tuple((math.sqrt(float(v)), float(t)) for v, t in zip(w[keep], T[keep]))
+
+
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
                    span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO, gm_cap=None,
                    cap_record: list | None = None):
@@ -556,11 +671,23 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 T_lo, T_hi = (float(v) for v in iv.get(f"gm_T_{i}", (float("nan"), float("nan"))))
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
-                a, c, w, _, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
+                a, c, w, lower_open, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
                 # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
                 # over a box of several decades is far above every GM of it in between
                 terms = split_gm_box(s, a, c, max_box_ratio)
-                if gm_cap is not None:
+                if gm_cap is not None and (lower_open or upper_open):
+                    # a box the data leave open: a bank whose weights a linear programme sets against every GM the
+                    # recorded Allan variances allow in it (docs/method.md, section "The upper envelope")
+                    terms = gm_bank_envelope(s, a, c, lower_open, upper_open, gm_cap,
+                                             estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
+                                             f_min_hz=1.0 / float(span_s) if span_s else None)
+                    if cap_record is not None:
+                        cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
+                                           "sigma_box": s,
+                                           "sigma_cap": min(float(gm_cap(t, t)) for _, t in terms),
+                                           "sigma_used": min(s, min(float(gm_cap(t, t)) for _, t in terms)),
+                                           "bank": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
+                elif gm_cap is not None:
                     # each term at most what the recorded Allan variances allow over its sub-box (docs/method.md,
                     # section "The upper envelope")
                     terms = cap_gm_terms(terms, s, a, c, upper_open, gm_cap,

@@ -170,18 +170,25 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
 def gm_cap_record(selected) -> list:
     """What the GM cap (:func:`imupipe.bound.allan_check.gm_sigma_cap`) did to each GM term of the envelope of
     `selected` (and of its fit before a re-assignment, whose box the envelope keeps where the T interval is open
-    above): T range (s, None for an open end), the box's sigma, the cap and the sigma used (u)."""
+    above): T range (s, None for an open end), the box's sigma, the cap and the sigma used (u); for a box the data
+    leave open, the bank of :func:`imupipe.bound.allan_check.gm_bank_envelope` (``bank``: sigma u, T s)."""
     out, seen = [], set()
     for f in (selected, getattr(selected, "envelope_fit", None)):
         if f is None or id(f) in seen:
             continue
         seen.add(id(f))
         for r in getattr(f, "gm_cap_record", None) or []:
-            out.append({"T_range_s": [float(r["T_range_s"][0]),
-                                      float(r["T_range_s"][1]) if math.isfinite(r["T_range_s"][1]) else None],
-                        **{k: (float(r[k]) if math.isfinite(r[k]) else None)
-                           for k in ("sigma_box", "sigma_cap", "sigma_used")},
-                        "capped": bool(r["sigma_used"] < r["sigma_box"])})
+            e = {"T_range_s": [float(r["T_range_s"][0]),
+                               float(r["T_range_s"][1]) if math.isfinite(r["T_range_s"][1]) else None],
+                 **{k: (float(r[k]) if math.isfinite(r[k]) else None)
+                    for k in ("sigma_box", "sigma_cap", "sigma_used")},
+                 "capped": bool(r["sigma_used"] < r["sigma_box"])}
+            if "bank" in r:
+                e["bank"] = r["bank"]
+                e["note"] = ("T interval open: a bank of GM terms above every GM (min(sigma_box, sigma_max(T)), T) "
+                             "of the box, weights by a linear programme; sigma_cap the least pointwise cap at the "
+                             "bank's T")
+            out.append(e)
     return out
 
 
