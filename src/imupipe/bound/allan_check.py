@@ -175,17 +175,92 @@ def random_walk_cap(curves, confidence: float = 0.95) -> float:
     float
         K cap, u/sqrt(s); inf when no curve has a finite point.
     """
+    caps = [float(np.min(np.sqrt(3.0 * upper / tau))) for tau, upper in _upper_avar_limits(curves, confidence)]
+    return max(caps) if caps else math.inf
+
+
+def _upper_avar_limits(curves, confidence: float) -> list:
+    r"""Per curve the taus (s) and the upper confidence limits (u^2) of its Allan variances, at family-wise level
+    `confidence` over the curve's M finite taus (Bonferroni: each point at :math:`\alpha' = (1 - c)/M`):
+    :math:`\hat\sigma^2 \nu / \chi^2_\nu(\alpha')`, :math:`\chi^2_\nu(\alpha')` the chi-squared quantile of
+    probability :math:`\alpha'` with :math:`\nu` the point's equivalent degrees of freedom. Curves without a finite
+    point are left out. The one rule of :func:`random_walk_cap` and :func:`gm_sigma_cap`."""
     from scipy.special import chdtri
 
-    caps = []
+    out = []
     for tau, avar, edf in curves:
         tau, avar, edf = (np.asarray(a, dtype=float) for a in (tau, avar, edf))
         ok = np.isfinite(tau) & np.isfinite(avar) & np.isfinite(edf) & (tau > 0) & (avar > 0) & (edf > 0)
         if not ok.any():
             continue
         a = (1.0 - confidence) / int(ok.sum())
-        upper = avar[ok] * edf[ok] / chdtri(edf[ok], 1.0 - a)  # chi2 quantile at probability a
-        caps.append(float(np.min(np.sqrt(3.0 * upper / tau[ok]))))
+        out.append((tau[ok], avar[ok] * edf[ok] / chdtri(edf[ok], 1.0 - a)))  # chi2 quantile at probability a
+    return out
+
+
+def gm_sigma_cap(curves, T_lo: float, T_hi: float | None = None, confidence: float = 0.95) -> float:
+    r"""The largest Gauss-Markov sigma (u) the recorded Allan variances allow for a time constant in
+    [`T_lo`, `T_hi`] (s): the GM counterpart of :func:`random_walk_cap`.
+
+    A first-order GM (sigma, T) alone has the Allan variance :math:`\sigma^2 g(\tau, T)`,
+    :math:`g(\tau, T) = (2T/\tau)[1 - (T/2\tau)(3 - 4e^{-\tau/T} + e^{-2\tau/T})]` (:func:`imupipe.models.gm_avar`
+    with sigma = 1), and every other component adds to it. A curve whose AV at :math:`\tau` has the upper
+    confidence limit :math:`U(\tau) = \hat\sigma^2\nu/\chi^2_\nu(\alpha')` therefore excludes every
+    :math:`\sigma^2 > U(\tau)/g(\tau, T)`; over its taus
+
+    .. math::
+
+        \sigma_{max}(T)^2 = \min_\tau U(\tau) / g(\tau, T).
+
+    For a range :math:`T \in [T_1, T_2]` the cap is :math:`\sup_{T}\sigma_{max}(T)`, bounded from above in closed
+    form: :math:`g(\tau, T) = h(\tau/T)` with :math:`h` unimodal (it rises like :math:`2x/3`, peaks at
+    :math:`x = 1.893` and falls like :math:`2/x`), so :math:`g(\tau, T) \ge \min(g(\tau, T_1), g(\tau, T_2))` on
+    the range and
+
+    .. math::
+
+        \sup_{T_1 \le T \le T_2} \sigma_{max}(T)^2 \le \min_\tau U(\tau) / \min(g(\tau, T_1), g(\tau, T_2)),
+
+    the value returned (a cap that is, if anything, too high: it never removes a sigma the data allow).
+
+    **Confidence.** :math:`\alpha' = (1 - c)/M` over the M taus of each curve (Bonferroni), so each curve's upper
+    limits hold at every tau at once with probability at least `confidence`; on that one event every GM of the
+    truth, at every T, has :math:`\sigma \le \sigma_{max}(T)` (its AV is part of the total): the cap holds
+    simultaneously for every T, every GM term and the random walk of :func:`random_walk_cap` at the same level
+    (family-wise over the taus; no further correction over T or terms is needed). Over several curves (the
+    envelope must cover each) the largest per-curve cap, each at level `confidence`, as in
+    :func:`random_walk_cap`. Like it a model-free limit: it holds however badly a model fits.
+
+    Parameters
+    ----------
+    curves : sequence of (tau, avar, edf)
+        Averaging times (s), Allan variances (u^2) and their equivalent degrees of freedom, per curve.
+    T_lo : float
+        Time constant (s), > 0; alone: the cap at that T.
+    T_hi : float, optional
+        Upper end of the T range (s), >= `T_lo`; default `T_lo`. ``inf`` gives ``inf`` (a GM with T -> inf and
+        :math:`\sigma^2 \propto T` has a vanishing AV at every recorded tau: nothing is excluded).
+    confidence : float, optional
+        Family-wise level of each curve's upper limits. Default 0.95.
+
+    Returns
+    -------
+    float
+        sigma cap, u; inf when no curve has a finite point.
+    """
+    from imupipe.models import gm_avar
+
+    T_lo = float(T_lo)
+    T_hi = T_lo if T_hi is None else float(T_hi)
+    if not (T_lo > 0 and math.isfinite(T_lo) and T_hi >= T_lo):
+        raise ValueError(f"gm_sigma_cap: need 0 < T_lo <= T_hi (s), got T_lo={T_lo!r}, T_hi={T_hi!r}")
+    if not math.isfinite(T_hi):
+        return math.inf
+    caps = []
+    for tau, upper in _upper_avar_limits(curves, confidence):
+        g = np.minimum(gm_avar(tau, 1.0, T_lo), gm_avar(tau, 1.0, T_hi))
+        with np.errstate(divide="ignore"):
+            caps.append(float(np.sqrt(np.min(np.where(g > 0, upper / g, np.inf)))))
     return max(caps) if caps else math.inf
 
 
@@ -321,8 +396,190 @@ def split_gm_box(sigma_up: float, a: float, c: float, max_ratio: float = BOX_SPL
     return tuple((s * r**0.25, a * r ** (j + 0.5)) for j in range(k))
 
 
+def cap_gm_terms(terms, sigma_up: float, a: float, c: float, upper_open: bool, gm_cap, estimate=None,
+                 record: list | None = None) -> tuple:
+    r"""The GM terms of :func:`split_gm_box` over the box :math:`\sigma \le \sigma_{up}`, :math:`T \in [a, c]`
+    (s), each reduced to cover its sub-box only at the sigma the recorded Allan variances allow there.
+
+    Term j (:math:`T_j = a r^{j+1/2}`, sub-box :math:`[T_j/\sqrt r, T_j\sqrt r]`) dominates every GM of its
+    sub-box with :math:`\sigma \le \sigma_{eff}` when :math:`\sigma_j^2 = \sigma_{eff}^2\sqrt r` (the closed-box
+    rule of :func:`gm_box_envelope`). With the cap :math:`C(T_1, T_2)` of `gm_cap` (:func:`gm_sigma_cap`: on the
+    event that the recorded AV upper limits hold, no GM of the truth with T in the sub-box has a larger sigma):
+    :math:`\sigma_{eff} = \min(\sigma_{up}, C(T_1, T_2))`, and at least the fit's `estimate` sigma in the sub-box
+    that holds its T (the envelope stays above the fitted model).
+
+    **Open upper end.** The top term also covers every T' > c for :math:`\omega \ge 1/c` (:func:`gm_box_envelope`).
+    Its cap extends there: :math:`T\,g(\tau, T)` is non-decreasing in T (the AV is a positive-kernel integral of
+    the PSD, and :math:`T \cdot 2T/(1 + \omega^2T^2)` increases with T at every :math:`\omega`), so
+    :math:`\sigma_{max}(T')^2 \le (T'/c)\,\sigma_{max}(c)^2` and such a GM's PSD is at most
+    :math:`2T'\sigma_{max}(T')^2/(\omega^2T'^2) \le 2\sigma_{max}(c)^2/(c\,\omega^2)`; a GM
+    :math:`(\sqrt 2\,\sigma_{max}(c), c)` is above that for :math:`\omega c \ge 1`. The top term's
+    :math:`\sigma_{eff}^2 = \min(\sigma_{up}^2, \max(C(T_1, c)^2, 2\sigma_{max}(c)^2))`.
+
+    Parameters
+    ----------
+    terms : sequence of (sigma u, T s)
+        :func:`split_gm_box` (`sigma_up`, `a`, `c`), by increasing T.
+    sigma_up : float
+        The box's sigma (u).
+    a, c : float
+        The box's ends (s), as closed by :func:`gm_box_envelope`.
+    upper_open : bool
+        Whether the box stands for a T interval open above.
+    gm_cap : callable
+        ``gm_cap(T_lo_s, T_hi_s)`` -> sigma (u); ``gm_cap(T, T)`` the pointwise cap.
+    estimate : tuple of (sigma u, T s), optional
+        The fit's GM estimate.
+    record : list, optional
+        One dict per term is appended: ``T_range_s``, ``sigma_box``, ``sigma_cap``, ``sigma_used`` (u).
+
+    Returns
+    -------
+    tuple of (sigma u, T s)
+    """
+    k = len(terms)
+    if k == 0:
+        return tuple(terms)
+    r = (float(c) / float(a)) ** (1.0 / k)
+    s_up = float(sigma_up)
+    sig_hat, T_hat = estimate if estimate is not None else (0.0, float("nan"))
+    out = []
+    for j, (_, T_j) in enumerate(terms):
+        lo, hi = T_j / math.sqrt(r), T_j * math.sqrt(r)
+        cap = float(gm_cap(lo, hi))
+        top_open = upper_open and j == k - 1
+        if top_open:
+            cap = max(cap, math.sqrt(2.0) * float(gm_cap(hi, hi)))
+        eff = min(s_up, cap)
+        holds_estimate = lo * (1 - 1e-12) <= T_hat and (top_open or T_hat <= hi * (1 + 1e-12))
+        if holds_estimate:
+            eff = max(eff, min(s_up, float(sig_hat)))
+        out.append((eff * r**0.25, T_j))
+        if record is not None:
+            record.append({"T_range_s": [float(lo), float("inf") if top_open else float(hi)],
+                           "sigma_box": s_up, "sigma_cap": cap, "sigma_used": eff,
+                           "term": {"sigma": eff * r**0.25, "T": float(T_j)}})
+    return tuple(out)
+
+
+#: Time constants per decade of the GM bank of :func:`gm_bank_envelope`, and frequency nodes per decade of its LP.
+BANK_PER_DECADE, BANK_NODES_PER_DECADE = 2, 40
+
+
+def gm_bank_envelope(sigma_up: float, a: float, c: float, lower_open: bool, upper_open: bool, gm_cap=None,
+                     estimate=None, f_min_hz: float | None = None, fine_ratio: float = 1.05) -> tuple:
+    r"""A bank of GM terms whose summed PSD lies above every GM the data allow in a box left open by the data:
+    :math:`\sigma \le \sigma(T') = \min(\sigma_{up}, \sigma_{max}(T'))`, :math:`T' \in [a, c]` (s), and beyond an
+    open end as :func:`gm_box_envelope` covers it; the weights by a linear programme, not by sub-box over-cover.
+
+    **Target.** :math:`F(\omega)` (two-sided PSD, u^2/Hz, :math:`\omega = 2\pi f`), an upper bound of the
+    supremum over the allowed GMs: [a, c] split into fine sub-boxes :math:`[T_1, T_2]` of ratio <= `fine_ratio`,
+    each at :math:`\sigma_k = \min(\sigma_{up}, C(T_1, T_2))` (:func:`gm_sigma_cap`'s range bound via `gm_cap`;
+    :math:`\sigma_{up}` without it), whose supremum is :math:`2\sigma_k^2 t/(1 + \omega^2 t^2)`,
+    :math:`t = \mathrm{clip}(1/\omega, T_1, T_2)` (the GM's PSD is increasing in T below :math:`T = 1/\omega`,
+    decreasing above); with an open lower end also the GM :math:`(\sigma_{up}, a)` (the white noise
+    :math:`\kappa\sigma_{up}^2 a` the caller adds covers the rest of every shorter T, :func:`gm_box_envelope`);
+    with an open upper end, for :math:`\omega \ge 2\pi f_{min}` (:math:`\ge 1/c`), every T' > c:
+    :math:`\min(2\sigma_{up}^2 c/(1 + \omega^2c^2), 2\sigma_{max}(c)^2/(c\omega^2))` (:func:`cap_gm_terms`); the
+    fit's `estimate` GM at every frequency.
+
+    **Bank.** Terms at :data:`BANK_PER_DECADE` time constants per decade over [a, c], weights
+    :math:`w_j = \sigma_j^2 \ge 0` minimising the summed relative overshoot over the nodes. Both the bank's PSD
+    :math:`S_b` and F decrease with :math:`\omega`, so on nodes :math:`\omega_0 < \dots < \omega_N`
+    (:data:`BANK_NODES_PER_DECADE` per decade) the constraints :math:`S_b(\omega_{i+1}) \ge F(\omega_i)` give
+    :math:`S_b \ge F` on every :math:`[\omega_i, \omega_{i+1}]` exactly; below :math:`\omega_0`
+    :math:`S_b(\omega_0) \ge \sup F` (closed part: :math:`F(0)`); above :math:`\omega_N`,
+    :math:`\omega^2 S_b(\omega)` is increasing and :math:`\omega^2 F(\omega) \le \max 2\sigma^2/T`, so
+    :math:`\omega_N^2 S_b(\omega_N) \ge \max 2\sigma^2/T` ends it. After the LP the constraints are evaluated again
+    and the weights scaled up by any shortfall (the LP's tolerance), so the bank dominates F at every
+    :math:`\omega` (open upper end: the tail from :math:`f_{min}` on, as before).
+
+    An equal-weight bank of ratio :math:`\rho` over a flat :math:`\sigma` needs only
+    :math:`w \approx \sigma^2 \ln\rho/\pi` (its sum is :math:`w\pi/(\omega\ln\rho)` against the supremum
+    :math:`\sigma^2/\omega`), where the sub-box rule of :func:`split_gm_box` gives :math:`\sigma^2\sqrt r` per term.
+
+    Parameters
+    ----------
+    sigma_up : float
+        The box's sigma (u).
+    a, c : float
+        The box's ends (s), closed as :func:`gm_box_envelope` closes an open end.
+    lower_open, upper_open : bool
+        Whether the T interval was open below / above.
+    gm_cap : callable, optional
+        ``gm_cap(T_lo_s, T_hi_s)`` -> sigma (u) (:func:`gm_sigma_cap` of the curves). Default: no cap.
+    estimate : tuple of (sigma u, T s), optional
+        The fit's GM, dominated at every frequency.
+    f_min_hz : float, optional
+        Lowest frequency (Hz) from which on an open upper end is covered: 1/h (h the horizon). Default 1/(2 pi c).
+    fine_ratio : float, optional
+        Largest T ratio of the target's fine sub-boxes. Default 1.05.
+
+    Returns
+    -------
+    tuple of (sigma u, T s)
+        The bank's terms of non-zero weight, by increasing T.
+    """
+    from scipy.optimize import linprog
+
+    s_up, a, c = float(sigma_up), float(a), float(c)
+    c = max(c, a)
+    cap = gm_cap if gm_cap is not None else (lambda lo, hi: math.inf)
+    n_f = max(1, math.ceil(math.log(c / a) / math.log(fine_ratio) - 1e-12)) if c > a else 1
+    edges = a * (c / a) ** (np.arange(n_f + 1) / n_f) if c > a else np.array([a, a])
+    t1, t2 = edges[:-1], edges[1:]
+    sig2 = np.array([min(s_up, float(cap(lo, hi))) ** 2 for lo, hi in zip(t1, t2)])
+    w_h = 2.0 * math.pi * float(f_min_hz) if f_min_hz is not None else 1.0 / c
+    w_h = max(w_h, 1.0 / c)
+    s_tail2 = min(s_up, float(cap(c, c))) ** 2 if upper_open else 0.0
+    sig_hat, T_hat = estimate if estimate is not None else (0.0, a)
+
+    def target(w):
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        t = np.clip(1.0 / w[:, None], t1[None, :], t2[None, :])
+        out = np.max(2.0 * sig2[None, :] * t / (1.0 + (w[:, None] * t) ** 2), axis=1)
+        if lower_open:
+            out = np.maximum(out, 2.0 * s_up**2 * a / (1.0 + (w * a) ** 2))
+        out = np.maximum(out, 2.0 * sig_hat**2 * T_hat / (1.0 + (w * T_hat) ** 2))
+        if upper_open:
+            tail = np.minimum(2.0 * s_up**2 * c / (1.0 + (w * c) ** 2), 2.0 * s_tail2 / (c * w**2))
+            out = np.maximum(out, np.where(w >= w_h * (1 - 1e-12), tail, 0.0))
+        return out
+
+    q = 10.0 ** (1.0 / BANK_NODES_PER_DECADE)
+    lo_w, hi_w = min(w_h, 0.1 / c), 10.0 / a
+    i0, i1 = math.ceil(math.log(w_h / lo_w) / math.log(q)), math.ceil(math.log(hi_w / w_h) / math.log(q))
+    nodes = w_h * q ** np.arange(-i0, i1 + 1)  # w_h itself a node: the tail starts there
+    n_T = max(2, math.ceil(BANK_PER_DECADE * math.log10(c / a)) + 1) if c > a else 1
+    T = a * (c / a) ** (np.arange(n_T) / max(n_T - 1, 1)) if c > a else np.array([a])
+
+    def bank(w, Tj):
+        return 2.0 * Tj[None, :] / (1.0 + (w[:, None] * Tj[None, :]) ** 2)
+
+    F = target(nodes)
+    # rows: S_b(w_{i+1}) >= F(w_i); S_b(w_0) >= F(0) (closed part, the estimate, the open lower end's GM);
+    # w_N^2 S_b(w_N) >= sup w^2 F
+    f0 = max(float(np.max(2.0 * sig2 * t2)), 2.0 * sig_hat**2 * T_hat, 2.0 * s_up**2 * a if lower_open else 0.0)
+    top = max(float(np.max(2.0 * sig2 / t1)), 2.0 * sig_hat**2 / T_hat if sig_hat > 0 else 0.0,
+              2.0 * s_up**2 / a if lower_open else 0.0, 2.0 * min(s_up**2, s_tail2) / c if upper_open else 0.0)
+    A = np.vstack([bank(nodes[1:], T) / F[:-1, None], bank(nodes[:1], T) / f0,
+                   nodes[-1] ** 2 * bank(nodes[-1:], T) / top])
+    scale = s_up**2
+    cost = np.sum(bank(nodes, T) / F[:, None], axis=0)
+    res = linprog(cost, A_ub=-A * scale, b_ub=-np.ones(A.shape[0]), bounds=(0, None), method="highs")
+    if res.status != 0:
+        raise RuntimeError(f"gm_bank_envelope: the bank's linear programme failed ({res.message})")
+    w = np.maximum(res.x, 0.0) * scale
+    short = float(np.min(A @ w))  # >= 1 - the LP's tolerance; scale up by any shortfall
+    if short < 1.0:
+        w = w / short * (1.0 + 1e-12)
+    keep = w > 1e-12 * float(np.max(w))
+    return tuple((math.sqrt(float(v)), float(t)) for v, t in zip(w[keep], T[keep]))
+
+
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
-                   span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO):
+                   span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO, gm_cap=None,
+                   cap_record: list | None = None):
     r"""The identified model's upper confidence envelope, for the all-frequency rows of :func:`bound_psd`.
 
     Each KEPT component at the upper end of its interval (``fit.intervals``, level ``fit.confidence``;
@@ -367,6 +624,13 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
         the longest T searched.
     max_box_ratio : float, optional
         Largest T_hi/T_lo of one envelope GM term (:func:`split_gm_box`). Default :data:`BOX_SPLIT_RATIO` (10).
+    gm_cap : callable, optional
+        ``gm_cap(T_lo_s, T_hi_s)``: the largest GM sigma (u) the recorded Allan variances allow for a T in the
+        range (:func:`gm_sigma_cap` of the curves). Each GM term of a box then covers its sub-box at
+        :math:`\min(\sigma_{up}, \text{cap})` instead of :math:`\sigma_{up}` (:func:`cap_gm_terms`, never below
+        the fit's estimate in the sub-box that holds it). Default: no cap.
+    cap_record : list, optional
+        With `gm_cap`: one dict per GM term is appended (its T range s, the box's sigma, the cap, the sigma used, u).
 
     Returns
     -------
@@ -407,10 +671,29 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 T_lo, T_hi = (float(v) for v in iv.get(f"gm_T_{i}", (float("nan"), float("nan"))))
                 # the GM box sigma <= s, T in [T_lo, T_hi], an open end included (docs/method.md, section
                 # "The upper envelope")
-                a, c, w, _, _ = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
+                a, c, w, lower_open, upper_open = _gm_box_ends(T, T_lo, T_hi, T_search, span_s)
                 # a box wider than max_box_ratio in T as a sum of narrower boxes (split_gm_box): the single GM
                 # over a box of several decades is far above every GM of it in between
-                gm.extend(split_gm_box(s, a, c, max_box_ratio))
+                terms = split_gm_box(s, a, c, max_box_ratio)
+                if gm_cap is not None and (lower_open or upper_open):
+                    # a box the data leave open: a bank whose weights a linear programme sets against every GM the
+                    # recorded Allan variances allow in it (docs/method.md, section "The upper envelope")
+                    terms = gm_bank_envelope(s, a, c, lower_open, upper_open, gm_cap,
+                                             estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
+                                             f_min_hz=1.0 / float(span_s) if span_s else None)
+                    if cap_record is not None:
+                        cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
+                                           "sigma_box": s,
+                                           "sigma_cap": min(float(gm_cap(t, t)) for _, t in terms),
+                                           "sigma_used": min(s, min(float(gm_cap(t, t)) for _, t in terms)),
+                                           "bank": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
+                elif gm_cap is not None:
+                    # each term at most what the recorded Allan variances allow over its sub-box (docs/method.md,
+                    # section "The upper envelope")
+                    terms = cap_gm_terms(terms, s, a, c, upper_open, gm_cap,
+                                         estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
+                                         record=cap_record)
+                gm.extend(terms)
                 white_add += w * s * s
             i += 1
     k = up("random_walk")

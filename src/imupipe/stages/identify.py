@@ -12,8 +12,9 @@ From the Allan-variance curves of every included axis of every record (each at i
    an octave of its shortest T) re-assigned to the white noise or random walk it acts as
    (:func:`imupipe.identify.resolve.reassign_unresolved_gm`, written as ``gm_reassigned``);
 4. its upper confidence envelope (:func:`imupipe.bound.upper_envelope`; a GM time constant the data leave
-   open covered for :math:`f \ge 1/h`, h = ``span_s``: fix period + outage), the random walk at most what the curves'
-   Allan variances allow (:func:`imupipe.bound.random_walk_cap`);
+   open covered for :math:`f \ge 1/h`, h = ``span_s``: fix period + outage), the random walk and each GM term at
+   most what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap`,
+   :func:`imupipe.bound.allan_check.gm_sigma_cap`; written as ``upper_envelope_gm_cap``);
 5. the test whether the curves may be pooled (:func:`imupipe.identify.pooling_test`) and, where not, one
    identification per axis by the same rule, the envelope the bound reads then dominating the pooled and every
    per-axis envelope (:func:`imupipe.models.dominating_model`);
@@ -35,7 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 __all__ = ["SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope", "envelope_ratio",
-           "identification_stage", "identify_sensor", "selected_and_envelope"]
+           "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
 SEED_FIT, SEED_POOLING = 20211, 20212
@@ -44,8 +45,9 @@ ENVELOPE_NOTE = (
     "kept components at the upper ends of the selected refit's statistical intervals (before any over-dispersion "
     "widening), each GM as GM terms above every GM of its interval box (one per sub-box of at most a decade in T), "
     "the random walk at its upper limit even when dropped, capped by what the recorded Allan variances allow, a GM "
-    "time constant the data leave open covered for f >= 1/upper_envelope_horizon_s (imupipe.bound.upper_envelope, "
-    "random_walk_cap); SI; upper_envelope_horizon_s s")
+    "time constant the data leave open covered for f >= 1/upper_envelope_horizon_s, each GM term's sigma at most "
+    "what the recorded Allan variances allow over its T range (upper_envelope_gm_cap) (imupipe.bound.upper_envelope, "
+    "random_walk_cap, gm_sigma_cap); SI; upper_envelope_horizon_s s")
 UNITS = ("SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, quantization u*s, "
          "ramp u/s, gm_sigma u, gm_T s; rate_hz Hz; chi2, p-values dimensionless")
 
@@ -103,11 +105,16 @@ def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "m
     band of the fit's PSD over its bootstrap replicates at `confidence` (family-wise over 1/span_s .. half
     the records' rate); the marginal one where the fit has no bootstrap."""
     from imupipe.bound import random_walk_cap, upper_envelope
+    from imupipe.bound.allan_check import gm_sigma_cap
 
     if kind not in ENVELOPE_KINDS:
         raise ValueError(f"identify.envelope: expected one of {ENVELOPE_KINDS}, got {kind!r}")
-    cap = random_walk_cap([(c[1], c[2], c[3]) for c in curves], confidence=confidence)
-    marginal = upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s)
+    avs = [(c[1], c[2], c[3]) for c in curves]
+    cap = random_walk_cap(avs, confidence=confidence)
+    record: list = []
+    marginal = upper_envelope(fit, kept, random_walk_cap=cap, span_s=span_s, cap_record=record,
+                              gm_cap=lambda lo, hi: gm_sigma_cap(avs, lo, hi, confidence=confidence))
+    fit.gm_cap_record = record  # identify file: ``upper_envelope_gm_cap``
     if kind == "joint":
         from imupipe.identify.joint import joint_envelope
 
@@ -158,6 +165,31 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
 
         env = dominating_model([env, envelope(before, list(selection["kept"]), curves, confidence, span_s)])
     return selected, env
+
+
+def gm_cap_record(selected) -> list:
+    """What the GM cap (:func:`imupipe.bound.allan_check.gm_sigma_cap`) did to each GM term of the envelope of
+    `selected` (and of its fit before a re-assignment, whose box the envelope keeps where the T interval is open
+    above): T range (s, None for an open end), the box's sigma, the cap and the sigma used (u); for a box the data
+    leave open, the bank of :func:`imupipe.bound.allan_check.gm_bank_envelope` (``bank``: sigma u, T s)."""
+    out, seen = [], set()
+    for f in (selected, getattr(selected, "envelope_fit", None)):
+        if f is None or id(f) in seen:
+            continue
+        seen.add(id(f))
+        for r in getattr(f, "gm_cap_record", None) or []:
+            e = {"T_range_s": [float(r["T_range_s"][0]),
+                               float(r["T_range_s"][1]) if math.isfinite(r["T_range_s"][1]) else None],
+                 **{k: (float(r[k]) if math.isfinite(r[k]) else None)
+                    for k in ("sigma_box", "sigma_cap", "sigma_used")},
+                 "capped": bool(r["sigma_used"] < r["sigma_box"])}
+            if "bank" in r:
+                e["bank"] = r["bank"]
+                e["note"] = ("T interval open: a bank of GM terms above every GM (min(sigma_box, sigma_max(T)), T) "
+                             "of the box, weights by a linear programme; sigma_cap the least pointwise cap at the "
+                             "bank's T")
+            out.append(e)
+    return out
 
 
 def _yaml_ready(rec):
@@ -304,7 +336,8 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
                              if "intervals_statistical" in d else {}),
                           **({"T_search_s": d["T_search_s"]} if "T_search_s" in d else {}),
                           "random_walk_profile": d["random_walk_profile"],
-                          "upper_envelope_model": env_a.to_dict(), "notes": d["notes"],
+                          "upper_envelope_model": env_a.to_dict(), "upper_envelope_gm_cap": gm_cap_record(fa),
+                          "notes": d["notes"],
                           **({"gm_reassigned": fa.reassigned} if getattr(fa, "reassigned", None) else {})}
     return per_axis
 
@@ -394,6 +427,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "pooling": pooling,
         "upper_envelope_model": env.to_dict(),
         "upper_envelope_horizon_s": span,
+        "upper_envelope_gm_cap": gm_cap_record(selected),
         **({"upper_envelope_kind": envelope_kind,
             "upper_envelope_joint": _yaml_ready(getattr(selected, "joint_envelope", None))}
            if envelope_kind != "marginal" else {}),
