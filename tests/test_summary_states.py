@@ -76,3 +76,49 @@ def test_a_parameter_on_its_boundary_names_its_value_unit_and_the_range_searched
     # 2e-6 rad/s/sqrt(s) x 180/pi x 3600 = 0.413 (deg/h)/sqrt(s)
     assert f.detail == ("random walk K 0.413 (deg/h)/sqrt(s) (2e-06 rad/s/sqrt(s)) at a limit of its range [0, inf) "
                         "(a non-negative coefficient)")
+
+
+def test_a_dropped_components_parameter_on_its_boundary_is_not_flagged():
+    # the selection dropped the GM: its T on the search's end is no parameter of the model (outside evaluation:
+    # a FLAG on gm_T_1 beside "gauss_markov (dropped)")
+    ident = {"model": {"white": 1e-4}, "selection": {"kept": ["white", "random_walk"]},
+             "fit": {"on_boundary": {"gm_T_1": True, "random_walk": True},
+                     "params": {"gm_T_1": 388.0, "random_walk": 2e-6}, "T_search_s": [0.02, 388.0]}}
+    flags = [f.where for f in flags_of("gyro", identify=ident) if f.check == "parameter on boundary"]
+    assert flags == ["random_walk"]
+    ident["selection"]["kept"].append("gauss_markov")
+    flags = [f.where for f in flags_of("gyro", identify=ident) if f.check == "parameter on boundary"]
+    assert sorted(flags) == ["gm_T_1", "random_walk"]
+
+
+def test_a_reassigned_random_walk_says_it_holds_for_taus_below_T():
+    from imupipe.summary import reassigned_text
+
+    r = {"sigma": 1e-5, "T_s": 232.0, "why": "T interval open", "acts_as": "random_walk", "value": 9.3e-7}
+    text = reassigned_text("gyro", r)
+    # sigma sqrt(2/T) is the random walk a GM acts as only for tau << T (its Allan variance rises as K^2 tau / 3
+    # there and falls as 2 sigma^2 T / tau beyond T)
+    assert "at taus well below T" in text
+    r = {**r, "acts_as": "white", "value": 2e-4}
+    assert "at taus well below T" not in reassigned_text("gyro", r)
+
+
+def test_the_tolerance_pass_says_when_its_worst_ratio_is_in_the_fixes():
+    from imupipe.verdict import within_tolerance
+
+    check = {"passed": True, "worst_ratio": 1.6, "tolerance": 0.9, "method": "replay of the records",
+             "worst_t_s": 421.0, "worst_outage_ratio": 0.78, "worst_outage_t_s": 2000.0}
+    text = within_tolerance(check)
+    assert "ratio 1.6 at 421 s, in the fixes; the outage's worst 0.78" in text
+    # the worst in the outage: no phase note; a ratio just above 1 is printed with the digits that show it
+    text = within_tolerance({**check, "worst_ratio": 1.0004, "worst_t_s": 2000.0, "worst_outage_ratio": 1.0004})
+    assert "ratio 1.0004 at 2000 s," in text and "in the fixes" not in text
+
+
+def test_the_unit_slip_flag_names_a_kept_burst_as_another_cause():
+    from imupipe.summary import above_spec_flags
+
+    bound = {"spec": {"white": 1e-4}, "bound": {"white": 8e-4}, "upper_envelope": {"white": 8e-4},
+             "curves": ["ev/x"]}
+    (f,) = above_spec_flags("accel", bound)
+    assert "check the unit of accel" in f.detail and "a burst (a knock) kept in the data raises N" in f.detail

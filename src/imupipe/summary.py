@@ -276,6 +276,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             # dropped; the data's upper limit for it is in the envelope), not a fit pressed against its range
             if not v:
                 continue
+            if not _kept_parameter(identify, str(p)):
+                continue  # the parameter of a component the selection dropped: not in the model, nothing to flag
             value = _g(identify, "fit", "params", p, default=model.get(p))
             if isinstance(value, (int, float)) and float(value) == 0.0 and not str(p).startswith("gm_T"):
                 continue  # a coefficient at 0: the component absent (a GM sigma too), not a fit pressed to its range
@@ -335,6 +337,16 @@ def boundary_text(sensor: str, bound: Mapping | None, identify: Mapping, p: str,
     return text
 
 
+def _kept_parameter(identify: Mapping, p: str) -> bool:
+    """Whether the fit parameter `p` (``white``, ``gm_T_1``, ...) belongs to a component the identification kept
+    (identify file ``selection.kept``); True when the file names no selection."""
+    kept = _g(identify, "selection", "kept")
+    if not isinstance(kept, (list, tuple)):
+        return True
+    component = "gauss_markov" if p.startswith("gm_") else p
+    return component in kept
+
+
 def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> str:
     """The words of one GM the identification re-assigned (identify file ``gm_reassigned``: sigma u, T_s s, why,
     acts_as, value: the white noise N u/sqrt(Hz) or random walk K u/sqrt(s) it acts as), every value in the spec
@@ -347,7 +359,9 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> st
     value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
     text = (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {_num(r.get('T_s'))} s: "
             f"{r.get('why')}; the identification reports it as the {acts}{value} it acts as (identify file, "
-            "gm_reassigned)")
+            "gm_reassigned)" + ("" if white else
+                                " at taus well below T (beyond T the GM's Allan variance falls below that random "
+                                "walk's, so a model under it there can still hold the records)"))
     instead = exported_instead(sensor, bound, as_key)
     return text + (f"; {instead}" if instead else "")
 
@@ -520,7 +534,9 @@ def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
     return [Flag(sensor, "data far above the spec sheet", datasets,
                  f"white noise N {', '.join(x for x in said if x)}, above the {limit:.2g}x a correct unit "
                  f"plausibly gives ({examples}): check the unit of "
-                 f"{sensor} (dataset sheet column {column} of {datasets}) and that the spec sheet is this sensor's")]
+                 f"{sensor} (dataset sheet column {column} of {datasets}) and that the spec sheet is this sensor's; "
+                 "a burst (a knock) kept in the data raises N the same way: see the event FLAGs (events.policy "
+                 "split or exclude leaves it out)")]
 
 
 #: Share of a record the Welch segments may leave out before the summary flags it: 10 %. With the rule of

@@ -45,7 +45,11 @@ def within_tolerance(check) -> str | None:
     how = (f"; t = {tol / float(rse):.3g} sqrt(2/n_eff), n_eff {float(n_eff):.3g} independent windows"
            if n_eff is not None and rse else "")
     at = f" at {float(check['worst_t_s']):.4g} s" if check.get("worst_t_s") is not None else ""
-    return (f"passes within {what} sampling tolerance (ratio {worst:.3g}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
+    if check.get("worst_outage_ratio") is not None and check.get("worst_t_s") is not None and \
+            check.get("worst_outage_t_s") is not None and float(check["worst_t_s"]) != float(check["worst_outage_t_s"]):
+        at += f", in the fixes; the outage's worst {float(check['worst_outage_ratio']):.3g}"
+    shown = f"{worst:.3g}" if float(f"{worst:.3g}") > 1.0 else f"{worst:.6g}"  # 1.0004 is not shown as 1
+    return (f"passes within {what} sampling tolerance (ratio {shown}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
             f"{how}): the "
             "records show the filter under-stating its error by that ratio and are too few to tell it from chance; "
             "not a confirmation")

@@ -1016,22 +1016,30 @@ def bound_psd(
     model, comps, decisions, prof, n_lp = _fit_components(prob, spec_model, keep, n_gm, grid, extra_T,
                                                          add_threshold, dt, allf)
     if mode == "envelope":
-        from dataclasses import replace
-
-        model, dense = _dominate_densely(model, spec_model, upper_model, allf, float(prob.f.max()))
-        model = replace(model, random_walk=max(model.random_walk, k_env))
-        prob.details.update(dense_check=dense, random_walk=k_env,
-                            split="white + GM terms above the envelope's and the spec's stationary parts at every "
-                                  "frequency; the random walk max(K_envelope, K_spec) beside them")
+        model, comps = _envelope_finish(prob, model, comps, spec_model, upper_model, allf, k_env)
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
                    dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
                    narrowband=[{"sigma": sg, "f0_hz": f0, "zeta": z}
                                for sg, f0, z in model.narrowband])
-    if mode == "envelope" and k_env > 0 and "random_walk" not in comps:
-        comps = list(comps) + ["random_walk"]
     return _result(prob, model, spec_full, t0, mode=mode, components=list(comps), decisions=decisions,
                    T_profile=prof, n_lp=n_lp, details=details)
+
+
+def _envelope_finish(prob, model, comps, spec_model, upper_model, allf, k_env):
+    """The ``envelope`` mode's last step: the LP's model held above the envelope's and the spec's stationary parts
+    on the dense grid (:func:`_dominate_densely`), the random walk max(K_envelope, K_spec) set beside it
+    (:func:`_envelope_split`); (model, components), the details recorded on `prob`."""
+    from dataclasses import replace
+
+    model, dense = _dominate_densely(model, spec_model, upper_model, allf, float(prob.f.max()))
+    model = replace(model, random_walk=max(model.random_walk, k_env))
+    prob.details.update(dense_check=dense, random_walk=k_env,
+                        split="white + GM terms above the envelope's and the spec's stationary parts at every "
+                              "frequency; the random walk max(K_envelope, K_spec) beside them")
+    if k_env > 0 and "random_walk" not in comps:
+        comps = list(comps) + ["random_walk"]
+    return model, comps
 
 
 def _envelope_split(keep, spec_model, upper_model):
