@@ -3,6 +3,7 @@ FLAG that says so. An outside evaluation saw a knock set the white noise N about
 summary only said "kept in the analysis"."""
 
 import numpy as np
+import pytest
 
 from imupipe.allan import allan_variance
 from imupipe.events import event_effect, event_flags
@@ -59,3 +60,21 @@ def test_the_flag_of_an_event_kept_under_warn_says_what_it_does_to_the_model():
     report, _ = outliers_stage(x, rate, units="m/s^2", dataset="r1", sensor="accel", axis="x", policy="warn",
                                events={"policy": "exclude"})
     assert all("effect" not in e for e in report["events"])
+
+
+def test_event_effects_of_a_record_equal_each_events_own():
+    # the record's sum of squared differences taken once for all its bursts: the same numbers as one call per event
+    from imupipe.events import event_effects
+
+    rng = np.random.default_rng(7)
+    x = rng.normal(0.0, 1e-3, 60_000)
+    x[10_000:10_050] += rng.normal(0.0, 0.05, 50)
+    x[40_000:] += 5e-3
+    events = [{"kind": "burst", "index": 10_000, "stop_index": 10_050}, {"kind": "step", "size": 5e-3, "index": 40_000},
+              {"kind": "burst", "index": 20_000, "stop_index": 20_010}]
+    got = event_effects(x, 100.0, events, guard=100, sensor="accel")
+    for g, e in zip(got, events):
+        want = event_effect(x, 100.0, e, guard=100, sensor="accel")
+        assert g.keys() == want.keys()
+        for k in want:
+            assert g[k] == pytest.approx(want[k], rel=1e-12) if isinstance(want[k], float) else g[k] == want[k]

@@ -117,7 +117,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "find_bursts", "find_steps", "event_free_segment", "event_flags",
+__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "event_effects", "find_bursts", "find_steps", "event_free_segment", "event_flags",
            "display_unit", "MAD_EFFICIENCY"]
 
 #: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
@@ -565,7 +565,8 @@ def _sum_sq_diff(x, a: int, b: int) -> float:
     return total
 
 
-def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str | None = None) -> dict:
+def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str | None = None,
+                 total_sq_diff: float | None = None) -> dict:
     r"""What one event kept in the data (``events.policy: warn``) does to the noise model's parameters.
 
     - A burst: the Allan variance at the shortest tau :math:`\tau_0 = 1/f_s`, where the white noise N is read
@@ -584,6 +585,8 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
 
     Returns a dict with ``kind`` and either ``white_noise_ratio`` (1) or ``random_walk_equivalent`` (u/sqrt(s)),
     ``record_s`` (s) and, with `sensor`, ``display`` (the value in deg/h/sqrt(s) or mg/sqrt(s)).
+    `total_sq_diff`: the record's :math:`\sum_k (x_{k+1}-x_k)^2` (u^2) when the caller has it (one pass for
+    every burst of a record: :func:`event_effects`); computed here otherwise.
     Reference: IEEE Std 952-1997, annex C (the Allan variance of white noise and of a random walk)."""
     x = np.asarray(x, dtype=np.float64).ravel()
     n, rate_hz = x.size, float(rate_hz)
@@ -596,7 +599,8 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
         n_kept = (n - 1) - max(0, b - a)
         if n < 2 or n_kept <= 0:
             return {"kind": kind}
-        total, span = _sum_sq_diff(x, 0, n - 1), _sum_sq_diff(x, a, b)
+        total = _sum_sq_diff(x, 0, n - 1) if total_sq_diff is None else float(total_sq_diff)
+        span = _sum_sq_diff(x, a, b)
         rest = max(total - span, 0.0)
         ratio = float(np.sqrt((total / (n - 1)) / (rest / n_kept))) if rest > 0 else float("inf")
         return {"kind": kind, "white_noise_ratio": ratio, "tau_s": 1.0 / rate_hz}
@@ -607,6 +611,14 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
     if du is not None:
         out["display"] = {"unit": f"{du[0]}/sqrt(s)", "random_walk_equivalent": float(k) / du[1]}
     return out
+
+
+def event_effects(x, rate_hz: float, events, guard: int = 0, sensor: str | None = None) -> list:
+    """:func:`event_effect` of each of `events` on the record `x`, the record's sum of squared differences
+    computed once for all its bursts."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    total = _sum_sq_diff(x, 0, x.size - 1) if any(e.get("kind") == "burst" for e in events) else None
+    return [event_effect(x, rate_hz, e, guard=guard, sensor=sensor, total_sq_diff=total) for e in events]
 
 
 def _effect_text(it: Mapping) -> str:

@@ -682,10 +682,9 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                                              estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
                                              f_min_hz=1.0 / float(span_s) if span_s else None)
                     if cap_record is not None:
+                        least = min(float(gm_cap(t, t)) for _, t in terms)
                         cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
-                                           "sigma_box": s,
-                                           "sigma_cap": min(float(gm_cap(t, t)) for _, t in terms),
-                                           "sigma_used": min(s, min(float(gm_cap(t, t)) for _, t in terms)),
+                                           "sigma_box": s, "sigma_cap": least, "sigma_used": min(s, least),
                                            "bank": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
                 elif gm_cap is not None:
                     # each term at most what the recorded Allan variances allow over its sub-box (docs/method.md,

@@ -114,15 +114,16 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
         action = ("kept in the analysis (events.policy warn)" if ev_policy == "warn" else
                   f"excluded: the analysis uses {seg[0] / rate:.1f}-{seg[1] / rate:.1f} s, the longest event-free "
                   f"segment ({100.0 * (seg[1] - seg[0]) / n:.3g} % of the record)")
-    from imupipe.events import event_effect
+    from imupipe.events import event_effects
 
     # what an event left in the analysed data does to the model (warn: N at tau0 with/without a burst's samples,
     # the random walk a step acts as)
+    effects = (event_effects(x, rate, det["events"], guard=guard, sensor=sensor) if ev_policy == "warn"
+               else [None] * len(det["events"]))
     out["events"] = [{"dataset": dataset, "sensor": sensor, "axis": axis,
                       **{k2: v for k2, v in e.items() if k2 in keep}, "units": units, "policy": ev_policy,
-                      "action": action,
-                      **({"effect": event_effect(x, rate, e, guard=guard, sensor=sensor)} if ev_policy == "warn" else {})}
-                     for e in det["events"]]
+                      "action": action, **({"effect": eff} if eff is not None else {})}
+                     for e, eff in zip(det["events"], effects)]
     out["n_events"] = len(det["events"])
     out["events_policy"] = ev_policy
     out["events_scan"] = {"false_alarm_rate_per_record": det["false_alarm_rate"], "burst_scan": det["burst_scan"],
