@@ -40,3 +40,21 @@ def tiny_run(tmp_path_factory):
     shutil.copy2(TINY, config)
     snakemake(work, config=config, snakefile=work / "Snakefile")
     return work, config
+
+
+@pytest.fixture(scope="session")
+def half_spec_accel_case():
+    """An accel truth (white 1e-4 m/s^2/sqrt(Hz) + GM 5e-5 m/s^2 at 200 s), two 3 h records of it at 5 Hz (seed 31)
+    and a spec sheet of half its values: the case of the auto bound's end-to-end tests (truth, records, spec)."""
+    import numpy as np
+
+    from imupipe.models import NoiseModel
+    from imupipe.simulate import simulate
+    from imupipe.specsheet import parse_spec
+
+    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 200.0),))
+    X = simulate(truth, 3 * 3600 * 5, 5.0, rng=np.random.default_rng(31), n_records=2)
+    spec = parse_spec({"name": "half", "accel": {
+        "white": {"value": 5e-5, "unit": "m/s^2/sqrt(Hz)"},
+        "gauss_markov": [{"sigma": {"value": 2.5e-5, "unit": "m/s^2"}, "T": {"value": 200.0, "unit": "s"}}]}})
+    return truth, {"a/x": X[0], "b/x": X[1]}, spec

@@ -120,18 +120,12 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
 
 
 @pytest.mark.slow
-def test_noise_model_auto_builds_verifies_and_may_export_the_envelope_candidate():
+def test_noise_model_auto_builds_verifies_and_may_export_the_envelope_candidate(half_spec_accel_case):
     # the one-call pipeline with the joint envelope: the envelope candidate is built, verified like the others (the
     # truth check included) and the exported model is the tightest passing one; against the truth it is bounded
     from imupipe.api import noise_model
-    from imupipe.specsheet import parse_spec
-
-    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 200.0),))
-    X = simulate(truth, 3 * 3600 * 5, 5.0, rng=np.random.default_rng(31), n_records=2)
-    spec = parse_spec({"name": "half", "accel": {
-        "white": {"value": 5e-5, "unit": "m/s^2/sqrt(Hz)"},
-        "gauss_markov": [{"sigma": {"value": 2.5e-5, "unit": "m/s^2"}, "T": {"value": 200.0, "unit": "s"}}]}})
-    res = noise_model({"a/x": X[0], "b/x": X[1]}, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
+    truth, records, spec = half_spec_accel_case
+    res = noise_model(records, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
                       truth=truth, envelope="joint")
     bound = res.records["bound"]
     assert bound["auto_envelope_candidate"].startswith("built"), bound["auto_envelope_candidate"]

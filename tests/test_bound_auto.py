@@ -126,17 +126,10 @@ def test_select_ties_go_to_the_earlier_mode():
     assert select(cands, reps)["winner"] == "raw"
 
 
-def test_noise_model_auto_end_to_end():
+def test_noise_model_auto_end_to_end(half_spec_accel_case):
     from imupipe.api import noise_model
-    from imupipe.simulate import simulate
-    from imupipe.specsheet import parse_spec
-
-    truth = NoiseModel(white=1e-4, gauss_markov=((5e-5, 200.0),))
-    X = simulate(truth, 3 * 3600 * 5, 5.0, rng=np.random.default_rng(31), n_records=2)
-    spec = parse_spec({"name": "half", "accel": {
-        "white": {"value": 5e-5, "unit": "m/s^2/sqrt(Hz)"},
-        "gauss_markov": [{"sigma": {"value": 2.5e-5, "unit": "m/s^2"}, "T": {"value": 200.0, "unit": "s"}}]}})
-    res = noise_model({"a/x": X[0], "b/x": X[1]}, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
+    truth, records, spec = half_spec_accel_case
+    res = noise_model(records, 5.0, "accel", spec, mode="auto", n_boot=30, outage_s=1800.0,
                       truth=truth)
     sel = res.verification["auto_selection"]
     assert [r["mode"] for r in sel["candidates"]] == list(AUTO_MODES)
