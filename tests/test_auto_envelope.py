@@ -90,6 +90,33 @@ def test_the_random_walk_does_not_stand_in_for_a_long_gm():
     assert res.details["random_walk"] == upper.random_walk
 
 
+def test_a_sheet_under_the_envelope_s_random_walk_needs_no_stationary_term_of_its_own():
+    # a sheet's long GM (3e-4 at 2000 s) that lies under the envelope's random walk wherever it is above the envelope's
+    # white noise: S_spec <= E_stat + K_B^2 / (2 pi f)^2 at every frequency, so B >= S_spec follows from B_stat >= E_stat
+    # and K_B (engine._spec_covered); the bound's stationary part then carries no GM for the sheet, and B still lies
+    # above the sheet's PSD at every frequency of a dense grid (checked here from 1e-9 Hz up)
+    truth = NoiseModel(white=1e-3, random_walk=1e-5)
+    upper = NoiseModel(white=1.3e-3, random_walk=2e-5)
+    spec = NoiseModel(white=0.5e-3, gauss_markov=((3e-4, 2000.0),))
+    f, curves, edf = _curves(truth)
+    res = bound_psd(f, curves, spec, dt=1.0 / RATE, mode="envelope", n_gm=1, edf=edf, span_s=SPAN,
+                    upper_model=upper, keep=["white", "random_walk"])
+    assert res.details["spec_covered"]["covered"]
+    fd = np.geomspace(1e-9, 500.0, 11 * 100 * 7 + 1)
+    assert _psd_ratio(res.model, spec, fd).min() >= 1.0
+    assert _psd_ratio(res.model, upper, fd).min() >= 1.0
+    stat = NoiseModel(white=res.model.white, gauss_markov=res.model.gauss_markov)
+    spec_gm = NoiseModel(gauss_markov=spec.gauss_markov)
+    assert stat.psd(np.array([1.0 / SPAN]))[0] < 0.1 * spec_gm.psd(np.array([1.0 / SPAN]))[0]
+    # a sheet whose random walk is the larger one is not covered by K_B's: its GM rows stay in the LP
+    spec_rw = NoiseModel(white=0.5e-3, gauss_markov=((3e-4, 2000.0),), random_walk=3e-5)
+    res2 = bound_psd(f, curves, spec_rw, dt=1.0 / RATE, mode="envelope", n_gm=1, edf=edf, span_s=SPAN,
+                     upper_model=upper, keep=["white", "random_walk"])
+    assert not res2.details["spec_covered"]["covered"]
+    # (the bound's claim from the all-frequency floor 0.01 / span up, module docstring of imupipe.bound.engine)
+    assert _psd_ratio(res2.model, spec_rw, np.geomspace(0.01 / SPAN, 500.0, 7001)).min() >= 1.0
+
+
 def test_envelope_mode_needs_the_envelope():
     f, curves, edf = _curves(NoiseModel(white=1.0), n_curves=1, hours=1.5)
     with pytest.raises(ValueError, match="upper envelope"):

@@ -1004,6 +1004,9 @@ def bound_psd(
         if upper_model is None:
             raise ValueError("mode 'envelope' needs the identified upper envelope (upper_model)")
         keep, spec_model, upper_model, k_env = _envelope_split(keep, spec_model, upper_model)
+        spec_cover = _spec_covered(spec_full, upper_model, k_env)
+        if spec_cover["covered"]:  # the sheet lies under E_stat + K_B's random walk: the LP needs only E_stat
+            spec_model = None
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests, exclude=exclude, pool_groups=pool_groups, detrend=detrend,
                     upper_model=upper_model if mode == "envelope" else None)
@@ -1017,6 +1020,7 @@ def bound_psd(
                                                          add_threshold, dt, allf)
     if mode == "envelope":
         model, comps = _envelope_finish(prob, model, comps, spec_model, upper_model, allf, k_env)
+        prob.details["spec_covered"] = spec_cover
     details = dict(prob.details)
     details.update(n_frequencies=int(prob.f.size), n_curves=int(prob.raw.shape[0]), n_rows=int(prob.f_rows.size),
                    dt=dt, n_gm=n_gm, all_frequency=allf, excluded=excluded,
@@ -1067,6 +1071,42 @@ def _envelope_split(keep, spec_model, upper_model):
     k = max(float(upper_model.random_walk), float(spec_model.random_walk) if spec_model is not None else 0.0)
     spec_stat = replace(spec_model, random_walk=0.0) if spec_model is not None else None
     return stat, spec_stat, replace(upper_model, random_walk=0.0), k
+
+
+def _spec_covered(spec_model, upper_stat, k_b: float) -> dict:
+    r"""Whether the spec sheet's PSD lies under the envelope's stationary part plus the bound's random walk at every
+    frequency, so that the ``envelope`` mode's stationary LP needs no row of the sheet:
+    :math:`S_{spec}(f) \le S_{E,stat}(f) + K_B^2/(2\pi f)^2` for all f (two-sided, u^2/Hz).
+
+    Why it is enough: the mode's model B has :math:`B_{stat} \ge E_{stat}` at every frequency (the LP and
+    :func:`_dominate_densely`) and the random walk :math:`K_B`, so :math:`B \ge E_{stat} + K_B^2/(2\pi f)^2 \ge
+    S_{spec}`: the sheet is bounded in the PSD sense, as by every mode. (The stationary split is what the envelope,
+    the statistical statement about the truth, needs; the sheet is a bound the model must lie above.) The
+    verification's filter against the sheet checks the same model as every candidate's.
+
+    The check: on a grid of :data:`DENSE_PER_DECADE` points per decade from 1e-9 Hz to 1e4 Hz the log ratio
+    :math:`\ln(S_{E,stat} + K_B^2/(2\pi f)^2) - \ln S_{spec}` is at least :math:`\delta^2/4`
+    (:math:`\delta = \ln 10/100`): both sides are positive sums of white, random walk, flicker and GM terms, so the
+    log ratio's second derivative in ln f lies in [-2, 2] (:func:`_dominate_densely`) and it stays >= 0 between the
+    grid points; below 1e-9 Hz the random walk of the larger K dominates (:math:`K_B > K_{spec}` is required), above
+    1e4 Hz both are their white noise (:math:`N_E \ge N_{spec}` is required, checked at the top of the grid).
+    Returns ``covered`` and ``worst_log_ratio`` (None without a sheet)."""
+    if spec_model is None:
+        return {"covered": False, "worst_log_ratio": None}
+    if not (k_b > float(spec_model.random_walk)) or spec_model.quantization > 0 or spec_model.ramp > 0 \
+            or spec_model.narrowband or spec_model.dt is not None or upper_stat.dt is not None:
+        # outside the family whose log-PSD curvature the check relies on (a rising or sampled PSD, a line)
+        return {"covered": False, "worst_log_ratio": None}
+    f = np.geomspace(1e-9, 1e4, 13 * DENSE_PER_DECADE + 1)
+    s = np.asarray(spec_model.psd(f), dtype=np.float64)
+    e = np.asarray(upper_stat.psd(f), dtype=np.float64) + k_b**2 / (2.0 * np.pi * f) ** 2
+    ok = s > 0
+    if not np.all(np.isfinite(s)) or not np.any(ok):
+        return {"covered": False, "worst_log_ratio": None}
+    worst = float(np.min(np.log(e[ok] / s[ok])))
+    delta = math.log(10.0) / DENSE_PER_DECADE
+    covered = worst >= delta * delta / 4.0 and float(upper_stat.white) >= float(spec_model.white)
+    return {"covered": bool(covered), "worst_log_ratio": worst}
 
 
 #: Points per decade of the ``envelope`` mode's dense check (:func:`_dominate_densely`).
