@@ -39,6 +39,9 @@ TRUTHS = {
     "flicker_like": NoiseModel(white=3e-4, gauss_markov=tuple((6e-5, T) for T in (10.0, 100.0, 1000.0, 10000.0)),
                                random_walk=2e-7),
     "two_gm": NoiseModel(white=5e-5, gauss_markov=((4e-5, 20.0), (2e-5, 600.0)), random_walk=5e-8),
+    # added with the directional band of the joint envelope and not used while developing it: a navigation-grade
+    # truth whose GM (T = 3600 s) is a tenth of a 10 h record and as long as the outage
+    "nav_grade": NoiseModel(white=3e-6, gauss_markov=((2e-6, 3600.0),), random_walk=5e-9),
 }
 UNITS = {"accel": ("m/s^2/sqrt(Hz)", "m/s^2", "m/s^2/sqrt(s)"), "gyro": ("rad/s/sqrt(Hz)", "rad/s", "rad/s/sqrt(s)")}
 
