@@ -122,9 +122,13 @@ def test_cli_table_target_and_pilot_give_the_same_plan(tmp_path, capsys):
     # time; the replicates' median itself is tested in test_replicates_replace_a_confounded_cell_by_a_median)
     args = ["--sensor", "gyro", "--rate-hz", "1", "--hours", "1", "3", "--records", "1", "2", "--axes", "1",
             "--replicates", "2"]
-    code, out, _ = _run(capsys, "--spec", str(spec), *args, "--target", "N:0.5")
+    code, out, err = _run(capsys, "--spec", str(spec), *args, "--target", "N:0.5")
     assert code == 0
     assert "| hours | records | N +/- (deg/sqrt(h)) |" in out
+    # a line per row before and after it on stderr (minutes at 50 replicates), none on stdout (the table)
+    assert [ln.split()[2].rstrip(":") for ln in err.splitlines() if ln.startswith("plan: row")] == [
+        f"{i}/4" for i in (1, 1, 2, 2, 3, 3, 4, 4)]
+    assert "plan: row" not in out
     assert len([ln for ln in out.splitlines() if ln.startswith("| ") and ln[2].isdigit()]) == 4
     assert "shortest plan with N within +/-50 %: 1 record(s) of 1 h" in out
     # a pilot's identify file with the same model gives the same table (same units, same seed)

@@ -258,13 +258,25 @@ def _confounded(fit, name: str) -> bool:
     return kind != "two-sided" or (name == "gm_sigma_1" and gm_T != "two-sided")
 
 
-def plan_table(model, hours, records, record_rate_hz: float, axes: int = 1, **kw) -> list:
-    """:func:`predict` for every (hours, records) pair, hours (h) outer, records inner."""
+def plan_table(model, hours, records, record_rate_hz: float, axes: int = 1, progress=None, **kw) -> list:
+    """:func:`predict` for every (hours, records) pair, hours (h) outer, records inner. `progress`: None, or a
+    callable given one line of text before each row and after it (with its time, s); the library prints nothing."""
+    import time
+
     if not len(hours):
         raise ValueError("--hours: expected at least one record length (h)")
     if not len(records):
         raise ValueError("--records: expected at least one number of records")
-    return [predict(model, h, r, record_rate_hz, axes, **kw) for h in hours for r in records]
+    rows, pairs = [], [(h, r) for h in hours for r in records]
+    for i, (h, r) in enumerate(pairs, 1):
+        t0 = time.perf_counter()
+        if progress is not None:
+            progress(f"plan: row {i}/{len(pairs)}: {r} record(s) of {h:g} h ...")
+        rows.append(predict(model, h, r, record_rate_hz, axes, **kw))
+        if progress is not None:
+            how = rows[-1]["method"]
+            progress(f"plan: row {i}/{len(pairs)} done in {time.perf_counter() - t0:.1f} s ({how})")
+    return rows
 
 
 def parse_target(text: str) -> tuple:
@@ -401,8 +413,13 @@ def _cmd_plan(args) -> int:
         _check_positive(h, "--hours")
     for r in args.records:
         _check_positive(r, "--records", integer=True)
+    import sys
+
+    def progress(line):  # on stderr, so that the table on stdout stays clean for a file or a pipe
+        print(line, file=sys.stderr, flush=True)
+
     rows = plan_table(model, args.hours, args.records, rate, args.axes, replicates=args.replicates,
-                      sensor=args.sensor)
+                      sensor=args.sensor, progress=progress)
     print(f"# plan for the {args.sensor} model of the {source}, records at {rate:g} Hz, {args.axes} axis curve(s) "
           f"pooled per record: expected half-width of the {100 * CONFIDENCE:g} % interval (imupipe.plan)")
     print(format_table(rows, units, args.sensor))
