@@ -35,6 +35,14 @@
  *     of scipy.signal.lfilter([1], [1, -phi], e, axis=-1) (same operations in the same order), for the
  *     Gauss-Markov records of imupipe.simulate.
  *
+ * flicker_bank(w, p, weights, direct, state, y, n)
+ *     The flicker bank of imupipe.simulate in one pass over the samples, per row of n values:
+ *     u_i[k] = p_i u_i[k-1] + weights_i w[k] for the J = len(p) branches (u_i[-1] = state[row, i]), and
+ *     y[k] = direct w[k] + u_0[k] + u_1[k] + ... + u_{J-1}[k], added in that order; state[row, :] receives
+ *     u_i[n-1]. The operations of imupipe.simulate._flicker_run's branch-by-branch passes (a multiply, the AR(1)
+ *     recursion, an add per branch) in their order, without a pass over the record per branch. y may be w.
+ *     J <= 64 (the bank of a record of 1e12 samples has 20 branches).
+ *
  * segment_stats(x, n, k, m, w, d)
  *     For each record r of n >= k m values (x holds len(w) * n), split into k consecutive segments of m
  *     samples (the last n - k m dropped): w[r] = the median-centred Levene (Brown-Forsythe) statistic of the
@@ -328,6 +336,43 @@ static void ar1_impl(double *e, Py_ssize_t rows, Py_ssize_t n, double phi)
         double *x = e + r * n;
         for (Py_ssize_t i = 1; i < n; i++)
             x[i] = phi * x[i - 1] + x[i];
+    }
+}
+
+#define IMUPIPE_MAX_BRANCHES 64
+
+/* The flicker bank of J <= IMUPIPE_MAX_BRANCHES branches over rows of n samples (see the header). Each branch's
+ * update is fl(fl(p u) + fl(wt w)) and the output fl(...fl(fl(direct w) + u_0) ... + u_{J-1}), the NumPy passes'
+ * operations; the branch states stay in a local array (registers/L1) across the samples. */
+IMUPIPE_CLONES
+static void flicker_bank_impl(const double *w, double *y, double *state, const double *p, const double *wt,
+                              double direct, Py_ssize_t rows, Py_ssize_t n, Py_ssize_t J)
+{
+    double u[IMUPIPE_MAX_BRANCHES], pp[IMUPIPE_MAX_BRANCHES], ww[IMUPIPE_MAX_BRANCHES];
+    for (Py_ssize_t i = 0; i < J; i++) {
+        pp[i] = p[i];
+        ww[i] = wt[i];
+    }
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const double *x = w + r * n;
+        double *out = y + r * n;
+        double *st = state + r * J;
+        for (Py_ssize_t i = 0; i < J; i++)
+            u[i] = st[i];
+        for (Py_ssize_t k = 0; k < n; k++) {
+            const double wk = x[k];
+            for (Py_ssize_t i = 0; i < J; i++) {
+                const double a = pp[i] * u[i];
+                const double b = ww[i] * wk;
+                u[i] = a + b;
+            }
+            double acc = direct * wk;
+            for (Py_ssize_t i = 0; i < J; i++)
+                acc += u[i];
+            out[k] = acc;
+        }
+        for (Py_ssize_t i = 0; i < J; i++)
+            st[i] = u[i];
     }
 }
 
@@ -909,6 +954,56 @@ static PyObject *py_ar1(PyObject *self, PyObject *args)
     result = Py_NewRef(Py_None);
 done:
     PyBuffer_Release(&e);
+    return result;
+}
+
+static PyObject *py_flicker_bank(PyObject *self, PyObject *args)
+{
+    PyObject *w_obj, *p_obj, *wt_obj, *st_obj, *y_obj;
+    double direct;
+    Py_ssize_t n;
+    Py_buffer w = {0}, p = {0}, wt = {0}, st = {0}, y = {0};
+    PyObject *result = NULL;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOdOOn:flicker_bank", &w_obj, &p_obj, &wt_obj, &direct, &st_obj, &y_obj, &n))
+        return NULL;
+    if (PyObject_GetBuffer(w_obj, &w, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(p_obj, &p, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(wt_obj, &wt, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(st_obj, &st, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0 ||
+        PyObject_GetBuffer(y_obj, &y, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+        goto done;
+    if (check_buffer_nd(&w, "w", 'f', 8, INT_MAX) < 0 || check_buffer_nd(&p, "p", 'f', 8, 1) < 0 ||
+        check_buffer_nd(&wt, "weights", 'f', 8, 1) < 0 || check_buffer_nd(&st, "state", 'f', 8, INT_MAX) < 0 ||
+        check_buffer_nd(&y, "y", 'f', 8, INT_MAX) < 0)
+        goto done;
+    const Py_ssize_t J = p.len / 8;
+    if (J < 1 || J > IMUPIPE_MAX_BRANCHES || wt.len != p.len) {
+        PyErr_Format(PyExc_ValueError, "p and weights must hold the same number of branches, 1 to %d; got %zd and %zd",
+                     IMUPIPE_MAX_BRANCHES, J, wt.len / 8);
+        goto done;
+    }
+    if (n < 1 || (w.len / 8) % n != 0 || y.len != w.len) {
+        PyErr_Format(PyExc_ValueError, "w and y must hold the same whole number of rows of n=%zd; got %zd and %zd values",
+                     n, w.len / 8, y.len / 8);
+        goto done;
+    }
+    const Py_ssize_t rows = w.len / 8 / n;
+    if (st.len / 8 != rows * J) {
+        PyErr_Format(PyExc_ValueError, "state must hold rows x J = %zd x %zd values, got %zd", rows, J, st.len / 8);
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    flicker_bank_impl((const double *)w.buf, (double *)y.buf, (double *)st.buf, (const double *)p.buf,
+                      (const double *)wt.buf, direct, rows, n, J);
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&w);
+    PyBuffer_Release(&p);
+    PyBuffer_Release(&wt);
+    PyBuffer_Release(&st);
+    PyBuffer_Release(&y);
     return result;
 }
 
@@ -1494,6 +1589,12 @@ static PyMethodDef kernel_methods[] = {
      "ar1(e, phi, n)\n--\n\n"
      "In place, per row of n values: e[i] = phi * e[i-1] + e[i] for i >= 1 (scipy.signal.lfilter([1], [1, -phi],\n"
      "e, axis=-1)). e: writable C-contiguous float64 of a whole number of rows. Releases the GIL."},
+    {"flicker_bank", py_flicker_bank, METH_VARARGS,
+     "flicker_bank(w, p, weights, direct, state, y, n)\n--\n\n"
+     "Per row of n values: u_i[k] = p_i u_i[k-1] + weights_i w[k] (u_i[-1] = state[row, i]), y[k] = direct w[k] +\n"
+     "u_0[k] + ... + u_{J-1}[k] in that order; state receives the last u_i. w: C-contiguous float64 of whole rows;\n"
+     "p, weights: float64 of J <= 64; state: writable float64 of rows x J; y: writable float64 like w (may be w).\n"
+     "Releases the GIL."},
     {"segment_stats", py_segment_stats, METH_VARARGS,
      "segment_stats(x, n, k, m, w, d)\n--\n\n"
      "Per record r (x: C-contiguous float64 of len(w) * n values, n >= k * m), split into k consecutive\n"

@@ -37,6 +37,8 @@ __all__ = ["flicker_bank", "simulate", "simulate_chunks", "narrowband_discrete"]
 FLICKER_POLES_PER_DECADE = 1.5
 # samples per pass of the flicker bank (about 256 KB of float64: each branch's pass stays in cache)
 _FLICKER_CHUNK = 1 << 15
+# branches the compiled flicker bank holds (IMUPIPE_MAX_BRANCHES of _kernels.c; 11 for 10 h at 125 Hz)
+_FLICKER_MAX_BRANCHES = 64
 
 
 def flicker_bank(n: int, dt: float, poles_per_decade: float = FLICKER_POLES_PER_DECADE):
@@ -98,10 +100,30 @@ def _flicker_start(rng, lead: tuple, n: int, B: float, dt: float):
     return p, weights, scale * c, state
 
 
-def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray) -> np.ndarray:
+def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray, out: np.ndarray | None = None
+                 ) -> np.ndarray:
     """Flicker samples driven by the white draws w (shape (rows, m)), the branch states (rows, J) updated in place:
-    blocks of whole records when a record fits a cache-sized chunk (contiguous copies), else chunks of one record;
-    each branch's pass over a block stays in cache."""
+    y[k] = direct w[k] + u_0[k] + ... + u_{J-1}[k], u_i[k] = p_i u_i[k-1] + weights_i w[k], the branches added
+    in their order. The compiled kernel (``imupipe._kernels.flicker_bank``) does it in one pass over the samples,
+    all branches at once, into `out` (may be w; default a new array); without it, :func:`_flicker_passes`, the
+    same operations branch by branch."""
+    if (_kernels is not None and w.dtype == np.float64 and w.flags.c_contiguous and state.flags.c_contiguous
+            and state.dtype == np.float64 and 1 <= p.size <= _FLICKER_MAX_BRANCHES):
+        y = np.empty_like(w) if out is None else out
+        _kernels.flicker_bank(w, np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(weights, dtype=float),
+                              float(direct), state, y, w.shape[-1])
+        return y
+    y = _flicker_passes(w, p, weights, direct, state)
+    if out is not None:
+        out[...] = y
+        return out
+    return y
+
+
+def _flicker_passes(w: np.ndarray, p, weights, direct: float, state: np.ndarray) -> np.ndarray:
+    """:func:`_flicker_run` in NumPy, branch by branch: per branch a multiply, the AR(1) recursion
+    (:func:`_ar1`), an add; blocks of whole records when a record fits a cache-sized chunk (contiguous copies),
+    else chunks of one record, so that each branch's pass over a block stays in cache."""
     rows, m = w.shape
     y = w * direct
     n_rows, step = (max(1, _FLICKER_CHUNK // m), m) if m <= _FLICKER_CHUNK else (1, _FLICKER_CHUNK)
