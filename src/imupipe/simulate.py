@@ -347,7 +347,8 @@ def simulate_chunks(model, n: int, rate: float, rng=None, chunk: int = SIM_CHUNK
             x += w
         if flk is not None:
             p, weights, direct, state = flk
-            x += _flicker_run(rng.standard_normal((1, m)), p, weights, direct, state)[0]
+            w = rng.standard_normal((1, m))
+            x += _flicker_run(w, p, weights, direct, state, out=w)[0]
         if model.quantization:
             e = np.empty(m + 1)
             e[0] = q_last
