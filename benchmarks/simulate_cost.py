@@ -1,6 +1,6 @@
 """The default config's simulation, this checkout against a baseline commit: wall and CPU, medians of several runs.
 
-``python benchmarks/simulate_cost.py [--baseline main] [--repeats 3] [--cores 2] [--job-only] [--keep DIR]``
+``python benchmarks/simulate_cost.py [--baseline main [388c12b ...]] [--repeats 3] [--cores 2] [--job-only] [--keep DIR]``
 
 Two measurements per tree, the trees alternating run by run on the same machine (``nice`` both):
 
@@ -90,7 +90,7 @@ def _timed(cmd: list, cwd: Path, env: dict, log: Path) -> tuple[float, float]:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--baseline", default="main", help="commit to compare against (default: main)")
+    ap.add_argument("--baseline", nargs="+", default=["main"], help="commits to compare against (default: main)")
     ap.add_argument("--repeats", type=int, default=3, help="runs per tree and measurement (default 3)")
     ap.add_argument("--cores", type=int, default=2, help="snakemake --cores (default 2)")
     ap.add_argument("--job-only", action="store_true", help="only the single-job measurement")
@@ -101,7 +101,9 @@ def main(argv=None) -> None:
     tmp.mkdir(parents=True, exist_ok=True)
     snakemake = str(Path(sys.executable).with_name("snakemake"))
     try:
-        trees = {"this checkout": REPO, f"commit {args.baseline}": _tree_from_commit(args.baseline, tmp / "baseline")}
+        trees = {"this checkout": REPO}
+        for i, commit in enumerate(args.baseline):
+            trees[f"commit {commit}"] = _tree_from_commit(commit, tmp / f"baseline_{i}")
         runs = {}
         for i, (label, tree) in enumerate(trees.items()):
             env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONPATH=str(tree / "src"))
@@ -127,7 +129,6 @@ def main(argv=None) -> None:
         def med(values, k):
             return statistics.median(v[k] for v in values) if values else float("nan")
 
-        base = runs[f"commit {args.baseline}"]
         print(f"\nmedians of {args.repeats} runs, trees alternating; --cores {args.cores}; nice; OPENBLAS_NUM_THREADS=1\n")
         print("| tree | until simulate: wall (s) | until simulate: CPU (s) | one job: wall (s) | one job: CPU (s) |")
         print("|---|---|---|---|---|")
@@ -135,8 +136,11 @@ def main(argv=None) -> None:
             print(f"| {label} | {med(st['dag'], 0):.1f} | {med(st['dag'], 1):.1f} | {med(st['job'], 0):.2f} "
                   f"| {med(st['job'], 1):.2f} |")
         this = runs["this checkout"]
-        print(f"| ratio | {med(this['dag'], 0) / med(base['dag'], 0):.2f} | {med(this['dag'], 1) / med(base['dag'], 1):.2f} "
-              f"| {med(this['job'], 0) / med(base['job'], 0):.2f} | {med(this['job'], 1) / med(base['job'], 1):.2f} |")
+        for commit in args.baseline:
+            base = runs[f"commit {commit}"]
+            print(f"| this checkout / {commit} | {med(this['dag'], 0) / med(base['dag'], 0):.2f} "
+                  f"| {med(this['dag'], 1) / med(base['dag'], 1):.2f} "
+                  f"| {med(this['job'], 0) / med(base['job'], 0):.2f} | {med(this['job'], 1) / med(base['job'], 1):.2f} |")
     finally:
         if args.keep is None:
             shutil.rmtree(tmp, ignore_errors=True)

@@ -134,6 +134,28 @@ def test_flicker_bank_kernel_is_the_branch_passes(rng):
 
 
 @pytest.mark.skipif(simulate_module._kernels is None, reason="imupipe._kernels not built")
+@pytest.mark.parametrize("white, gms, krw", [(0.3, [(0.99, 0.2), (0.5, 1.5)], 0.01), (None, [], 0.01),
+                                             (0.3, [], None), (None, [(1.0 - 1e-7, 3e-4)], None)])
+def test_linear_piece_kernel_is_the_numpy_passes(monkeypatch, white, gms, krw):
+    """The compiled white + Gauss-Markov + random-walk piece (one pass) against the NumPy passes (term by term):
+    the same normal draws (one draw of the piece's normals is the stream of one draw per term), the same products,
+    recursions and sums in the same order, so the same bits (tolerance 0, as the AR(1) kernel against lfilter);
+    the first piece (steady-state start) and a continued one, the GM states and the walk's running sum carried."""
+    def pieces():
+        gm_last, rw_sum, out = [0.7, -0.2][:len(gms)], 0.4, []
+        rng = np.random.default_rng(17)
+        for first, m in ((True, 1000), (False, 333), (False, 1)):
+            x, rw_sum = simulate_module._linear_piece(rng, m, first, white, gms, gm_last, krw, rw_sum)
+            out.append(x)
+        return np.concatenate(out), gm_last, rw_sum, rng.standard_normal()
+
+    x_c, last_c, sum_c, next_c = pieces()
+    monkeypatch.setattr(simulate_module, "_kernels", None)
+    x_np, last_np, sum_np, next_np = pieces()
+    assert x_c.tobytes() == x_np.tobytes() and last_c == last_np and sum_c == sum_np and next_c == next_np
+
+
+@pytest.mark.skipif(simulate_module._kernels is None, reason="imupipe._kernels not built")
 def test_chunks_without_the_kernel_give_the_same_record(rng, monkeypatch):
     """The demo's gyro model through simulate_chunks with the compiled kernels and without them (the NumPy/SciPy
     paths): the same seed gives the same record to the flicker bank's bound (J eps times the sum of the magnitudes

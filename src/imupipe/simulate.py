@@ -287,6 +287,56 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
     return x.astype(dtype, copy=False)
 
 
+#: Gauss-Markov terms the compiled piece (``imupipe._kernels.sim_piece``) holds (IMUPIPE_MAX_GM of _kernels.c)
+_PIECE_MAX_GM = 16
+
+
+def _linear_piece(rng, m: int, first: bool, sw, gms, gm_last: list, krw, rw_sum: float):
+    """The white, Gauss-Markov and random-walk terms of one piece of :func:`simulate_chunks` (m samples), their
+    sum: x = ((0 + sw w) + g_0 + ... + g_{G-1}) + krw (cumsum(v) + rw_sum) from unit normal draws taken in that
+    order (white, each GM, random walk; m each), g_j[k] = phi_j g_j[k-1] + scale_j e_j[k] (``gms`` the (phi,
+    scale) pairs) started from ``gm_last`` (the first piece: g_j[0] = gm_last[j], the steady-state x_0); sw or
+    krw None: no such term. ``gm_last`` receives each g_j's last value; returns (x, the random walk's running sum).
+    The compiled kernel does it in one pass, the NumPy passes below term by term: the same operations in the same
+    order (one draw of all the piece's normals is the same stream as one draw per term)."""
+    if _kernels is not None and len(gms) <= _PIECE_MAX_GM:
+        k = (sw is not None) + len(gms) + (krw is not None)
+        draws = rng.standard_normal((k, m))
+        x = np.empty(m)
+        g0 = int(sw is not None)
+        phis = np.array([phi for phi, _ in gms], dtype=float)
+        scales = np.array([scale for _, scale in gms], dtype=float)
+        last = np.array(gm_last, dtype=float)
+        rw_sum = _kernels.sim_piece(x, draws[0] if sw is not None else None, float(sw or 0.0),
+                                    draws[g0:g0 + len(gms)], phis, scales, last, bool(first),
+                                    draws[-1] if krw is not None else None, float(krw or 0.0), float(rw_sum))
+        gm_last[:] = last.tolist()
+        return x, rw_sum
+    x = np.zeros(m)
+    if sw is not None:
+        w = rng.standard_normal(m)
+        w *= sw
+        x += w
+    for j, (phi, scale) in enumerate(gms):
+        e = rng.standard_normal(m)
+        e *= scale
+        if first:
+            e[0] = gm_last[j]  # x_0 itself
+        else:
+            e[0] += phi * gm_last[j]
+        e = _ar1(e, phi)
+        gm_last[j] = float(e[-1])
+        x += e
+    if krw is not None:
+        w = rng.standard_normal(m)
+        np.cumsum(w, out=w)
+        w += rw_sum
+        rw_sum = float(w[-1])
+        w *= krw
+        x += w
+    return x, rw_sum
+
+
 #: Samples per piece of :func:`simulate_chunks` (2 MB of float64): part of the definition of its random stream.
 SIM_CHUNK = 1 << 18
 
@@ -319,32 +369,13 @@ def simulate_chunks(model, n: int, rate: float, rng=None, chunk: int = SIM_CHUNK
     gms = [(np.exp(-dt / T), sigma * np.sqrt(-np.expm1(-2.0 * dt / T))) for sigma, T in model.gauss_markov]
     gm_last = [sigma * rng.standard_normal() for sigma, _ in model.gauss_markov]  # steady state x_0
     rw_sum = 0.0
+    sw, krw = model.white / np.sqrt(dt), model.random_walk * np.sqrt(dt)  # u per unit draw
     flk = _flicker_start(rng, (1,), n, model.flicker, dt) if model.flicker else None
     q_last = model.quantization * rng.standard_normal() if model.quantization else 0.0
     for a in range(0, n, chunk):
         m = min(chunk, n - a)
-        x = np.zeros(m)
-        if model.white:
-            w = rng.standard_normal(m)
-            w *= model.white / np.sqrt(dt)
-            x += w
-        for j, (phi, scale) in enumerate(gms):
-            e = rng.standard_normal(m)
-            e *= scale
-            if a == 0:
-                e[0] = gm_last[j]  # x_0 itself
-            else:
-                e[0] += phi * gm_last[j]
-            e = _ar1(e, phi)
-            gm_last[j] = float(e[-1])
-            x += e
-        if model.random_walk:
-            w = rng.standard_normal(m)
-            np.cumsum(w, out=w)
-            w += rw_sum
-            rw_sum = float(w[-1])
-            w *= model.random_walk * np.sqrt(dt)
-            x += w
+        x, rw_sum = _linear_piece(rng, m, a == 0, sw if model.white else None, gms, gm_last,
+                                  krw if model.random_walk else None, rw_sum)
         if flk is not None:
             p, weights, direct, state = flk
             w = rng.standard_normal((1, m))
