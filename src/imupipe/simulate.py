@@ -28,6 +28,7 @@ try:  # optional compiled kernel; scipy.signal.lfilter does the same recursion
     from imupipe import _kernels
 except ImportError:  # pragma: no cover
     _kernels = None
+# (flicker_bank and sim_piece are looked up by name: an extension built before them falls back to NumPy)
 
 __all__ = ["flicker_bank", "simulate", "simulate_chunks", "narrowband_discrete"]
 
@@ -107,7 +108,7 @@ def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray, ou
     in their order. The compiled kernel (``imupipe._kernels.flicker_bank``) does it in one pass over the samples,
     all branches at once, into `out` (may be w; default a new array); without it, :func:`_flicker_passes`, the
     same operations branch by branch."""
-    if (_kernels is not None and w.dtype == np.float64 and w.flags.c_contiguous and state.flags.c_contiguous
+    if (hasattr(_kernels, "flicker_bank") and w.dtype == np.float64 and w.flags.c_contiguous and state.flags.c_contiguous
             and state.dtype == np.float64 and 1 <= p.size <= _FLICKER_MAX_BRANCHES):
         y = np.empty_like(w) if out is None else out
         _kernels.flicker_bank(w, np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(weights, dtype=float),
@@ -299,7 +300,7 @@ def _linear_piece(rng, m: int, first: bool, sw, gms, gm_last: list, krw, rw_sum:
     krw None: no such term. ``gm_last`` receives each g_j's last value; returns (x, the random walk's running sum).
     The compiled kernel does it in one pass, the NumPy passes below term by term: the same operations in the same
     order (one draw of all the piece's normals is the same stream as one draw per term)."""
-    if _kernels is not None and len(gms) <= _PIECE_MAX_GM:
+    if hasattr(_kernels, "sim_piece") and len(gms) <= _PIECE_MAX_GM:
         k = (sw is not None) + len(gms) + (krw is not None)
         draws = rng.standard_normal((k, m))
         x = np.empty(m)
