@@ -87,6 +87,98 @@ def test_ar1_kernel_is_lfilter(rng):
         simulate_module._kernels.ar1(np.zeros(10), 0.5, 3)
 
 
+def _bank_terms(w, p, weights, direct, state):
+    """The terms of the flicker bank's sum, |direct w| and each branch's |u_i| (the NumPy passes with one branch
+    and no direct term: y = 0 w + u_i = u_i exactly), shape (J + 1,) + w.shape."""
+    terms = [np.abs(direct * w)]
+    for i in range(p.size):
+        st = state[:, i:i + 1].copy()
+        terms.append(np.abs(simulate_module._flicker_passes(w, p[i:i + 1], weights[i:i + 1], 0.0, st)))
+    return np.array(terms)
+
+
+@pytest.mark.skipif(not hasattr(simulate_module._kernels, "flicker_bank"), reason="imupipe._kernels not built")
+def test_flicker_bank_kernel_is_the_branch_passes(rng):
+    """The compiled flicker bank (one pass, all branches) against the NumPy passes (branch by branch) on the bank of a
+    10 h record at 125 Hz (11 branches), records in rows and one record in pieces whose branch states are carried:
+    both compute each branch u_i[k] = p_i u_i[k-1] + weight_i w[k] by the same two products and one sum, and add the
+    J + 1 terms direct w[k], u_0[k], ..., u_{J-1}[k]; two orders of summing J + 1 terms differ by at most
+    2 gamma_J sum |terms| ~ J eps sum |terms| (Higham, Accuracy and Stability of Numerical Algorithms, 2002, eq. 4.4),
+    so that is the bound (the kernel keeps the order, and the two agree to the bit on x86-64; the bound is what
+    holds whatever the compiler does with the sum). The states after the last sample: the same, each branch exactly
+    one recursion, to eps times the largest state."""
+    eps = np.finfo(float).eps
+    p, weights, direct, state = simulate_module._flicker_start(rng, (3,), 4_500_000, 2e-5, 1 / 125)
+    J = p.size
+    assert J == 11
+    w = rng.standard_normal((3, 5000))
+    bound = J * eps * _bank_terms(w, p, weights, direct, state).sum(axis=0)
+    st_np, st_c = state.copy(), state.copy()
+    y_np = simulate_module._flicker_passes(w, p, weights, direct, st_np)
+    y_c = simulate_module._flicker_run(w, p, weights, direct, st_c)
+    assert np.all(np.abs(y_c - y_np) <= bound)
+    assert np.all(np.abs(st_c - st_np) <= eps * np.abs(st_np).max())
+    # one record in pieces of 1, 999 and 4000 samples, states carried: as the whole record through the NumPy passes
+    st_c = state[:1].copy()
+    pieces = [simulate_module._flicker_run(np.ascontiguousarray(w[:1, a:b]), p, weights, direct, st_c)
+              for a, b in ((0, 1), (1, 1000), (1000, 5000))]
+    assert np.all(np.abs(np.concatenate(pieces, axis=1) - y_np[:1]) <= bound[:1])
+    assert np.all(np.abs(st_c - st_np[:1]) <= eps * np.abs(st_np).max())
+    # in place (y written over w) gives the same values
+    w2, st2 = w.copy(), state.copy()
+    assert np.array_equal(simulate_module._flicker_run(w2, p, weights, direct, st2, out=w2), y_c)
+    with pytest.raises(ValueError, match="rows x J"):
+        simulate_module._kernels.flicker_bank(w, p, weights, direct, np.zeros(J), np.empty_like(w), w.shape[-1])
+    with pytest.raises(ValueError, match="same number of branches"):
+        simulate_module._kernels.flicker_bank(w, p, weights[:-1], direct, state.copy(), np.empty_like(w), w.shape[-1])
+
+
+@pytest.mark.skipif(not hasattr(simulate_module._kernels, "sim_piece"), reason="imupipe._kernels not built")
+@pytest.mark.parametrize("white, gms, krw", [(0.3, [(0.99, 0.2), (0.5, 1.5)], 0.01), (None, [], 0.01),
+                                             (0.3, [], None), (None, [(1.0 - 1e-7, 3e-4)], None)])
+def test_linear_piece_kernel_is_the_numpy_passes(monkeypatch, white, gms, krw):
+    """The compiled white + Gauss-Markov + random-walk piece (one pass) against the NumPy passes (term by term):
+    the same normal draws (one draw of the piece's normals is the stream of one draw per term), the same products,
+    recursions and sums in the same order, so the same bits (tolerance 0, as the AR(1) kernel against lfilter);
+    the first piece (steady-state start) and a continued one, the GM states and the walk's running sum carried."""
+    def pieces():
+        gm_last, rw_sum, out = [0.7, -0.2][:len(gms)], 0.4, []
+        rng = np.random.default_rng(17)
+        for first, m in ((True, 1000), (False, 333), (False, 1)):
+            x, rw_sum = simulate_module._linear_piece(rng, m, first, white, gms, gm_last, krw, rw_sum)
+            out.append(x)
+        return np.concatenate(out), gm_last, rw_sum, rng.standard_normal()
+
+    x_c, last_c, sum_c, next_c = pieces()
+    monkeypatch.setattr(simulate_module, "_kernels", None)
+    x_np, last_np, sum_np, next_np = pieces()
+    assert x_c.tobytes() == x_np.tobytes() and last_c == last_np and sum_c == sum_np and next_c == next_np
+
+
+@pytest.mark.skipif(not hasattr(simulate_module._kernels, "flicker_bank"), reason="imupipe._kernels not built")
+def test_chunks_without_the_kernel_give_the_same_record(rng, monkeypatch):
+    """The demo's gyro model through simulate_chunks with the compiled kernels and without them (the NumPy/SciPy
+    paths): the same seed gives the same record to the flicker bank's bound (J eps times the sum of the magnitudes
+    of the bank's terms, test above; the other components do the same operations on both paths: lfilter and the
+    AR(1) kernel are bit-identical), bounded here by J eps (|direct| + sum weights / (1 - p)) 6: each
+    |u_i| <= max(|u_i[-1]|, weight_i max|w| / (1 - p_i)), max|w| < 6 over 3000 normal draws and the stationary start
+    has std weight_i / sqrt(1 - p_i^2) <= weight_i / (1 - p_i)."""
+    from imupipe.simulate import flicker_bank, simulate_chunks
+    from imupipe.specsheet import load_spec
+
+    model = load_spec(str(ROOT / "config" / "truth" / "stim300_like.yaml")).models["gyro"]
+    n, rate = 3000, 125.0
+    with_kernel = np.concatenate([v for _, v in simulate_chunks(model, n, rate, 5, chunk=700)])
+    monkeypatch.setattr(simulate_module, "_kernels", None)
+    without = np.concatenate([v for _, v in simulate_chunks(model, n, rate, 5, chunk=700)])
+    p, res, c, gain = flicker_bank(n, 1 / rate)
+    scale = model.flicker * gain
+    J, eps = p.size, np.finfo(float).eps
+    bound = J * eps * 6 * scale * (c + np.sum(res / (1 - p)))
+    # plus the rounding of the record's last sum (the flicker added to the other components): eps |x|
+    assert np.all(np.abs(with_kernel - without) <= bound + eps * np.abs(with_kernel))
+
+
 def test_narrowband_steady_state_and_autocovariance(rng):
     # 20000 independent records: variance at the first and last sample (started at steady state) and the
     # lag-1 and lag-25 covariances against the closed form R(t) = Re[A e^{lambda t}]; each estimate has

@@ -35,6 +35,22 @@
  *     of scipy.signal.lfilter([1], [1, -phi], e, axis=-1) (same operations in the same order), for the
  *     Gauss-Markov records of imupipe.simulate.
  *
+ * flicker_bank(w, p, weights, direct, state, y, n)
+ *     The flicker bank of imupipe.simulate in one pass over the samples, per row of n values:
+ *     u_i[k] = p_i u_i[k-1] + weights_i w[k] for the J = len(p) branches (u_i[-1] = state[row, i]), and
+ *     y[k] = direct w[k] + u_0[k] + u_1[k] + ... + u_{J-1}[k], added in that order; state[row, :] receives
+ *     u_i[n-1]. The operations of imupipe.simulate._flicker_run's branch-by-branch passes (a multiply, the AR(1)
+ *     recursion, an add per branch) in their order, without a pass over the record per branch. y may be w.
+ *     J <= 64 (the bank of a record of 1e12 samples has 20 branches).
+ *
+ * sim_piece(x, white, sw, gm, phi, scale, last, first, rw, krw, rw_sum) -> rw_sum
+ *     One piece of m = len(x) samples of imupipe.simulate.simulate_chunks' white, Gauss-Markov and random-walk
+ *     terms in one pass, from their unit normal draws: x[k] = ((0 + sw white[k]) + g_0[k] + ... + g_{G-1}[k])
+ *     + krw (c[k] + rw_sum), g_j[k] = phi_j g_j[k-1] + scale_j gm[j, k] with g_j[-1] = last[j] (first: g_j[0] =
+ *     last[j], the steady-state start), c the running sum of rw. white, rw: None when absent; gm: G x m
+ *     (G = len(phi), may be 0); last receives g_j[m-1]; returns c[m-1] + rw_sum (rw_sum when rw is None).
+ *     The NumPy passes' operations in their order (a multiply, the recursion, an add per term).
+ *
  * segment_stats(x, n, k, m, w, d)
  *     For each record r of n >= k m values (x holds len(w) * n), split into k consecutive segments of m
  *     samples (the last n - k m dropped): w[r] = the median-centred Levene (Brown-Forsythe) statistic of the
@@ -329,6 +345,80 @@ static void ar1_impl(double *e, Py_ssize_t rows, Py_ssize_t n, double phi)
         for (Py_ssize_t i = 1; i < n; i++)
             x[i] = phi * x[i - 1] + x[i];
     }
+}
+
+#define IMUPIPE_MAX_BRANCHES 64
+
+/* The flicker bank of J <= IMUPIPE_MAX_BRANCHES branches over rows of n samples (see the header). Each branch's
+ * update is fl(fl(p u) + fl(wt w)) and the output fl(...fl(fl(direct w) + u_0) ... + u_{J-1}), the NumPy passes'
+ * operations; the branch states stay in a local array (registers/L1) across the samples. */
+IMUPIPE_CLONES
+static void flicker_bank_impl(const double *w, double *y, double *state, const double *p, const double *wt,
+                              double direct, Py_ssize_t rows, Py_ssize_t n, Py_ssize_t J)
+{
+    double u[IMUPIPE_MAX_BRANCHES], pp[IMUPIPE_MAX_BRANCHES], ww[IMUPIPE_MAX_BRANCHES];
+    for (Py_ssize_t i = 0; i < J; i++) {
+        pp[i] = p[i];
+        ww[i] = wt[i];
+    }
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const double *x = w + r * n;
+        double *out = y + r * n;
+        double *st = state + r * J;
+        for (Py_ssize_t i = 0; i < J; i++)
+            u[i] = st[i];
+        for (Py_ssize_t k = 0; k < n; k++) {
+            const double wk = x[k];
+            for (Py_ssize_t i = 0; i < J; i++) {
+                const double a = pp[i] * u[i];
+                const double b = ww[i] * wk;
+                u[i] = a + b;
+            }
+            double acc = direct * wk;
+            for (Py_ssize_t i = 0; i < J; i++)
+                acc += u[i];
+            out[k] = acc;
+        }
+        for (Py_ssize_t i = 0; i < J; i++)
+            st[i] = u[i];
+    }
+}
+
+#define IMUPIPE_MAX_GM 16
+
+/* sim_piece (see the header): the terms added in the order of the NumPy passes, one pass over the samples. */
+static double sim_piece_impl(double *x, Py_ssize_t m, const double *white, double sw, const double *gm,
+                             const double *phi, const double *scale, double *last, Py_ssize_t G, int first,
+                             const double *rw, double krw, double rw_sum)
+{
+    double g[IMUPIPE_MAX_GM];
+    double c = 0.0, v = rw_sum;
+    for (Py_ssize_t j = 0; j < G; j++)
+        g[j] = last[j];
+    for (Py_ssize_t k = 0; k < m; k++) {
+        double acc = 0.0;
+        if (white)
+            acc += white[k] * sw;
+        for (Py_ssize_t j = 0; j < G; j++) {
+            const double e = gm[j * m + k] * scale[j];
+            if (k == 0 && first)
+                g[j] = last[j];
+            else {
+                const double a = phi[j] * g[j];
+                g[j] = a + e;
+            }
+            acc += g[j];
+        }
+        if (rw) {
+            c = k == 0 ? rw[0] : c + rw[k];
+            v = c + rw_sum;
+            acc += v * krw;
+        }
+        x[k] = acc;
+    }
+    for (Py_ssize_t j = 0; j < G; j++)
+        last[j] = g[j];
+    return v;
 }
 
 /* Levene W (median-centred) of k sorted segments of m samples each: s[i*m + j]. */
@@ -909,6 +999,110 @@ static PyObject *py_ar1(PyObject *self, PyObject *args)
     result = Py_NewRef(Py_None);
 done:
     PyBuffer_Release(&e);
+    return result;
+}
+
+static PyObject *py_flicker_bank(PyObject *self, PyObject *args)
+{
+    PyObject *w_obj, *p_obj, *wt_obj, *st_obj, *y_obj;
+    double direct;
+    Py_ssize_t n;
+    Py_buffer w = {0}, p = {0}, wt = {0}, st = {0}, y = {0};
+    PyObject *result = NULL;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOdOOn:flicker_bank", &w_obj, &p_obj, &wt_obj, &direct, &st_obj, &y_obj, &n))
+        return NULL;
+    if (PyObject_GetBuffer(w_obj, &w, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(p_obj, &p, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(wt_obj, &wt, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(st_obj, &st, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0 ||
+        PyObject_GetBuffer(y_obj, &y, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+        goto done;
+    if (check_buffer_nd(&w, "w", 'f', 8, INT_MAX) < 0 || check_buffer_nd(&p, "p", 'f', 8, 1) < 0 ||
+        check_buffer_nd(&wt, "weights", 'f', 8, 1) < 0 || check_buffer_nd(&st, "state", 'f', 8, INT_MAX) < 0 ||
+        check_buffer_nd(&y, "y", 'f', 8, INT_MAX) < 0)
+        goto done;
+    const Py_ssize_t J = p.len / 8;
+    if (J < 1 || J > IMUPIPE_MAX_BRANCHES || wt.len != p.len) {
+        PyErr_Format(PyExc_ValueError, "p and weights must hold the same number of branches, 1 to %d; got %zd and %zd",
+                     IMUPIPE_MAX_BRANCHES, J, wt.len / 8);
+        goto done;
+    }
+    if (n < 1 || (w.len / 8) % n != 0 || y.len != w.len) {
+        PyErr_Format(PyExc_ValueError, "w and y must hold the same whole number of rows of n=%zd; got %zd and %zd values",
+                     n, w.len / 8, y.len / 8);
+        goto done;
+    }
+    const Py_ssize_t rows = w.len / 8 / n;
+    if (st.len / 8 != rows * J) {
+        PyErr_Format(PyExc_ValueError, "state must hold rows x J = %zd x %zd values, got %zd", rows, J, st.len / 8);
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    flicker_bank_impl((const double *)w.buf, (double *)y.buf, (double *)st.buf, (const double *)p.buf,
+                      (const double *)wt.buf, direct, rows, n, J);
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&w);
+    PyBuffer_Release(&p);
+    PyBuffer_Release(&wt);
+    PyBuffer_Release(&st);
+    PyBuffer_Release(&y);
+    return result;
+}
+
+static PyObject *py_sim_piece(PyObject *self, PyObject *args)
+{
+    PyObject *x_obj, *white_obj, *gm_obj, *phi_obj, *scale_obj, *last_obj, *rw_obj;
+    double sw, krw, rw_sum;
+    int first;
+    Py_buffer x = {0}, white = {0}, gm = {0}, phi = {0}, scale = {0}, last = {0}, rw = {0};
+    PyObject *result = NULL;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOdOOOOpOdd:sim_piece", &x_obj, &white_obj, &sw, &gm_obj, &phi_obj, &scale_obj,
+                          &last_obj, &first, &rw_obj, &krw, &rw_sum))
+        return NULL;
+    if (PyObject_GetBuffer(x_obj, &x, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0 ||
+        check_buffer_nd(&x, "x", 'f', 8, 1) < 0)
+        goto done;
+    const Py_ssize_t m = x.len / 8;
+    if (white_obj != Py_None && (PyObject_GetBuffer(white_obj, &white, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+                                 check_buffer_nd(&white, "white", 'f', 8, INT_MAX) < 0))
+        goto done;
+    if (rw_obj != Py_None && (PyObject_GetBuffer(rw_obj, &rw, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+                              check_buffer_nd(&rw, "rw", 'f', 8, INT_MAX) < 0))
+        goto done;
+    if (PyObject_GetBuffer(gm_obj, &gm, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(phi_obj, &phi, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(scale_obj, &scale, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0 ||
+        PyObject_GetBuffer(last_obj, &last, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+        goto done;
+    if (check_buffer_nd(&gm, "gm", 'f', 8, INT_MAX) < 0 || check_buffer_nd(&phi, "phi", 'f', 8, 1) < 0 ||
+        check_buffer_nd(&scale, "scale", 'f', 8, 1) < 0 || check_buffer_nd(&last, "last", 'f', 8, 1) < 0)
+        goto done;
+    const Py_ssize_t G = phi.len / 8;
+    if (G > IMUPIPE_MAX_GM || scale.len != phi.len || last.len != phi.len || gm.len != G * m * 8 ||
+        (white.buf && white.len != m * 8) || (rw.buf && rw.len != m * 8) || m < 1) {
+        PyErr_Format(PyExc_ValueError, "sim_piece: x of m=%zd >= 1 samples, white and rw of m (or None), gm of G x m "
+                     "and phi, scale, last of G <= %d values expected (G=%zd, gm has %zd)", m, IMUPIPE_MAX_GM, G,
+                     gm.len / 8);
+        goto done;
+    }
+    double out;
+    Py_BEGIN_ALLOW_THREADS
+    out = sim_piece_impl((double *)x.buf, m, white.buf, sw, gm.buf, phi.buf, scale.buf, last.buf, G, first,
+                         rw.buf, krw, rw_sum);
+    Py_END_ALLOW_THREADS
+    result = PyFloat_FromDouble(out);
+done:
+    PyBuffer_Release(&x);
+    PyBuffer_Release(&white);
+    PyBuffer_Release(&gm);
+    PyBuffer_Release(&phi);
+    PyBuffer_Release(&scale);
+    PyBuffer_Release(&last);
+    PyBuffer_Release(&rw);
     return result;
 }
 
@@ -1494,6 +1688,17 @@ static PyMethodDef kernel_methods[] = {
      "ar1(e, phi, n)\n--\n\n"
      "In place, per row of n values: e[i] = phi * e[i-1] + e[i] for i >= 1 (scipy.signal.lfilter([1], [1, -phi],\n"
      "e, axis=-1)). e: writable C-contiguous float64 of a whole number of rows. Releases the GIL."},
+    {"flicker_bank", py_flicker_bank, METH_VARARGS,
+     "flicker_bank(w, p, weights, direct, state, y, n)\n--\n\n"
+     "Per row of n values: u_i[k] = p_i u_i[k-1] + weights_i w[k] (u_i[-1] = state[row, i]), y[k] = direct w[k] +\n"
+     "u_0[k] + ... + u_{J-1}[k] in that order; state receives the last u_i. w: C-contiguous float64 of whole rows;\n"
+     "p, weights: float64 of J <= 64; state: writable float64 of rows x J; y: writable float64 like w (may be w).\n"
+     "Releases the GIL."},
+    {"sim_piece", py_sim_piece, METH_VARARGS,
+     "sim_piece(x, white, sw, gm, phi, scale, last, first, rw, krw, rw_sum)\n--\n\n"
+     "x[k] = ((0 + sw white[k]) + g_0[k] + ... + g_{G-1}[k]) + krw (c[k] + rw_sum): g_j[k] = phi_j g_j[k-1] +\n"
+     "scale_j gm[j, k], g_j[-1] = last[j] (first: g_j[0] = last[j]); c the running sum of rw. white, rw: float64 of\n"
+     "len(x) or None; gm: G x len(x); last (writable) receives g_j[-1]. Returns c[-1] + rw_sum. Releases the GIL."},
     {"segment_stats", py_segment_stats, METH_VARARGS,
      "segment_stats(x, n, k, m, w, d)\n--\n\n"
      "Per record r (x: C-contiguous float64 of len(w) * n values, n >= k * m), split into k consecutive\n"

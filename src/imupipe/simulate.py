@@ -28,6 +28,7 @@ try:  # optional compiled kernel; scipy.signal.lfilter does the same recursion
     from imupipe import _kernels
 except ImportError:  # pragma: no cover
     _kernels = None
+# (flicker_bank and sim_piece are looked up by name: an extension built before them falls back to NumPy)
 
 __all__ = ["flicker_bank", "simulate", "simulate_chunks", "narrowband_discrete"]
 
@@ -37,6 +38,8 @@ __all__ = ["flicker_bank", "simulate", "simulate_chunks", "narrowband_discrete"]
 FLICKER_POLES_PER_DECADE = 1.5
 # samples per pass of the flicker bank (about 256 KB of float64: each branch's pass stays in cache)
 _FLICKER_CHUNK = 1 << 15
+# branches the compiled flicker bank holds (IMUPIPE_MAX_BRANCHES of _kernels.c; 11 for 10 h at 125 Hz)
+_FLICKER_MAX_BRANCHES = 64
 
 
 def flicker_bank(n: int, dt: float, poles_per_decade: float = FLICKER_POLES_PER_DECADE):
@@ -98,10 +101,30 @@ def _flicker_start(rng, lead: tuple, n: int, B: float, dt: float):
     return p, weights, scale * c, state
 
 
-def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray) -> np.ndarray:
+def _flicker_run(w: np.ndarray, p, weights, direct: float, state: np.ndarray, out: np.ndarray | None = None
+                 ) -> np.ndarray:
     """Flicker samples driven by the white draws w (shape (rows, m)), the branch states (rows, J) updated in place:
-    blocks of whole records when a record fits a cache-sized chunk (contiguous copies), else chunks of one record;
-    each branch's pass over a block stays in cache."""
+    y[k] = direct w[k] + u_0[k] + ... + u_{J-1}[k], u_i[k] = p_i u_i[k-1] + weights_i w[k], the branches added
+    in their order. The compiled kernel (``imupipe._kernels.flicker_bank``) does it in one pass over the samples,
+    all branches at once, into `out` (may be w; default a new array); without it, :func:`_flicker_passes`, the
+    same operations branch by branch."""
+    if (hasattr(_kernels, "flicker_bank") and w.dtype == np.float64 and w.flags.c_contiguous and state.flags.c_contiguous
+            and state.dtype == np.float64 and 1 <= p.size <= _FLICKER_MAX_BRANCHES):
+        y = np.empty_like(w) if out is None else out
+        _kernels.flicker_bank(w, np.ascontiguousarray(p, dtype=float), np.ascontiguousarray(weights, dtype=float),
+                              float(direct), state, y, w.shape[-1])
+        return y
+    y = _flicker_passes(w, p, weights, direct, state)
+    if out is not None:
+        out[...] = y
+        return out
+    return y
+
+
+def _flicker_passes(w: np.ndarray, p, weights, direct: float, state: np.ndarray) -> np.ndarray:
+    """:func:`_flicker_run` in NumPy, branch by branch: per branch a multiply, the AR(1) recursion
+    (:func:`_ar1`), an add; blocks of whole records when a record fits a cache-sized chunk (contiguous copies),
+    else chunks of one record, so that each branch's pass over a block stays in cache."""
     rows, m = w.shape
     y = w * direct
     n_rows, step = (max(1, _FLICKER_CHUNK // m), m) if m <= _FLICKER_CHUNK else (1, _FLICKER_CHUNK)
@@ -265,6 +288,56 @@ def simulate(model, n: int, rate: float, rng=None, dtype=np.float64, n_records: 
     return x.astype(dtype, copy=False)
 
 
+#: Gauss-Markov terms the compiled piece (``imupipe._kernels.sim_piece``) holds (IMUPIPE_MAX_GM of _kernels.c)
+_PIECE_MAX_GM = 16
+
+
+def _linear_piece(rng, m: int, first: bool, sw, gms, gm_last: list, krw, rw_sum: float):
+    """The white, Gauss-Markov and random-walk terms of one piece of :func:`simulate_chunks` (m samples), their
+    sum: x = ((0 + sw w) + g_0 + ... + g_{G-1}) + krw (cumsum(v) + rw_sum) from unit normal draws taken in that
+    order (white, each GM, random walk; m each), g_j[k] = phi_j g_j[k-1] + scale_j e_j[k] (``gms`` the (phi,
+    scale) pairs) started from ``gm_last`` (the first piece: g_j[0] = gm_last[j], the steady-state x_0); sw or
+    krw None: no such term. ``gm_last`` receives each g_j's last value; returns (x, the random walk's running sum).
+    The compiled kernel does it in one pass, the NumPy passes below term by term: the same operations in the same
+    order (one draw of all the piece's normals is the same stream as one draw per term)."""
+    if hasattr(_kernels, "sim_piece") and len(gms) <= _PIECE_MAX_GM:
+        k = (sw is not None) + len(gms) + (krw is not None)
+        draws = rng.standard_normal((k, m))
+        x = np.empty(m)
+        g0 = int(sw is not None)
+        phis = np.array([phi for phi, _ in gms], dtype=float)
+        scales = np.array([scale for _, scale in gms], dtype=float)
+        last = np.array(gm_last, dtype=float)
+        rw_sum = _kernels.sim_piece(x, draws[0] if sw is not None else None, float(sw or 0.0),
+                                    draws[g0:g0 + len(gms)], phis, scales, last, bool(first),
+                                    draws[-1] if krw is not None else None, float(krw or 0.0), float(rw_sum))
+        gm_last[:] = last.tolist()
+        return x, rw_sum
+    x = np.zeros(m)
+    if sw is not None:
+        w = rng.standard_normal(m)
+        w *= sw
+        x += w
+    for j, (phi, scale) in enumerate(gms):
+        e = rng.standard_normal(m)
+        e *= scale
+        if first:
+            e[0] = gm_last[j]  # x_0 itself
+        else:
+            e[0] += phi * gm_last[j]
+        e = _ar1(e, phi)
+        gm_last[j] = float(e[-1])
+        x += e
+    if krw is not None:
+        w = rng.standard_normal(m)
+        np.cumsum(w, out=w)
+        w += rw_sum
+        rw_sum = float(w[-1])
+        w *= krw
+        x += w
+    return x, rw_sum
+
+
 #: Samples per piece of :func:`simulate_chunks` (2 MB of float64): part of the definition of its random stream.
 SIM_CHUNK = 1 << 18
 
@@ -297,35 +370,17 @@ def simulate_chunks(model, n: int, rate: float, rng=None, chunk: int = SIM_CHUNK
     gms = [(np.exp(-dt / T), sigma * np.sqrt(-np.expm1(-2.0 * dt / T))) for sigma, T in model.gauss_markov]
     gm_last = [sigma * rng.standard_normal() for sigma, _ in model.gauss_markov]  # steady state x_0
     rw_sum = 0.0
+    sw, krw = model.white / np.sqrt(dt), model.random_walk * np.sqrt(dt)  # u per unit draw
     flk = _flicker_start(rng, (1,), n, model.flicker, dt) if model.flicker else None
     q_last = model.quantization * rng.standard_normal() if model.quantization else 0.0
     for a in range(0, n, chunk):
         m = min(chunk, n - a)
-        x = np.zeros(m)
-        if model.white:
-            w = rng.standard_normal(m)
-            w *= model.white / np.sqrt(dt)
-            x += w
-        for j, (phi, scale) in enumerate(gms):
-            e = rng.standard_normal(m)
-            e *= scale
-            if a == 0:
-                e[0] = gm_last[j]  # x_0 itself
-            else:
-                e[0] += phi * gm_last[j]
-            e = _ar1(e, phi)
-            gm_last[j] = float(e[-1])
-            x += e
-        if model.random_walk:
-            w = rng.standard_normal(m)
-            np.cumsum(w, out=w)
-            w += rw_sum
-            rw_sum = float(w[-1])
-            w *= model.random_walk * np.sqrt(dt)
-            x += w
+        x, rw_sum = _linear_piece(rng, m, a == 0, sw if model.white else None, gms, gm_last,
+                                  krw if model.random_walk else None, rw_sum)
         if flk is not None:
             p, weights, direct, state = flk
-            x += _flicker_run(rng.standard_normal((1, m)), p, weights, direct, state)[0]
+            w = rng.standard_normal((1, m))
+            x += _flicker_run(w, p, weights, direct, state, out=w)[0]
         if model.quantization:
             e = np.empty(m + 1)
             e[0] = q_last
