@@ -137,6 +137,30 @@ def test_upper_envelope_with_the_cap_keeps_the_estimate_and_records_each_term():
     assert rec[0]["sigma_used"] < rec[0]["sigma_box"]  # sigma_max falls below 5e-3 somewhere in [1, 316] s
 
 
+def test_a_failed_bank_programme_falls_back_to_the_sub_box_terms(monkeypatch):
+    """When the bank's linear programme returns no weights (HiGHS once returned status "Not Set" on a simulated
+    record), the envelope covers the open box by split_gm_box's uncapped sub-box terms, which dominate every GM of
+    the box (their own test above), says so in the cap record, and is equal to the envelope without the cap."""
+    from types import SimpleNamespace
+
+    import scipy.optimize
+
+    tau = np.logspace(-1, 3.3, 35)
+    truth = NoiseModel(white=2e-4, gauss_markov=((1e-3, 30.0),))
+    cur = [_curve(truth, tau, 30.0)]
+    fit = SimpleNamespace(params={"white": 2e-4, "gm_sigma_1": 1e-3, "gm_T_1": 30.0, "random_walk": 0.0},
+                          intervals={"white": (1.9e-4, 2.1e-4), "gm_sigma_1": (5e-4, 5e-3), "gm_T_1": (1.0, math.inf)},
+                          T_grid=np.logspace(-1, 2.5, 20))
+    env0 = upper_envelope(fit, ["white", "gauss_markov"], span_s=1200.0)
+    monkeypatch.setattr(scipy.optimize, "linprog",
+                        lambda *a, **k: SimpleNamespace(status=4, x=None, message="HiGHS Status 0: Not Set"))
+    rec = []
+    env = upper_envelope(fit, ["white", "gauss_markov"], span_s=1200.0, cap_record=rec,
+                         gm_cap=lambda lo, hi: gm_sigma_cap(cur, lo, hi))
+    assert env.gauss_markov == env0.gauss_markov and env.white == env0.white
+    assert len(rec) == 1 and "Not Set" in rec[0]["bank_failed"] and rec[0]["T_range_s"][1] == math.inf
+
+
 @pytest.mark.slow
 def test_capped_envelope_covers_a_gm_truth_longer_than_the_record_with_the_stated_probability():
     """Simulation with known truth: a GM of T 4000 s (sigma 1e-3) plus white noise (1e-3 /sqrt(Hz)) on records of

@@ -370,6 +370,12 @@ def _gm_box_ends(T, T_lo, T_hi, T_search=None, span_s=None) -> tuple:
 BOX_SPLIT_RATIO = 10.0
 
 
+class BankError(RuntimeError):
+    """The linear programme of :func:`gm_bank_envelope` found no weights (the solver's status is in the message);
+    :func:`upper_envelope` then covers the box by :func:`split_gm_box`'s sub-box terms, which dominate it without
+    the cap."""
+
+
 def split_gm_box(sigma_up: float, a: float, c: float, max_ratio: float = BOX_SPLIT_RATIO) -> tuple:
     r"""GM terms whose sum dominates, in PSD, every GM of the box :math:`\sigma \le \sigma_{up}`,
     :math:`T \in [a, c]` (s): the single box GM of :func:`gm_box_envelope` (:math:`T_m = \sqrt{ac}`,
@@ -562,13 +568,22 @@ def gm_bank_envelope(sigma_up: float, a: float, c: float, lower_open: bool, uppe
     f0 = max(float(np.max(2.0 * sig2 * t2)), 2.0 * sig_hat**2 * T_hat, 2.0 * s_up**2 * a if lower_open else 0.0)
     top = max(float(np.max(2.0 * sig2 / t1)), 2.0 * sig_hat**2 / T_hat if sig_hat > 0 else 0.0,
               2.0 * s_up**2 / a if lower_open else 0.0, 2.0 * min(s_up**2, s_tail2) / c if upper_open else 0.0)
-    A = np.vstack([bank(nodes[1:], T) / F[:-1, None], bank(nodes[:1], T) / f0,
-                   nodes[-1] ** 2 * bank(nodes[-1:], T) / top])
+    # a row whose target is 0 constrains nothing (a sub-box the cap closes, below the open tail's start): left out,
+    # as are the objective's terms there (division by 0 would make the programme ill-posed)
+    rows = [bank(nodes[1:], T)[F[:-1] > 0] / F[:-1][F[:-1] > 0, None]]
+    if f0 > 0:
+        rows.append(bank(nodes[:1], T) / f0)
+    if top > 0:
+        rows.append(nodes[-1] ** 2 * bank(nodes[-1:], T) / top)
+    A = np.vstack(rows)
+    if A.shape[0] == 0:  # nothing to cover: every GM of the box is capped at 0
+        return ()
     scale = s_up**2
-    cost = np.sum(bank(nodes, T) / F[:, None], axis=0)
+    pos = F > 0
+    cost = np.sum(bank(nodes[pos], T) / F[pos, None], axis=0)
     res = linprog(cost, A_ub=-A * scale, b_ub=-np.ones(A.shape[0]), bounds=(0, None), method="highs")
-    if res.status != 0:
-        raise RuntimeError(f"gm_bank_envelope: the bank's linear programme failed ({res.message})")
+    if res.status != 0 or res.x is None or not np.all(np.isfinite(res.x)):
+        raise BankError(f"gm_bank_envelope: the bank's linear programme failed ({res.message})")
     w = np.maximum(res.x, 0.0) * scale
     short = float(np.min(A @ w))  # >= 1 - the LP's tolerance; scale up by any shortfall
     if short < 1.0:
@@ -678,11 +693,22 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                 if gm_cap is not None and (lower_open or upper_open):
                     # a box the data leave open: a bank whose weights a linear programme sets against every GM the
                     # recorded Allan variances allow in it (docs/method.md, section "The upper envelope")
-                    terms = gm_bank_envelope(s, a, c, lower_open, upper_open, gm_cap,
-                                             estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
-                                             f_min_hz=1.0 / float(span_s) if span_s else None)
+                    try:
+                        terms = gm_bank_envelope(s, a, c, lower_open, upper_open, gm_cap,
+                                                 estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
+                                                 f_min_hz=1.0 / float(span_s) if span_s else None)
+                    except BankError as exc:
+                        # the sub-box terms (uncapped) dominate every GM of the box: looser, never lower
+                        if cap_record is not None:
+                            cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
+                                               "sigma_box": s, "bank_failed": str(exc),
+                                               "sub_boxes": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
+                        gm.extend(terms)
+                        white_add += w * s * s
+                        i += 1
+                        continue
                     if cap_record is not None:
-                        least = min(float(gm_cap(t, t)) for _, t in terms)
+                        least = min((float(gm_cap(t, t)) for _, t in terms), default=0.0)
                         cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
                                            "sigma_box": s, "sigma_cap": least, "sigma_used": min(s, least),
                                            "bank": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
