@@ -159,6 +159,12 @@ def test_a_failed_bank_programme_falls_back_to_the_sub_box_terms(monkeypatch):
                          gm_cap=lambda lo, hi: gm_sigma_cap(cur, lo, hi))
     assert env.gauss_markov == env0.gauss_markov and env.white == env0.white
     assert len(rec) == 1 and "Not Set" in rec[0]["bank_failed"] and rec[0]["T_range_s"][1] == math.inf
+    # and the identify file's record of it (stages.identify.gm_cap_record) says so
+    from imupipe.stages.identify import gm_cap_record
+
+    out = gm_cap_record(SimpleNamespace(gm_cap_record=rec))
+    assert out[0]["sigma_cap"] is None and not out[0]["capped"] and "no weights" in out[0]["note"]
+    assert out[0]["sub_boxes"] == rec[0]["sub_boxes"]
 
 
 @pytest.mark.slow

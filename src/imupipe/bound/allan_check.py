@@ -701,7 +701,8 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                         # the sub-box terms (uncapped) dominate every GM of the box: looser, never lower
                         if cap_record is not None:
                             cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
-                                               "sigma_box": s, "bank_failed": str(exc),
+                                               "sigma_box": s, "sigma_cap": float("nan"), "sigma_used": s,
+                                               "bank_failed": str(exc),
                                                "sub_boxes": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
                         gm.extend(terms)
                         white_add += w * s * s

@@ -188,6 +188,10 @@ def gm_cap_record(selected) -> list:
                 e["note"] = ("T interval open: a bank of GM terms above every GM (min(sigma_box, sigma_max(T)), T) "
                              "of the box, weights by a linear programme; sigma_cap the least pointwise cap at the "
                              "bank's T")
+            if "bank_failed" in r:
+                e["sub_boxes"] = r["sub_boxes"]
+                e["note"] = (f"T interval open; the bank's linear programme found no weights ({r['bank_failed']}): "
+                             "the box covered by its uncapped sub-box terms (sub_boxes), above every GM of the box")
             out.append(e)
     return out
 
