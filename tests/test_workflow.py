@@ -1,6 +1,6 @@
 """End-to-end runs of the Snakemake workflow on small configurations (tests/configs/).
 
-One run of tests/configs/tiny.yaml (2 simulated datasets x 1.5 h at 20 Hz, ~15 s on 2 cores) in a copy of
+One run of tests/configs/tiny.yaml (2 simulated datasets x 1.5 h at 20 Hz, about 2 min of CPU) in a copy of
 the checkout is shared by the contract, caching and resume tests. Checks: the output contract (dims, attrs,
 bound file keys), that the global bound bounds every per-axis sample PSD of the spectra file (recomputed here
 from the files, not read from the bound's own report), that a change of each config section (and of the spec
