@@ -179,9 +179,10 @@ class TestScripts:
 
 @pytest.fixture(scope="module")
 def mixed_run(tmp_path_factory):
-    """Two recordings of different length and rate through the whole workflow: 0.5 h at 20 Hz ("short", its
-    three gyro axes one and the same simulated record) and 0.75 h at 25 Hz ("long"), drawn from the tiny
-    config's true model; PSD windows of 15 min (the short record holds one at 7.5 min spacing)."""
+    """Two recordings of different length and rate through the workflow up to the global bounds (the files the
+    tests below read, and every stage before them: per-axis stages, lines, merges, identification): 0.5 h at
+    20 Hz ("short", its three gyro axes one and the same simulated record) and 0.75 h at 25 Hz ("long"), drawn
+    from the tiny config's true model; PSD windows of 15 min (the short record holds one at 7.5 min spacing)."""
     from imupipe.simulate import simulate
     from imupipe.specsheet import load_spec
     from workflow_helpers import copy_checkout, tiny_config
@@ -206,7 +207,7 @@ def mixed_run(tmp_path_factory):
     config = tiny_config(work, datasets=str(sheet), simulation=None,
                          psd={"window_s": 900.0, "step_s": 450.0, "taper": "hann", "detrend": "constant",
                               "confidence": 0.95})
-    snakemake(work, config=config, snakefile=work / "Snakefile")
+    snakemake(work, "--until", "bound", config=config, snakefile=work / "Snakefile")
     return work, config
 
 
