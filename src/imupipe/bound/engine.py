@@ -1003,10 +1003,7 @@ def bound_psd(
     if mode == "envelope":  # stationary parts by the LP, the random walk alongside (_envelope_split)
         if upper_model is None:
             raise ValueError("mode 'envelope' needs the identified upper envelope (upper_model)")
-        keep, spec_model, upper_model, k_env = _envelope_split(keep, spec_model, upper_model)
-        spec_cover = _spec_covered(spec_full, upper_model, k_env)
-        if spec_cover["covered"]:  # the sheet lies under E_stat + K_B's random walk: the LP needs only E_stat
-            spec_model = None
+        keep, spec_model, upper_model, k_env, spec_cover = _envelope_split(keep, spec_model, upper_model)
     prob = _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_decade, edf, taper, min_edf,
                     n_tests, exclude=exclude, pool_groups=pool_groups, detrend=detrend,
                     upper_model=upper_model if mode == "envelope" else None)
@@ -1048,7 +1045,8 @@ def _envelope_finish(prob, model, comps, spec_model, upper_model, allf, k_env):
 
 def _envelope_split(keep, spec_model, upper_model):
     r"""The ``envelope`` mode's problem split in a stationary part and a random walk: (keep without the random walk,
-    the spec's and the envelope's models without their random walk, K = max(K_envelope, K_spec), u/sqrt(s)).
+    the spec's and the envelope's models without their random walk, K = max(K_envelope, K_spec), u/sqrt(s), and
+    :func:`_spec_covered`'s record; the spec's model is None where the sheet is covered without stationary rows).
 
     Why: PSD dominance at every frequency bounds a filter's error only for processes that are stationary from
     :math:`-\infty`; a random walk is not (it starts at 0), and a model that covers an envelope's long stationary GM
@@ -1070,7 +1068,11 @@ def _envelope_split(keep, spec_model, upper_model):
     stat = [c for c in BOUND_COMPONENTS if c in stat]
     k = max(float(upper_model.random_walk), float(spec_model.random_walk) if spec_model is not None else 0.0)
     spec_stat = replace(spec_model, random_walk=0.0) if spec_model is not None else None
-    return stat, spec_stat, replace(upper_model, random_walk=0.0), k
+    upper_stat = replace(upper_model, random_walk=0.0)
+    cover = _spec_covered(spec_model, upper_stat, k)
+    if cover["covered"]:  # the sheet lies under E_stat + K_B's random walk: the LP needs only E_stat
+        spec_stat = None
+    return stat, spec_stat, upper_stat, k, cover
 
 
 def _spec_covered(spec_model, upper_stat, k_b: float) -> dict:
