@@ -42,7 +42,8 @@ _first = {}
 class _Probe:
     def find_spec(self, name, path=None, target=None):
         if name in _HEAVY and name not in _first:
-            frames = [f"{os.path.basename(f.filename)}:{f.lineno}:{f.name}" for f in traceback.extract_stack()[:-1]
+            stack = traceback.extract_stack()[:-1]
+            frames = [f"{os.path.basename(f.filename)}:{f.lineno}:{f.name}" for f in stack
                       if "imupipe" in f.filename or "scripts" in f.filename]
             _first[name] = frames[-1] if frames else ""
         return None
@@ -116,10 +117,12 @@ def main(argv=None) -> None:
         probe = Path(tempfile.mkdtemp(prefix="probe-out-"))
         run(args.config, workdir, args.until, probe)
         print(f"workdir {workdir}, probe files {probe}")
-    print("| rule | jobs | CPU per job, median [min-max] | CPU, all jobs | heavy modules (jobs; first importer) |")
+    print("| rule | jobs | CPU per job, median [min-max] | CPU, all jobs "
+          "| heavy modules (jobs; first importer) |")
     print("|---|---|---|---|---|")
     for r in table(probe):
-        print(f"| {r['rule']} | {r['jobs']} | {r['median']:.2f} s [{r['min']:.2f}-{r['max']:.2f}] | {r['sum']:.1f} s | "
+        print(f"| {r['rule']} | {r['jobs']} | {r['median']:.2f} s [{r['min']:.2f}-{r['max']:.2f}] "
+              f"| {r['sum']:.1f} s | "
               f"{'; '.join(r['heavy']) or 'none'} |")
 
 

@@ -42,7 +42,8 @@ def test_series_file_reads_as_xarrays(tmp_path, rng, kind):
     attrs = {**LABELS, "source": "a.csv", "n_filled": 0, "long_name": "angular rate"}
     if kind == "decimated_split":
         seg = Segments(((0, 2_000), (2_000, 5_000)), 5_000, 1.0, (0.0, 2_400.0))
-        attrs.update(seg.to_attrs(), decimation="block average of 100 samples at 100 Hz within each of 2 segments")
+        attrs.update(seg.to_attrs(),
+                     decimation="block average of 100 samples at 100 Hz within each of 2 segments")
     elif kind == "cleaned":
         attrs.update(outliers_removed=3, outlier_rule="|x - median| > 7 MAD", segment_start_s=12.5)
     write_series(tmp_path / "s.nc", x, rate_hz=1.0, units="rad/s", attrs={**attrs, "ignored": None})
@@ -63,8 +64,9 @@ def _allan(y, seg):
 @pytest.mark.parametrize("kind", ["psd", "allan"])
 @pytest.mark.parametrize("split", [False, True], ids=["whole", "segments"])
 def test_curve_file_reads_as_xarrays(tmp_path, rng, kind, split):
-    # the psd and allan jobs' files: the record's own curve, or pooled over segments (attrs of imupipe.segments,
-    # segments_without_window for a segment shorter than a PSD window), with the labels the jobs add
+    # the psd and allan jobs' files: the record's own curve, or pooled over segments (attrs of
+    # imupipe.segments, segments_without_window for a segment shorter than a PSD window), with the labels the
+    # jobs add
     n = 6_000
     y = rng.standard_normal(n)
     seg = (Segments(((0, 2_500), (2_600, 5_800), (5_900, 6_000)), n, 1.0 if kind == "psd" else 10.0,
@@ -98,9 +100,9 @@ def test_stacked_psd_file_reads_as_xarrays_own(tmp_path, rng, join):
     _assert_same_file(tmp_path / "gyro.nc", st.to_xarray(), tmp_path)
 
 
-# ---------------------------------------------------------------------------------------------------------------
+# ----------------------------------------------------------------------------------------------------------
 # the jobs' imports: each per-axis script's main in a fresh interpreter, the heavy modules it loaded
-# ---------------------------------------------------------------------------------------------------------------
+# ----------------------------------------------------------------------------------------------------------
 RUN = """
 import json, runpy, sys
 script, kwargs = sys.argv[1], json.loads(sys.argv[2])
@@ -131,8 +133,8 @@ def axis_files(tmp_path_factory):
 # non-integer degrees of freedom: docs/performance.md, issue 31) and in outliers (the events' t quantiles)
 JOBS = {
     "decimate": (dict(path_series="series.nc", rate_hz=1.0, path_decimated="decimated2.nc"), set()),
-    "psd": (dict(path_decimated="decimated.nc", window_s=1800.0, step_s=900.0, taper="hann", detrend="constant",
-                 confidence=0.95, path_psd="psd.nc"), {"scipy.special"}),
+    "psd": (dict(path_decimated="decimated.nc", window_s=1800.0, step_s=900.0, taper="hann",
+                 detrend="constant", confidence=0.95, path_psd="psd.nc"), {"scipy.special"}),
     "allan": (dict(path_series="series.nc", taus="octave", confidence=0.683, path_allan="allan.nc"),
               {"scipy.special"}),
     "lines": (dict(path_series="series.nc", resolution_hz=0.01, alpha=0.01, floor_window_bins=51,
@@ -151,7 +153,7 @@ def test_per_axis_job_loads_no_xarray(axis_files, script):
     assert loaded <= allowed, f"{script} job loads {sorted(loaded - allowed)}"
     inputs = ("path_series",) if script == "decimate" else ("path_series", "path_decimated")
     assert all(Path(v).is_file() for k, v in kwargs.items() if k.startswith("path_") and k not in inputs)
-    if script in ("psd", "allan"):  # the job's file as xarray reads it: labelled, with units on every variable
+    if script in ("psd", "allan"):  # the job's file as xarray reads it: labelled, units on every variable
         with xr.open_dataset(kwargs[f"path_{script}"]) as ds:
             assert {k: ds.attrs[k] for k in LABELS} == LABELS
             assert all("units" in ds[v].attrs for v in ds.variables)
@@ -160,7 +162,8 @@ def test_per_axis_job_loads_no_xarray(axis_files, script):
 def test_stack_job_loads_no_xarray(axis_files, tmp_path):
     _job("psd", path_decimated=str(axis_files / "decimated.nc"), window_s=1800.0, step_s=900.0, taper="hann",
          detrend="constant", confidence=0.95, path_psd=str(tmp_path / "x.nc"))
-    write_yaml_atomic({"curves": [{"dataset": "sim01", "axis": "x", "included": True}]}, tmp_path / "summary.yaml")
+    write_yaml_atomic({"curves": [{"dataset": "sim01", "axis": "x", "included": True}]},
+                      tmp_path / "summary.yaml")
     loaded = _job("stack", curves=[str(tmp_path / "x.nc")], path_summary=str(tmp_path / "summary.yaml"),
                   join="exact", path_out=str(tmp_path / "gyro.nc"), sensor="gyro")
     assert "xarray" not in loaded and read_yaml(tmp_path / "summary.yaml")["curves"][0]["included"]
