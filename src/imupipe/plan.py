@@ -267,15 +267,17 @@ def plan_table(model, hours, records, record_rate_hz: float, axes: int = 1, prog
         raise ValueError("--hours: expected at least one record length (h)")
     if not len(records):
         raise ValueError("--records: expected at least one number of records")
-    rows, pairs = [], [(h, r) for h in hours for r in records]
+    rows, pairs, start = [], [(h, r) for h in hours for r in records], time.perf_counter()
     for i, (h, r) in enumerate(pairs, 1):
         t0 = time.perf_counter()
         if progress is not None:
             progress(f"plan: row {i}/{len(pairs)}: {r} record(s) of {h:g} h ...")
         rows.append(predict(model, h, r, record_rate_hz, axes, **kw))
         if progress is not None:
-            how = rows[-1]["method"]
-            progress(f"plan: row {i}/{len(pairs)} done in {time.perf_counter() - t0:.1f} s ({how})")
+            now = time.perf_counter()
+            left = (now - start) / i * (len(pairs) - i)  # at the mean pace of the rows so far
+            progress(f"plan: row {i}/{len(pairs)} done in {now - t0:.1f} s ({rows[-1]['method']})"
+                     + (f"; about {left:.0f} s left" if i < len(pairs) else ""))
     return rows
 
 

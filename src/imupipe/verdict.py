@@ -51,5 +51,5 @@ def within_tolerance(check) -> str | None:
     shown = f"{worst:.3g}" if float(f"{worst:.3g}") > 1.0 else f"{worst:.6g}"  # 1.0004 is not shown as 1
     return (f"passes within {what} sampling tolerance (ratio {shown}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
             f"{how}): the "
-            "records show the filter under-stating its error by that ratio and are too few to tell it from chance; "
-            "not a confirmation")
+            "records' squared error reaches that ratio to the filter's variance, within what chance gives with this "
+            "few independent windows: neither evidence of an under-statement nor a confirmation")
