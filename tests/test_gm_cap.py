@@ -115,9 +115,9 @@ def test_the_bank_of_an_open_box_dominates_every_gm_the_data_allow(capped):
     assert np.all(env.psd(f_band[f_band < 1.0]) < 0.6 * old)
 
 
-def test_upper_envelope_with_the_cap_keeps_the_estimate_and_records_each_term():
-    """The envelope of a fit whose GM T interval is open above: a bank (gm_bank_envelope), never below the fitted
-    GM in PSD from 1/horizon on, below the uncapped sub-box terms, one record with the bank."""
+def _open_above_fit():
+    """A white + GM truth (GM 1e-3 at 30 s), its exact Allan curve (edf 30) and a fit whose GM T interval is open
+    above: (truth, curves, fit)."""
     from types import SimpleNamespace
 
     tau = np.logspace(-1, 3.3, 35)
@@ -126,6 +126,13 @@ def test_upper_envelope_with_the_cap_keeps_the_estimate_and_records_each_term():
     fit = SimpleNamespace(params={"white": 2e-4, "gm_sigma_1": 1e-3, "gm_T_1": 30.0, "random_walk": 0.0},
                           intervals={"white": (1.9e-4, 2.1e-4), "gm_sigma_1": (5e-4, 5e-3), "gm_T_1": (1.0, math.inf)},
                           T_grid=np.logspace(-1, 2.5, 20))
+    return truth, cur, fit
+
+
+def test_upper_envelope_with_the_cap_keeps_the_estimate_and_records_each_term():
+    """The envelope of a fit whose GM T interval is open above: a bank (gm_bank_envelope), never below the fitted
+    GM in PSD from 1/horizon on, below the uncapped sub-box terms, one record with the bank."""
+    truth, cur, fit = _open_above_fit()
     rec = []
     env = upper_envelope(fit, ["white", "gauss_markov"], span_s=1200.0, cap_record=rec,
                          gm_cap=lambda lo, hi: gm_sigma_cap(cur, lo, hi))
@@ -145,12 +152,7 @@ def test_a_failed_bank_programme_falls_back_to_the_sub_box_terms(monkeypatch):
 
     import scipy.optimize
 
-    tau = np.logspace(-1, 3.3, 35)
-    truth = NoiseModel(white=2e-4, gauss_markov=((1e-3, 30.0),))
-    cur = [_curve(truth, tau, 30.0)]
-    fit = SimpleNamespace(params={"white": 2e-4, "gm_sigma_1": 1e-3, "gm_T_1": 30.0, "random_walk": 0.0},
-                          intervals={"white": (1.9e-4, 2.1e-4), "gm_sigma_1": (5e-4, 5e-3), "gm_T_1": (1.0, math.inf)},
-                          T_grid=np.logspace(-1, 2.5, 20))
+    truth, cur, fit = _open_above_fit()
     env0 = upper_envelope(fit, ["white", "gauss_markov"], span_s=1200.0)
     monkeypatch.setattr(scipy.optimize, "linprog",
                         lambda *a, **k: SimpleNamespace(status=4, x=None, message="HiGHS Status 0: Not Set"))
