@@ -1080,9 +1080,9 @@ def _spec_covered(spec_model, upper_stat, k_b: float) -> dict:
     frequency, so that the ``envelope`` mode's stationary LP needs no row of the sheet:
     :math:`S_{spec}(f) \le S_{E,stat}(f) + K_B^2/(2\pi f)^2` for all f (two-sided, u^2/Hz).
 
-    Why it is enough: the mode's model B has :math:`B_{stat} \ge E_{stat}` at every frequency (the LP and
-    :func:`_dominate_densely`) and the random walk :math:`K_B`, so :math:`B \ge E_{stat} + K_B^2/(2\pi f)^2 \ge
-    S_{spec}`: the sheet is bounded in the PSD sense, as by every mode. (The stationary split is what the envelope,
+    Why it is enough: the mode's model B has :math:`B_{stat} \ge E_{stat}` from the all-frequency floor up (the LP
+    and :func:`_dominate_densely`) and the random walk :math:`K_B`, so :math:`B \ge E_{stat} + K_B^2/(2\pi f)^2 \ge
+    S_{spec}` there: the sheet is bounded in the PSD sense over the range every mode bounds it. (The stationary split is what the envelope,
     the statistical statement about the truth, needs; the sheet is a bound the model must lie above.) The
     verification's filter against the sheet checks the same model as every candidate's.
 
