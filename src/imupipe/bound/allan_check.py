@@ -697,22 +697,18 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
                         terms = gm_bank_envelope(s, a, c, lower_open, upper_open, gm_cap,
                                                  estimate=(float(p.get(f"gm_sigma_{i}", 0.0) or 0.0), T),
                                                  f_min_hz=1.0 / float(span_s) if span_s else None)
-                    except BankError as exc:
-                        # the sub-box terms (uncapped) dominate every GM of the box: looser, never lower
-                        if cap_record is not None:
-                            cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
-                                               "sigma_box": s, "sigma_cap": float("nan"), "sigma_used": s,
-                                               "bank_failed": str(exc),
-                                               "sub_boxes": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
-                        gm.extend(terms)
-                        white_add += w * s * s
-                        i += 1
-                        continue
+                        failed = None
+                    except BankError as exc:  # terms stay the uncapped sub-box terms: looser, never lower
+                        failed = str(exc)
                     if cap_record is not None:
-                        least = min((float(gm_cap(t, t)) for _, t in terms), default=0.0)
-                        cap_record.append({"T_range_s": [float(a), float("inf") if upper_open else float(c)],
-                                           "sigma_box": s, "sigma_cap": least, "sigma_used": min(s, least),
-                                           "bank": [{"sigma": float(v), "T": float(t)} for v, t in terms]})
+                        box = {"T_range_s": [float(a), float("inf") if upper_open else float(c)], "sigma_box": s}
+                        listed = [{"sigma": float(v), "T": float(t)} for v, t in terms]
+                        if failed is not None:
+                            box.update(sigma_cap=float("nan"), sigma_used=s, bank_failed=failed, sub_boxes=listed)
+                        else:
+                            least = min((float(gm_cap(t, t)) for _, t in terms), default=0.0)
+                            box.update(sigma_cap=least, sigma_used=min(s, least), bank=listed)
+                        cap_record.append(box)
                 elif gm_cap is not None:
                     # each term at most what the recorded Allan variances allow over its sub-box (docs/method.md,
                     # section "The upper envelope")
