@@ -127,3 +127,27 @@ def test_earlier_keyword_names_are_refused_naming_the_new_one():
     assert a["verification"]["scenario"]["horizon_s"] == 600.0  # the YAML field keeps its name
     with pytest.raises(TypeError, match="unexpected keywords"):
         verification_stage(TRUTH, "accel", spec=TRUTH, horizont_s=600.0)
+
+
+def test_a_global_model_is_checked_against_each_axis_envelope():
+    """When the axes differ the global model is given to any axis, so it must bound each axis's own envelope too.
+    A global model matched to the global envelope (MSE/P = 1 to round-off there) but with half the random walk of
+    axis z's envelope under-states axis z's error over the outage: the stage names that axis's check and fails;
+    axis x's envelope, equal to the global one, passes."""
+    z_env = NoiseModel(white=TRUTH.white, gauss_markov=TRUTH.gauss_markov, random_walk=2.0 * TRUTH.random_walk)
+    rep, series = verification_stage(TRUTH, "accel", upper=TRUTH, spec=TRUTH, reduce=False,
+                                     axis_uppers={"x": TRUTH, "z": z_env}, **SHORT)
+    checks = rep["verification"]["checks"]
+    assert set(series) == {"upper_envelope", "spec", "upper_envelope_x", "upper_envelope_z"}
+    assert checks["upper_envelope"]["passed"] and checks["upper_envelope_x"]["passed"]
+    # the random walk's share of the drift quadruples on axis z: its MSE outgrows P late in the outage
+    assert not checks["upper_envelope_z"]["passed"] and checks["upper_envelope_z"]["worst_outage_ratio"] > 1.0
+    assert rep["passed"] is False
+    # the reduction is judged on every axis's envelope too: dropping the random walk costs more on axis z
+    loose = NoiseModel(white=3e-3, gauss_markov=TRUTH.gauss_markov, random_walk=5e-5)
+
+    def drop_rw(**kw):
+        rep, _ = verification_stage(loose, "accel", upper=TRUTH, spec=TRUTH, reduce=True, **kw, **SHORT)
+        return next(t["worst_ratio"] for t in rep["reduction"]["tried"] if t["drop"] == "random_walk")
+
+    assert drop_rw(axis_uppers={"z": z_env}) > 2.0 * drop_rw()

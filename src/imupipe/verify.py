@@ -63,6 +63,7 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1036,7 +1037,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                        record_rate_hz: float | None = None, fix_s: float = 600.0, outage_s: float = 3600.0,
                        sigma_fix: float | None = None, filter_rate_hz: float = 1.0, reduce: bool = True,
                        replay_z: float = 2.0, max_bias_time_s: float | None = None, turn_on_bias: float = 0.0,
-                       record_s: float | None = None, fix_rate_hz: float | None = None, **earlier):
+                       record_s: float | None = None, fix_rate_hz: float | None = None,
+                       axis_uppers: Mapping | None = None, **earlier):
     r"""The verification stage of one spec and sensor: the report, the model to export and the time series of
     its checks (for :func:`imupipe.plot.plot_verification`).
 
@@ -1044,7 +1046,9 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     fixes of `sigma_fix` (m for accel, rad for gyro; None: 0.5 m or 0.1 deg) at `fix_rate_hz` Hz (None: every step
     of the filter at `filter_rate_hz` Hz; it must divide `filter_rate_hz`), then an outage of `outage_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
     identified upper envelope), ``spec`` and ``slow_bias`` (the worst member of the family of biases slower
-    than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift); replay of
+    than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift) and, when the axes
+    differ, ``upper_envelope_<axis>`` for each of `axis_uppers` (axis -> that axis's own identified upper envelope:
+    a global model is bounded only when it bounds every axis a user may give it to); replay of
     ``records`` (rate `record_rate_hz`, Hz) passing when the worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff)
     (:func:`replay`). Every truth starts at its stationary distribution and the filter at the exported P0
     (:func:`imupipe.biasinit.bias_initialisation` of `bound_model`, `spec` with its `turn_on_bias` (u, 1 sigma),
@@ -1082,7 +1086,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
-    truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow))
+    truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow),
+              *((f"upper_envelope_{ax}", m) for ax, m in (axis_uppers or {}).items()))
     if records is not None and record_rate_hz is None:
         raise ValueError("verification_stage: replay records need record_rate_hz")
     # every truth a model's checks need, the replay's noise-only truth included
@@ -1124,7 +1129,8 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                            "no reduction accepted"}
     exported_model = bound_model
     if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow], sensor, sc, analyse=analyse)
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow, *(axis_uppers or {}).values()],
+                                             sensor, sc, analyse=analyse)
         red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
                "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
                "verification": None}
