@@ -138,11 +138,24 @@ def test_a_global_model_is_checked_against_each_axis_envelope():
     rep, series = verification_stage(TRUTH, "accel", upper=TRUTH, spec=TRUTH, reduce=False,
                                      axis_uppers={"x": TRUTH, "z": z_env}, **SHORT)
     checks = rep["verification"]["checks"]
-    assert set(series) == {"upper_envelope", "spec", "upper_envelope_x", "upper_envelope_z"}
+    assert {"upper_envelope", "spec", "upper_envelope_x", "upper_envelope_z"} <= set(series)
     assert checks["upper_envelope"]["passed"] and checks["upper_envelope_x"]["passed"]
     # the random walk's share of the drift quadruples on axis z: its MSE outgrows P late in the outage
     assert not checks["upper_envelope_z"]["passed"] and checks["upper_envelope_z"]["worst_outage_ratio"] > 1.0
     assert rep["passed"] is False
+    # with records (300 s) axis z's envelope admits a slower, larger bias: the global model's initial bias variance
+    # rises to what that envelope asks (here 4x the random walk's share: K_eff^2 T_max / 2 with K doubled), and the
+    # worst such bias of axis z is a truth of its own
+    def init(**kw):
+        rep, _ = verification_stage(TRUTH, "accel", upper=TRUTH, spec=TRUTH, reduce=False, record_s=300.0, **kw,
+                                    **SHORT)
+        return rep
+
+    alone, with_z = init(), init(axis_uppers={"z": z_env})
+    req = [r["exported"]["bias_initialisation"]["required_slow_variance"] for r in (alone, with_z)]
+    assert req[1] == pytest.approx(4.0 * req[0], rel=1e-12)
+    assert "slow_bias_z" in with_z["verification"]["checks"] and "truth_model" in \
+        with_z["verification"]["checks"]["slow_bias_z"]
     # the reduction is judged on every axis's envelope too: dropping the random walk costs more on axis z
     loose = NoiseModel(white=3e-3, gauss_markov=TRUTH.gauss_markov, random_walk=5e-5)
 

@@ -62,6 +62,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -1047,8 +1048,9 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
     of the filter at `filter_rate_hz` Hz; it must divide `filter_rate_hz`), then an outage of `outage_s` s): exact covariance analysis against ``truth`` (simulated data), ``upper`` (the
     identified upper envelope), ``spec`` and ``slow_bias`` (the worst member of the family of biases slower
     than the records, :func:`imupipe.biasinit.worst_member`, when the models have such a drift) and, when the axes
-    differ, ``upper_envelope_<axis>`` for each of `axis_uppers` (axis -> that axis's own identified upper envelope:
-    a global model is bounded only when it bounds every axis a user may give it to); replay of
+    differ, ``upper_envelope_<axis>`` and ``slow_bias_<axis>`` for each of `axis_uppers` (axis -> that axis's own
+    identified upper envelope: a global model is bounded only when it bounds every axis a user may give it to; its
+    initial bias variance is then the largest any axis's envelope asks); replay of
     ``records`` (rate `record_rate_hz`, Hz) passing when the worst MSE/P <= 1 + `replay_z` sqrt(2/n_eff)
     (:func:`replay`). Every truth starts at its stationary distribution and the filter at the exported P0
     (:func:`imupipe.biasinit.bias_initialisation` of `bound_model`, `spec` with its `turn_on_bias` (u, 1 sigma),
@@ -1077,17 +1079,29 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         record_s = max(np.asarray(r).size for r in records) / float(record_rate_hz)
     # a truth's flicker is a GM bank from the scenario's f_floor_hz (default 0.01 / outage) to half the filter rate
     # (state_space), started stationary: its turn-on variance counts in the filter's initial bias variance
-    bias = bias_initialisation(bound_model, spec=spec, upper=upper, turn_on_bias=turn_on_bias, record_s=record_s,
-                               max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s,
-                               flicker_band_hz=(0.01 / outage_s, 0.5 * filter_rate_hz))
+    def initialisation(up):
+        return bias_initialisation(bound_model, spec=spec, upper=up, turn_on_bias=turn_on_bias, record_s=record_s,
+                                   max_bias_time_s=max_bias_time_s, run_s=fix_s + outage_s,
+                                   flicker_band_hz=(0.01 / outage_s, 0.5 * filter_rate_hz))
+
+    bias = initialisation(upper)
     slow = worst_member(upper if upper is not None else bound_model, bias.family) if bias.family else None
+    # a global model given to any axis: its bias starts at least as each axis's own envelope asks, and each axis's
+    # slowest admitted bias is a truth of its own
+    axis_truths = []
+    for ax, up_ax in (axis_uppers or {}).items():
+        b = initialisation(up_ax)
+        axis_truths.append((f"upper_envelope_{ax}", up_ax))
+        if b.family:
+            axis_truths.append((f"slow_bias_{ax}", worst_member(up_ax, b.family)))
+        slow_var = max(bias.required_slow, b.required_slow)
+        bias = dataclasses.replace(b if b.required > bias.required else bias, required_slow=slow_var)
     kw = dict(filter_rate_hz=filter_rate_hz, fix_s=fix_s, outage_s=outage_s, bias_var_floor=bias.required,
               bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s, fix_rate_hz=fix_rate_hz)
     if sigma_fix is not None:
         kw["sigma_fix"] = sigma_fix
     sc = reference_scenario(sensor, **kw)
-    truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow),
-              *((f"upper_envelope_{ax}", m) for ax, m in (axis_uppers or {}).items()))
+    truths = (("truth", truth), ("upper_envelope", upper), ("spec", spec), ("slow_bias", slow), *axis_truths)
     if records is not None and record_rate_hz is None:
         raise ValueError("verification_stage: replay records need record_rate_hz")
     # every truth a model's checks need, the replay's noise-only truth included
@@ -1118,8 +1132,9 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                             "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
                             "max_bias_time_s": sc.max_bias_time_s},
                "checks": {k: v.to_dict() for k, v in series.items()}}
-        if slow is not None:
-            ver["checks"]["slow_bias"]["truth_model"] = slow.to_dict()
+        for name, m in truths:  # the slowest admitted bias (global, per axis) is a constructed truth: say which
+            if name.startswith("slow_bias") and m is not None:
+                ver["checks"][name]["truth_model"] = m.to_dict()
         ver["passed"] = all(c["passed"] for c in ver["checks"].values())
         return ver, series
 
@@ -1129,7 +1144,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                            "no reduction accepted"}
     exported_model = bound_model
     if reduce and (upper is not None or spec is not None):
-        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow, *(axis_uppers or {}).values()],
+        reduced, tried = reduce_by_integrity(bound_model, [upper, spec, slow, *(m for _, m in axis_truths)],
                                              sensor, sc, analyse=analyse)
         red = {"tried": tried, "accepted": [t["drop"] for t in tried if t["accepted"]],
                "refused": [t["drop"] for t in tried if not t["accepted"]], "model": reduced.to_dict(),
