@@ -1,6 +1,7 @@
 """Whole-workflow benchmark: cold run and spec-sheet-only rerun of the Snakemake DAG in a scratch copy.
 
-``python benchmarks/dag.py [--repeats 5] [--baseline 8de70ed] [--duration-h 40] [--configfile ...]``
+``python benchmarks/dag.py [--repeats 5] [--baseline 8de70ed] [--duration-h 40] [--configfile ...]
+[--simulation-only]``
 (``--floor-jobs N``: the wall time of a DAG of N script jobs that compute nothing, :func:`job_start_floor`)
 (:func:`compare`): this checkout and the commit ``--baseline`` (checked out in a temporary git worktree, its
 library run from its own ``src/`` with this checkout's compiled kernel) are run alternately, run by run, in
@@ -732,10 +733,11 @@ def _job_cpu(jobs: list) -> float:
 
 
 def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: str | None = "8de70ed",
-            configfile: str = "config/config.yaml", duration_h=None, spec_name: str = "stim300.yaml") -> dict:
+            configfile: str = "config/config.yaml", duration_h=None, spec_name: str = "stim300.yaml",
+            simulation_only: bool = False) -> dict:
     """Cold run, spec-sheet rerun and critical path of this checkout and (unless `baseline` is None) of the
     commit `baseline` in a temporary worktree, alternating run by run on the same machine; medians of
-    `repeats`. Per rule: peak RSS (benchmark files' max_rss, max over jobs and runs) against one axis's
+    `repeats` (`simulation_only`: the simulation alone, the other columns n/a). Per rule: peak RSS (benchmark files' max_rss, max over jobs and runs) against one axis's
     samples (8 bytes x samples of an ingested axis)."""
     import tempfile
 
@@ -768,6 +770,8 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
                                      st["env"])
                 st["simulation"].values.append(wall)
                 st["sim_cpu"].values.append(_job_cpu(collect_jobs(scratch, text)))
+                if simulation_only:
+                    continue
                 clean_outputs(scratch)
                 wall, text = _run_in(scratch, st["base"], st["logs"] / f"cold_{i}.log", st["env"])
                 st["cold"].values.append(wall)
@@ -799,6 +803,7 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
     rows, mem_rows = [], []
     for label, st in state.items():
         crit = Timing([c["s"] for c in st["critical"]])
+        st.setdefault("axis_mb", None)
         chain = max(st["critical"], key=lambda c: c["s"])["chain"] if st["critical"] else []
         res["trees"][label] = {"cold": st["cold"].to_dict(), "spec_rerun": st["rerun"].to_dict(),
                                "simulation": st["simulation"].to_dict(),
@@ -807,7 +812,8 @@ def compare(repo: Path, out: Path, cores: int = 2, repeats: int = 5, baseline: s
                                "critical_path": crit.to_dict(), "critical_chain": chain, "jobs_cold": st["jobs"],
                                "jobs_rerun": st["rerun_jobs"], "peak_rss_mb": st["rss"], "axis_mb": st["axis_mb"]}
         rows.append([label, st["simulation"].cell(), st["cold"].cell(), st["rerun"].cell(), crit.cell(),
-                     fmt(crit.median / st["cold"].median, 3), st["sim_cpu"].cell(), st["cold_cpu"].cell(),
+                     fmt(crit.median / st["cold"].median, 3) if st["critical"] else "n/a", st["sim_cpu"].cell(),
+                     st["cold_cpu"].cell(),
                      st["rerun_cpu"].cell(),
                      st["jobs"].get("total", "?"),
                      " -> ".join(dict.fromkeys(chain))])
@@ -854,6 +860,8 @@ def main(argv=None) -> int:
     ap.add_argument("--configfile", default="config/config.yaml", help="relative to the repo")
     ap.add_argument("--spec", default=None, help="spec sheet under config/specs/ to touch (default: found)")
     ap.add_argument("--keep-scratch", action="store_true", help="keep <out>/dag_scratch")
+    ap.add_argument("--simulation-only", action="store_true",
+                    help="time the simulation alone (`--until simulate` from nothing), no cold run or rerun")
     ap.add_argument("--floor-jobs", type=int, default=None, metavar="N",
                     help="instead: the wall time of N empty script jobs, and of N importing numpy and netCDF4, on "
                          "--cores (job_start_floor; --repeats runs each)")
@@ -871,7 +879,7 @@ def main(argv=None) -> int:
         baseline = None if str(args.baseline).lower() == "none" else args.baseline
         res = compare(args.repo, args.out, cores=args.cores, repeats=args.repeats, baseline=baseline,
                       configfile=args.configfile, duration_h=args.duration_h,
-                      spec_name=args.spec or "stim300.yaml")
+                      spec_name=args.spec or "stim300.yaml", simulation_only=args.simulation_only)
     print(res["markdown"])
     (args.out / "dag.md").write_text(res["markdown"] + "\n")
     (args.out / "dag.json").write_text(json.dumps(res, indent=1, default=str))
