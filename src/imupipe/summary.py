@@ -165,25 +165,12 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
 
 
 def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
-    """FLAG an exported initial bias variance (the KF file's P0, the contract's ``bias_initialisation``) that rests
-    on a longest bias time constant T_max nobody stated: the default assumption (10 x the longest record), beyond
-    what the records can check (:func:`imupipe.biasinit.max_bias_time`). A slow drift extrapolated to T_max, or a
-    spec sheet's random walk (K^2 T_max / 2), then sets P0 by that assumption; a user who knows the sensor states
-    T_max (``identify.max_bias_time_s``). Not flagged when P0 rests on the model's own GM states (T_max plays no
-    part) or when the records check it."""
-    bi = bound.get("bias_initialisation")
-    if not isinstance(bi, Mapping) or bi.get("checked_by_records") or bi.get("rests_on") == "model":
-        return []
-    src = str(bi.get("T_max_source") or "")
-    if not src.startswith("assumption"):
-        return []
-    unit = (bi.get("units") or {}).get("required_std", "")
-    what = "the records' slow drift" if bi.get("rests_on") == "records" else "the spec sheet's bias"
-    rec = f"; the longest record, {_num(bi.get('record_s'))} s, cannot check it" if bi.get("record_s") else ""
-    return [Flag(sensor, "initial bias", "KF file P0",
-                 f"the exported initial bias (std {_num(bi.get('required_std'))} {unit}) rests on {what} extrapolated "
-                 f"to T_max = {_num(bi.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
-                 "(identify.max_bias_time_s, s) if it is known")]
+    """FLAG an exported initial bias variance resting on the default T_max nobody stated
+    (:func:`imupipe.verdict.unstated_t_max`, whose sentence it carries)."""
+    from imupipe.verdict import unstated_t_max
+
+    text = unstated_t_max(bound.get("bias_initialisation"))
+    return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
 
 
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,

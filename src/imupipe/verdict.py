@@ -1,13 +1,14 @@
-"""The words of a verification check that passed only by its sampling tolerance.
+"""The words of a verification check that passed only by its sampling tolerance, and of an initial bias that rests
+on an assumption nobody stated.
 
-One home for that sentence: the verification writes it into the verify and contract files
+One home for those sentences: the verification writes it into the verify and contract files
 (:mod:`imupipe.verify`), the run summary prints it as a FLAG (:mod:`imupipe.summary`), so the wording is the same
 wherever a user reads the verdict. Plain dicts in, a string out: no numerics here.
 """
 
 from __future__ import annotations
 
-__all__ = ["within_tolerance"]
+__all__ = ["unstated_t_max", "within_tolerance"]
 
 
 def within_tolerance(check) -> str | None:
@@ -53,3 +54,28 @@ def within_tolerance(check) -> str | None:
             f"{how}): the "
             "records' squared error reaches that ratio to the filter's variance, within what chance gives with this "
             "few independent windows: neither evidence of an under-statement nor a confirmation")
+
+
+def unstated_t_max(bias) -> str | None:
+    """The sentence for a user when an exported initial bias variance (a ``bias_initialisation`` dict as the
+    contract and the KF file carry it, :meth:`imupipe.biasinit.BiasInitialisation.to_dict` with ``required_std``) rests on a longest
+    bias time constant T_max nobody stated: the default assumption (:data:`imupipe.biasinit.RECORD_FACTOR` x the longest record,
+    :func:`imupipe.biasinit.max_bias_time`), beyond what the records can check. A slow drift extrapolated to T_max, or a spec
+    sheet's random walk (K^2 T_max / 2), then sets the P0 by that assumption; a user who knows the sensor states
+    T_max (``identify.max_bias_time_s``). None when the P0 rests on the model's own GM states (T_max plays no part),
+    when the records check it, or when T_max was stated (config or spec sheet)."""
+    if not isinstance(bias, dict) or bias.get("checked_by_records") or bias.get("rests_on") == "model":
+        return None
+    src = str(bias.get("T_max_source") or "")
+    if not src.startswith("assumption"):
+        return None
+
+    def num(v):
+        return "-" if v is None else f"{float(v):.3g}"
+
+    unit = (bias.get("units") or {}).get("required_std", "")
+    what = "the records' slow drift" if bias.get("rests_on") == "records" else "the spec sheet's bias"
+    rec = f"; the longest record, {num(bias.get('record_s'))} s, cannot check it" if bias.get("record_s") else ""
+    return (f"the exported initial bias (std {num(bias.get('required_std'))} {unit}) rests on {what} extrapolated "
+            f"to T_max = {num(bias.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
+            "(identify.max_bias_time_s, s) if it is known")
