@@ -222,6 +222,23 @@ def test_short_record_names_psd_window(tmp_path):
         rc.check_records(cfg, rows)
 
 
+def test_records_shorter_than_one_fix_period_and_outage_refused_at_start_up(tmp_path):
+    """A record that holds the PSD window but not verify.fix_s + application.outage_s: the verification's replay
+    could not run, found at start-up (an outside evaluation met it after three minutes, in the verify job)."""
+    x = np.zeros((2000, 6))
+    path = tmp_path / "short.csv"
+    np.savetxt(path, x, delimiter=",", header="gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z", comments="")
+    row = {"dataset": "short", "path": str(path), "format": "csv", "rate_hz": 1.0, "gyro_unit": "rad/s",
+           "accel_unit": "m/s^2"}
+    cfg = rc.load_config({**tiny(simulation=None, psd={"window_s": 300.0, "step_s": 150.0},
+                                 application={"outage_s": 1800.0}), "datasets": "s.tsv"}, ROOT)
+    with pytest.raises(ValueError, match=r"longest record \('short', 2000 s\) is shorter than config keys "
+                                         r"verify\.fix_s \+ application\.outage_s = 600 \+ 1800 = 2400 s"):
+        rc.check_records(cfg, {"short": row})
+    cfg["application"]["outage_s"] = 1200.0  # 600 + 1200 s fit in 2000 s
+    rc.check_records(cfg, {"short": row})
+
+
 def test_unreadable_record_left_to_its_ingest_job(tmp_path):
     cfg = rc.load_config({**tiny(simulation=None), "datasets": "s.tsv"}, ROOT)
     rc.check_records(cfg, {"gone": {"dataset": "gone", "path": str(tmp_path / "gone.csv"), "format": "csv"}})

@@ -145,7 +145,10 @@ def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
     res = tmp_path / "results" / "myrun"
     write_yaml_atomic({**_bound(), "sensor": "gyro"}, res / "bound" / "stim300" / "gyro.yaml")
     partial = end_of_run_text(str(res), "logs/t", md, failed=True)
-    assert partial.lstrip().startswith("(partial: from the files this run has written so far)\n# imupipe run summary")
+    assert partial.lstrip().startswith("(partial: from the files this run has written so far; a job failed, so no "
+                                       "check count below says the run passed)\n# imupipe run summary")
+    # its verdict line's counts ("0 failed") are not the run's: the line says the run failed
+    assert "**Verdict (run FAILED; partial, not a verdict):** gyro: BOUNDED" in partial
     assert "# Details" not in partial and partial.rstrip().splitlines()[-1].startswith("RUN FAILED")
     md.write_text("# summary\n")
     ok = end_of_run_text(str(tmp_path), "logs/t", md)

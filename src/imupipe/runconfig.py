@@ -234,7 +234,8 @@ def _probe(row: dict, simulation: dict | None):
 
 
 def check_records(cfg: dict, datasets: dict) -> None:
-    """Start-up check of every record against the config, once, naming the key: long enough for ``psd.window_s``,
+    """Start-up check of every record against the config, once, naming the key: long enough for ``psd.window_s``
+    (and the longest for ``verify.fix_s + application.outage_s``, the replay's run),
     its rate a whole multiple of ``decimate.rate_hz`` and of ``application.filter_rate_hz`` (the verification
     replays each record block-averaged to the filter's rate), enough decimated samples for
     ``stationarity.n_segments`` (:func:`imupipe.readers.check_against_config`). Every dataset's problem in one
@@ -242,7 +243,7 @@ def check_records(cfg: dict, datasets: dict) -> None:
     :func:`imupipe.defaults.psd_window_step` on the shortest record: one frequency grid for every record."""
     from imupipe.readers import ConfigError, check_against_config
 
-    problems, durations = [], []
+    problems, lasts = [], {}  # dataset -> duration, s
     filter_rate = float(cfg["application"]["filter_rate_hz"])
     for name, row in datasets.items():
         probed = _probe(row, cfg.get("simulation"))
@@ -250,7 +251,7 @@ def check_records(cfg: dict, datasets: dict) -> None:
             continue
         rate, duration, meta = probed
         if duration is not None:
-            durations.append(float(duration))
+            lasts[name] = float(duration)
         try:  # a rate only the timestamps give (no rate_hz cell) is checked by the decimate job
             check_against_config(meta, window_s=cfg["psd"]["window_s"],
                                  decimate_rate_hz=cfg["decimate"]["rate_hz"] if rate is not None else None,
@@ -262,16 +263,24 @@ def check_records(cfg: dict, datasets: dict) -> None:
                             f"application.filter_rate_hz = {cfg['application']['filter_rate_hz']} Hz (the verification "
                             "replays each record block-averaged to the filter's rate); set application.filter_rate_hz "
                             "to the record rate or a divisor of it")
+    run_s = float(cfg["verify"]["fix_s"]) + float(cfg["application"]["outage_s"])
+    longest = max(lasts, key=lasts.get) if lasts else None
+    if longest is not None and lasts[longest] < run_s:  # the replay needs one fix period and one outage in a record
+        problems.append(
+            f"the longest record ({longest!r}, {lasts[longest]:.6g} s) is shorter than config keys verify.fix_s + "
+            f"application.outage_s = {cfg['verify']['fix_s']:g} + {cfg['application']['outage_s']:g} = {run_s:g} s: "
+            "the verification replays the records through the filter over one fix period and one outage; shorten "
+            "application.outage_s (or verify.fix_s) or give a longer record")
     if problems:
         raise ValueError("records do not fit the config:\n  " + "\n  ".join(problems))
     psd = cfg["psd"]
     if psd["window_s"] is None or psd["step_s"] is None:
         from imupipe.defaults import psd_window_step
 
-        if not durations:
+        if not lasts:
             raise ValueError("psd.window_s / psd.step_s unset and no record's duration could be probed: set both in "
                              "the config (e.g. window_s = a quarter of the shortest record, step_s = half that)")
-        w, st = psd_window_step(min(durations), float(cfg["decimate"]["rate_hz"]))
+        w, st = psd_window_step(min(lasts.values()), float(cfg["decimate"]["rate_hz"]))
         if psd["window_s"] is None:
             psd["window_s"] = w
         if psd["step_s"] is None:

@@ -165,11 +165,11 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
 
 
 def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
-    """FLAG an exported initial bias variance resting on the default T_max nobody stated
-    (:func:`imupipe.verdict.unstated_t_max`, whose sentence it carries)."""
+    """FLAG an exported P0 resting on the default T_max nobody stated (:func:`imupipe.verdict.unstated_t_max`)."""
     from imupipe.verdict import unstated_t_max
 
-    text = unstated_t_max(bound.get("bias_initialisation"))
+    bi = bound.get("bias_initialisation") if isinstance(bound.get("bias_initialisation"), Mapping) else {}
+    text = unstated_t_max(bi, both_units(sensor, bound, "gm_sigma", bi["required_std"]) if "required_std" in bi else None)
     return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
 
 

@@ -56,14 +56,16 @@ def within_tolerance(check) -> str | None:
             "few independent windows: neither evidence of an under-statement nor a confirmation")
 
 
-def unstated_t_max(bias) -> str | None:
+def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     """The sentence for a user when an exported initial bias variance (a ``bias_initialisation`` dict as the
-    contract and the KF file carry it, :meth:`imupipe.biasinit.BiasInitialisation.to_dict` with ``required_std``) rests on a longest
-    bias time constant T_max nobody stated: the default assumption (:data:`imupipe.biasinit.RECORD_FACTOR` x the longest record,
-    :func:`imupipe.biasinit.max_bias_time`), beyond what the records can check. A slow drift extrapolated to T_max, or a spec
-    sheet's random walk (K^2 T_max / 2), then sets the P0 by that assumption; a user who knows the sensor states
-    T_max (``identify.max_bias_time_s``). None when the P0 rests on the model's own GM states (T_max plays no part),
-    when the records check it, or when T_max was stated (config or spec sheet)."""
+    contract and the KF file carry it, :meth:`imupipe.biasinit.BiasInitialisation.to_dict` with ``required_std``)
+    rests on a longest bias time constant T_max nobody stated: the default assumption
+    (:data:`imupipe.biasinit.RECORD_FACTOR` x the longest record, :func:`imupipe.biasinit.max_bias_time`), beyond
+    what the records can check. A slow drift extrapolated to T_max, or a spec sheet's random walk (K^2 T_max / 2),
+    then sets the P0 by that assumption; a user who knows the sensor states T_max (``identify.max_bias_time_s``). `std_text`: the P0's standard deviation as the caller shows it (e.g. in
+    the spec sheet's unit and SI); default its ``required_std`` with its unit. None when the P0 rests on the model's
+    own GM states (T_max plays no part), when the records check it, or when T_max was stated (config or spec
+    sheet)."""
     if not isinstance(bias, dict) or bias.get("checked_by_records") or bias.get("rests_on") == "model":
         return None
     src = str(bias.get("T_max_source") or "")
@@ -73,9 +75,9 @@ def unstated_t_max(bias) -> str | None:
     def num(v):
         return "-" if v is None else f"{float(v):.3g}"
 
-    unit = (bias.get("units") or {}).get("required_std", "")
+    std = std_text or f"{num(bias.get('required_std'))} {(bias.get('units') or {}).get('required_std', '')}".rstrip()
     what = "the records' slow drift" if bias.get("rests_on") == "records" else "the spec sheet's bias"
     rec = f"; the longest record, {num(bias.get('record_s'))} s, cannot check it" if bias.get("record_s") else ""
-    return (f"the exported initial bias (std {num(bias.get('required_std'))} {unit}) rests on {what} extrapolated "
+    return (f"the exported initial bias (std {std}) rests on {what} extrapolated "
             f"to T_max = {num(bias.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
             "(identify.max_bias_time_s, s) if it is known")

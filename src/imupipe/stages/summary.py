@@ -180,7 +180,10 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
         text = md.read_text()
     elif Path(results).is_dir():
         text = summarise_results(results)
-        text = f"(partial: from the files this run has written so far)\n{text}" if text else ""
+        if text and failed:  # the counts cover the files written before the failure, not the failed job
+            text = text.replace("**Verdict:**", "**Verdict (run FAILED; partial, not a verdict):**", 1)
+        why = "; a job failed, so no check count below says the run passed" if failed else ""
+        text = f"(partial: from the files this run has written so far{why})\n{text}" if text else ""
     parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
     if failed:
         parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); summary.md is "
