@@ -62,10 +62,10 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     rests on a longest bias time constant T_max nobody stated: the default assumption
     (:data:`imupipe.biasinit.RECORD_FACTOR` x the longest record, :func:`imupipe.biasinit.max_bias_time`), beyond
     what the records can check. A slow drift extrapolated to T_max, or a spec sheet's random walk (K^2 T_max / 2),
-    then sets the P0 by that assumption; a user who knows the sensor states T_max (``identify.max_bias_time_s``). `std_text`: the P0's standard deviation as the caller shows it (e.g. in
-    the spec sheet's unit and SI); default its ``required_std`` with its unit. None when the P0 rests on the model's
-    own GM states (T_max plays no part), when the records check it, or when T_max was stated (config or spec
-    sheet)."""
+    then sets the P0 by that assumption; a user who knows the sensor states T_max (``identify.max_bias_time_s``).
+    `std_text`: the P0's standard deviation as the caller shows it (e.g. in the spec sheet's unit and SI); default
+    its ``required_std`` with its unit. None when the P0 rests on the model's own GM states (T_max plays no part),
+    when the records check it, or when T_max was stated (config or spec sheet)."""
     if not isinstance(bias, dict) or bias.get("checked_by_records") or bias.get("rests_on") == "model":
         return None
     src = str(bias.get("T_max_source") or "")
