@@ -217,6 +217,13 @@ def test_the_exported_filter_model_and_its_reduction_are_stated_per_sensor_and_p
             "after 600 s of fixes), not beyond it") in text
     assert "| x | 2.66 | yes | axis x: its own model | reduced model: the verified reduction dropped gauss_markov" in text
     assert "| y | 1.2 | no (global model) | axis y: the global model | global: reduced model: the verified" in text
+    # the first screen's per-axis export table says it too, where a user picks the model for an axis
+    from imupipe.summary import per_axis_export_lines
+
+    table = "\n".join(per_axis_export_lines({"gyro": {"bound": bound}}))
+    assert ("| gyro | x | own model |" in table and "| its own contract is bounded (the pooling test says the axes "
+            "differ); the verified reduction dropped gauss_markov: valid for the configured outage only |") in table
+    assert "| gyro | y | global model |" in table and "the verified reduction dropped random_walk: valid" in table
     # the bound exported whole: said so, no horizon restriction claimed
     whole = render_summary({"gyro": {"bound": _bound(export=_scope([]))}})
     assert "- exported filter model (KF file): the bound's model, no state dropped" in whole
@@ -465,8 +472,8 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
     # model each axis exports
     per = {**contract, "per_axis_models": {"x": {"exported_in_kf": True}, "y": {"exported_in_kf": False}}}
     per_head = first_screen(render_summary({"gyro": {"bound": per}}))
-    assert "The axes differ: the KF file's `per_axis` exports, per axis, this model (the tables above are the " \
-           "global model" in per_head
+    assert "The axes differ: give each axis the model the KF file's `per_axis` exports for it, below (the tables " \
+           "above are the global model, verified on every axis's envelope too" in per_head
     assert "| gyro | x | own model |" in per_head and "| gyro | y | global model |" in per_head
     assert "the axes differ" not in head.lower()
 

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
+from imupipe.verdict import unstated_t_max, within_tolerance
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -138,8 +139,6 @@ def _tolerance_passes(bound: Mapping) -> list[tuple[str, str, str]]:
     """(model, check, statement) of every verification check of the exported models (the global one and each
     per-axis model of the contract) that passed only by its sampling tolerance: worst MSE/P above 1 within
     ``tolerance`` (:func:`imupipe.verdict.within_tolerance`; the contract's own sentence where it has one)."""
-    from imupipe.verdict import within_tolerance
-
     models = [("global model", bound.get("verification"))]
     models += [(f"axis {ax} model", pa.get("verification")) for ax, pa in (bound.get("per_axis_models") or {}).items()
                if isinstance(pa, Mapping) and pa.get("exported_in_kf")]
@@ -166,8 +165,6 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
 
 def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
     """FLAG an exported P0 resting on the default T_max nobody stated (:func:`imupipe.verdict.unstated_t_max`)."""
-    from imupipe.verdict import unstated_t_max
-
     bi = bound.get("bias_initialisation") if isinstance(bound.get("bias_initialisation"), Mapping) else {}
     text = unstated_t_max(bi, both_units(sensor, bound, "gm_sigma", bi["required_std"]) if "required_std" in bi else None)
     return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
@@ -1107,12 +1104,14 @@ def per_axis_export_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
             gone = [d for d in e["dropped"] if d.startswith("narrowband")]
             if gone:
                 lines += f"; dropped by the verified reduction: {', '.join(d.split('=', 1)[-1] for d in gone)}"
+            held = ", ".join(d.split(" ", 1)[0] for d in e["dropped"] if d not in gone)  # holds for the outage only
             rows.append(f"| {sensor} | {e['axis']} | {'own model' if e['own'] else 'global model'} | {n} | {gm} | "
-                        f"{k} | {lines} | {e['why']} |")
+                        f"{k} | {lines} | {e['why']}" + (f"; the verified reduction dropped {held}: valid for the "
+                                                         "configured outage only |" if held else " |"))
     if not rows:
         return []
-    return ["", "The axes differ: the KF file's `per_axis` exports, per axis, this model (the tables above are the "
-            "global model; Kalibr's values are the largest over these per-axis models):", "",
+    return ["", "The axes differ: give each axis the model the KF file's `per_axis` exports for it, below (the tables "
+            "above are the global model, verified on every axis's envelope too; Kalibr's: the largest over these):", "",
             "| sensor | axis | exported | white noise N | GM | random walk K | line states | why |",
             "|---|---|---|---|---|---|---|---|", *rows]
 

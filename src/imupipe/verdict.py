@@ -53,7 +53,8 @@ def within_tolerance(check) -> str | None:
     return (f"passes within {what} sampling tolerance (ratio {shown}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
             f"{how}): the "
             "records' squared error reaches that ratio to the filter's variance, within what chance gives with this "
-            "few independent windows: neither evidence of an under-statement nor a confirmation")
+            "few independent windows: neither evidence of an under-statement nor a confirmation (more or longer "
+            "records narrow the tolerance)")
 
 
 def unstated_t_max(bias, std_text: str | None = None) -> str | None:
