@@ -649,7 +649,7 @@ def replay(filter_model, records, record_rate_hz: float, scenario: Scenario | No
     sq = _replay_errors(Es, Pf, Hf, fix_gain_array(fg), sc, block) if W else np.zeros(L)
     if not W:
         raise ValueError(f"replay needs records of at least {L / sc.filter_rate_hz:g} s at the filter rate "
-                         f"(fix_s + outage_s)")
+                         f"(config keys verify.fix_s + application.outage_s)")
     mse_e = sq / W
     # fix noise and initial kinematic error, exactly: a truth with no sensor error
     mse_n = covariance_analysis(filter_model, NoiseModel(), sc).mse if noise_mse is None else np.asarray(noise_mse)
@@ -822,7 +822,7 @@ def replay_steps(filter_model, records, record_rate_hz: float, scenario: Scenari
             wins.append(y[s:s + L])
     if not wins:
         raise ValueError(f"replay needs records of at least {L / sc.filter_rate_hz:g} s at the filter rate "
-                         f"(fix_s + outage_s)")
+                         f"(config keys verify.fix_s + application.outage_s)")
     E = np.stack(wins)  # (W, L)
     W = E.shape[0]
     dt = sc.dt
