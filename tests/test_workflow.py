@@ -426,7 +426,9 @@ def bad_input_run(tmp_path_factory):
     cases = _bad_input_files(folder, np.random.default_rng(20211101))
     config = tiny_config(folder, datasets=str(folder / "datasets.tsv"), simulation=None,
                          psd={"window_s": 600.0, "step_s": 300.0, "taper": "hann", "detrend": "constant",
-                              "confidence": 0.95})
+                              "confidence": 0.95},
+                         # 600 s of fixes + 300 s of outage fit the 15 min records (start-up refuses a longer run)
+                         application={"filter_rate_hz": 1.0, "outage_s": 300.0})
     # the DAG up to the per-sensor merges (`--until stack`, as the fault run of tests/test_workflow_faults.py):
     # every dataset's ingest, the good one's per-axis stages; not the outliers and lines jobs, read by no test here
     proc = snakemake(folder, "--keep-going", "--until", "stack", config=config, check=False)
