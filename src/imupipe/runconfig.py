@@ -263,7 +263,7 @@ def check_records(cfg: dict, datasets: dict) -> None:
                             f"application.filter_rate_hz = {cfg['application']['filter_rate_hz']} Hz (the verification "
                             "replays each record block-averaged to the filter's rate); set application.filter_rate_hz "
                             "to the record rate or a divisor of it")
-    run_s = float(cfg["verify"]["fix_s"]) + float(cfg["application"]["outage_s"])
+    run_s = span_s(cfg)
     longest = max(lasts, key=lasts.get) if lasts else None
     if longest is not None and lasts[longest] < run_s:  # the replay needs one fix period and one outage in a record
         problems.append(

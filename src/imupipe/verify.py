@@ -62,10 +62,9 @@ References
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -1095,7 +1094,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
         if b.family:
             axis_truths.append((f"slow_bias_{ax}", worst_member(up_ax, b.family)))
         slow_var = max(bias.required_slow, b.required_slow)
-        bias = dataclasses.replace(b if b.required > bias.required else bias, required_slow=slow_var)
+        bias = replace(b if b.required > bias.required else bias, required_slow=slow_var)
     kw = dict(filter_rate_hz=filter_rate_hz, fix_s=fix_s, outage_s=outage_s, bias_var_floor=bias.required,
               bias_var_floor_slow=bias.required_slow, max_bias_time_s=bias.T_max_s, fix_rate_hz=fix_rate_hz)
     if sigma_fix is not None:

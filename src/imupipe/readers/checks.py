@@ -383,8 +383,8 @@ def check_against_config(
                       "file": ", the file's rate attribute"}.get(str(get("rate_from") or ""), "")
             raise ConfigError(
                 f"{label} lasts {duration:.6g} s ({n} samples at {rate:g} Hz{source}), shorter than config key "
-                f"psd.window_s = {window_s:g} s (one Welch window); shorten psd.window_s (and application.outage_s, which "
-                f"must not exceed it) or give a longer record"
+                f"psd.window_s = {window_s:g} s (one Welch window); shorten psd.window_s (verify.fix_s + "
+                f"application.outage_s must fit in the longest record too) or give a longer record"
                 + (" (or correct rate_hz if it is not the record's rate)" if source.endswith("rate_hz") else "")
             )
         if decimate_rate_hz is not None and window_s * decimate_rate_hz < 2:

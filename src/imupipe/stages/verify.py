@@ -29,7 +29,7 @@ worst_ratio at worst_t_s: the same over the whole run (fixes included); mean_con
 over the outage. exported: the model the KF file carries (the bound's, or its reduction when every check passes).
 per_axis_models: the same per axis (each against that axis's envelope, the spec sheet and that axis's records), when
 the bound file has per-axis models; null otherwise. The global model is then also checked against each axis's own
-envelope (checks upper_envelope_<axis>).
+envelope and slowest admitted bias (checks upper_envelope_<axis>, slow_bias_<axis>).
 auto_selection (bound.mode auto only): every candidate mode verified the same way; criterion, winner, reason and per
 candidate bounded, failed_checks, criterion_mean_conservatism (mean P/MSE over the outage against the upper
 envelope), worst outage MSE/P of every check; the rest of this file is the winner's verification."""
