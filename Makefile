@@ -32,11 +32,17 @@ run: env  ## the default paper-scale workflow (simulated STIM-300-like data); en
 	$(BYTECODE)
 	$(SNAKEMAKE) $(QUIET)
 
+# The suite runs on TEST_WORKERS processes (pytest-xdist; "auto": one per core), each taking whole test files
+# (--dist loadfile), so a module's shared workflow run is built once; the session's tiny run (tests/conftest.py)
+# is built once per worker, in that worker's own folder. TEST_WORKERS=0 runs the suite in one process.
+TEST_WORKERS ?= auto
+PYTEST = OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile
+
 test: env  ## the test suite (slow paper-scale checks excluded)
-	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q -m "not slow"
+	$(PYTEST) -q -m "not slow"
 
 test-all: env  ## every test, paper-scale ones included
-	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -q
+	$(PYTEST) -q
 
 bench: env  ## speed against error, with allantools in the same run
 	OPENBLAS_NUM_THREADS=1 $(VENV)/bin/python benchmarks/run.py
