@@ -34,7 +34,7 @@ run: env  ## the default paper-scale workflow (simulated STIM-300-like data); en
 
 # The suite runs on TEST_WORKERS processes (pytest-xdist; "auto": one per core), each taking whole test files
 # (--dist loadfile), so a module's shared workflow run is built once; the session's tiny run (tests/conftest.py)
-# is built once per worker, in that worker's own folder. TEST_WORKERS=0 runs the suite in one process.
+# is built once for all workers. TEST_WORKERS=0 runs the suite in one process.
 TEST_WORKERS ?= auto
 PYTEST = OPENBLAS_NUM_THREADS=1 $(VENV)/bin/pytest -n $(TEST_WORKERS) --dist loadfile
 

@@ -29,17 +29,48 @@ def rng():
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory):
     """A complete run of the tiny configuration (tests/configs/tiny.yaml) in a copy of the checkout (its own
-    spec sheets), run from the copy's folder: (folder, config file). Shared by every workflow test module."""
+    spec sheets), run from the copy's folder: (folder, config file). Shared by every workflow test module, and
+    under pytest-xdist (``make test``) by every worker: the first worker to ask builds it in the session's common
+    folder under a file lock (pytest-xdist's documented way to build a session fixture once), the others wait for
+    it. Tests only read it and dry-run it; a test that writes into a run (edits its spec sheet, removes an output,
+    writes a report) takes :func:`tiny_copy`."""
+    import os
+
+    from filelock import FileLock
+
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        return _build_tiny_run(tmp_path_factory.mktemp("tiny"))
+    root = tmp_path_factory.getbasetemp().parent / "tiny_run"
+    with FileLock(f"{root}.lock"):
+        done = root / "built"
+        if not done.is_file():
+            _build_tiny_run(root)
+            done.touch()
+    return root / "checkout", root / "checkout" / "tiny.yaml"
+
+
+def _build_tiny_run(root):
     import shutil
 
     pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip install -e '.[test]')")
     from workflow_helpers import TINY, copy_checkout, snakemake
 
-    work = copy_checkout(tmp_path_factory.mktemp("tiny") / "checkout")
+    work = copy_checkout(root / "checkout")
     config = work / "tiny.yaml"
     shutil.copy2(TINY, config)
     snakemake(work, config=config, snakefile=work / "Snakefile")
     return work, config
+
+
+@pytest.fixture
+def tiny_copy(tiny_run, tmp_path):
+    """A private copy of :func:`tiny_run` (modification times kept, so it is as up to date as the run):
+    (folder, config file), for a test that writes into the run."""
+    from workflow_helpers import copy_run
+
+    work, config = tiny_run
+    copy = copy_run(work, tmp_path / "checkout")
+    return copy, copy / config.name
 
 
 @pytest.fixture(scope="session")

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -30,7 +29,7 @@ pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip 
 from imupipe.models import NoiseModel  # noqa: E402
 
 from workflow_helpers import (  # noqa: E402
-    CHECKOUT, ENV, LOG, RES, ROOT, SNAKEMAKE, SPEC_RULES, TINY, dry_run_jobs, snakemake, tiny_config,
+    CHECKOUT, ENV, LOG, RES, ROOT, SNAKEMAKE, SPEC_RULES, TINY, copy_run, dry_run_jobs, snakemake, tiny_config,
 )
 
 
@@ -117,8 +116,8 @@ class TestCaching:
         work, config = tiny_run
         assert dry_run_jobs(work, config=config) == {}
 
-    def test_spec_edit_reruns_only_bounding(self, tiny_run):
-        work, config = tiny_run
+    def test_spec_edit_reruns_only_bounding(self, tiny_copy):
+        work, config = tiny_copy
         spec = work / "config" / "specs" / "stim300.yaml"
         text = spec.read_text()
         spec.write_text(text.replace("value: 0.15, unit: deg/sqrt(h)", "value: 0.16, unit: deg/sqrt(h)"))
@@ -172,8 +171,8 @@ class TestCaching:
         jobs = dry_run_jobs(work, config=changed)
         assert set(jobs) == expected, f"{section} {change}: {jobs}"
 
-    def test_spec_edit_reruns_exactly_the_spec_stages(self, tiny_run):
-        work, config = tiny_run
+    def test_spec_edit_reruns_exactly_the_spec_stages(self, tiny_copy):
+        work, config = tiny_copy
         spec = work / "config" / "specs" / "stim300.yaml"
         text, stat = spec.read_text(), spec.stat()
         spec.write_text(text.replace("value: 0.15, unit: deg/sqrt(h)", "value: 0.16, unit: deg/sqrt(h)"))
@@ -192,8 +191,7 @@ class TestCaching:
         # every path Snakemake records is relative: the checkout with its results copied elsewhere (modification
         # times kept) is up to date
         work, config = tiny_run
-        moved = tmp_path / "elsewhere" / "checkout"
-        shutil.copytree(work, moved, symlinks=True)
+        moved = copy_run(work, tmp_path / "elsewhere" / "checkout")
         assert dry_run_jobs(moved, config=moved / config.name) == {}
 
     def test_partial_configfile_on_top_of_the_default(self, tmp_path):
@@ -278,8 +276,8 @@ class TestResume:
 
 
 class TestReport:
-    def test_html_report_has_every_figure(self, tiny_run):
-        work, config = tiny_run
+    def test_html_report_has_every_figure(self, tiny_copy):
+        work, config = tiny_copy
         report = work / "report.html"
         snakemake(work, "--report", str(report), config=config, snakefile=work / "Snakefile")
         html = report.read_text(errors="replace")

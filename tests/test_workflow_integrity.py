@@ -6,12 +6,11 @@ run whose model fails (the spec sheet itself exported as the bound: the unflated
 from __future__ import annotations
 
 import hashlib
-import shutil
 
 import pytest
 import yaml
 
-from workflow_helpers import RES, snakemake
+from workflow_helpers import RES, copy_run, snakemake
 
 SENSORS = ("gyro", "accel")
 
@@ -107,8 +106,7 @@ def test_identical_runs_give_identical_files(tiny_run, tmp_path):
     """Forced re-runs of the bound, verification, contract and KF jobs write byte-identical YAML files (no wall
     clock in them; the LP's solve time is in the logs)."""
     work, config = tiny_run
-    copy = tmp_path / "copy"
-    shutil.copytree(work, copy, symlinks=True)
+    copy = copy_run(work, tmp_path / "copy")
     folders = ("bound", "verify", "contract", "kf")
     before = _hashes(copy, folders)
     snakemake(copy, "--forcerun", "bound_axis", "bound", "verify", "contract", "kf", config=copy / config.name,
@@ -122,8 +120,7 @@ def test_unflated_spec_fails_the_run_after_writing_the_contract(tiny_run, tmp_pa
     and the run exits non-zero naming the failed checks; with verify.on_failure: warn it exits 0 and the
     run's verdict file says so."""
     work, config = tiny_run
-    copy = tmp_path / "copy"
-    shutil.copytree(work, copy, symlinks=True)
+    copy = copy_run(work, tmp_path / "copy")
     path = copy / f"{RES}/bound/stim300/accel.yaml"
     b = _yaml(path)
     b["bound"] = {**b["spec"]}  # the spec sheet as the bound (SI, same keys)

@@ -159,10 +159,10 @@ def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):
     assert "accelerometer_noise_density" not in data
 
 
-def test_summary_is_printed_on_the_terminal_after_a_run(tiny_run):
+def test_summary_is_printed_on_the_terminal_after_a_run(tiny_copy):
     # the summary job re-run alone (its output removed) ends with the summary on the terminal (onsuccess);
     # Snakemake runs no handler when it has nothing to do
-    work, config = tiny_run
+    work, config = tiny_copy
     (work / RES / "summary.md").unlink()
     proc = snakemake(work, "--quiet", "rules", "host", "reason", config=config, snakefile=work / "Snakefile")
     out = proc.stdout + proc.stderr

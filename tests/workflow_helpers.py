@@ -63,6 +63,16 @@ def tiny_config(tmp_path, **changes):
     return path
 
 
+def copy_run(work, dest):
+    """Copy a run's folder `work` to `dest`, modification times kept (so the copy is as up to date as the run) and
+    symbolic links as links. Snakemake's lock files are left out: a dry run of the shared run on another pytest
+    worker takes and removes them while the copy is made."""
+    def locks(folder, names):
+        return ["locks"] if Path(folder).name == ".snakemake" else []
+
+    return Path(shutil.copytree(work, dest, symlinks=True, ignore=locks))
+
+
 def copy_checkout(dest):
     """Copy what a run needs of the checkout (Snakefile, workflow/, config/) into `dest`."""
     dest.mkdir(parents=True, exist_ok=True)
