@@ -124,3 +124,23 @@ class TestCorrelatedReplicates:
         C = np.array([[2.0, 1.5], [1.5, 2.0]])  # edf 1 at mean 1
         y = correlated_replicates(np.ones(2), C, 10_000, np.random.default_rng(4))
         assert np.all(y > 0)
+
+
+def test_cached_lag_terms_leave_every_covariance_unchanged():
+    # the model-free terms of each entry are cached across models (imupipe.avcov._pair_terms): a covariance computed
+    # with the cache warm from other models equals, bit for bit, the one computed with the cache empty, quantization
+    # (the lag-0 pattern) included; and the cached arrays cannot be changed in place by a caller
+    from imupipe import avcov
+
+    m, n, rate = np.array([1, 2, 5, 13, 40, 120]), 2000, 4.0
+    a = NoiseModel(white=1e-3, random_walk=2e-5, quantization=3e-4, gauss_markov=((5e-4, 30.0),))
+    b = NoiseModel(white=4e-3, flicker=1e-3)
+    avcov._pair_terms.cache_clear()
+    cold = avar_covariance(a, m, n, rate)
+    avar_covariance(b, m, n, rate)
+    warm = avar_covariance(a, m, n, rate)
+    assert avcov._pair_terms.cache_info().hits >= 2 * 21  # 21 pairs of 6 factors, read again twice
+    assert np.array_equal(cold, warm)
+    d, wc = avcov._pair_terms(1, 2, n - 1, n - 3)
+    with pytest.raises(ValueError, match="read-only"):
+        wc[0] = 0.0
