@@ -169,30 +169,33 @@ def av_basis(tau, components=COMPONENTS, T=()):
         Column labels (``"white"``, ``"gm_1"``, ... ``"random_walk"``, ...).
     """
     t = np.asarray(tau, dtype=np.float64)
-    cols, names = [], []
+    names = []
+    for c in components:
+        names.extend([f"gm_{i + 1}" for i in range(len(T))] if c == "gauss_markov" else [c] if c in COMPONENTS else [])
+    # filled column by column (the profiles call this some 10^5 times per job: no list of columns to stack)
+    A = np.empty((t.size, len(names)))
+    k = 0
     for c in components:
         if c == "white":
-            cols.append(1.0 / t)
-            names.append("white")
+            np.divide(1.0, t, out=A[:, k])
         elif c == "gauss_markov":
-            for i, Ti in enumerate(T):
-                cols.append(_gm_column(t.tobytes(), float(Ti)))
-                names.append(f"gm_{i + 1}")
+            key = t.tobytes()
+            for Ti in T:
+                A[:, k] = _gm_column(key, float(Ti))
+                k += 1
+            continue
         elif c == "random_walk":
-            cols.append(t / 3.0)
-            names.append("random_walk")
+            np.divide(t, 3.0, out=A[:, k])
         elif c == "flicker":
-            cols.append(np.full_like(t, _FLICKER_ADEV**2))
-            names.append("flicker")
+            A[:, k] = _FLICKER_ADEV**2
         elif c == "quantization":
-            cols.append(3.0 / t**2)
-            names.append("quantization")
+            np.divide(3.0, t**2, out=A[:, k])
         elif c == "ramp":
-            cols.append(t**2 / 2.0)
-            names.append("ramp")
-    if not cols:
-        return np.zeros((t.size, 0)), names
-    return np.stack(cols, axis=1), names
+            np.divide(t**2, 2.0, out=A[:, k])
+        else:
+            continue
+        k += 1
+    return A, names
 
 
 @functools.lru_cache(maxsize=1024)
