@@ -123,11 +123,13 @@ def test_envelope_mode_needs_the_envelope():
         bound_psd(f, curves, None, dt=1.0, mode="envelope", edf=edf)
 
 
-def _identified(kind="joint", note=None, consistent=True):
+def _identified(kind="joint", note=None, consistent=True, adequate=True):
     rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "worst_ratio_to_band": 1.05}
     if note:
         rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "note": note}
-    out = {"pooling": {"consistent": consistent}}
+    out = {"pooling": {"consistent": consistent},
+           "adequacy": {"pooled": {"adequate": adequate, "chi2_per_dof": 1.0 if adequate else 3.34,
+                                   "p_value": 0.5 if adequate else 3.9e-53}}}
     if kind != "marginal":
         out |= {"upper_envelope_kind": kind, "upper_envelope_joint": rec}
     return out
@@ -141,7 +143,9 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
     for ident, lines, word in ((_identified("marginal"), None, "marginal"),
                                (_identified(note="fewer than 20 finite bootstrap replicates"), None, "fell back"),
                                (_identified(consistent=False), None, "pooling"),
-                               (_identified(), {"d0/x": {"lines": [{"frequency_hz": 0.1}]}}, "line")):
+                               (_identified(), {"d0/x": {"lines": [{"frequency_hz": 0.1}]}}, "line"),
+                               # the band is the spread of the selected model's refits: not where the data reject it
+                               (_identified(adequate=False), None, "reject the selected model")):
         modes, why = candidate_modes(ident, lines)
         assert modes == AUTO_MODES and why.startswith("not built") and word in why, why
 
@@ -164,3 +168,19 @@ def test_noise_model_auto_builds_verifies_and_may_export_the_envelope_candidate(
     passing = [r["criterion_mean_conservatism"] for r in rows.values() if r["bounded"]]
     assert passing and rows[sel["winner"]]["criterion_mean_conservatism"] == min(passing)
     assert res.bounded and rows[sel["winner"]]["checks"]["truth"]["worst_outage_ratio"] <= 1.0
+
+
+def test_the_auto_reason_says_why_the_envelope_candidate_is_absent(monkeypatch):
+    # the summary prints the selection's reason: where the envelope candidate was not built, the reason says why
+    # (the bound file's auto_envelope_candidate), so a user sees why the export is not the tightest by design
+    import imupipe.bound.auto as auto
+    from imupipe.stages import verify
+
+    monkeypatch.setattr(verify, "verify_sensor", lambda cand, sensor, **kw: ({"exported": {}}, None))
+    monkeypatch.setattr(auto, "select", lambda c, r, f: {"winner": "raw", "reason": "raw: the tightest",
+                                                         "candidates": []})
+    why = "not built: the data reject the selected model (adequacy: chi2/dof 3.34, p 3.9e-53), ..."
+    report, _ = verify._verify_auto({"candidates": {"raw": {}}, "auto_envelope_candidate": why}, "gyro", {})
+    assert report["auto_selection"]["reason"] == f"raw: the tightest; the envelope candidate was {why}"
+    built = {"candidates": {"raw": {}, ENVELOPE_MODE: {}}, "auto_envelope_candidate": "built: ..."}
+    assert verify._verify_auto(built, "gyro", {})[0]["auto_selection"]["reason"] == "raw: the tightest"

@@ -51,12 +51,18 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     * the pooling test accepts one model for every curve (``pooling.consistent``): otherwise the envelope the bound
       reads dominates per-axis envelopes whose kind is not recorded;
     * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the
-      envelope is a broadband model and carries no line, which only the sample PSDs' rows would bound.
+      envelope is a broadband model and carries no line, which only the sample PSDs' rows would bound;
+    * the selected model describes the Allan variances (the identify record's ``adequacy.pooled.adequate``): the
+      band is the spread of refits of that model, which says nothing of what the model cannot represent. Where the
+      data reject it (a floor of four GMs fitted as white noise alone: chi2/dof 3.3, p 4e-53), the envelope lay 2.9 % below
+      such a truth's PSD between 0.001 and 0.07 Hz, the envelope candidate sat on it, and a filter on it
+      under-stated its error (MSE/P 1.003); the candidates of :data:`AUTO_MODES` bound the records' own spectra.
 
     Returns (modes, reason)."""
     kind = identified.get("upper_envelope_kind", "marginal")
     rec = identified.get("upper_envelope_joint")
     n_lines = sum(len((doc or {}).get("lines") or ()) for doc in (lines or {}).values())
+    adequacy = (identified.get("adequacy") or {}).get("pooled") or {}
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
     elif not isinstance(rec, dict) or rec.get("note") or rec.get("worst_ratio_to_band") is None:
@@ -65,11 +71,20 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
         why = "not built: the pooling test rejects one model for every curve (per-axis envelopes)"
     elif n_lines:
         why = f"not built: {n_lines} spectral line(s) found, which the broadband envelope does not carry"
+    elif adequacy.get("adequate", True) is False:
+        why = ("not built: the data reject the selected model (adequacy: chi2/dof "
+               f"{_fmt(adequacy.get('chi2_per_dof'))}, p {_fmt(adequacy.get('p_value'))}), so the joint band, the "
+               "spread of that model's refits, does not cover what the model cannot represent; the candidates "
+               "built from the sample PSDs bound the records' own spectra")
     else:
         return AUTO_MODES + (ENVELOPE_MODE,), (
             f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
             f"{rec.get('band_hz')} Hz) is the target")
     return AUTO_MODES, why
+
+def _fmt(x) -> str:
+    return f"{float(x):.3g}" if isinstance(x, (int, float)) else str(x)
+
 
 #: The stated criterion (written into the verification file).
 CRITERION = ("the passing candidate (its contract bounded: PSD margin, spec over all frequencies, Allan check and "
