@@ -106,7 +106,9 @@ def test_select_the_tightest_passing_candidate():
     assert sel["winner"] == "pooled" and sel["bounded"]  # confidence is tighter but fails its envelope check
     rows = {r["mode"]: r for r in sel["candidates"]}
     assert not rows["confidence"]["bounded"] and rows["pooled"]["criterion_mean_conservatism"] == 1.8
-    assert "pooled" in sel["reason"] and "confidence" in sel["reason"]
+    # the reason follows the winner's name (the summary prints "exported **pooled**: <reason>"), naming the others
+    assert sel["reason"].startswith("bounded and the tightest passing") and "confidence" in sel["reason"]
+    assert "pooled" not in sel["reason"].split("(")[0]
     # a candidate whose PSD margin fails is not bounded either, however tight
     cands["pooled"] = _cand(margin=0.9)
     assert select(cands, reps)["winner"] == "smoothed"

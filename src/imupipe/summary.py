@@ -1218,7 +1218,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         checks.append("")
         lines.append(f"## {sensor}: {verdict}")
         lines.append("")
-        lines.append(f"- margin (min S_model/S_sample): {_num(bound.get('margin'), '{:.4g}')}"
+        lines.append(f"- margin (min S_model/target, the mode's; raw: S_sample): {_num(bound.get('margin'), '{:.4g}')}"
                      + (f" at {bound.get('margin_curve')}, {_num(bound.get('margin_frequency_hz'))} Hz"
                         if bound.get("margin_curve") else ""))
         if bound.get("spec_name") or bound.get("mode"):
@@ -1282,7 +1282,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     n_fail = sum(f.severity == "fail" for f in all_flags)
     n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
-    head += ["| sensor | verdict | PSD margin (min S_model/S_sample) | verification | KF file |",
+    head += ["| sensor | verdict | PSD margin (min S_model/target; raw mode: the sample PSDs) | verification | KF file |",
              "|---|---|---|---|---|", *table, ""]
     head += _paste_section(runs, paste)
     if isinstance(kalibr, Mapping):

@@ -136,7 +136,7 @@ def select(candidates: dict, reports: dict, contract_of) -> dict:
         others = ", ".join(f"{r['mode']} {r['criterion_mean_conservatism']:.3g}" for r in ok if r is not best)
         failed = ", ".join(f"{r['mode']} ({'; '.join(r['failed_checks']) or 'no verification'})"
                            for r in rows if not r["bounded"])
-        reason = (f"{best['mode']}: bounded and the tightest passing candidate, mean P/MSE {val:.3g} over the outage "
+        reason = (f"bounded and the tightest passing candidate, mean P/MSE {val:.3g} over the outage "
                   f"against the upper envelope" + (f" (other passing: {others})" if others else "")
                   + (f"; not passing: {failed}" if failed else ""))
         bounded = True

@@ -50,7 +50,7 @@ def tables_stage(spec, bounds: dict, contracts: dict | None = None) -> dict:
           "| sensor | parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|---|"]
     md += [f"| {r['sensor']} | {r['parameter']} | {r['unit']} | {fmt(r['spec'])} | {fmt(r['bound'])} | "
            f"{fmt(r['ratio'])} |" for r in rows]
-    md += ["", "Margins (min S_model/S_sample over all curves and frequencies): "
+    md += ["", "Margins (min S_model over its mode's target, the sample PSDs in raw mode, all curves and frequencies): "
            + ", ".join(f"{s} {fmt(b['margin'])}" for s, b in bounds.items()), ""]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]))

@@ -131,7 +131,7 @@ def _verify_auto(bound: dict, sensor: str, settings: dict):
     why = bound.get("auto_envelope_candidate")
     if why and ENVELOPE_MODE not in bound["candidates"]:  # say why the tightest-by-design candidate is absent
         sel["reason"] += f"; the envelope candidate was {why}"
-    logging.info("auto bound: %s", sel["reason"])
+    logging.info("auto bound: %s exported: %s", sel["winner"], sel["reason"])
     report = dict(reports[sel["winner"]])
     report["auto_selection"] = sel
     return report, series[sel["winner"]]
