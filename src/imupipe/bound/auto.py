@@ -82,6 +82,7 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
             f"{rec.get('band_hz')} Hz) is the target")
     return AUTO_MODES, why
 
+
 def _fmt(x) -> str:
     return f"{float(x):.3g}" if isinstance(x, (int, float)) else str(x)
 

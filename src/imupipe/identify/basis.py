@@ -169,31 +169,29 @@ def av_basis(tau, components=COMPONENTS, T=()):
         Column labels (``"white"``, ``"gm_1"``, ... ``"random_walk"``, ...).
     """
     t = np.asarray(tau, dtype=np.float64)
-    names = []
-    for c in components:
-        names.extend([f"gm_{i + 1}" for i in range(len(T))] if c == "gauss_markov" else [c] if c in COMPONENTS else [])
-    # filled column by column (the profiles call this some 10^5 times per job: no list of columns to stack)
-    A = np.empty((t.size, len(names)))
-    k = 0
-    for c in components:
+    comps = [c for c in components if c in COMPONENTS]
+    # filled in place (the profiles call this some 10^5 times per job: no list of columns to stack)
+    A = np.empty((t.size, sum(len(T) if c == "gauss_markov" else 1 for c in comps)))
+    names, k = [], 0
+    for c in comps:
+        if c == "gauss_markov":
+            key = t.tobytes()
+            for i, Ti in enumerate(T):
+                A[:, k + i] = _gm_column(key, float(Ti))
+                names.append(f"gm_{i + 1}")
+            k += len(T)
+            continue
         if c == "white":
             np.divide(1.0, t, out=A[:, k])
-        elif c == "gauss_markov":
-            key = t.tobytes()
-            for Ti in T:
-                A[:, k] = _gm_column(key, float(Ti))
-                k += 1
-            continue
         elif c == "random_walk":
             np.divide(t, 3.0, out=A[:, k])
         elif c == "flicker":
             A[:, k] = _FLICKER_ADEV**2
         elif c == "quantization":
             np.divide(3.0, t**2, out=A[:, k])
-        elif c == "ramp":
+        else:  # ramp
             np.divide(t**2, 2.0, out=A[:, k])
-        else:
-            continue
+        names.append(c)
         k += 1
     return A, names
 
