@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
-from imupipe.bound.auto import AUTO_MODES
+from imupipe.bound.auto import AUTO_MODES, ENVELOPE_MODE
 from imupipe.bound.auto import select as _select
 from imupipe.bound.engine import _prepare, detrend_bias
 from imupipe.models import NoiseModel
@@ -112,6 +112,22 @@ def test_select_the_tightest_passing_candidate():
     # a candidate whose PSD margin fails is not bounded either, however tight
     cands["pooled"] = _cand(margin=0.9)
     assert select(cands, reps)["winner"] == "smoothed"
+
+
+def test_the_reason_says_why_the_envelope_candidate_is_absent():
+    # where the envelope candidate was not built, the reason (which the summary prints) ends with why; where it was
+    # built, the reason is the selection's alone
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.5), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 0.8), "pooled": _rep(1.8, 0.9)}
+    from imupipe.stages.contract import candidate_contract
+
+    base = _select(cands, reps, candidate_contract)["reason"]
+    why = "not built: the data reject the selected model (adequacy: chi2/dof 3.34, p 3.9e-53), ..."
+    assert _select(cands, reps, candidate_contract, why)["reason"] == f"{base}; the envelope candidate was {why}"
+    built = {**cands, ENVELOPE_MODE: _cand()}
+    reps_b = {**reps, ENVELOPE_MODE: _rep(1.2, 0.9)}
+    assert _select(built, reps_b, candidate_contract, "built: ...")["reason"] == _select(
+        built, reps_b, candidate_contract)["reason"]
 
 
 def test_select_none_passing_exports_the_safest_marked():

@@ -121,10 +121,12 @@ def _finite(x, default):
     return float(x) if x is not None and math.isfinite(float(x)) else default
 
 
-def select(candidates: dict, reports: dict, contract_of) -> dict:
+def select(candidates: dict, reports: dict, contract_of, envelope_candidate: str | None = None) -> dict:
     """The selection of ``bound.mode: auto`` (module docstring): `candidates` mode -> bound file entry, `reports`
-    mode -> its verification report, `contract_of` as :func:`candidate_row`'s. Returns ``{criterion, winner, bounded, reason, candidates: [row, ...]}``
-    (:func:`candidate_row` per mode, in :data:`AUTO_MODES` order)."""
+    mode -> its verification report, `contract_of` as :func:`candidate_row`'s. `envelope_candidate`: why the
+    envelope candidate was or was not built (:func:`candidate_modes`, the bound file's ``auto_envelope_candidate``);
+    where it is absent, the reason ends with why. Returns ``{criterion, winner, bounded, reason, candidates: [row,
+    ...]}`` (:func:`candidate_row` per mode, in :data:`AUTO_MODES` order)."""
     order = [m for m in AUTO_MODES if m in candidates] + [m for m in candidates if m not in AUTO_MODES]
     if not order:
         raise ValueError("auto bound: no candidate (the bound file has an empty 'candidates')")
@@ -147,4 +149,6 @@ def select(candidates: dict, reports: dict, contract_of) -> dict:
                   f"against the envelope, {best['envelope_worst_outage_ratio']}), NOT BOUNDED: "
                   + "; ".join(f"{r['mode']}: {', '.join(r['failed_checks'])}" for r in rows))
         bounded = False
+    if envelope_candidate and ENVELOPE_MODE not in candidates:  # why the tightest-by-design candidate is absent
+        reason += f"; the envelope candidate was {envelope_candidate}"
     return {"criterion": CRITERION, "winner": best["mode"], "bounded": bounded, "reason": reason, "candidates": rows}

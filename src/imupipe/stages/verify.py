@@ -121,16 +121,13 @@ def _verify_auto(bound: dict, sensor: str, settings: dict):
     file, each with the same settings (the configured filter rate), and :func:`imupipe.bound.auto.select`. The
     report is the winner's, with ``auto_selection`` (criterion, winner, reason, each candidate's bounded, failed
     checks, worst outage MSE/P and mean P/MSE per check); the series are the winner's."""
-    from imupipe.bound.auto import ENVELOPE_MODE, select
+    from imupipe.bound.auto import select
     from imupipe.stages.contract import candidate_contract
 
     reports, series = {}, {}
     for m, cand in bound["candidates"].items():
         reports[m], series[m] = verify_sensor(cand, sensor, **settings)
-    sel = select(bound["candidates"], reports, candidate_contract)
-    why = bound.get("auto_envelope_candidate")
-    if why and ENVELOPE_MODE not in bound["candidates"]:  # say why the tightest-by-design candidate is absent
-        sel["reason"] += f"; the envelope candidate was {why}"
+    sel = select(bound["candidates"], reports, candidate_contract, bound.get("auto_envelope_candidate"))
     logging.info("auto bound: %s exported: %s", sel["winner"], sel["reason"])
     report = dict(reports[sel["winner"]])
     report["auto_selection"] = sel
