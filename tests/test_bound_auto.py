@@ -187,6 +187,25 @@ def test_summary_shows_the_candidates():
     assert auto_selection_lines({}) == []
 
 
+def test_the_candidate_table_keeps_the_sampled_replay_apart_from_the_exact_checks():
+    # an outside evaluation read "worst MSE/P (any check) 1.1" beside "bounded yes": the replay's sampled ratio passes
+    # up to its own limit 1 + tolerance, the exact checks only up to 1; the table gives each its column and limit
+    from imupipe.summary import auto_selection_lines
+
+    reps = {m: _rep(2.0, 0.7) for m in AUTO_MODES}
+    for r in reps.values():
+        r["exported"]["verification"]["checks"]["replay"] = {
+            "worst_outage_ratio": 1.1, "mean_conservatism": 1.5, "passed": True, "worst_ratio": 1.1,
+            "worst_t_s": 300.0, "tolerance": 0.15, "first_exceed_s": None, "method": "replay of static records"}
+    sel = select({m: _cand() for m in AUTO_MODES}, reps)
+    row = sel["candidates"][0]
+    assert row["worst_outage_ratio_exact"] == 0.7  # upper_envelope 0.7, spec 0.5: not the replay's 1.1
+    assert row["worst_outage_ratio_sampled"] == 1.1 and row["sampled_tolerance"] == 0.15
+    text = "\n".join(auto_selection_lines({"auto_selection": sel}))
+    assert "| worst MSE/P, outage (exact checks: <= 1) | replay MSE/P, outage (sampled: passes up to its limit) |" in text
+    assert "| 2 | 0.7 | 1.1 (limit 1.15) |" in text
+
+
 def test_table_shows_the_exported_candidate_not_the_first():
     # an auto run's bound file holds the raw candidate at its top level; the table (and the figures, through the
     # same exported_bound) must show the candidate the contract exports, labelled with its mode

@@ -152,6 +152,19 @@ def test_cli_target_not_met(capsys):
     assert "no plan of the table gives K within +/-0.01 %" in out
 
 
+def test_cli_target_on_a_term_the_model_lacks_is_refused_before_any_row(tmp_path, capsys):
+    # a pilot whose identified model has no random walk: every K cell would be "-" and the old message "no plan of
+    # the table gives K" read as if longer records would help; the target is refused by name before any fit
+    pilot = tmp_path / "gyro.yaml"
+    pilot.write_text(yaml.safe_dump({"sensor": "gyro", "rate_hz": {"lab/x": 1.0},
+                                     "model_selected": NoiseModel(white=1e-4, gauss_markov=((1e-5, 100.0),)).to_dict()}))
+    code, out, err = _run(capsys, "--from", str(pilot), "--sensor", "gyro", "--hours", "1", "--records", "1",
+                          "--target", "K:0.25")
+    assert code == 1 and out == ""
+    assert "--target K:0.25" in err and "has no K term (random_walk = 0)" in err
+    assert "plan: row" not in err  # refused before the table's first row
+
+
 @pytest.mark.parametrize("argv, flag", [
     (["--hours", "-1"], "--hours"),
     (["--hours", "nan"], "--hours"),

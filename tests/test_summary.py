@@ -663,3 +663,25 @@ def test_an_initial_bias_resting_on_the_default_time_constant_is_flagged_on_the_
     assert "- FLAG initial bias [KF file P0]: the exported initial bias (std " in head
     for stated in (1800.0, 1e5):  # within the records, or a stated T_max beyond them
         assert not [f for f in flags_of("gyro", bound=contract(max_bias_time_s=stated)) if f.check == "initial bias"]
+
+
+def test_an_initial_bias_resting_on_the_spec_sheets_gm_time_constant_is_flagged():
+    """A spec sheet whose longest GM time constant (7200 s) exceeds the records (3600 s) sets T_max; the sheet states
+    its bias instability's correlation time, not that no bias persists longer, and the records cannot check it
+    (``checked_by_records`` false): the FLAG stays, naming the sheet as the source (an outside evaluation found it
+    dropped). A T_max the user states (identify.max_bias_time_s) still clears it."""
+    from imupipe.biasinit import bias_initialisation
+    from imupipe.models import NoiseModel
+
+    model = NoiseModel(white=1e-4, gauss_markov=((2e-5, 200.0),), random_walk=1e-7)
+    sheet = NoiseModel(white=1e-4, gauss_markov=((2e-5, 7200.0),), random_walk=1e-7)
+
+    def contract(**kw):
+        bi = bias_initialisation(model, spec=sheet, upper=model, record_s=3600.0, run_s=4200.0, **kw)
+        assert bi.to_dict()["checked_by_records"] is (kw.get("max_bias_time_s", 7200.0) <= 3600.0)
+        return _bound(bias_initialisation={**bi.to_dict("rad/s"), "statement": bi.statement("rad/s")})
+
+    (f,) = [f for f in flags_of("gyro", bound=contract()) if f.check == "initial bias"]
+    assert "T_max = 7.2e+03 s (spec sheet: longest GM time constant" in f.detail
+    assert "identify.max_bias_time_s" in f.detail
+    assert not [f for f in flags_of("gyro", bound=contract(max_bias_time_s=1e5)) if f.check == "initial bias"]

@@ -411,6 +411,10 @@ def _cmd_plan(args) -> int:
                          (f" ({args.identify} has no rate_hz)" if args.identify else ""))
     rate = _check_positive(rate, "--rate-hz")
     target = parse_target(args.target) if args.target is not None else None
+    if target is not None and not _truth_values(model)[target[0]] > 0:
+        raise ValueError(f"--target {args.target}: the {source} model has no {target[0]} term "
+                         f"({PARAMS[target[0]][0]} = 0), so no plan can pin it down to a fraction of its value; "
+                         "target another parameter, or plan from a spec sheet (--spec) that states it")
     for h in args.hours:
         _check_positive(h, "--hours")
     for r in args.records:
@@ -433,5 +437,7 @@ def _cmd_plan(args) -> int:
             return 1
         print(f"shortest plan with {p} within +/-{100 * f:g} %: {best['records']} record(s) of {best['hours']:g} h "
               f"({p} +/-{100 * best['relative'][p]:.3g} %"
-              + ("; ~ one-sided or confounded)" if best["confounded"][p] else ")"))
+              + ("; ~ one-sided or confounded)" if best["confounded"][p] else ")")
+              + ("; a rough guide: --replicates 50 gives the median over replicate records" if best["confounded"][p]
+                 and not best["method"].startswith("median") else ""))
     return 0

@@ -164,7 +164,7 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
 
 
 def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
-    """FLAG an exported P0 resting on the default T_max nobody stated (:func:`imupipe.verdict.unstated_t_max`)."""
+    """FLAG a P0 resting on a T_max no record checks and no user stated (:func:`imupipe.verdict.unstated_t_max`)."""
     bi = bound.get("bias_initialisation") if isinstance(bound.get("bias_initialisation"), Mapping) else {}
     text = unstated_t_max(bi, both_units(sensor, bound, "gm_sigma", bi["required_std"]) if "required_std" in bi else None)
     return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
@@ -244,14 +244,14 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             f"not bounded alone (margin {_num(ax.get('margin'))})"))
     for ex in _items(bound.get("excluded")):
         out.append(Flag(sensor, "excluded bins", _where_of(ex), _detail_of(ex) or "left out of the sample constraints"))
+    chance = f"; {stationarity['chance']}" if stationarity.get("chance") else ""  # against chance: verdict.py
     for c in stationarity.get("curves") or []:
         if isinstance(c, Mapping) and c.get("stationary") is False:
-            where = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}"
-            inc = c.get("included")
+            where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
             out.append(Flag(sensor, "stationarity", where,
                             f"non-stationary (p = {_num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
-                            + (STUCK_NOTE if where in stuck_where else "")))
+                            + (STUCK_NOTE if where in stuck_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
@@ -702,8 +702,7 @@ def _bias_lines(bound: Mapping) -> list[str]:
            f"{(bi.get('units') or {}).get('required_variance', '')}".rstrip()]
     fam = bi.get("slow_bias_family")
     if isinstance(fam, Mapping):
-        lo, hi = fam.get("T_range_s") or (None, None)
-        s_lo, s_hi = fam.get("sigma_range") or (None, None)
+        (lo, hi), (s_lo, s_hi) = fam.get("T_range_s") or (None, None), fam.get("sigma_range") or (None, None)
         u = (fam.get("units") or {}).get("sigma", "")
         out.append(f"  - a bias slower than the records: drift K_eff {_num(fam.get('k_eff'))} "
                    f"{(fam.get('units') or {}).get('k_eff', '')}, any (sigma, T) with sigma^2 = K_eff^2 T / 2 for T "
@@ -1002,7 +1001,6 @@ def first_screen(text: str) -> str:
     return (head.rstrip() + "\n") if sep else text
 
 
-
 def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupipe run summary",
                    kalibr: Mapping | None = None, kalibr_path: str | None = None) -> str:
     """Markdown summary of a run (also readable as plain text): :func:`summary_sections`, the first screen, then
@@ -1012,19 +1010,21 @@ def render_summary(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imupi
 
 
 def auto_selection_lines(contract: Mapping) -> list[str]:
-    """bound.mode auto: the candidates' table (bounded, failed checks, mean P/MSE over the outage against the upper
-    envelope, worst outage MSE/P of any check) and why the winner won, from the contract's ``auto_selection``
-    (:mod:`imupipe.bound.auto`); empty otherwise."""
+    """bound.mode auto: the candidates' table (bounded, failed checks, mean P/MSE over the outage against the envelope,
+    worst outage MSE/P of the exact checks (bound at <= 1) and of the sampled replay beside its limit 1 + tolerance)
+    and why the winner won, from the contract's ``auto_selection`` (:mod:`imupipe.bound.auto`); else empty."""
     sel = contract.get("auto_selection")
     if not isinstance(sel, Mapping) or not sel.get("candidates"):
         return []
     out = ["", f"- bound mode auto: exported **{sel.get('winner')}**: {sel.get('reason', '-')}", "",
-           "| candidate | bounded | failed checks | mean P/MSE vs envelope (outage) | worst MSE/P (outage, any check) |",
-           "|---|---|---|---|---|"]
+           "| candidate | bounded | failed checks | mean P/MSE vs envelope (outage) | worst MSE/P, outage (exact checks: "
+           "<= 1) | replay MSE/P, outage (sampled: passes up to its limit) |", "|---|---|---|---|---|---|"]
     for r in sel["candidates"]:
+        tol, rep = r.get("sampled_tolerance"), r.get("worst_outage_ratio_sampled")
         out.append(f"| {r.get('mode')}{' (exported)' if r.get('mode') == sel.get('winner') else ''} | "
                    f"{'yes' if r.get('bounded') else 'NO'} | {', '.join(r.get('failed_checks') or []) or '-'} | "
-                   f"{_num(r.get('criterion_mean_conservatism'))} | {_num(r.get('worst_outage_ratio_any_check'))} |")
+                   f"{_num(r.get('criterion_mean_conservatism'))} | {_num(r.get('worst_outage_ratio_exact'))} | "
+                   f"{_num(rep)}{f' (limit {_num(1.0 + float(tol))})' if tol is not None and rep is not None else ''} |")
     return out + [""]
 
 

@@ -1,5 +1,5 @@
-"""The words of a verification check that passed only by its sampling tolerance, and of an initial bias that rests
-on an assumption nobody stated.
+"""The words of a verification check that passed only by its sampling tolerance, of an initial bias that rests
+on an assumption nobody stated, and of stationarity failures against what chance gives.
 
 One home for those sentences: the verification writes it into the verify and contract files
 (:mod:`imupipe.verify`), the run summary prints it as a FLAG (:mod:`imupipe.summary`), so the wording is the same
@@ -8,7 +8,9 @@ wherever a user reads the verdict. Plain dicts in, a string out: no numerics her
 
 from __future__ import annotations
 
-__all__ = ["unstated_t_max", "within_tolerance"]
+import math
+
+__all__ = ["chance_failures", "unstated_t_max", "within_tolerance"]
 
 
 def within_tolerance(check) -> str | None:
@@ -53,24 +55,27 @@ def within_tolerance(check) -> str | None:
     return (f"passes within {what} sampling tolerance (ratio {shown}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
             f"{how}): the "
             "records' squared error reaches that ratio to the filter's variance, within what chance gives with this "
-            "few independent windows: neither evidence of an under-statement nor a confirmation (more or longer "
-            "records narrow the tolerance)")
+            "few independent windows: neither evidence of an under-statement nor a confirmation. The verdict "
+            "bounded rests on the exact checks beside it; to settle this one, record more or longer (the tolerance "
+            "falls as 1/sqrt(n_eff): four times the windows halve it)")
 
 
 def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     """The sentence for a user when an exported initial bias variance (a ``bias_initialisation`` dict as the
     contract and the KF file carry it, :meth:`imupipe.biasinit.BiasInitialisation.to_dict` with ``required_std``)
-    rests on a longest bias time constant T_max nobody stated: the default assumption
+    rests on a longest bias time constant T_max the user did not state: the default assumption
     (:data:`imupipe.biasinit.RECORD_FACTOR` x the longest record, :func:`imupipe.biasinit.max_bias_time`), beyond
     what the records can check. A slow drift extrapolated to T_max, or a spec sheet's random walk (K^2 T_max / 2),
     then sets the P0 by that assumption; a user who knows the sensor states T_max (``identify.max_bias_time_s``).
+    The same holds when T_max is the spec sheet's longest GM time constant: a sheet's GM states the correlation
+    time of its bias instability, not that no bias persists longer, and the records cannot check it either.
     `std_text`: the P0's standard deviation as the caller shows it (e.g. in the spec sheet's unit and SI); default
     its ``required_std`` with its unit. None when the P0 rests on the model's own GM states (T_max plays no part),
-    when the records check it, or when T_max was stated (config or spec sheet)."""
+    when the records check it, or when the user stated T_max (``identify.max_bias_time_s``)."""
     if not isinstance(bias, dict) or bias.get("checked_by_records") or bias.get("rests_on") == "model":
         return None
     src = str(bias.get("T_max_source") or "")
-    if not src.startswith("assumption"):
+    if not src or src.startswith("config"):
         return None
 
     def num(v):
@@ -82,3 +87,19 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     return (f"the exported initial bias (std {std}) rests on {what} extrapolated "
             f"to T_max = {num(bias.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
             "(identify.max_bias_time_s, s) if it is known")
+
+
+def chance_failures(n_failed: int, n_tests: int, alpha: float) -> str | None:
+    r"""How `n_failed` failures among `n_tests` independent tests, each at level `alpha`, compare with chance: with
+    every null true the count is Binomial(`n_tests`, `alpha`), mean `n_tests` x `alpha`, and
+    :math:`P(X \ge k) = \sum_{j \ge k} \binom{n}{j}\alpha^j(1-\alpha)^{n-j}`. A tail probability of at least
+    `alpha` is worded as consistent with chance, a smaller one as more than chance gives. None without failures or a
+    level. Used for the stationarity tests of a sensor's axes (one per axis, each at the configured level)."""
+    k, n = int(n_failed), int(n_tests)
+    if k <= 0 or n <= 0 or not (alpha and 0.0 < float(alpha) < 1.0):
+        return None
+    a = float(alpha)
+    tail = min(1.0, sum(math.comb(n, j) * a**j * (1.0 - a) ** (n - j) for j in range(k, n + 1)))
+    verdict = "consistent with chance" if tail >= a else "more than chance gives: look at the records named"
+    return (f"{k} of {n} axes failed at level {a:g} each; with every axis stationary {n * a:.2g} fail by chance on "
+            f"average and P(>= {k}) = {tail:.2g}: {verdict}")

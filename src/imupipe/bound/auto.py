@@ -105,16 +105,30 @@ def candidate_row(mode: str, bound: dict, report: dict, contract_of) -> dict:
     checks = report["exported"]["verification"].get("checks", {})
     env = checks.get(_ENVELOPE, {})
     per = {name: {"worst_outage_ratio": ch.get("worst_outage_ratio"), "mean_conservatism": ch.get("mean_conservatism"),
-                  "passed": ch.get("passed")} for name, ch in checks.items()}
-    worst = max((v["worst_outage_ratio"] for v in per.values() if v["worst_outage_ratio"] is not None),
-                default=None)
+                  "passed": ch.get("passed"), "sampled": _sampled(ch), "tolerance": ch.get("tolerance")}
+           for name, ch in checks.items()}
+    exact = [v["worst_outage_ratio"] for v in per.values() if not v["sampled"] and v["worst_outage_ratio"] is not None]
+    sampled = [v for v in per.values() if v["sampled"] and v["worst_outage_ratio"] is not None]
+    # the sampled check nearest its own limit (ratio over 1 + tolerance)
+    near = max(sampled, key=lambda v: float(v["worst_outage_ratio"]) / (1.0 + float(v["tolerance"] or 0.0)),
+               default=None)
     failed = [" ".join(str(x) for x in (f["check"], f.get("against") or f.get("component") or "") if x)
               for f in c["failed_checks"]]
     return {"mode": mode, "bounded": bool(c["bounded"]), "failed_checks": failed,
             "criterion_mean_conservatism": env.get("mean_conservatism"),
-            "envelope_worst_outage_ratio": env.get("worst_outage_ratio"), "worst_outage_ratio_any_check": worst,
+            "envelope_worst_outage_ratio": env.get("worst_outage_ratio"),
+            "worst_outage_ratio_exact": max(exact, default=None),
+            "worst_outage_ratio_sampled": None if near is None else near["worst_outage_ratio"],
+            "sampled_tolerance": None if near is None else near["tolerance"],
             "model_reduced": bool(report["exported"].get("reduced")), "inflation": bound.get("inflation"),
             "checks": per}
+
+
+def _sampled(check: dict) -> bool:
+    """Whether a verification check's ratio is a sampled statistic (the replay of the records, a Monte Carlo),
+    which passes within its own tolerance, rather than an exact covariance analysis, which must stay <= 1."""
+    method = str(check.get("method") or "")
+    return bool(method) and "exact" not in method
 
 
 def _finite(x, default):

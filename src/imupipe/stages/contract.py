@@ -163,7 +163,9 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
         out["auto_selection"] = {"winner": sel["winner"], "reason": sel["reason"], "criterion": sel["criterion"],
                                  "candidates": [{k: r[k] for k in ("mode", "bounded", "failed_checks",
                                                                    "criterion_mean_conservatism",
-                                                                   "worst_outage_ratio_any_check")}
+                                                                   "worst_outage_ratio_exact",
+                                                                   "worst_outage_ratio_sampled",
+                                                                   "sampled_tolerance")}
                                                 for r in sel["candidates"]]}
     # what the whole exported model does in the application band against the spec sheet (imupipe.inband)
     out["inband_inflation"] = inband(exported, spec, sensor, band)

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import logging
 
+from imupipe.verdict import chance_failures
+
 __all__ = ["NULL_COMPONENTS", "paper_tests", "stationarity_stage", "summary_stage"]
 
 #: Components of the calibrated null's model (the axis's Allan fit).
@@ -138,5 +140,15 @@ def summary_stage(verdicts: list, on_fail: str, sensor: str, papers: list | None
                         "excluded from the bound" if on_fail == "exclude" else "kept, on_fail = warn")
     if not any(c["included"] for c in curves):
         raise ValueError(f"every {sensor} record failed the stationarity test and on_fail = exclude: nothing to bound")
+    alpha = _axis_level(verdicts[0]) if verdicts else None
     return {"sensor": sensor, "on_fail": on_fail, "n_curves": len(curves), "n_non_stationary": len(failing),
-            "curves": curves}
+            "alpha": alpha, "chance": chance_failures(len(failing), len(curves), alpha or 0.0), "curves": curves}
+
+
+def _axis_level(verdict: dict) -> float | None:
+    """The level of one axis's verdict: its test's alpha, times the number of segments when the record was split
+    (each segment is tested at alpha/K and the axis's p-value is K x the smallest, :func:`_segment_verdict`)."""
+    test = verdict.get("calibrated") if isinstance(verdict.get("calibrated"), dict) else verdict.get("paper")
+    if not isinstance(test, dict) or test.get("alpha") is None:
+        return None
+    return float(test["alpha"]) * len(verdict.get("segments") or [None])

@@ -1,0 +1,52 @@
+"""The user-facing sentences of imupipe.verdict against closed forms: stationarity failures against the binomial
+count chance gives (P(X >= k), X ~ Binomial(n, alpha), checked against scipy.stats.binom), and where each sentence
+reaches the files and the summary a user reads."""
+
+from __future__ import annotations
+
+import pytest
+from scipy.stats import binom
+
+from imupipe.verdict import chance_failures, within_tolerance
+
+
+@pytest.mark.parametrize("k,n,alpha", [(1, 24, 0.05), (3, 24, 0.05), (5, 15, 0.05), (2, 6, 0.01)])
+def test_chance_failures_is_the_binomial_tail(k, n, alpha):
+    text = chance_failures(k, n, alpha)
+    tail = binom.sf(k - 1, n, alpha)  # P(X >= k)
+    assert f"{k} of {n} axes failed at level {alpha:g} each" in text
+    assert f"{n * alpha:.2g} fail by chance on average and P(>= {k}) = {tail:.2g}" in text
+    # the wording follows the tail against the level: 1 of 24 at 0.05 (P 0.71) is chance, 5 of 15 (P 0.006) is not
+    assert ("consistent with chance" in text) == (tail >= alpha)
+    assert ("more than chance gives" in text) == (tail < alpha)
+
+
+def test_chance_failures_is_silent_without_failures_or_level():
+    assert chance_failures(0, 24, 0.05) is None
+    assert chance_failures(2, 24, None) is None and chance_failures(2, 24, 0.0) is None
+
+
+def test_the_stationarity_summary_states_its_level_and_chance_and_the_flag_carries_it():
+    from imupipe.stages.stationarity import summary_stage
+    from imupipe.summary import flags_of
+
+    def verdict(axis, ok, segments=None):
+        v = {"dataset": "a", "axis": axis, "stationary": ok, "p_value": 0.5 if ok else 0.01, "test": "calibrated",
+             "paper": {"stationary": ok}, "calibrated": {"alpha": 0.05 / len(segments or [0])}}
+        return {**v, "segments": segments} if segments else v
+
+    axes = [verdict(ax, ax != "z") for ax in ("x", "y", "z")] * 4  # 12 axes, 4 failing
+    s = summary_stage(axes, "warn", "gyro")
+    assert s["alpha"] == 0.05 and s["chance"] == chance_failures(4, 12, 0.05)
+    (f, *_) = [f for f in flags_of("gyro", stationarity=s) if f.check == "stationarity"]
+    assert f.detail.endswith("; " + s["chance"]) and "more than chance gives" in f.detail
+    # a record split into 2 segments is tested at alpha/2 per segment: the axis's level is alpha again
+    split = summary_stage([verdict("x", False, segments=[{}, {}])] + [verdict("y", True)] * 23, "warn", "gyro")
+    assert split["alpha"] == pytest.approx(0.05) and "consistent with chance" in split["chance"]
+
+
+def test_a_pass_within_the_replay_tolerance_names_what_to_do():
+    text = within_tolerance({"worst_ratio": 1.1, "tolerance": 0.15, "passed": True, "method": "replay of static "
+                             "records", "n_eff": 400.0, "relative_standard_error": 0.0707})
+    assert "tolerance 1 + 0.15 = 1.15" in text
+    assert "rests on the exact checks" in text and "record more or longer" in text
