@@ -56,7 +56,7 @@ def simulated(model, hours, rate, n_rec, seed, records=1, n_boot=N_BOOT):
             av = allan_variance(x, rate)
             curves.append((av.tau.values, av.avar.values, av.edf.values))
         fit = identify_intervals(curves, n, rate, comps, n_boot=n_boot)
-        out.append([half_widths(fit)[p] for p in PARAMS])
+        out.append([half_widths(fit, model)[p] for p in PARAMS])
     return np.array(out)
 
 

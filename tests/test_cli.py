@@ -160,6 +160,19 @@ def test_run_keep_going_reaches_snakemake(monkeypatch, tmp_path):
     assert "--keep-going" not in calls[1]
 
 
+def test_run_works_in_the_checkout_whatever_the_current_directory(monkeypatch, tmp_path):
+    # `imupipe run --help` says the working directory defaults to the checkout; an outside evaluation ran from /tmp
+    # and Snakemake worked there (a second run from elsewhere found nothing of the first)
+    import imupipe.cli as cli
+    from imupipe.cli import checkout_root
+
+    calls = []
+    monkeypatch.setattr(cli, "_call", lambda cmd, env=None: calls.append(cmd) or 0)
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(TINY)]) == 0
+    assert calls[0][calls[0].index("--directory") + 1] == str(checkout_root())
+
+
 def test_version_and_help():
     proc = subprocess.run([sys.executable, "-m", "imupipe", "--version"], capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stdout.startswith("imupipe ")

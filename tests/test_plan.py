@@ -165,6 +165,24 @@ def test_cli_target_on_a_term_the_model_lacks_is_refused_before_any_row(tmp_path
     assert "plan: row" not in err  # refused before the table's first row
 
 
+def test_a_flicker_only_sheet_plans_its_flicker_as_b_and_marks_the_envelope_below_the_band(capsys):
+    # the shipped ADIS16405 sheet states its bias instability as a flicker floor and no GM: B is then the flicker
+    # coefficient (an outside evaluation found the B column empty and --target B refused as "no B term"); the
+    # expected envelope of a flicker-only model flattens below the band (its random walk floor is 0) where the
+    # model's 1/f goes on, so its P/MSE against the model falls below 1: marked "!" with what the column leaves out
+    spec = ROOT / "config" / "specs" / "adis16405.yaml"
+    code, out, _ = _run(capsys, "--spec", str(spec), "--sensor", "accel", "--rate-hz", "100", "--hours", "2.78",
+                        "--records", "2", "--replicates", "0", "--target", "B:0.25")
+    assert code == 0
+    assert "| B (flicker) +/- (mg) | B (flicker) +/- % |" in out
+    row = [ln for ln in out.splitlines() if ln.startswith("| 2.78 |")][0].split("|")
+    assert float(row[6]) < 25.0  # the flicker's half-width, % of the sheet's 0.2 mg
+    assert "shortest plan with B within +/-25 %: 2 record(s) of 2.78 h" in out
+    p_mse = row[-2].strip()
+    assert p_mse.endswith("!") and float(p_mse.rstrip(" !")) < 1.0
+    assert "! the expected envelope alone lies below the model somewhere" in out
+
+
 @pytest.mark.parametrize("argv, flag", [
     (["--hours", "-1"], "--hours"),
     (["--hours", "nan"], "--hours"),

@@ -50,3 +50,17 @@ def test_a_pass_within_the_replay_tolerance_names_what_to_do():
                              "records", "n_eff": 400.0, "relative_standard_error": 0.0707})
     assert "tolerance 1 + 0.15 = 1.15" in text
     assert "rests on the exact checks" in text and "record more or longer" in text
+    assert "so would a filter that under-states its error by up to that much" in text
+
+
+def test_a_replay_verdict_in_the_file_says_its_worst_is_in_the_fixes():
+    # an outside evaluation read "1.19 at 227 s" in the FLAG beside "1.12" in the candidates' table (the outage's):
+    # the verification's own sentence (what the verify and contract files carry) now says where the worst lies
+    from imupipe.verify import Verification
+
+    v = Verification(t_s=None, mse=None, P=None, ratio=None, worst_ratio=1.19, worst_t_s=227.0,
+                     worst_outage_ratio=1.12, mean_conservatism=2.0, first_exceed_s=227.0, passed=True, tol=0.667,
+                     details={"method": "replay of static records", "n_eff": 18.0,
+                              "relative_standard_error": 0.333}, worst_outage_t_s=610.0)
+    text = v.to_dict()["within_tolerance"]
+    assert "ratio 1.19 at 227 s, in the fixes; the outage's worst 1.12" in text

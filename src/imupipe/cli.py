@@ -408,7 +408,10 @@ def _cmd_run(args) -> int:
         extra.append("--rerun-incomplete")  # an interrupted run's half-written outputs are re-made: the same command resumes
     if not args.verbose and not any(a in ("--quiet", "-q") or a.startswith("--quiet=") for a in extra):
         extra += ["--quiet", "rules", "host", "reason"]  # progress lines only; job details stay in logs/
-    cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else None, extra)
+    # the working directory (results/, logs/, .snakemake/): the checkout unless given, whatever the shell's current
+    # directory, so that the same command finds the same finished run from anywhere
+    cmd = _snakemake_cmd(config, args.cores, Path(args.directory).resolve() if args.directory else checkout_root(),
+                         extra)
     import os
 
     env = dict(os.environ)

@@ -51,11 +51,21 @@ import math
 import warnings
 from dataclasses import replace
 
-__all__ = ["PARAMS", "expected_allan", "fit_components", "identify_intervals", "half_widths", "predict",
+__all__ = ["PARAMS", "param_name", "expected_allan", "fit_components", "identify_intervals", "half_widths", "predict",
            "plan_table", "auto_prediction", "parse_target", "shortest_plan", "load_model", "format_table", "add_subcommand"]
 
 #: Plan parameter -> fit_allan parameter name and the unit key of a spec sheet (imupipe.specsheet.display_units).
+#: B is the GM sigma; for a model with a flicker and no GM (a sheet that states its bias instability as a flicker
+#: floor) it is the flicker coefficient, same unit (:func:`param_name`).
 PARAMS = {"N": ("white", "white"), "B": ("gm_sigma_1", "gm_sigma"), "K": ("random_walk", "random_walk")}
+
+
+def param_name(p: str, model=None) -> str:
+    """The fit parameter plan parameter `p` (N, B, K) stands for with `model`: :data:`PARAMS`, except B of a model
+    with a flicker and no GM term, which is ``flicker``."""
+    if p == "B" and model is not None and not model.gauss_markov and getattr(model, "flicker", 0.0) > 0:
+        return "flicker"
+    return PARAMS[p][0]
 
 #: The workflow's identification settings (imupipe.defaults: identify.n_boot, identify.confidence,
 #: identify.n_gm) and the fit's bootstrap seed (imupipe.stages.identify.SEED_FIT).
@@ -129,21 +139,22 @@ def identify_intervals(curves, n_samples: int, record_rate_hz: float, components
                          record_rate_hz=[float(record_rate_hz)] * k, n_samples=[int(n_samples)] * k)
 
 
-def half_widths(fit) -> dict:
+def half_widths(fit, model=None) -> dict:
     """``{"N" | "B" | "K": (upper - lower) / 2}`` of `fit`'s intervals (SI; inf where the upper end is unbounded,
-    NaN where the fit has no interval of that parameter, e.g. B without a GM term)."""
+    NaN where the fit has no interval of that parameter, e.g. B without a GM term or flicker; B of `model` by
+    :func:`param_name`)."""
     import numpy as np
 
     out = {}
-    for p, (name, _) in PARAMS.items():
-        lo, hi = fit.intervals.get(name, (np.nan, np.nan))
+    for p in PARAMS:
+        lo, hi = fit.intervals.get(param_name(p, model), (np.nan, np.nan))
         out[p] = float((hi - lo) / 2.0) if np.isfinite(lo) and not np.isnan(hi) else float("nan")
     return out
 
 
 def _truth_values(model) -> dict:
-    return {"N": float(model.white), "B": float(model.gauss_markov[0][0]) if model.gauss_markov else float("nan"),
-            "K": float(model.random_walk)}
+    b = model.gauss_markov[0][0] if model.gauss_markov else (model.flicker if model.flicker > 0 else float("nan"))
+    return {"N": float(model.white), "B": float(b), "K": float(model.random_walk)}
 
 
 def predict(model, hours: float, records: int, record_rate_hz: float, axes: int = 1, *, replicates: int = 0,
@@ -174,9 +185,9 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
     k = records * axes
     fit = identify_intervals([(tau, avar, edf)] * k, n, record_rate_hz, comps, n_boot=n_boot,
                              confidence=confidence, seed=seed)
-    hw, truth = half_widths(fit), _truth_values(model)
-    kind = {p: fit.interval_kind.get(name, "none") for p, (name, _) in PARAMS.items()}
-    confounded = {p: _confounded(fit, name) for p, (name, _) in PARAMS.items()}
+    hw, truth = half_widths(fit, model), _truth_values(model)
+    kind = {p: fit.interval_kind.get(param_name(p, model), "none") for p in PARAMS}
+    confounded = {p: _confounded(fit, param_name(p, model)) for p in PARAMS}
     method = "expected Allan variance"
     if replicates and any(confounded.values()):
         from imupipe.avcov import avar_covariance, correlated_replicates
@@ -189,7 +200,7 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
             ys = correlated_replicates(avar, cov, k, rng)  # k independent curves, each with the exact covariance
             f = identify_intervals([(tau, y, edf) for y in ys], n, record_rate_hz, comps, n_boot=n_boot,
                                    confidence=confidence, seed=seed)
-            draws.append([half_widths(f)[p] for p in PARAMS])
+            draws.append([half_widths(f, model)[p] for p in PARAMS])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN column: the model has no such term
             med = np.nanmedian(np.array(draws, dtype=float), axis=0)
@@ -197,7 +208,8 @@ def predict(model, hours: float, records: int, record_rate_hz: float, axes: int 
         method = f"median over {replicates} replicate Allan-variance curve sets"
     rel = {p: (hw[p] / truth[p] if truth[p] > 0 else float("nan")) for p in hw}
     out = {"hours": float(hours), "records": records, "axes": axes, "record_rate_hz": float(record_rate_hz),
-           "half_width": hw, "relative": rel, "interval_kind": kind, "confounded": confounded, "method": method}
+           "half_width": hw, "relative": rel, "interval_kind": kind, "confounded": confounded, "method": method,
+           "B_is": param_name("B", model)}
     if sensor is not None:
         out["auto"] = auto_prediction(model, fit, record_rate_hz, sensor, confidence=confidence)
     return out
@@ -350,8 +362,10 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
     from imupipe.units import from_si
 
     head = ["hours", "records"]
+    flick = bool(rows) and rows[0].get("B_is") == "flicker"  # B of a flicker-only model: its flicker coefficient
     for p, (_, q) in PARAMS.items():
-        head += [f"{p} +/- ({units[q]})", f"{p} +/- %"]
+        name = "B (flicker)" if p == "B" and flick else p
+        head += [f"{name} +/- ({units[q]})", f"{name} +/- %"]
     if rows and "auto" in rows[0]:
         head += ["auto: in-band inflation", "auto: P/MSE"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -364,13 +378,22 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
             mark = " ~" if r.get("confounded", {}).get(p) else ""
             cells.append(f"{100 * rel:.3g}{mark}" if not np.isnan(rel) else "-")
         if "auto" in r:
-            cells += [f"{r['auto']['inflation']:.3g}", f"{r['auto']['conservatism']:.3g}"]
+            low = " !" if r["auto"].get("worst", 0.0) > 1.0 else ""
+            cells += [f"{r['auto']['inflation']:.3g}", f"{r['auto']['conservatism']:.3g}{low}"]
         lines.append("| " + " | ".join(cells) + " |")
     if any(any(r.get("confounded", {}).values()) for r in rows):
         how = next((r["method"] for r in rows if r.get("method", "").startswith("median")), None)
         lines.append("\n~ the interval on the expected data is one-sided or confounded (GM and random walk trade "
                      "off): the half-width varies widely from record to record; "
                      + (f"such a row's values are the {how}" if how else "a rough guide only (--replicates)"))
+    if any(r.get("auto", {}).get("worst", 0.0) > 1.0 for r in rows):
+        lines.append("\n! the expected envelope alone lies below the model somewhere (a filter on it would under-state "
+                     "the model's error: worst MSE/P above 1), at frequencies below the band the records speak for (a "
+                     "flicker's 1/f or a GM beyond the records): the run's export adds the initial bias variance and "
+                     "the spec sheet there, which this column leaves out; read it as the in-band tightness only")
+    if rows and "auto" in rows[0]:
+        lines.append("\nauto columns: from one fit of the expected data per row, so they can step between rows where "
+                     "the fit's regime changes (a ~ cell); not a record-to-record median")
     return "\n".join(lines)
 
 
@@ -413,7 +436,7 @@ def _cmd_plan(args) -> int:
     target = parse_target(args.target) if args.target is not None else None
     if target is not None and not _truth_values(model)[target[0]] > 0:
         raise ValueError(f"--target {args.target}: the {source} model has no {target[0]} term "
-                         f"({PARAMS[target[0]][0]} = 0), so no plan can pin it down to a fraction of its value; "
+                         f"({param_name(target[0], model)} = 0), so no plan can pin it down to a fraction of its value; "
                          "target another parameter, or plan from a spec sheet (--spec) that states it")
     for h in args.hours:
         _check_positive(h, "--hours")

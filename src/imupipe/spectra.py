@@ -51,6 +51,7 @@ __all__ = [
     "TAPERS",
     "band_edf_factor",
     "bin_correlation",
+    "chi2_lower",
     "chi2_sf",
     "chi2_upper",
     "log_band_index",
@@ -733,6 +734,40 @@ def smooth_log_bands(frequency, psd, bands_per_decade: int = 10, edf=2.0, taper=
     return LogBands(f_b, psd_b, nu_b, counts.astype(np.int64), f_low, f_high)
 
 
+def _per_test_level(confidence, n_tests, correction) -> float:
+    """The per-test tail probability q of a family-wise level `confidence` over `n_tests` ordinates (Bonferroni
+    (1 - c)/n, Sidak 1 - c^(1/n))."""
+    c = float(confidence)
+    if not (0.0 < c < 1.0):
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
+    n = int(n_tests)
+    if n < 1:
+        raise ValueError("n_tests must be >= 1")
+    if correction == "bonferroni":
+        return (1.0 - c) / n
+    if correction == "sidak":
+        return -math.expm1(math.log(c) / n)
+    raise ValueError(f"correction must be 'bonferroni' or 'sidak', got {correction!r}")
+
+
+def chi2_lower(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction: str = "bonferroni"):
+    r"""Lower chi-squared confidence limit of a PSD estimate, corrected for multiplicity: the mirror of
+    :func:`chi2_upper`.
+
+    With :math:`\nu \hat S/S \sim \chi^2_\nu`, :math:`S_{lo} = \nu \hat S / \chi^2_\nu(1 - q)` (the upper-tail
+    quantile, q as in :func:`chi2_upper`): the true PSD lies above :math:`S_{lo}` at all `n_tests` ordinates
+    simultaneously with probability at least `confidence`. A model whose PSD is below :math:`S_{lo}` at some ordinate
+    is contradicted by the data there at that family-wise level (the bound's data check,
+    :mod:`imupipe.bound.datacheck`). Same parameters and unit as :func:`chi2_upper`.
+    """
+    q = _per_test_level(confidence, n_tests, correction)
+    s = np.asarray(psd, dtype=np.float64)
+    nu = np.asarray(edf, dtype=np.float64)
+    if np.any(nu <= 0):
+        raise ValueError("edf must be positive")
+    return nu * s / _chi2_isf(q, nu)
+
+
 def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction: str = "bonferroni"):
     r"""Upper chi-squared confidence limit of a PSD estimate, corrected for multiplicity.
 
@@ -766,18 +801,7 @@ def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction:
     numpy.ndarray
         :math:`S_{up}`, same unit as `psd`.
     """
-    c = float(confidence)
-    if not (0.0 < c < 1.0):
-        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
-    n = int(n_tests)
-    if n < 1:
-        raise ValueError("n_tests must be >= 1")
-    if correction == "bonferroni":
-        q = (1.0 - c) / n
-    elif correction == "sidak":
-        q = -math.expm1(math.log(c) / n)
-    else:
-        raise ValueError(f"correction must be 'bonferroni' or 'sidak', got {correction!r}")
+    q = _per_test_level(confidence, n_tests, correction)
     s = np.asarray(psd, dtype=np.float64)
     nu = np.asarray(edf, dtype=np.float64)
     if np.any(nu <= 0):

@@ -54,10 +54,11 @@ def within_tolerance(check) -> str | None:
     shown = f"{worst:.3g}" if float(f"{worst:.3g}") > 1.0 else f"{worst:.6g}"  # 1.0004 is not shown as 1
     return (f"passes within {what} sampling tolerance (ratio {shown}{at}, tolerance 1 + {tol:.3g} = {1.0 + tol:.3g}"
             f"{how}): the "
-            "records' squared error reaches that ratio to the filter's variance, within what chance gives with this "
-            "few independent windows: neither evidence of an under-statement nor a confirmation. The verdict "
-            "bounded rests on the exact checks beside it; to settle this one, record more or longer (the tolerance "
-            "falls as 1/sqrt(n_eff): four times the windows halve it)")
+            "records' squared error reaches that ratio to the filter's variance; with this few independent windows "
+            "chance alone gives such a ratio, and so would a filter that under-states its error by up to that much: "
+            "it neither confirms nor excludes an under-statement. The verdict bounded rests on the exact checks "
+            "and the data check; to settle this one, record more or longer (the tolerance falls as 1/sqrt(n_eff): "
+            "four times the windows halve it)")
 
 
 def unstated_t_max(bias, std_text: str | None = None) -> str | None:

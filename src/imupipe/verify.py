@@ -266,7 +266,8 @@ class Verification:
             **{k: v for k, v in self.details.items()},
             "within_tolerance": within_tolerance({"worst_ratio": self.worst_ratio, "tolerance": self.tol,
                                                   "passed": self.passed, "worst_t_s": self.worst_t_s,
-                                                  **self.details}),
+                                                  "worst_outage_ratio": self.worst_outage_ratio,
+                                                  "worst_outage_t_s": self.worst_outage_t_s, **self.details}),
         }
 
 
@@ -940,7 +941,8 @@ def integrity_contract(bound, allan=None, verification=None, export=None, interv
     Parameters
     ----------
     bound : imupipe.bound.BoundResult
-        The bound (its PSD margin, spec margin and all-frequency margin are checked).
+        The bound (its PSD margin, spec margin and all-frequency margin are checked, and its ``data_check`` where
+        it has one: the sample PSDs' lower confidence limits against the model, check ``data_lower_limit``).
     allan : dict, optional
         :func:`imupipe.bound.check_allan` result.
     verification : dict, optional
@@ -976,6 +978,14 @@ def integrity_contract(bound, allan=None, verification=None, export=None, interv
         failed.append({"check": "spec_bound_all_f", "margin": float(bound.allf_margin),
                        "frequency_hz": bound.allf_margin_frequency,
                        "note": "frequency 0 stands for the f -> 0 asymptote (K), inf for f -> inf (N)"})
+    data = getattr(bound, "data_check", None)
+    if data:
+        run.append("data_lower_limit")
+        if data.get("passed") is False:
+            failed.append({"check": "data_lower_limit", "worst_ratio": float(data["worst_ratio"]),
+                           "curve": data.get("curve"), "frequency_hz": data.get("frequency_hz"),
+                           "note": "a sample PSD's lower confidence limit (family-wise at the bound's confidence) lies "
+                                   "above the model: the records show more power than the model there"})
     if allan is not None:
         run.append("allan_components")
         for name, c in allan.get("components", {}).items():

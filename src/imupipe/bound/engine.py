@@ -148,6 +148,9 @@ class _Problem:
     k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
     n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
     narrowband: tuple = ()  # fixed-shape line columns ((f0_hz, zeta), ...), variance an LP variable
+    raw_edf: np.ndarray | None = None  # edf of each sample PSD bin (C, F): the data check's limits
+    data_confidence: float = 0.95  # family-wise level of the data check
+    data_mask: np.ndarray | None = None  # bins the data check reads (F,): an excluded line's are left out
     _columns: dict = field(default_factory=dict, repr=False)
     _kept: dict = field(default_factory=dict, repr=False)
 
@@ -336,6 +339,7 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
     nu = np.broadcast_to(nu, raw.shape).astype(np.float64)
     if np.any(nu <= 0):
         raise ValueError("edf must be positive")
+    raw_edf = nu  # per curve and bin, before any pooling
     details = {}
     target_labels = labels
     if mode == "pooled":  # the curves' periodograms pooled (per group) before the limit: docs/method.md
@@ -351,6 +355,7 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
         on_grid = f.size > 2 and np.allclose(k, f / f[0], rtol=0, atol=1e-6)
         if on_grid:
             f, raw, nu, k = f[1:], raw[:, 1:], nu[:, 1:], k[1:]
+            raw_edf = nu
             details.update(pooled_dropped_lowest_bin_hz=float(f_all[keep][0]))
         pooled, nu, target_labels = _pool(raw, nu, list(pool_groups))
         # the next ordinates' detrend bias for a flat PSD (detrend_bias; 1 for Hann and a constant detrend):
@@ -414,8 +419,10 @@ def _prepare(frequency, curves, spec_model, dt, mode, confidence, bands_per_deca
     weights = _log_weights(f_rows)
     objective_weights = np.zeros_like(env)
     np.divide(weights, env, out=objective_weights, where=env > 0)
-    return _Problem(f, raw, labels, dt, starts, counts, f_rows, targets, spec, spec_rows, envelope, env, weights,
+    prob = _Problem(f, raw, labels, dt, starts, counts, f_rows, targets, spec, spec_rows, envelope, env, weights,
                     objective_weights, mode, details)
+    prob.raw_edf, prob.data_confidence = raw_edf, float(confidence)
+    return prob
 
 
 # ---------------------------------------------------------------------------------------------
@@ -730,6 +737,10 @@ def _evaluate(prob, model):
         out.update(spec_margin=float("inf"), spec_margin_frequency=None)
     out["looseness"] = float(prob.objective_weights @ mr)  # the LP's objective
     out.update(_all_frequency_margin(prob, model))
+    from imupipe.bound.datacheck import data_check  # the records against the model (docs/method.md)
+
+    out["data_check"] = data_check(prob.f, prob.raw, prob.raw_edf, mb, prob.labels, prob.data_confidence,
+                                   prob.data_mask)
     return out
 
 
@@ -819,6 +830,10 @@ def _apply_exclude(prob, exclude):
             raise ValueError(f"exclude interval must have 0 <= f_lo_hz < f_hi_hz, got ({f_lo}, {f_hi})")
         rows = np.flatnonzero((hi_edge >= f_lo) & (lo_edge <= f_hi))
         prob.targets[:, rows] = 0.0
+        if prob.data_mask is None:
+            prob.data_mask = np.ones(prob.f.size, dtype=bool)
+        prob.data_mask &= ~((prob.f >= (lo_edge[rows].min() if rows.size else np.inf))
+                            & (prob.f <= (hi_edge[rows].max() if rows.size else -np.inf)))
         if prob.starts is None:
             bins = prob.f_rows[rows]
         else:

@@ -62,6 +62,10 @@ class BoundResult:
         The same against the raw periodograms (below 1 in smoothed/confidence modes, by design).
     spec_margin, spec_margin_frequency :
         :math:`\min S_m/S_{spec}` and where.
+    data_check : dict or None
+        The records against the model: the largest ratio of a sample PSD's lower confidence limit (family-wise at
+        the bound's confidence over every curve and bin) to the model's PSD, where, and ``passed`` (ratio <= 1);
+        :mod:`imupipe.bound.datacheck` (docs/method.md, "The data check").
     looseness : float
         LP objective: log-frequency mean of :math:`S_m/E` (E = envelope of targets and spec).
     mode : str
@@ -103,6 +107,7 @@ class BoundResult:
     details: dict = field(default_factory=dict)
     allf_margin: float = float("inf")
     allf_margin_frequency: float | None = None
+    data_check: dict | None = None
 
     def to_dict(self, spec_units: dict | None = None, sensor: str | None = None) -> dict:
         """Plain dict for YAML: bound and spec in SI and, with `spec_units`, in the spec's units.
@@ -153,6 +158,7 @@ class BoundResult:
             "looseness": fl(self.looseness),
             "all_frequency_margin": fl(self.allf_margin),
             "all_frequency_margin_frequency_hz": fl(self.allf_margin_frequency),
+            "data_check": plain(self.data_check) if self.data_check else None,
             "mode": self.mode,
             "components": list(self.components),
             "decisions": dict(self.decisions),

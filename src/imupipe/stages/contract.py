@@ -55,7 +55,8 @@ def _bound_view(b: dict):
                            spec_margin=num(b.get("spec_margin"), float("inf")),
                            spec_margin_frequency=b.get("spec_margin_frequency_hz"),
                            allf_margin=num(b.get("all_frequency_margin"), float("inf")),
-                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"))
+                           allf_margin_frequency=b.get("all_frequency_margin_frequency_hz"),
+                           data_check=b.get("data_check"))
 
 
 def candidate_contract(bound: dict, report: dict) -> dict:
