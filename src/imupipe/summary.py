@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
+from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, spec_unit
 from imupipe.verdict import unstated_t_max, within_tolerance
 
 
@@ -81,27 +82,20 @@ def _g(d: Any, *keys, default=None):
     return default if d is None else d
 
 
-def _num(v, fmt="{:.3g}") -> str:
-    try:
-        return fmt.format(float(v))
-    except (TypeError, ValueError):
-        return "-" if v is None else str(v)
-
-
 def _where_of(item: Mapping) -> str:
     parts = []
     for k in ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
               "index", "time_s", "row", "file"):
         if k in item and item[k] is not None:
             v = item[k]
-            parts.append(f"{k}={_num(v, '{:.6g}') if isinstance(v, float) else v}")
+            parts.append(f"{k}={num(v, '{:.6g}') if isinstance(v, float) else v}")
     return ", ".join(parts) or "-"
 
 
 def _detail_of(item: Mapping, skip=()) -> str:
     shown = ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
              "index", "time_s", "row", "file")
-    parts = [f"{k}={_num(v) if isinstance(v, float) else v}" for k, v in item.items()
+    parts = [f"{k}={num(v) if isinstance(v, float) else v}" for k, v in item.items()
              if k not in shown and k not in skip and not isinstance(v, (Mapping, list))]
     return ", ".join(parts)
 
@@ -130,8 +124,8 @@ def _items(obj) -> list:
 
 def _export_rate_detail(exp: Mapping) -> str:
     """The words of a KF file exported at another rate than the verified reference filter."""
-    return (f"verified with a reference filter at {_num(exp.get('verified_filter_rate_hz'))} Hz, exported at "
-            f"{_num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not cover the "
+    return (f"verified with a reference filter at {num(exp.get('verified_filter_rate_hz'))} Hz, exported at "
+            f"{num(exp.get('kf_rate_hz'))} Hz: the verification and any reduction it accepted do not cover the "
             "exported rate (the workflow runs both at application.filter_rate_hz; a KF file from elsewhere must be re-exported)")
 
 
@@ -199,10 +193,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += [Flag(sensor, "event", w, d) for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
         out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
-                        f"{_num(bound.get('margin_frequency_hz'))} Hz",
-                        (f"not bounded: margin {_num(bound.get('margin'), '{:.4g}')} < 1"
+                        f"{num(bound.get('margin_frequency_hz'))} Hz",
+                        (f"not bounded: margin {num(bound.get('margin'), '{:.4g}')} < 1"
                          if bound.get("margin") is None or float(bound.get("margin")) < 1.0 else
-                         f"not bounded: the PSD margin {_num(bound.get('margin'), '{:.4g}')} holds, another check "
+                         f"not bounded: the PSD margin {num(bound.get('margin'), '{:.4g}')} holds, another check "
                          "failed (below)"), "fail"))
     failed_names = {fc.get("check") for fc in bound.get("failed_checks") or [] if isinstance(fc, Mapping)}
     if bound.get("verified") is False and ("verification" in failed_names or "export_rate" not in failed_names):
@@ -222,9 +216,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     for comp, v in (bound.get("allan_check") or {}).items():
         if isinstance(v, Mapping) and v.get("passed") is False:
             tau = v.get("tau_at_min")
-            out.append(Flag(sensor, "allan check", f"{comp}" + (f" at tau {_num(tau)} s" if tau is not None else ""),
+            out.append(Flag(sensor, "allan check", f"{comp}" + (f" at tau {num(tau)} s" if tau is not None else ""),
                             "bound component below its identified counterpart in the Allan domain"
-                            + (f" (margin {_num(v.get('margin'))})" if v.get("margin") is not None else "")
+                            + (f" (margin {num(v.get('margin'))})" if v.get("margin") is not None else "")
                             + (f": {v['reason']}" if v.get("reason") else ""), "fail"))
     for ax, pa in (bound.get("per_axis_models") or {}).items():
         if isinstance(pa, Mapping) and pa.get("exported_in_kf") is False:
@@ -241,7 +235,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     for ax in bound.get("per_axis") or []:
         if isinstance(ax, Mapping) and ax.get("bounded") is False:
             out.append(Flag(sensor, "per-axis bound", str(ax.get("curve", "-")),
-                            f"not bounded alone (margin {_num(ax.get('margin'))})"))
+                            f"not bounded alone (margin {num(ax.get('margin'))})"))
     for ex in _items(bound.get("excluded")):
         out.append(Flag(sensor, "excluded bins", _where_of(ex), _detail_of(ex) or "left out of the sample constraints"))
     chance = f"; {stationarity['chance']}" if stationarity.get("chance") else ""  # against chance: verdict.py
@@ -249,13 +243,13 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         if isinstance(c, Mapping) and c.get("stationary") is False:
             where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
             out.append(Flag(sensor, "stationarity", where,
-                            f"non-stationary (p = {_num(c.get('p_value'))}, {c.get('test', 'test')})"
+                            f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
                             + (STUCK_NOTE if where in stuck_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
-                        f"chi2/dof = {_num(adequacy.get('chi2_per_dof'))}, p = {_num(adequacy.get('p_value'))}: "
+                        f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}: "
                         "the model does not describe the Allan variance within its confidence (identify.n_gm: 2 or "
                         "longer records may; auto then builds no envelope candidate on a rejected selected model)"))
     out += consistency_flags(sensor, identify)
@@ -323,8 +317,8 @@ def boundary_text(sensor: str, bound: Mapping | None, identify: Mapping, p: str,
 
     def show(x):
         if base == "gm_T":
-            return f"{_num(x)} s"
-        return both_units(sensor, bound, key, x) if key else f"{_num(x)} {si}"
+            return f"{num(x)} s"
+        return both_units(sensor, bound, key, x) if key else f"{num(x)} {si}"
 
     shown = show(value) if isinstance(value, (int, float)) else "-"
     iv = _g(identify, "fit", "intervals", p)
@@ -334,7 +328,7 @@ def boundary_text(sensor: str, bound: Mapping | None, identify: Mapping, p: str,
         where = ("the shortest" if isinstance(value, (int, float)) and isinstance(lo, (int, float))
                  and isinstance(hi, (int, float)) and abs(float(value) - float(lo)) <= abs(float(value) - float(hi))
                  else "the longest")
-        text = (f"{words} {shown} sits on {where} time constant searched (range {_num(lo)}-{_num(hi)} s, "
+        text = (f"{words} {shown} sits on {where} time constant searched (range {num(lo)}-{num(hi)} s, "
                 "identify file fit.T_search_s)")
     else:
         text = f"{words} {shown} at a limit of its range [0, inf) (a non-negative coefficient)"
@@ -365,7 +359,7 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> st
     as_key = "white" if white else "random_walk"
     acts = f"{'white noise N' if white else 'random walk K'}"
     value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
-    text = (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {_num(r.get('T_s'))} s: "
+    text = (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {num(r.get('T_s'))} s: "
             f"{r.get('why')}; the identification reports it as the {acts}{value} it acts as (identify file, "
             "gm_reassigned)" + ("" if white else
                                 " at taus well below T (beyond T the GM's Allan variance falls below that random "
@@ -390,7 +384,7 @@ def exported_instead(sensor: str, bound: Mapping | None, as_key: str) -> str:
     gms = [g for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
     if gms:
         parts.append("and " + "; ".join(f"a GM of sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, "
-                                        f"T {_num(g.get('T'))} s" for g in gms)
+                                        f"T {num(g.get('T'))} s" for g in gms)
                      + ": the bound's own GM term" + ("s" if len(gms) > 1 else "")
                      + " (chosen to cover the upper envelope and the spec sheet together), not this GM")
     else:
@@ -421,10 +415,10 @@ def consistency_flags(sensor: str, identify: Mapping | None) -> list[Flag]:
                if len(items) >= 2 and len(pair) == 1 and len(rc.get("datasets") or []) == 2 else "")
         out.append(Flag(sensor, f"{sensor} record consistency", "",
                         f"{who}{it.get('dataset')} {_CONSISTENCY_NAMES.get(param, param)} = "
-                        f"{both_units(sensor, None, key.get(param, param), est)} is {_num(ratio)}x the other "
+                        f"{both_units(sensor, None, key.get(param, param), est)} is {num(ratio)}x the other "
                         f"records' {both_units(sensor, None, key.get(param, param), oth)} "
-                        f"(test z = {_num(it.get('z'))}, beyond the critical {_num(rc.get('z_crit'))} at family-wise "
-                        f"level {_num(rc.get('alpha'))}): this record pulls the pooled model; check it for an event "
+                        f"(test z = {num(it.get('z'))}, beyond the critical {num(rc.get('z_crit'))} at family-wise "
+                        f"level {num(rc.get('alpha'))}): this record pulls the pooled model; check it for an event "
                         "(identify file, record_consistency)"))
     return out
 
@@ -438,14 +432,14 @@ def _adequacy_table(identify: Mapping) -> list[str]:
         return []
     rows = [("pooled", al.get("pooled") or {})] + [(f"axis {a}", v) for a, v in (al.get("per_axis") or {}).items()]
     out = ["", "Allan-fit adequacy with the spectral lines as known terms (full fit, chi2/dof and p; p <= "
-           f"{_num(_g(identify, 'fit', 'adequacy', 'level'))}: inadequate):", "",
+           f"{num(_g(identify, 'fit', 'adequacy', 'level'))}: inadequate):", "",
            "| fit | chi2/dof before (no lines) | p before | chi2/dof after (lines known) | p after |",
            "|---|---|---|---|---|"]
     inadequate = []
     for name, v in rows:
         b, a = (v.get("before") or {}), (v.get("after") or {})
-        out.append(f"| {name} | {_num(b.get('chi2_per_dof'))} | {_num(b.get('p_value'))} | "
-                   f"{_num(a.get('chi2_per_dof'))} | {_num(a.get('p_value'))} |")
+        out.append(f"| {name} | {num(b.get('chi2_per_dof'))} | {num(b.get('p_value'))} | "
+                   f"{num(a.get('chi2_per_dof'))} | {num(a.get('p_value'))} |")
         if a.get("adequate") is False:
             inadequate.append(name)
     if inadequate:
@@ -467,7 +461,7 @@ def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[s
     b = {"sensor": sensor, **(bound or {})}
     # B (flicker, u) in the unit the contract states for the GM sigma (u too: deg/h, mg, ...)
     key = {p: ("gm_sigma" if p == "flicker" else p) for p in params}
-    units = {p: _in_spec_units(b, key[p], 1.0)[1] for p in params}
+    units = {p: in_spec_units(b, key[p], 1.0)[1] for p in params}
     out = ["", f"Record consistency ({rc.get('method', 'each record fitted alone')}):", "",
            "| record | " + " | ".join(f"{_CONSISTENCY_NAMES[p]} [{units[p]}] (interval) | z" for p in params) + " |",
            "|---|" + "---|---|" * len(params)]
@@ -477,13 +471,13 @@ def _consistency_table(sensor: str, identify: Mapping, bound: Mapping) -> list[s
             v = per.get(p) or {}
 
             def conv(x, p=p):
-                return None if x is None else _in_spec_units(b, key[p], float(x))[0]
+                return None if x is None else in_spec_units(b, key[p], float(x))[0]
 
             est = conv(v.get("estimate"))
-            iv = f"[{_num(conv(v.get('lower')))}, {_num(conv(v.get('upper')))}]"
+            iv = f"[{num(conv(v.get('lower')))}, {num(conv(v.get('upper')))}]"
             z = v.get("z")
-            cells.append(f"{_num(est)} {iv}" + (" **named**" if v.get("flagged") else ""))
-            cells.append(_num(z) if z is not None else (v.get("note") or "-"))
+            cells.append(f"{num(est)} {iv}" + (" **named**" if v.get("flagged") else ""))
+            cells.append(num(z) if z is not None else (v.get("note") or "-"))
         out.append(f"| {rec} | " + " | ".join(cells) + " |")
     if rc.get("note"):
         out.append(f"- {rc['note']}")
@@ -506,9 +500,9 @@ def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
     """
     bound = bound or {}
 
-    def ratio(num):
+    def ratio(value):
         try:
-            n, s = float(num), float(_g(bound, "spec", "white"))
+            n, s = float(value), float(_g(bound, "spec", "white"))
         except (TypeError, ValueError):
             return None
         return n / s if s > 0 and n > 0 else None
@@ -535,8 +529,8 @@ def above_spec_flags(sensor: str, bound: Mapping | None) -> list[Flag]:
         high = [dataset(c) for c in bound.get("curves") or []] or [dataset(bound.get("margin_curve", "-"))]
     datasets = ", ".join(dict.fromkeys(high))
     column = f"{sensor}_unit" if sensor in ("gyro", "accel") else "gyro_unit/accel_unit"
-    said = [f"bound/spec {_num(r_bound)}x" if r_bound is not None else None,
-            f"data/spec {_num(r_data)}x (the identification's upper envelope)" if r_data is not None else None]
+    said = [f"bound/spec {num(r_bound)}x" if r_bound is not None else None,
+            f"data/spec {num(r_data)}x (the identification's upper envelope)" if r_data is not None else None]
     examples = ("m/s^2 declared g gives 9.81x, mg declared g 1000x" if sensor == "accel" else
                 "deg/s declared rad/s gives 57.3x, mrad/s declared rad/s 1000x")
     return [Flag(sensor, "data far above the spec sheet", datasets,
@@ -585,8 +579,8 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
         where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
         out.append(Flag(sensor, "record partly unused", where,
                         f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
-                        f"record left out) with psd.window_s = {_num(window_s, '{:g}')} s, psd.step_s = "
-                        f"{_num(step_s, '{:g}')} s: set a step that tiles the record{hint}"))
+                        f"record left out) with psd.window_s = {num(window_s, '{:g}')} s, psd.step_s = "
+                        f"{num(step_s, '{:g}')} s: set a step that tiles the record{hint}"))
     return out
 
 
@@ -602,11 +596,11 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
         out.append(f"- exported filter model (KF file): {exp['statement']}")
     if isinstance(exp, Mapping) and exp.get("verified_filter_rate_hz") is not None:
         fix_rate = exp.get("verified_fix_rate_hz") or exp["verified_filter_rate_hz"]
-        sig = (f" (sigma {_num(exp['verified_sigma_fix'])} {exp.get('verified_sigma_fix_unit') or ''})".rstrip(" ")
+        sig = (f" (sigma {num(exp['verified_sigma_fix'])} {exp.get('verified_sigma_fix_unit') or ''})".rstrip(" ")
                if exp.get("verified_sigma_fix") is not None else "")
-        out.append(f"- verified scenario: reference filter at {_num(exp['verified_filter_rate_hz'])} Hz, fixes at "
-                   f"{_num(fix_rate)} Hz{sig} for {_num(exp.get('fix_s'))} s, then an outage of "
-                   f"{_num(exp.get('horizon_s'))} s (application.filter_rate_hz, verify.fix_rate_hz, "
+        out.append(f"- verified scenario: reference filter at {num(exp['verified_filter_rate_hz'])} Hz, fixes at "
+                   f"{num(fix_rate)} Hz{sig} for {num(exp.get('fix_s'))} s, then an outage of "
+                   f"{num(exp.get('horizon_s'))} s (application.filter_rate_hz, verify.fix_rate_hz, "
                    "verify.fix_s, application.outage_s)")
     def k_of(section):
         try:
@@ -618,7 +612,7 @@ def _export_lines(bound: Mapping, kept) -> list[str]:
     if kept is not None and "random_walk" not in kept and k_of("bound") > 0 and (k_of("spec") > 0 or k_env > 0):
         dropped = isinstance(exp, Mapping) and "random_walk" in (exp.get("dropped_by_reduction") or [])
         if k_env > 0:
-            value, unit = _in_spec_units(bound, "random_walk", k_env)
+            value, unit = in_spec_units(bound, "random_walk", k_env)
             head = ("- random walk: the data showed none (identification dropped it) but do not exclude one up to "
                     f"K = {value:.3g} {unit} (the identified envelope); the bound's K covers that limit"
                     + (" and the spec sheet's" if k_of("spec") > 0 else ""))
@@ -678,7 +672,7 @@ def exported_state_lines(sensor: str, bound: Mapping, identify: Mapping | None =
                 if src else "the bound's own term(s), chosen by its LP")
         if moved:
             text += ("; not the GM the identification re-assigned (" + ", ".join(
-                f"T {_num(r.get('T_s'))} s, reported as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'}"
+                f"T {num(r.get('T_s'))} s, reported as the {'white noise' if r.get('acts_as') == 'white' else 'random walk'}"
                 " it acts as" for r in moved) + ")")
         out.append(f"  - GM: {text}")
     elif "flicker" in kept or "gauss_markov" in kept:
@@ -698,16 +692,16 @@ def _bias_lines(bound: Mapping) -> list[str]:
     bi = bound.get("bias_initialisation")
     if not isinstance(bi, Mapping) or not bi.get("statement"):
         return []
-    out = [f"- {bi['statement']}; exported P0 of the random-walk state p: {_num(bi.get('p0_random_walk'))} "
+    out = [f"- {bi['statement']}; exported P0 of the random-walk state p: {num(bi.get('p0_random_walk'))} "
            f"{(bi.get('units') or {}).get('required_variance', '')}".rstrip()]
     fam = bi.get("slow_bias_family")
     if isinstance(fam, Mapping):
         (lo, hi), (s_lo, s_hi) = fam.get("T_range_s") or (None, None), fam.get("sigma_range") or (None, None)
         u = (fam.get("units") or {}).get("sigma", "")
-        out.append(f"  - a bias slower than the records: drift K_eff {_num(fam.get('k_eff'))} "
+        out.append(f"  - a bias slower than the records: drift K_eff {num(fam.get('k_eff'))} "
                    f"{(fam.get('units') or {}).get('k_eff', '')}, any (sigma, T) with sigma^2 = K_eff^2 T / 2 for T "
-                   f"{_num(lo)}-{_num(hi)} s (sigma {_num(s_lo)}-{_num(s_hi)} {u}); the verification's slow_bias "
-                   f"truth is the worst member (T {_num(hi)} s)")
+                   f"{num(lo)}-{num(hi)} s (sigma {num(s_lo)}-{num(s_hi)} {u}); the verification's slow_bias "
+                   f"truth is the worst member (T {num(hi)} s)")
     if not bi.get("checked_by_records"):
         out.append("  - the records cannot check this initial variance: set identify.max_bias_time_s (s) or a "
                    "spec sheet's turn_on_bias to state it")
@@ -727,9 +721,9 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
     unit = units.get("value")
     frac = it.get("fraction")
     return Flag(sensor, "stuck channel", where or str(it.get("curve", "-")),
-                f"constant at {_num(it.get('value'), '{:.6g}')}{f' {unit}' if unit else ''} from "
-                f"{_num(it.get('start_s'), '{:.6g}')} s to {_num(it.get('stop_s'), '{:.6g}')} s"
-                + (f" ({_num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
+                f"constant at {num(it.get('value'), '{:.6g}')}{f' {unit}' if unit else ''} from "
+                f"{num(it.get('start_s'), '{:.6g}')} s to {num(it.get('stop_s'), '{:.6g}')} s"
+                + (f" ({num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
 
 
 #: more lines than this on one axis are FLAGged in one line (each stays in the lines file)
@@ -752,7 +746,7 @@ def _line_flags(sensor: str, items: list) -> list[Flag]:
         freqs = [it.get("frequency_hz", it.get("f0_hz")) for _, it in group]
         strongest = max(group, key=lambda g: float(g[1].get("peak_ratio") or 0.0))[0]
         out.append(Flag(sensor, "lines", where, f"{len(group)} lines at "
-                        + ", ".join(_num(fr, '{:.4g}') for fr in freqs if fr is not None)
+                        + ", ".join(num(fr, '{:.4g}') for fr in freqs if fr is not None)
                         + f" Hz; the strongest: {strongest.detail}"))
     return out
 
@@ -766,13 +760,13 @@ def _line_flag(sensor: str, it: Mapping) -> Flag:
     if not where:
         where = str(it.get("curve", "-"))
     f = it.get("frequency_hz", it.get("f0_hz"))
-    parts = [f"{_num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
+    parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
     if it.get("amplitude") is not None:
-        parts.append(f"amplitude {_num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
+        parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
     elif it.get("sigma") is not None:
-        parts.append(f"sigma {_num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
+        parts.append(f"sigma {num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
     if it.get("peak_ratio") is not None:
-        parts.append(f"peak PSD {_num(it['peak_ratio'])}x the floor")
+        parts.append(f"peak PSD {num(it['peak_ratio'])}x the floor")
     return Flag(sensor, "lines", where, ", ".join(parts))
 
 
@@ -786,13 +780,13 @@ def _far_below_flag(sensor: str, bound: Mapping, margin: float) -> Flag:
     spec sheet (the bound's white noise N within 1.5x the sheet's: the data are not what the sheet describes, a
     unit slip looks like this) or the identification's upper envelope (N far above the sheet's: what the records
     leave open, e.g. a GM time-constant interval reaching far from the fitted T, is covered whole)."""
-    where = f"{bound.get('margin_curve', '-')} at {_num(bound.get('margin_frequency_hz'))} Hz"
-    head = f"every sample PSD bin is at least {_num(margin, '{:.3g}')}x below the bound (min S_bound/S_sample); "
+    where = f"{bound.get('margin_curve', '-')} at {num(bound.get('margin_frequency_hz'))} Hz"
+    head = f"every sample PSD bin is at least {num(margin, '{:.3g}')}x below the bound (min S_bound/S_sample); "
     b_n, s_n = _g(bound, "bound", "white"), _g(bound, "spec", "white")
     ratio = float(b_n) / float(s_n) if isinstance(b_n, (int, float)) and isinstance(s_n, (int, float)) and s_n else None
     if ratio is not None and ratio > 1.5:
         return Flag(sensor, "bound far above the data", where, head + (
-            f"the bound's white noise is {_num(ratio, '{:.3g}')}x the spec sheet's, so it rests on the "
+            f"the bound's white noise is {num(ratio, '{:.3g}')}x the spec sheet's, so it rests on the "
             "identification's upper envelope, not on the sheet: the envelope covers what the records leave open "
             "(each interval of identify/<sensor>.yaml whole, e.g. a GM time constant the data do not pin down); "
             "longer or more records narrow it (imupipe plan)"))
@@ -814,11 +808,11 @@ def _spec_above_data(bound: Mapping) -> str | None:
     ratio = float(spec_si) / float(env_si)
     if ratio < SPEC_ABOVE_DATA_RATIO:
         return None
-    value = (f"{_num(shown.get('value') / ratio, '{:.3g}')} {shown.get('unit')}"
+    value = (f"{num(shown.get('value') / ratio, '{:.3g}')} {shown.get('unit')}"
              if isinstance(shown, Mapping) and isinstance(shown.get("value"), (int, float)) else
-             f"{_num(env_si, '{:.3g}')} {_SI_SPELLING.get((bound.get('sensor'), 'white'), 'u/sqrt(Hz)')} (SI)")
+             f"{num(env_si, '{:.3g}')} {SI_SPELLING.get((bound.get('sensor'), 'white'), 'u/sqrt(Hz)')} (SI)")
     return (f"- white noise: the records allow at most N = {value} (the identification's upper envelope), "
-            f"{_num(ratio, '{:.3g}')}x below the spec sheet's: the bound's N rests on the spec sheet, not on these "
+            f"{num(ratio, '{:.3g}')}x below the spec sheet's: the bound's N rests on the spec sheet, not on these "
             "records")
 
 
@@ -851,7 +845,7 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
         sensor = bound.get("sensor")
 
         def si(key, generic):
-            return _SI_SPELLING.get((sensor, key), generic)
+            return SI_SPELLING.get((sensor, key), generic)
 
         rows.append(("white noise N (SI)", si("white", "u/sqrt(Hz)"), si_s.get("white"), si_b.get("white")))
         rows.append(("random walk K (SI)", si("random_walk", "u/sqrt(s)"), si_s.get("random_walk"),
@@ -878,70 +872,9 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
     return out
 
 
-#: SI unit of each value a summary pastes, per sensor (u = rad/s or m/s^2): the KF file's white noise N and
-#: random walk K (imupipe.units), Kalibr's fields as Kalibr spells them (its random walk rad/s^2/sqrt(Hz) is the
-#: same dimension as rad/s/sqrt(s)).
-_SI_SPELLING = {
-    ("gyro", "white"): "rad/s/sqrt(Hz)", ("gyro", "random_walk"): "rad/s/sqrt(s)", ("gyro", "gm_sigma"): "rad/s",
-    ("accel", "white"): "m/s^2/sqrt(Hz)", ("accel", "random_walk"): "m/s^2/sqrt(s)", ("accel", "gm_sigma"): "m/s^2",
-}
+#: Kalibr's noise fields per sensor (white, random walk).
 _KALIBR_FIELDS = {"gyro": ("gyroscope_noise_density", "gyroscope_random_walk"),
                   "accel": ("accelerometer_noise_density", "accelerometer_random_walk")}
-_KALIBR_SI = {("gyro", "white"): "rad/s/sqrt(Hz)", ("gyro", "random_walk"): "rad/s^2/sqrt(Hz)",
-              ("accel", "white"): "m/s^2/sqrt(Hz)", ("accel", "random_walk"): "m/s^3/sqrt(Hz)"}
-
-
-def _spec_unit(bound: Mapping, key: str) -> str | None:
-    """The spec sheet's unit of `key` (``white``, ``random_walk`` or ``gm_sigma``) as the contract states it: the
-    exported model's, else the bound's, else the spec sheet's (``*_spec_units`` blocks); None when none states it."""
-    for block in ("model_spec_units", "bound_spec_units", "spec_spec_units"):
-        b = bound.get(block)
-        if not isinstance(b, Mapping):
-            continue
-        if key == "gm_sigma":
-            gms = b.get("gauss_markov") or []
-            v = gms[0].get("sigma") if gms and isinstance(gms[0], Mapping) else None
-        else:
-            v = b.get(key)
-        if isinstance(v, Mapping) and v.get("unit"):
-            return str(v["unit"])
-    return None
-
-
-#: The spec-sheet-like unit a value is shown in when the contract states no spec-sheet unit for it (a spec sheet
-#: without a GM term, e.g. one that gives white noise and a bias-instability floor only): the units data sheets use.
-SPEC_LIKE_UNITS = {
-    ("gyro", "white"): "deg/sqrt(h)", ("gyro", "random_walk"): "(deg/h)/sqrt(s)", ("gyro", "gm_sigma"): "deg/h",
-    ("accel", "white"): "m/s/sqrt(h)", ("accel", "random_walk"): "m/s^2/sqrt(s)", ("accel", "gm_sigma"): "mg",
-}
-
-
-def _in_spec_units(bound: Mapping, key: str, value_si: float) -> tuple[float, str]:
-    """`value_si` (SI) in the spec sheet's unit of `key` (:func:`_spec_unit`, :func:`imupipe.units.from_si`; where the
-    contract states none, the data sheets' usual unit :data:`SPEC_LIKE_UNITS`), or the SI value with its SI unit when
-    the sensor is not gyro / accel."""
-    from imupipe.units import UnitError, from_si
-
-    sensor = bound.get("sensor")
-    for unit in dict.fromkeys((_spec_unit(bound, key), SPEC_LIKE_UNITS.get((sensor, key)))):
-        if unit and sensor in ("gyro", "accel"):
-            try:
-                return float(from_si(float(value_si), unit, key, sensor)), unit
-            except UnitError:  # a unit of another quantity or sensor: the next one
-                continue
-    return float(value_si), _SI_SPELLING.get((sensor, key), "SI")
-
-
-def both_units(sensor: str, bound: Mapping | None, key: str, value_si) -> str:
-    """``"<value> <spec unit> (<value> <SI unit>)"``: a value of `key` (``white``, ``random_walk``, ``gm_sigma``)
-    given in SI, shown in the spec sheet's unit (:func:`_in_spec_units`) and in SI; ``"-"`` for no number."""
-    try:
-        v = float(value_si)
-    except (TypeError, ValueError):
-        return "-"
-    vs, us = _in_spec_units({**(bound or {}), "sensor": sensor}, key, v)
-    si = _SI_SPELLING.get((sensor, key), "SI")
-    return f"{_num(vs)} {us}" + ("" if us == si else f" ({_num(v)} {si})")
 
 
 def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> list[tuple]:
@@ -962,8 +895,8 @@ def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> li
             if shown and isinstance(shown, Mapping) and shown.get("value") is not None and shown.get("unit"):
                 vs, us = float(shown["value"]), str(shown["unit"])
             else:
-                vs, us = _in_spec_units({**bound, "sensor": sensor}, key, v_si)
-            rows.append(("KF", name, vs, us, float(v_si), _SI_SPELLING.get((sensor, key), "SI")))
+                vs, us = in_spec_units({**bound, "sensor": sensor}, key, v_si)
+            rows.append(("KF", name, vs, us, float(v_si), SI_SPELLING.get((sensor, key), "SI")))
 
         if m.get("white"):
             row("white noise N", "white", m["white"], mu.get("white"))
@@ -980,14 +913,14 @@ def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> li
             row("random walk K", "random_walk", m["random_walk"], mu.get("random_walk"))
         for t in m.get("narrowband") or []:
             if isinstance(t, Mapping) and t.get("sigma"):
-                row(f"line at {_num(t.get('f0_hz'))} Hz, sigma", "gm_sigma", t["sigma"])
+                row(f"line at {num(t.get('f0_hz'))} Hz, sigma", "gm_sigma", t["sigma"])
     if isinstance(kalibr, Mapping) and not kalibr.get("refused") and sensor in _KALIBR_FIELDS:
         for field, key in zip(_KALIBR_FIELDS[sensor], ("white", "random_walk")):
             v = kalibr.get(field)
             if v is None:
                 continue
-            vs, us = _in_spec_units({**bound, "sensor": sensor}, key, float(v))
-            rows.append(("Kalibr", field, vs, us, float(v), _KALIBR_SI[(sensor, key)]))
+            vs, us = in_spec_units({**bound, "sensor": sensor}, key, float(v))
+            rows.append(("Kalibr", field, vs, us, float(v), KALIBR_SI[(sensor, key)]))
     return rows
 
 
@@ -1023,8 +956,8 @@ def auto_selection_lines(contract: Mapping) -> list[str]:
         tol, rep = r.get("sampled_tolerance"), r.get("worst_outage_ratio_sampled")
         out.append(f"| {r.get('mode')}{' (exported)' if r.get('mode') == sel.get('winner') else ''} | "
                    f"{'yes' if r.get('bounded') else 'NO'} | {', '.join(r.get('failed_checks') or []) or '-'} | "
-                   f"{_num(r.get('criterion_mean_conservatism'))} | {_num(r.get('worst_outage_ratio_exact'))} | "
-                   f"{_num(rep)}{f' (limit {_num(1.0 + float(tol))})' if tol is not None and rep is not None else ''} |")
+                   f"{num(r.get('criterion_mean_conservatism'))} | {num(r.get('worst_outage_ratio_exact'))} | "
+                   f"{num(rep)}{f' (limit {num(1.0 + float(tol))})' if tol is not None and rep is not None else ''} |")
     return out + [""]
 
 
@@ -1043,7 +976,7 @@ def _per_axis_lines(bound: Mapping) -> list[str]:
             if isinstance(pa, Mapping):
                 own = pa.get("exported_in_kf")
                 scope = _g(pa, "export", "statement") if own else (f"global: {glob}" if glob else "global")
-                lines.append(f"| {ax} | {_num(_g(pa, 'inflation', 'N'))} | "
+                lines.append(f"| {ax} | {num(_g(pa, 'inflation', 'N'))} | "
                              f"{'yes' if own else 'no (global model)'} | "
                              f"{pa.get('kf', '-')} | {scope or '-'} |")
         lines.append("")
@@ -1067,9 +1000,9 @@ def _model_cells(sensor: str, bound: Mapping, model) -> tuple[str, str, str, str
     m = model if isinstance(model, Mapping) else {}
     n = both_units(sensor, bound, "white", m.get("white")) if m.get("white") else "-"
     k = both_units(sensor, bound, "random_walk", m.get("random_walk")) if m.get("random_walk") else "-"
-    gms = [f"sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, T {_num(g.get('T'))} s"
+    gms = [f"sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, T {num(g.get('T'))} s"
            for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
-    lines = [f"{_num(t.get('f0_hz'), '{:.4g}')} Hz (sigma {both_units(sensor, bound, 'gm_sigma', t.get('sigma'))})"
+    lines = [f"{num(t.get('f0_hz'), '{:.4g}')} Hz (sigma {both_units(sensor, bound, 'gm_sigma', t.get('sigma'))})"
              for t in _line_terms(m)]
     return n, "; ".join(gms) or "-", k, "; ".join(lines) or "none"
 
@@ -1127,17 +1060,17 @@ def kalibr_line_holders(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
         if not exports:
             terms = _line_terms(bound.get("model"))
             if terms:
-                out.append(f"{sensor} model: " + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
+                out.append(f"{sensor} model: " + ", ".join(f"{num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
             continue
         users = [e["axis"] for e in exports if not e["own"]]
         terms = _line_terms(bound.get("model"))
         if users and terms:
             out.append(f"{sensor} global model (exported for axis {', '.join(users)}): "
-                       + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
+                       + ", ".join(f"{num(t.get('f0_hz'), '{:.4g}')} Hz" for t in terms))
         for e in exports:
             if e["own"] and _line_terms(e["model"]):
                 out.append(f"{sensor} axis {e['axis']} model: "
-                           + ", ".join(f"{_num(t.get('f0_hz'), '{:.4g}')} Hz" for t in _line_terms(e["model"])))
+                           + ", ".join(f"{num(t.get('f0_hz'), '{:.4g}')} Hz" for t in _line_terms(e["model"])))
     return out
 
 
@@ -1151,11 +1084,11 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
                  "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
                  "again.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
-        head += [f"| {se} | {fi} | {pa} | {_num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
+        head += [f"| {se} | {fi} | {pa} | {num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
         head += per_axis_export_lines(runs)
         head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
                  "|---|---|---|---|---|"]
-        head += [f"| {se} | {fi} | {pa} | {_num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
+        head += [f"| {se} | {fi} | {pa} | {num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
         head.append("")
     return head
 
@@ -1207,7 +1140,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         ver_text = ("-" if ver is None else "FAILED" if not ver else
                     f"passed, {', '.join(within)} only within its sampling tolerance (FLAG below)" if within else
                     "passed")
-        table.append(f"| {sensor} | {verdict} | {_num(bound.get('margin'), '{:.4g}')} | {ver_text} | "
+        table.append(f"| {sensor} | {verdict} | {num(bound.get('margin'), '{:.4g}')} | {ver_text} | "
                      f"{'`' + str(bound['kf_file']) + '`' if bound.get('kf_file') else '-'} |")
         paste += [(sensor, *r) for r in paste_rows(sensor, bound, kalibr)] if bound else []
         n_fail = sum(f.severity == "fail" for f in flags)
@@ -1218,8 +1151,8 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         checks.append("")
         lines.append(f"## {sensor}: {verdict}")
         lines.append("")
-        lines.append(f"- margin (min S_model/target, the mode's; raw: S_sample): {_num(bound.get('margin'), '{:.4g}')}"
-                     + (f" at {bound.get('margin_curve')}, {_num(bound.get('margin_frequency_hz'))} Hz"
+        lines.append(f"- margin (min S_model/target, the mode's; raw: S_sample): {num(bound.get('margin'), '{:.4g}')}"
+                     + (f" at {bound.get('margin_curve')}, {num(bound.get('margin_frequency_hz'))} Hz"
                         if bound.get("margin_curve") else ""))
         if bound.get("spec_name") or bound.get("mode"):
             lines.append(f"- spec sheet: {bound.get('spec_name', '-')}; bound mode: {bound.get('mode', '-')}; "
@@ -1227,7 +1160,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         rows = _inflation_rows(bound) if bound else []
         if rows:
             lines += ["", "| parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|"]
-            lines += [f"| {n} | {u} | {_num(s, '{:.4g}')} | {_num(b, '{:.4g}')} | {_num(r)} |"
+            lines += [f"| {n} | {u} | {num(s, '{:.4g}')} | {num(b, '{:.4g}')} | {num(r)} |"
                       for n, u, s, b, r in rows]
             lines.append("")
         inband = inband_line(bound.get("inband_inflation")) if bound else None
@@ -1245,15 +1178,15 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                 # sheet's PSD is bounded as a whole, not term by term
                 lines += [f"- {', '.join(below)} below the spec sheet's: the spec sheet's PSD is bounded at every "
                           f"frequency by the bound's terms together (white noise, GM and random walk; spec margin "
-                          f"{_num(spec_margin, '{:.4g}')}), not term by term", ""]
+                          f"{num(spec_margin, '{:.4g}')}), not term by term", ""]
             scope = bound.get("inflation_scope")
             if isinstance(scope, Mapping) and scope.get("dropped_from_exported_model") and scope.get("statement"):
                 # the table is the bound's; the exported model lacks these states (imupipe.kf.inflation_scope)
                 lines += [f"- the table above: {scope['statement']}", ""]
         band = bound.get("allan_tau_band_s")
         if band:
-            lines.append(f"- Allan total check over the application band: tau from {_num(band[0])} to "
-                         f"{_num(band[1])} s")
+            lines.append(f"- Allan total check over the application band: tau from {num(band[0])} to "
+                         f"{num(band[1])} s")
         lines += _per_axis_lines(bound)
         lines += auto_selection_lines(bound)
         sel = identify.get("selection") or {}
@@ -1294,7 +1227,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
                           + " (no Kalibr fields written; use the Kalman-filter export)")
             checks.append("")
         else:
-            head += [f"Kalibr imu.yaml{where}: update_rate {_num(kalibr.get('update_rate'), '{:g}')} Hz, rostopic "
+            head += [f"Kalibr imu.yaml{where}: update_rate {num(kalibr.get('update_rate'), '{:g}')} Hz, rostopic "
                      f"{kalibr.get('rostopic')}.", ""]
     head += [f"## Checks: {n_fail} failed, {n_flag} flagged", "", *checks]
     return "\n".join(head).rstrip() + "\n", "\n".join(lines).rstrip() + "\n"
