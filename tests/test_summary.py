@@ -685,3 +685,13 @@ def test_an_initial_bias_resting_on_the_spec_sheets_gm_time_constant_is_flagged(
     assert "T_max = 7.2e+03 s (spec sheet: longest GM time constant" in f.detail
     assert "identify.max_bias_time_s" in f.detail
     assert not [f for f in flags_of("gyro", bound=contract(max_bias_time_s=1e5)) if f.check == "initial bias"]
+
+
+def test_the_fit_adequacy_flag_names_auto_only_under_auto():
+    # an outside evaluation read, in a raw-mode run, a FLAG about what auto does with a rejected model
+    ident = {"adequacy": {"adequate": False, "chi2_per_dof": 4.2, "p_value": 1e-9}}
+    (raw,) = [f for f in flags_of("gyro", bound=_bound(), identify=ident) if f.check == "fit adequacy"]
+    (auto,) = [f for f in flags_of("gyro", bound=_bound(mode="auto (smoothed)"), identify=ident)
+               if f.check == "fit adequacy"]
+    assert "identify.n_gm: 2 or longer records may" in raw.detail and "auto" not in raw.detail
+    assert "auto then builds no envelope candidate" in auto.detail

@@ -584,7 +584,7 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
       :math:`K = |d|\sqrt{2/T}`.
 
     Returns a dict with ``kind`` and either ``white_noise_ratio`` (1) or ``random_walk_equivalent`` (u/sqrt(s)),
-    ``record_s`` (s) and, with `sensor`, ``display`` (the value in deg/h/sqrt(s) or mg/sqrt(s)).
+    ``record_s`` (s) and, with `sensor`, ``display`` (the value in (deg/h)/sqrt(s) or mg/sqrt(s)).
     `total_sq_diff`: the record's :math:`\sum_k (x_{k+1}-x_k)^2` (u^2) when the caller has it (one pass for
     every burst of a record: :func:`event_effects`); computed here otherwise.
     Reference: IEEE Std 952-1997, annex C (the Allan variance of white noise and of a random walk)."""
@@ -609,7 +609,8 @@ def event_effect(x, rate_hz: float, event: Mapping, guard: int = 0, sensor: str 
     out = {"kind": kind, "random_walk_equivalent": float(k), "record_s": float(T)}
     du = display_unit(sensor, "step")
     if du is not None:
-        out["display"] = {"unit": f"{du[0]}/sqrt(s)", "random_walk_equivalent": float(k) / du[1]}
+        unit = f"({du[0]})/sqrt(s)" if "/" in du[0] else f"{du[0]}/sqrt(s)"  # (deg/h)/sqrt(s), as spec sheets write it
+        out["display"] = {"unit": unit, "random_walk_equivalent": float(k) / du[1]}
     return out
 
 

@@ -302,8 +302,9 @@ def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> lis
         rows.append((f"GM sigma{tag}", "gm_sigma", s[0], b[0]))
         rows.append((f"GM T{tag}", "time", s[1], b[1]))
     rows.append(("random walk K", "random_walk", specm.random_walk, bound_model.random_walk))
-    if specm.flicker:  # not a filter state: the bound covers it with its GM terms
-        rows.append(("flicker B (covered by GM)", "flicker", specm.flicker, 0.0))
+    if specm.flicker:  # not a filter state: the bound covers it with its GM terms, or its random walk without any
+        by = "GM" if bound_model.gauss_markov else "random walk" if bound_model.random_walk > 0 else "white noise"
+        rows.append((f"flicker B (covered by {by})", "flicker", specm.flicker, 0.0))
     out = []
     for label, q, sv, bv in rows:
         a, b = conv(sv, q), conv(bv, q)

@@ -221,9 +221,12 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             fast = False
         else:  # both ends reached: the side its estimate is nearer (log scale)
             fast = T <= math.sqrt(T_lo_range * max(T_hi_range, T_lo_range))
+        near = ([f"T within one octave above the shortest T the records resolve ({T_lo_range:.3g} s)"]
+                if T < 2.0 * T_lo_range else
+                [f"its T interval's lower end ({min(lower_ends):.3g} s) within one octave above the shortest T the "
+                 f"records resolve ({T_lo_range:.3g} s)"] if few else [])
         why = "; ".join(
-            (["T or its interval's lower end within one octave above the shortest T the records resolve"] if few
-             else [])
+            near
             + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
             + (["its T interval reaches the longest T the records resolve"] if reaches_hi else []))
         # what the statistical interval (the one the upper envelope reads) leaves open above: there the envelope

@@ -639,7 +639,8 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
 
         if gap_policy == "fail":
             raise DataError(
-                f"{where}: timestamp gap of {describe(int(gaps[0]))} in {tname}, expected {nominal:.6g} s "
+                f"{where}: timestamp gap of {describe(int(gaps[0]))} in {tname}, expected "
+                f"{1.0 / float(rate_hz if rate_hz is not None else rate if rate is not None else nominal_rate):.6g} s "
                 f"(at most {gap_factor:g} x); {gaps.size} gap(s) in all; gap_policy='fill' fills short gaps, "
                 "'split' keeps the longest contiguous segment"
             )
