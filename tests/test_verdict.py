@@ -64,3 +64,18 @@ def test_a_replay_verdict_in_the_file_says_its_worst_is_in_the_fixes():
                               "relative_standard_error": 0.333}, worst_outage_t_s=610.0)
     text = v.to_dict()["within_tolerance"]
     assert "ratio 1.19 at 227 s, in the fixes; the outage's worst 1.12" in text
+
+
+def test_an_event_flag_says_how_many_events_chance_gives():
+    # the default run FLAGs one step on one of 15 gyro axes, each scanned at a false-alarm rate of 0.01 per record:
+    # 0.15 expected by chance, P(>= 1) = 1 - 0.99^15 = 0.14, consistent with chance (an outside evaluation asked)
+    from imupipe.summary import flags_of
+
+    ev = {"dataset": "sim03", "sensor": "gyro", "axis": "x", "kind": "step", "time_s": 16801.2, "size": 2.2e-5,
+          "units": "rad/s", "policy": "warn", "action": "kept in the analysis (events.policy warn)"}
+    (f,) = [f for f in flags_of("gyro", bound={"events": [ev], "events_scanned": [0.01] * 15}) if f.check == "event"]
+    assert f.detail.endswith("; " + chance_failures(1, 15, 0.01, "show an event", "show one", "no event in any record"))
+    assert "1 of 15 axes show an event at level 0.01 each; with no event in any record 0.15 show one" in f.detail
+    assert "P(>= 1) = 0.14: consistent with chance" in f.detail
+    (g,) = [f for f in flags_of("gyro", bound={"events": [ev]}) if f.check == "event"]  # no scan record: no clause
+    assert "by chance" not in g.detail

@@ -21,7 +21,7 @@ from typing import Any
 
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, spec_unit
-from imupipe.verdict import unstated_t_max, within_tolerance
+from imupipe.verdict import chance_failures, unstated_t_max, within_tolerance
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -164,6 +164,17 @@ def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
     return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
 
 
+def event_chance(bound: Mapping) -> str:
+    """``"; k of n axes show an event ..."``: the run's event count against what the scan's false-alarm rate gives
+    (:func:`imupipe.verdict.chance_failures`; the outliers files' ``events_scan``, merged as ``events_scanned``, one
+    rate per axis scanned); empty without them."""
+    rates, events = bound.get("events_scanned") or [], bound.get("events") or []
+    axes = {(it.get("dataset"), it.get("axis")) for it in events if isinstance(it, Mapping)}
+    text = chance_failures(len(axes), len(rates), max(rates), "show an event", "show one",
+                           "no event in any record") if rates and axes else None
+    return f"; {text}" if text else ""
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -190,7 +201,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += stuck
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
-    out += [Flag(sensor, "event", w, d) for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
+    out += [Flag(sensor, "event", w, d + event_chance(bound)) for src in (bound, identify, stationarity)
+            for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
         out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
                         f"{num(bound.get('margin_frequency_hz'))} Hz",

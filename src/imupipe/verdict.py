@@ -90,17 +90,19 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
             "(identify.max_bias_time_s, s) if it is known")
 
 
-def chance_failures(n_failed: int, n_tests: int, alpha: float) -> str | None:
+def chance_failures(n_failed: int, n_tests: int, alpha: float, outcome: str = "failed", by_chance: str = "fail",
+                    null: str = "every axis stationary") -> str | None:
     r"""How `n_failed` failures among `n_tests` independent tests, each at level `alpha`, compare with chance: with
     every null true the count is Binomial(`n_tests`, `alpha`), mean `n_tests` x `alpha`, and
     :math:`P(X \ge k) = \sum_{j \ge k} \binom{n}{j}\alpha^j(1-\alpha)^{n-j}`. A tail probability of at least
     `alpha` is worded as consistent with chance, a smaller one as more than chance gives. None without failures or a
-    level. Used for the stationarity tests of a sensor's axes (one per axis, each at the configured level)."""
+    level. Used for the stationarity tests of a sensor's axes (one per axis, each at the configured level) and for
+    the event scan (`outcome` "show an event", `by_chance` "show one", `null` "no event in any record")."""
     k, n = int(n_failed), int(n_tests)
     if k <= 0 or n <= 0 or not (alpha and 0.0 < float(alpha) < 1.0):
         return None
     a = float(alpha)
     tail = min(1.0, sum(math.comb(n, j) * a**j * (1.0 - a) ** (n - j) for j in range(k, n + 1)))
     verdict = "consistent with chance" if tail >= a else "more than chance gives: look at the records named"
-    return (f"{k} of {n} axes failed at level {a:g} each; with every axis stationary {n * a:.2g} fail by chance on "
+    return (f"{k} of {n} axes {outcome} at level {a:g} each; with {null} {n * a:.2g} {by_chance} by chance on "
             f"average and P(>= {k}) = {tail:.2g}: {verdict}")

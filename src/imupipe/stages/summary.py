@@ -33,6 +33,9 @@ def _sensor_spec(path: str, data, sensors: list, specs: list):
 
 
 def _merge_checks(target: dict, data: dict) -> None:
+    scan = data.get("events_scan")
+    if isinstance(scan, dict) and scan.get("false_alarm_rate_per_record") is not None:  # an outliers file: one axis
+        target.setdefault("events_scanned", []).append(float(scan["false_alarm_rate_per_record"]))
     for key in CHECK_KEYS:
         if key not in data or data[key] in (None, [], {}):
             continue
