@@ -221,10 +221,10 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             fast = False
         else:  # both ends reached: the side its estimate is nearer (log scale)
             fast = T <= math.sqrt(T_lo_range * max(T_hi_range, T_lo_range))
-        near = ([f"T within one octave above the shortest T the records resolve ({T_lo_range:.3g} s)"]
+        near = ([f"T below twice the shortest T the records resolve ({T_lo_range:.3g} s)"]
                 if T < 2.0 * T_lo_range else
-                [f"its T interval's lower end ({min(lower_ends):.3g} s) within one octave above the shortest T the "
-                 f"records resolve ({T_lo_range:.3g} s)"] if few else [])
+                [f"its T interval's lower end ({min(lower_ends):.3g} s) below twice the shortest T the records "
+                 f"resolve ({T_lo_range:.3g} s)"] if few else [])
         why = "; ".join(
             near
             + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
