@@ -750,6 +750,17 @@ def _per_test_level(confidence, n_tests, correction) -> float:
     raise ValueError(f"correction must be 'bonferroni' or 'sidak', got {correction!r}")
 
 
+def _chi2_limit(psd, edf, confidence, n_tests, correction, upper: bool):
+    """nu S / chi2_nu(q) (upper limit, the lower-tail quantile) or nu S / chi2_nu(1 - q) (lower limit, the upper-tail
+    quantile), q the per-test level of :func:`_per_test_level`."""
+    q = _per_test_level(confidence, n_tests, correction)
+    s = np.asarray(psd, dtype=np.float64)
+    nu = np.asarray(edf, dtype=np.float64)
+    if np.any(nu <= 0):
+        raise ValueError("edf must be positive")
+    return nu * s / (_chi2_ppf(q, nu) if upper else _chi2_isf(q, nu))
+
+
 def chi2_lower(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction: str = "bonferroni"):
     r"""Lower chi-squared confidence limit of a PSD estimate, corrected for multiplicity: the mirror of
     :func:`chi2_upper`.
@@ -760,12 +771,7 @@ def chi2_lower(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction:
     is contradicted by the data there at that family-wise level (the bound's data check,
     :mod:`imupipe.bound.datacheck`). Same parameters and unit as :func:`chi2_upper`.
     """
-    q = _per_test_level(confidence, n_tests, correction)
-    s = np.asarray(psd, dtype=np.float64)
-    nu = np.asarray(edf, dtype=np.float64)
-    if np.any(nu <= 0):
-        raise ValueError("edf must be positive")
-    return nu * s / _chi2_isf(q, nu)
+    return _chi2_limit(psd, edf, confidence, n_tests, correction, upper=False)
 
 
 def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction: str = "bonferroni"):
@@ -801,9 +807,4 @@ def chi2_upper(psd, edf, confidence: float = 0.95, n_tests: int = 1, correction:
     numpy.ndarray
         :math:`S_{up}`, same unit as `psd`.
     """
-    q = _per_test_level(confidence, n_tests, correction)
-    s = np.asarray(psd, dtype=np.float64)
-    nu = np.asarray(edf, dtype=np.float64)
-    if np.any(nu <= 0):
-        raise ValueError("edf must be positive")
-    return nu * s / _chi2_ppf(q, nu)
+    return _chi2_limit(psd, edf, confidence, n_tests, correction, upper=True)
