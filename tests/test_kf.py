@@ -220,3 +220,32 @@ def test_export_scope_line_states_read_either_form(narrowband):
     scope = export_scope(exported, None, 1.0)
     assert scope["line_states"] == [{"sigma": 2e-3, "f0_hz": 0.5, "zeta": 0.01}]
     assert scope["dropped_by_reduction"] == [] and scope["rate_mismatch"] is False
+
+
+def test_the_kf_files_kinematic_p0_is_the_verified_one():
+    # an outside evaluation took the KF file's P0 literally: its kinematic entries were 0 while the verification had
+    # started the reference filter (and the truth) at the fix variance and 1 (m/s)^2; with a true initial error of
+    # that size its filter under-stated the error 1.66x in the outage. The KF file now starts them where the
+    # verification did (the verify file's scenario), and says so in its notes
+    from imupipe.stages.kf import exported_kf
+    from imupipe.verify import kinematic_start, reference_scenario
+
+    model = NoiseModel(white=1e-3, gauss_markov=((1e-4, 100.0),), random_walk=1e-6)
+    for sensor in ("accel", "gyro"):
+        sc = reference_scenario(sensor)
+        start = kinematic_start(sc)
+        assert start["var_pos"] == pytest.approx(sc.sigma_fix**2)
+        exported = {"model": model.to_dict(), "verification": {"scenario": {"sigma_fix": sc.sigma_fix, **start}},
+                    "bias_initialisation": {"p0_random_walk": 1e-8}}
+        kf = exported_kf(exported, 1.0, sensor)
+        P0, states = np.asarray(kf["P0"]), kf["states"]
+        kin = {"x": start["var_pos"], "v": start.get("var_vel"), "theta": start["var_pos"]}
+        for i, s in enumerate(states):
+            if s in kin:
+                assert P0[i, i] == pytest.approx(kin[s])
+        assert any("kinematic states" in n for n in kf["notes"])
+    # a verify file written before the scenario carried them: the scenario's defaults from its fix sigma
+    old = {"model": model.to_dict(), "verification": {"scenario": {"sigma_fix": 0.5}},
+           "bias_initialisation": {"p0_random_walk": 1e-8}}
+    P0 = np.asarray(exported_kf(old, 1.0, "accel")["P0"])
+    assert P0[0, 0] == pytest.approx(0.25) and P0[1, 1] == pytest.approx(1.0)

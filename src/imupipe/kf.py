@@ -377,6 +377,10 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
     ]
     if not is_reduced:
         notes.append("p (random walk) is not stationary: its initial variance is a stated input")
+    if var_x or var_v or var_theta:
+        notes.append("kinematic states (x, v or theta) start at the verified reference filter's variances (the fix "
+                     "variance, 1 (m/s)^2 for v): a filter starts them at its own initial uncertainty, at least the "
+                     "true initial error's variance (smaller ones were not verified)")
     if nb:
         notes.append("narrowband states (nb, nb_dot) are damped oscillators started at their steady state "
                      "diag(sigma^2, (2 pi f0)^2 sigma^2); their discrete Phi, Qd blocks are in Phi and Qd")

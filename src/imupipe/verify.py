@@ -864,7 +864,8 @@ def verify_model(filter_model, sensor: str = "accel", truth=None, upper=None, sp
     refuse_keywords(earlier, "verify_model", rate_hz="record_rate_hz")
     sc = scenario if scenario is not None else reference_scenario(sensor)
     out = {"scenario": {"sensor": sc.sensor, "rate_hz": sc.filter_rate_hz, "fix_s": sc.fix_s, "horizon_s": sc.outage_s,
-                        "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad"},
+                        "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
+                        **kinematic_start(sc)},
            "checks": {}}
     for name, m in (("truth", truth), ("upper_envelope", upper), ("spec", spec)):
         if m is not None:
@@ -933,6 +934,17 @@ def min_bootstrap(confidence: float) -> int:
     leave the intervals, and the identified upper envelope built from their upper ends, at or near the point fit,
     which under-states a parameter about half the time."""
     return int(math.ceil(1.0 / (1.0 - float(confidence)) - 1e-9))
+
+
+def kinematic_start(sc: Scenario) -> dict:
+    """The initial variances of the reference filter's kinematic states (the same in truth and filter): position or
+    angle ``var_pos`` (m^2 or rad^2; the fix variance unless the scenario states one) and, for the accelerometer's
+    filter, velocity ``var_vel`` ((m/s)^2). The KF file starts its kinematic states there (the P0 verified)."""
+    var_pos = sc.sigma_fix**2 if sc.var_pos is None else float(sc.var_pos)
+    out = {"var_pos": float(var_pos), "var_pos_unit": "m^2" if sc.sensor == "accel" else "rad^2"}
+    if sc.sensor == "accel":
+        out.update(var_vel=float(sc.var_vel), var_vel_unit="(m/s)^2")
+    return out
 
 
 def integrity_contract(bound, allan=None, verification=None, export=None, intervals=None) -> dict:
@@ -1138,7 +1150,7 @@ def verification_stage(bound_model, sensor: str, *, spec=None, upper=None, truth
                             "fix_rate_hz": sc.filter_rate_hz / sc.fix_every,
                             "fix_s": sc.fix_s, "horizon_s": sc.outage_s,
                             "sigma_fix": sc.sigma_fix, "sigma_fix_unit": "m" if sc.sensor == "accel" else "rad",
-                            "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
+                            **kinematic_start(sc), "bias_var_floor": sc.bias_var_floor, "bias_var_floor_slow": sc.bias_var_floor_slow,
                             "max_bias_time_s": sc.max_bias_time_s},
                "checks": {k: v.to_dict() for k, v in series.items()}}
         for name, m in truths:  # the slowest admitted bias (global, per axis) is a constructed truth: say which

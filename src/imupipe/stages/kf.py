@@ -12,7 +12,7 @@ contract, else the global model, with the reason). SI units.
 
 from __future__ import annotations
 
-__all__ = ["BIAS_RULE", "bias_block", "exported_kf", "kf_header", "kf_stage"]
+__all__ = ["BIAS_RULE", "bias_block", "exported_kf", "kf_header", "kf_stage", "kinematic_p0"]
 
 BIAS_RULE = ("the bias states start with a total variance (GM states' sigma^2 + P0 of p) at least required_variance: "
              "the largest of the spec sheet's stationary bias (GM sigma^2, a random walk as the GM of T_max with its "
@@ -40,16 +40,30 @@ def _bias_p0(exported: dict):
     return (p0 if p0 > 0 else None), bi
 
 
+def kinematic_p0(exported: dict) -> dict:
+    """The initial variances of the kinematic states the verification started its reference filter at (the
+    ``exported`` block's ``verification.scenario``: ``var_pos``, ``var_vel``; a verify file without them: the fix
+    variance and 1 (m/s)^2, the scenario's defaults), as :func:`imupipe.kf.export_kf`'s ``var_x``, ``var_v``,
+    ``var_theta`` (m^2, (m/s)^2, rad^2): the KF file's P0 is then the one verified. Zero without a scenario."""
+    scen = (exported.get("verification") or {}).get("scenario") or {}
+    sig = scen.get("sigma_fix")
+    var_pos = scen.get("var_pos", None if sig is None else float(sig) ** 2)
+    if var_pos is None:
+        return {}
+    return {"var_x": float(var_pos), "var_theta": float(var_pos), "var_v": float(scen.get("var_vel", 1.0))}
+
+
 def exported_kf(exported: dict, dt_s: float, sensor: str) -> dict:
     """:func:`imupipe.kf.export_kf` at step `dt_s` (s) of a verification's ``exported`` block (its ``model``,
-    SI, and ``bias_initialisation``), with the ``bias_initialisation`` statement of the KF file."""
+    SI, ``bias_initialisation`` and scenario), with the ``bias_initialisation`` statement of the KF file; the
+    kinematic states start where the verification started them (:func:`kinematic_p0`)."""
     from imupipe.kf import export_kf
     from imupipe.models import NoiseModel
 
     p0, bias = _bias_p0(exported)
     return {"bias_initialisation": bias_block(bias, p0),
             **export_kf(NoiseModel.from_dict(exported["model"]), dt_s, sensor=sensor, p0_random_walk=p0,
-                        reduced=p0 is None)}
+                        reduced=p0 is None, **kinematic_p0(exported))}
 
 
 def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, outage_s: float,
@@ -87,7 +101,8 @@ def kf_stage(bound: dict, verification: dict, contract: dict, *, dt_s: float, ou
             out["per_axis"][ax] = {"model": "own" if own else "global", "reason": c["kf"], "curves": c["curves"],
                                    "bounded": bool(c["bounded"]) if own else bool(con["bounded"]), "export": scope,
                                    "bias_initialisation": bias_block(bias_ax, p0),
-                                   **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0, reduced=p0 is None)}
+                                   **export_kf(m, dt_s, sensor=sensor, p0_random_walk=p0, reduced=p0 is None,
+                                               **kinematic_p0(rep["exported"] if rep else ver["exported"]))}
     return out
 
 
