@@ -223,8 +223,8 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             fast = T <= math.sqrt(T_lo_range * max(T_hi_range, T_lo_range))
         near = ([f"T below twice the shortest T the records resolve ({T_lo_range:.3g} s)"]
                 if T < 2.0 * T_lo_range else
-                [f"its T interval's lower end ({min(lower_ends):.3g} s) below twice the shortest T the records "
-                 f"resolve ({T_lo_range:.3g} s)"] if few else [])
+                [f"its T interval's lower end ({_seconds(min(lower_ends), T_lo_range)}) below twice the shortest T "
+                 f"the records resolve ({T_lo_range:.3g} s)"] if few else [])
         why = "; ".join(
             near
             + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
@@ -297,3 +297,8 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
     out = replace(fit, model=model, params=params, intervals=intervals, intervals_statistical=stat,
                   on_boundary=on_boundary, interval_kind=kind, notes=notes)
     return out, kept_new, records
+
+
+def _seconds(t: float, scale: float) -> str:
+    """`t` s as text, 0 where it is below 1e-6 of `scale` s (an interval's end fitted at 0 comes out as 1e-166 s)."""
+    return "0 s" if t < 1e-6 * scale else f"{t:.3g} s"
