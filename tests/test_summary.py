@@ -150,9 +150,14 @@ def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
     # its verdict line's counts ("0 failed") are not the run's: the line says the run failed
     assert "**Verdict (run FAILED; partial, not a verdict):** gyro: BOUNDED" in partial
     assert "# Details" not in partial and partial.rstrip().splitlines()[-1].startswith("RUN FAILED")
+    assert "summary.md is written only by a complete run" in partial
     md.write_text("# summary\n")
     ok = end_of_run_text(str(tmp_path), "logs/t", md)
     assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report" in ok
+    # a job failed after the summary was written (an outside evaluation read "written only by a complete run"
+    # beside the file): the line says what the file is
+    late = end_of_run_text(str(res), "logs/t", md, failed=True)
+    assert f"{md} was written before the failure and does not cover the failed job" in late
 
 
 def test_markdown_to_html_renders_the_summary_and_the_inflation_table():

@@ -188,9 +188,10 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
         why = "; a job failed, so no check count below says the run passed" if failed else ""
         text = f"(partial: from the files this run has written so far{why})\n{text}" if text else ""
     parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
-    if failed:
-        parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); summary.md is "
-                     "written only by a complete run.")
+    if failed:  # a run starts by removing its stale outputs: a summary.md here was written by this run
+        parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); " +
+                     (f"{md} was written before the failure and does not cover the failed job." if md.is_file()
+                      else "summary.md is written only by a complete run."))
     elif md.is_file():
         parts.append(f"Summary with the details: {md}; report: snakemake --report {results}/report.html (make report)")
     return "".join(f"\n{p}\n" for p in parts).rstrip("\n")
