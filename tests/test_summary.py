@@ -700,3 +700,16 @@ def test_the_fit_adequacy_flag_names_auto_only_under_auto():
                if f.check == "fit adequacy"]
     assert "identify.n_gm: 2 or longer records may" in raw.detail and "auto" not in raw.detail
     assert "auto then builds no envelope candidate" in auto.detail
+
+
+def test_a_failed_component_check_reads_in_words_and_the_verdict_line_names_it():
+    # an outside evaluation read "FAIL bound [...]: the PSD margin 1 holds, another check failed" (a FAIL whose named
+    # check passed) beside "FAIL allan_components [tau_s=1.6]: component=random_walk, ratio=0.974"
+    failed = _bound(bounded=False, margin=1.0, failed_checks=[
+        {"check": "allan_components", "component": "random_walk", "ratio": 0.974, "tau_s": 1.6}])
+    fl = {f.check: f for f in flags_of("gyro", bound=failed) if f.severity == "fail"}
+    assert "bound" not in fl
+    assert fl["verdict"].detail == "not bounded: failed allan components (lines below); the PSD margin 1 holds"
+    assert fl["allan_components"].where == "tau 1.6 s"
+    assert fl["allan_components"].detail.startswith("the bound's random_walk term alone has 0.974x the Allan variance "
+                                                    "of the identified upper envelope's same term there")

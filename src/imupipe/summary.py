@@ -204,12 +204,15 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += [Flag(sensor, "event", w, d + event_chance(bound)) for src in (bound, identify, stationarity)
             for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
-        out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
-                        f"{num(bound.get('margin_frequency_hz'))} Hz",
-                        (f"not bounded: margin {num(bound.get('margin'), '{:.4g}')} < 1"
-                         if bound.get("margin") is None or float(bound.get("margin")) < 1.0 else
-                         f"not bounded: the PSD margin {num(bound.get('margin'), '{:.4g}')} holds, another check "
-                         "failed (below)"), "fail"))
+        if bound.get("margin") is None or float(bound["margin"]) < 1.0:
+            out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
+                            f"{num(bound.get('margin_frequency_hz'))} Hz",
+                            f"not bounded: margin {num(bound.get('margin'), '{:.4g}')} < 1", "fail"))
+        else:  # the verdict's own line: which checks made it, the PSD margin holding
+            names = sorted({str(fc.get("check")).replace("_", " ") for fc in bound.get("failed_checks") or []
+                            if isinstance(fc, Mapping)})
+            out.append(Flag(sensor, "verdict", "contract", f"not bounded: failed {', '.join(names) or 'a check'} "
+                            f"(lines below); the PSD margin {num(bound.get('margin'), '{:.4g}')} holds", "fail"))
     failed_names = {fc.get("check") for fc in bound.get("failed_checks") or [] if isinstance(fc, Mapping)}
     if bound.get("verified") is False and ("verification" in failed_names or "export_rate" not in failed_names):
         # (a passed verification of a KF file exported at another rate: the export rate line below says it)
@@ -220,6 +223,11 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         if isinstance(fc, Mapping) and fc.get("check") == "export_rate":  # one line, in words, for a rate mismatch
             rate_failed = True
             out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail({**exp, **fc}), "fail"))
+        elif isinstance(fc, Mapping) and fc.get("check") == "allan_components" and fc.get("ratio") is not None:
+            out.append(Flag(sensor, "allan_components", f"tau {num(fc.get('tau_s'))} s",
+                            f"the bound's {fc.get('component', '-')} term alone has {num(fc['ratio'])}x the Allan "
+                            "variance of the identified upper envelope's same term there (each component must bound "
+                            "its own; the bound's other terms do not count)", "fail"))
         elif isinstance(fc, Mapping):
             out.append(Flag(sensor, str(fc.get("check", fc.get("name", "check"))), _where_of(fc),
                             _detail_of(fc, skip=("check", "name")) or "failed", "fail"))
