@@ -229,3 +229,11 @@ def test_table_shows_the_exported_candidate_not_the_first():
     assert row.rstrip(" |").endswith("2"), row  # bound/spec 2, the pooled candidate's, not the raw one's 7
     with pytest.raises(ValueError, match="needs the contract"):
         tables_stage(spec, {"gyro": bound})
+
+
+def test_no_passing_candidate_names_the_export_with_three_digits():
+    # an outside evaluation read "(... against the envelope, 0.8895657899110195)" in the auto reason
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {m: _rep(2.0, 0.8895657899110195 + 0.01 * k, passed=False) for k, m in enumerate(AUTO_MODES)}
+    sel = select(cands, reps)
+    assert not sel["bounded"] and "against the envelope, 0.89), NOT BOUNDED" in sel["reason"]

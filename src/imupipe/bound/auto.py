@@ -160,7 +160,7 @@ def select(candidates: dict, reports: dict, contract_of, envelope_candidate: str
     else:
         best = min(rows, key=lambda r: _finite(r["envelope_worst_outage_ratio"], math.inf))
         reason = (f"no candidate passes every check; {best['mode']} exported (the smallest worst outage MSE/P "
-                  f"against the envelope, {best['envelope_worst_outage_ratio']}), NOT BOUNDED: "
+                  f"against the envelope, {_finite(best['envelope_worst_outage_ratio'], math.inf):.3g}), NOT BOUNDED: "
                   + "; ".join(f"{r['mode']}: {', '.join(r['failed_checks'])}" for r in rows))
         bounded = False
     if envelope_candidate and ENVELOPE_MODE not in candidates:  # why the tightest-by-design candidate is absent
