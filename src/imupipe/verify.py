@@ -213,7 +213,7 @@ def state_space(model, scenario: Scenario, role: str = "filter"):
         p0 = m.random_walk**2 * (0.5 * sc.max_bias_time_s if sc.max_bias_time_s is not None else t0)
     cm = continuous_model(m, reduced=not (m.random_walk > 0 or p0 > 0), sensor=sc.sensor, scale_factor=False)
     Phi, Qd = discretize(cm.F, cm.G, cm.Qc, sc.dt)
-    var_pos = sc.sigma_fix**2 if sc.var_pos is None else sc.var_pos
+    var_pos = kinematic_start(sc)["var_pos"]
     P0 = initial_covariance(m, cm.states, p0_random_walk=p0, var_x=var_pos, var_v=sc.var_vel, var_theta=var_pos)
     H = np.zeros((1, len(cm.states)))
     H[0, 0] = 1.0

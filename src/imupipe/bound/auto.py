@@ -28,6 +28,9 @@ component at its upper limit at once.
 from __future__ import annotations
 
 import math
+
+from imupipe.shown import num
+
 __all__ = ["AUTO_MODES", "CRITERION", "ENVELOPE_MODE", "candidate_modes", "candidate_row", "select"]
 
 #: The candidates of ``bound.mode: auto`` built from the sample PSDs, in tie-break order (the paper's first).
@@ -73,7 +76,7 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
         why = f"not built: {n_lines} spectral line(s) found, which the broadband envelope does not carry"
     elif adequacy.get("adequate", True) is False:
         why = ("not built: the data reject the selected model (adequacy: chi2/dof "
-               f"{_fmt(adequacy.get('chi2_per_dof'))}, p {_fmt(adequacy.get('p_value'))}), so the joint band, the "
+               f"{num(adequacy.get('chi2_per_dof'))}, p {num(adequacy.get('p_value'))}), so the joint band, the "
                "spread of that model's refits, does not cover what the model cannot represent; the candidates "
                "built from the sample PSDs bound the records' own spectra")
     else:
@@ -81,10 +84,6 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
             f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
             f"{rec.get('band_hz')} Hz) is the target")
     return AUTO_MODES, why
-
-
-def _fmt(x) -> str:
-    return f"{float(x):.3g}" if isinstance(x, (int, float)) else str(x)
 
 
 #: The stated criterion (written into the verification file).

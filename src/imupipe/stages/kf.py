@@ -42,15 +42,19 @@ def _bias_p0(exported: dict):
 
 def kinematic_p0(exported: dict) -> dict:
     """The initial variances of the kinematic states the verification started its reference filter at (the
-    ``exported`` block's ``verification.scenario``: ``var_pos``, ``var_vel``; a verify file without them: the fix
-    variance and 1 (m/s)^2, the scenario's defaults), as :func:`imupipe.kf.export_kf`'s ``var_x``, ``var_v``,
+    ``exported`` block's ``verification.scenario``: ``var_pos``, ``var_vel``; a verify file without them: the defaults
+    of its scenario, :func:`imupipe.verify.kinematic_start`), as :func:`imupipe.kf.export_kf`'s ``var_x``, ``var_v``,
     ``var_theta`` (m^2, (m/s)^2, rad^2): the KF file's P0 is then the one verified. Zero without a scenario."""
+    from imupipe.verify import kinematic_start, reference_scenario
+
     scen = (exported.get("verification") or {}).get("scenario") or {}
-    sig = scen.get("sigma_fix")
-    var_pos = scen.get("var_pos", None if sig is None else float(sig) ** 2)
-    if var_pos is None:
-        return {}
-    return {"var_x": float(var_pos), "var_theta": float(var_pos), "var_v": float(scen.get("var_vel", 1.0))}
+    if "var_pos" not in scen:
+        if scen.get("sigma_fix") is None:
+            return {}
+        sc = reference_scenario(scen.get("sensor", "accel"), sigma_fix=float(scen["sigma_fix"]))
+        scen = {**kinematic_start(sc), **scen}  # the scenario's own defaults (one home: imupipe.verify)
+    return {"var_x": float(scen["var_pos"]), "var_theta": float(scen["var_pos"]),
+            "var_v": float(scen.get("var_vel", 0.0))}
 
 
 def exported_kf(exported: dict, dt_s: float, sensor: str) -> dict:
