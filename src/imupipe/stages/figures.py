@@ -18,7 +18,7 @@ import numpy as np
 
 from imupipe.io import read_yaml
 
-__all__ = ["bound_model", "figures_stage", "line_aliases", "mark_aliases", "save_all"]
+__all__ = ["bound_model", "figures_stage", "identified_shown", "line_aliases", "mark_aliases", "save_all"]
 
 
 def bound_model(d):
@@ -28,6 +28,21 @@ def bound_model(d):
     return NoiseModel(white=d["white"] or 0.0, random_walk=d["random_walk"] or 0.0,
                       gauss_markov=tuple((g["sigma"], g["T"]) for g in d["gauss_markov"]),
                       narrowband=tuple((n["sigma"], n["f0_hz"], n["zeta"]) for n in d.get("narrowband") or ()))
+
+
+def identified_shown(identify: dict):
+    """The identified model Figure 6 draws (SI :class:`~imupipe.models.NoiseModel`): the kept components of the
+    selected refit (:func:`imupipe.stages.identify.selected_model`, what the bound's component check compares
+    with) and the components the selection dropped at their values in the fit with every component (drawn
+    dotted)."""
+    from dataclasses import replace
+
+    from imupipe.models import NoiseModel
+    from imupipe.stages.identify import selected_model
+
+    full = NoiseModel.from_dict(identify["model"])
+    dropped = [c for c in identify["selection"]["dropped"] if hasattr(full, c)]
+    return replace(selected_model(identify), **{c: getattr(full, c) for c in dropped})
 
 
 def line_aliases(paths: list, dt: float) -> list:
@@ -72,7 +87,6 @@ def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_sp
     `path_contract` (``bound.mode: auto``): the contract naming the exported candidate, which the figures show
     (:func:`imupipe.stages.tables.exported_bound`)."""
     from imupipe.merge import Stacked
-    from imupipe.models import NoiseModel
     from imupipe.plot import plot_allan_components, plot_allan_deviation, plot_inflation_steps, plot_psd_bound
     from imupipe.specsheet import load_spec
 
@@ -83,7 +97,7 @@ def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_sp
     bound = exported_bound(whole, read_yaml(path_contract) if path_contract else None)
     model, spec_model = bound_model(bound["bound"]), load_spec(path_spec).models[sensor]
     identify = read_yaml(path_identified)
-    identified, dropped = NoiseModel.from_dict(identify["model"]), identify["selection"]["dropped"]
+    identified, dropped = identified_shown(identify), identify["selection"]["dropped"]
     sp, av = Stacked(path_spectra), Stacked(path_allan)
 
     def every_curve(stacked, name):  # (dataset x axis, n): one row per curve

@@ -36,7 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 __all__ = ["SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope", "envelope_ratio",
-           "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope"]
+           "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope", "selected_model"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
 SEED_FIT, SEED_POOLING = 20211, 20212
@@ -50,6 +50,18 @@ ENVELOPE_NOTE = (
     "random_walk_cap, gm_sigma_cap); SI; upper_envelope_horizon_s s")
 UNITS = ("SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flicker u, quantization u*s, "
          "ramp u/s, gm_sigma u, gm_T s; rate_hz Hz; chi2, p-values dimensionless")
+
+
+def selected_model(doc: dict):
+    """The identified model of an identify file (or of one of its ``per_axis`` entries) that a bound is compared
+    with, component by component, and that inflation factors and figures are read against: the selected refit
+    (``model_selected``: the kept components, a re-assigned GM as the white noise or random walk it acts as), the
+    parameters the identification reports and the bound covers. ``model`` (the fit with every allowed component)
+    where there is no ``model_selected`` (a ``per_axis`` entry, whose ``model`` is the axis's selected refit).
+    Returns an SI :class:`~imupipe.models.NoiseModel`."""
+    from imupipe.models import NoiseModel
+
+    return NoiseModel.from_dict(doc.get("model_selected") or doc["model"])
 
 
 class Curve(NamedTuple):

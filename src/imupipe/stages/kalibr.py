@@ -151,10 +151,10 @@ def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rat
     from imupipe.kalibr import (
         dataset_rates, imu_rate, kalibr_imu, kalibr_text, model_of_bound, rostopic_of, with_bias_drift,
     )
-    from imupipe.models import NoiseModel
+    from imupipe.stages.identify import selected_model
 
     # the identified model the inflation factors compare with: the selected model refitted (kept components)
-    ident = {s: NoiseModel.from_dict(doc.get("model_selected") or doc["model"]) for s, doc in identified.items()}
+    ident = {s: selected_model(doc) for s, doc in identified.items()}
     curve_rates = {}  # "dataset/axis" -> Hz: the rate of each record (its timestamps' where the sheet gives none)
     for doc in identified.values():
         curve_rates.update(doc.get("rate_hz") or {})
