@@ -276,29 +276,43 @@ def test_a_random_walk_resting_on_the_spec_sheet_alone_is_stated():
 
 def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_ratio():
     """A lines file (one dataset/sensor/axis, units under `units`) merged by the summary script: each FLAG names
-    where the line is, its frequency in Hz, its amplitude in the sensor's unit and its peak over the floor."""
+    where the line is, its frequency in Hz, its amplitude in the sensor's unit and its peak over the floor; the same
+    line on another axis (full-rate intervals that overlap, as the bound merges lines) is one FLAG naming both axes
+    and the strongest."""
     from imupipe.stages import summary as mod
-    entry = {}
-    lines_file = {"dataset": "adis_imu2", "sensor": "accel", "axis": "z",
-                  "lines": [{"frequency_hz": 0.5669195, "power": 2.4e-05, "amplitude": 0.0069233,
-                             "sigma": 0.0048955, "peak_ratio": 78.573}],
-                  "units": {"frequency_hz": "Hz", "amplitude": "m/s^2", "sigma": "m/s^2", "peak_ratio": "1"}}
-    mod._merge_checks(entry, lines_file)
-    mod._merge_checks(entry, {**lines_file, "axis": "x"})
-    text = render_summary({"accel": {"bound": entry}})
-    assert "- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2, peak PSD 78.6x the floor" in text
-    assert "- FLAG lines [adis_imu2/accel/x]: 0.5669 Hz" in text
+
+    def lines_file(axis, f, amplitude, ratio):
+        return {"dataset": "adis_imu2", "sensor": "accel", "axis": axis,
+                "lines": [{"frequency_hz": f, "power": amplitude**2 / 2, "amplitude": amplitude,
+                           "sigma": amplitude / 2**0.5, "peak_ratio": ratio, "f_lo_hz": f - 0.006, "f_hi_hz": f + 0.006}],
+                "units": {"frequency_hz": "Hz", "amplitude": "m/s^2", "sigma": "m/s^2", "peak_ratio": "1"}}
+
+    one = {}
+    mod._merge_checks(one, lines_file("z", 0.5669195, 0.0069233, 78.573))
+    assert ("- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2, peak PSD 78.6x the floor"
+            in render_summary({"accel": {"bound": one}}))
+    mod._merge_checks(one, lines_file("x", 0.5669000, 0.0093500, 133.0))
+    flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
+    assert flags == ["- FLAG lines [adis_imu2/accel/x,z]: one line on 2 axes at 0.5669 Hz; the strongest "
+                     "[adis_imu2/accel/x]: 0.5669 Hz, amplitude 0.00935 m/s^2, peak PSD 133x the floor"], flags
+    # lines whose intervals do not overlap stay apart (2 <= MAX_LINE_FLAGS: one FLAG each)
+    apart = {}
+    mod._merge_checks(apart, lines_file("z", 0.5669, 0.0069, 78.0))
+    mod._merge_checks(apart, lines_file("x", 0.6677, 0.0020, 9.0))
+    flags = [ln for ln in render_summary({"accel": {"bound": apart}}).splitlines() if ln.startswith("- FLAG lines")]
+    assert len(flags) == 2 and "[adis_imu2/accel/z]: 0.5669 Hz" in flags[0] and "[adis_imu2/accel/x]: 0.6677 Hz" in flags[1]
 
 
-def test_an_axis_with_a_line_family_gets_one_flag_naming_every_frequency_and_the_strongest():
+def test_a_sensor_with_a_line_family_gets_one_flag_naming_every_frequency_and_the_strongest():
     """An accelerometer line with its sidebands and harmonics (the ADIS16405's 0.46 / 0.56 / 0.67 / 1.69 Hz): more
-    than MAX_LINE_FLAGS lines on one axis make one FLAG (frequencies, the strongest by peak over the floor); another
-    axis with one line keeps its own."""
+    than MAX_LINE_FLAGS lines on one sensor type make one FLAG (frequencies, the axes each is seen on, the strongest
+    by peak over the floor); a line seen on two axes counts once."""
     from imupipe.stages import summary as mod
-    from imupipe.summary import MAX_LINE_FLAGS
+    from imupipe.linewords import MAX_LINE_FLAGS
 
     def line(f, ratio):
-        return {"frequency_hz": f, "amplitude": 1e-3 * ratio, "peak_ratio": ratio}
+        return {"frequency_hz": f, "amplitude": 1e-3 * ratio, "peak_ratio": ratio, "f_lo_hz": f - 0.005,
+                "f_hi_hz": f + 0.005}
 
     units = {"frequency_hz": "Hz", "amplitude": "m/s^2", "peak_ratio": "1"}
     family = [line(0.4631, 6.69), line(0.5641, 203.0), line(0.6654, 6.27), line(1.691, 8.5)]
@@ -308,9 +322,8 @@ def test_an_axis_with_a_line_family_gets_one_flag_naming_every_frequency_and_the
     mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "y", "lines": [line(0.564, 143.0)],
                               "units": units})
     flags = [ln for ln in render_summary({"accel": {"bound": entry}}).splitlines() if ln.startswith("- FLAG lines")]
-    assert flags == ["- FLAG lines [d/accel/x]: 4 lines at 0.4631, 0.5641, 0.6654, 1.691 Hz; the strongest: "
-                     "0.5641 Hz, amplitude 0.203 m/s^2, peak PSD 203x the floor",
-                     "- FLAG lines [d/accel/y]: 0.564 Hz, amplitude 0.143 m/s^2, peak PSD 143x the floor"], flags
+    assert flags == ["- FLAG lines [d/accel/x,y]: 4 lines at 0.4631, 0.564-0.5641 (2 axes), 0.6654, 1.691 Hz; the "
+                     "strongest [d/accel/x]: 0.5641 Hz, amplitude 0.203 m/s^2, peak PSD 203x the floor"], flags
 
 
 def test_inflation_table_shows_a_component_the_spec_sheet_does_not_give_as_in_the_tables():
@@ -526,6 +539,9 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
     summ._merge_checks(entry, rep)
     summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "x", "units": {"amplitude": "m/s^2"},
                                "lines": [{"frequency_hz": 0.25, "amplitude": 1e-3, "peak_ratio": 40.0}]})
+    # the same line on a clean axis: one FLAG for both, and the stuck record's note stays on it
+    summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "y", "units": {"amplitude": "m/s^2"},
+                               "lines": [{"frequency_hz": 0.25, "amplitude": 2e-3, "peak_ratio": 50.0}]})
     stat = {"curves": [{"dataset": "trial", "axis": "x", "stationary": False, "p_value": 1e-6, "test": "calibrated",
                         "included": True}]}
     text = render_summary({"accel": {"bound": {**_bound(), **entry}, "stationarity": stat}})
@@ -535,7 +551,7 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
     checks = [ln for ln in text.splitlines() if ln.startswith("- FLAG") or ln.startswith("- FAIL")]
     assert checks[0] == flag
     stat_line = next(ln for ln in checks if ln.startswith("- FLAG stationarity [trial/accel/x]"))
-    line_line = next(ln for ln in checks if ln.startswith("- FLAG lines [trial/accel/x]"))
+    line_line = next(ln for ln in checks if ln.startswith("- FLAG lines [trial/accel/x,y]: one line on 2 axes"))
     assert "stuck span" in stat_line and "stuck span" in line_line
 
 
@@ -712,4 +728,20 @@ def test_a_failed_component_check_reads_in_words_and_the_verdict_line_names_it()
     assert fl["verdict"].detail == "not bounded: failed allan components (lines below); the PSD margin 1 holds"
     assert fl["allan_components"].where == "tau 1.6 s"
     assert fl["allan_components"].detail.startswith("the bound's random_walk term alone has 0.974x the Allan variance "
-                                                    "of the identified upper envelope's same term there")
+                                                    "of the identified model's same term there (the selected fit")
+
+
+def test_the_line_search_band_is_stated_with_its_lower_limit():
+    """A line below the line search's lowest frequency (half a running-median window above 0) is not searched for;
+    the summary says where the search began, from the lines files (an outside evaluation's 0.01 Hz line went
+    unnamed)."""
+    from imupipe.stages import summary as mod
+
+    entry = {}
+    for axis in "xyz":
+        mod._merge_checks(entry, {"dataset": "d", "sensor": "gyro", "axis": axis, "lines": [], "n_tested": 24950,
+                                  "f_min_hz": 26 * 0.002, "f_max_hz": 49.95, "resolution_hz": 0.002, "alpha": 0.01})
+    text = render_summary({"gyro": {"bound": {**_bound(), **entry}}})
+    assert ("- line search (lines stage, each full-rate record): 0.052 to 49.95 Hz at 0.002 Hz resolution, "
+            "family-wise level 0.01 per record and axis; a line below 0.052 Hz is not searched for") in text
+    assert "line search" not in render_summary({"gyro": {"bound": _bound()}})

@@ -105,6 +105,7 @@ __all__ = [
     "detection_threshold",
     "alias_frequency",
     "decimated_line",
+    "overlap_groups",
     "merge_lines",
     "line_policy",
     "POLICIES",
@@ -510,6 +511,25 @@ def decimated_line(line, dt: float, frequency=None) -> dict:
     return out
 
 
+def overlap_groups(intervals) -> list[list[int]]:
+    """The indices of `intervals` ((lo, hi) pairs, Hz) grouped by overlap, direct or through a chain: sorted by lo,
+    an interval joins the group before it when its lo is at most the largest hi in that group. Groups in order of
+    their lowest lo, members in order of lo. The rule by which :func:`merge_lines` makes one line of several (and
+    by which the run's summary names a line seen on several axes once)."""
+    order = sorted(range(len(intervals)), key=lambda i: intervals[i][0])
+    groups: list[list[int]] = []
+    top = -math.inf
+    for i in order:
+        lo, hi = intervals[i]
+        if groups and lo <= top:
+            groups[-1].append(i)
+            top = max(top, hi)
+        else:
+            groups.append([i])
+            top = hi
+    return groups
+
+
 def merge_lines(lines) -> list:
     """Merge lines (e.g. from several axes and records) whose full-rate intervals overlap into one each.
 
@@ -517,13 +537,8 @@ def merge_lines(lines) -> list:
     its width the largest of the members' widths and of the spread of their frequencies, so that one fixed-shape
     narrowband column covers every member's peak. Returns a list of :class:`Line` sorted by frequency.
     """
-    lines = sorted(lines, key=lambda ln: ln.f_lo_hz)
-    groups: list[list] = []
-    for ln in lines:
-        if groups and ln.f_lo_hz <= max(m.f_hi_hz for m in groups[-1]):
-            groups[-1].append(ln)
-        else:
-            groups.append([ln])
+    lines = list(lines)
+    groups = [[lines[i] for i in g] for g in overlap_groups([(ln.f_lo_hz, ln.f_hi_hz) for ln in lines])]
     out = []
     for g in groups:
         w = np.array([m.power for m in g])

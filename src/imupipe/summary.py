@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from imupipe.linewords import line_reports, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, spec_unit
 from imupipe.verdict import chance_failures, unstated_t_max, within_tolerance
@@ -226,8 +227,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         elif isinstance(fc, Mapping) and fc.get("check") == "allan_components" and fc.get("ratio") is not None:
             out.append(Flag(sensor, "allan_components", f"tau {num(fc.get('tau_s'))} s",
                             f"the bound's {fc.get('component', '-')} term alone has {num(fc['ratio'])}x the Allan "
-                            "variance of the identified upper envelope's same term there (each component must bound "
-                            "its own; the bound's other terms do not count)", "fail"))
+                            "variance of the identified model's same term there (the selected fit, identify file "
+                            "model_selected; each component must bound its own, the bound's other terms do not "
+                            "count)", "fail"))
         elif isinstance(fc, Mapping):
             out.append(Flag(sensor, str(fc.get("check", fc.get("name", "check"))), _where_of(fc),
                             _detail_of(fc, skip=("check", "name")) or "failed", "fail"))
@@ -308,8 +310,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                                                                                     value)))
     line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
                   for it in _items(src.get(key)) if isinstance(it, Mapping)]
-    for f in _line_flags(sensor, line_items):
-        out.append(Flag(f.sensor, f.check, f.where, f.detail + STUCK_NOTE) if f.where in stuck_where else f)
+    out += _line_flags(sensor, line_items, stuck_where)
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
@@ -747,48 +748,11 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
                 + (f" ({num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
 
 
-#: more lines than this on one axis are FLAGged in one line (each stays in the lines file)
-MAX_LINE_FLAGS = 2
-
-
-def _line_flags(sensor: str, items: list) -> list[Flag]:
-    """The FLAGs of narrowband lines (:func:`_line_flag`), one per line, or one per axis naming every frequency and
-    the strongest line where an axis has more than :data:`MAX_LINE_FLAGS` (an accelerometer's line with its
-    sidebands and harmonics)."""
-    flags = [(_line_flag(sensor, it), it) for it in items]
-    by_where: dict = {}
-    for f, it in flags:
-        by_where.setdefault(f.where, []).append((f, it))
-    out = []
-    for where, group in by_where.items():
-        if len(group) <= MAX_LINE_FLAGS:
-            out += [f for f, _ in group]
-            continue
-        freqs = [it.get("frequency_hz", it.get("f0_hz")) for _, it in group]
-        strongest = max(group, key=lambda g: float(g[1].get("peak_ratio") or 0.0))[0]
-        out.append(Flag(sensor, "lines", where, f"{len(group)} lines at "
-                        + ", ".join(num(fr, '{:.4g}') for fr in freqs if fr is not None)
-                        + f" Hz; the strongest: {strongest.detail}"))
-    return out
-
-
-def _line_flag(sensor: str, it: Mapping) -> Flag:
-    """The FLAG of one narrowband line: where (dataset/sensor/axis), its frequency (Hz), its sinusoid amplitude
-    :math:`A = \\sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``), and its peak PSD over the
-    running-median floor (``peak_ratio``, dimensionless; imupipe.lines)."""
-    units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
-    where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
-    if not where:
-        where = str(it.get("curve", "-"))
-    f = it.get("frequency_hz", it.get("f0_hz"))
-    parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
-    if it.get("amplitude") is not None:
-        parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
-    elif it.get("sigma") is not None:
-        parts.append(f"sigma {num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
-    if it.get("peak_ratio") is not None:
-        parts.append(f"peak PSD {num(it['peak_ratio'])}x the floor")
-    return Flag(sensor, "lines", where, ", ".join(parts))
+def _line_flags(sensor: str, items: list, stuck_where=frozenset()) -> list[Flag]:
+    """The FLAGs of narrowband lines (:func:`imupipe.linewords.line_reports`), with :data:`STUCK_NOTE` where a
+    line's record holds a stuck span (`stuck_where`: the stuck FLAGs' places)."""
+    return [Flag(sensor, "lines", where, detail + (STUCK_NOTE if stuck_where & set(places) else ""))
+            for where, detail, places in line_reports(items)]
 
 
 #: Spec sheet's white noise over the data's (the identification's upper envelope) from which the summary says that
@@ -1208,6 +1172,9 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         if band:
             lines.append(f"- Allan total check over the application band: tau from {num(band[0])} to "
                          f"{num(band[1])} s")
+        search = search_band_text(bound.get("line_search"))
+        if search:
+            lines.append(search)
         lines += _per_axis_lines(bound)
         lines += auto_selection_lines(bound)
         sel = identify.get("selection") or {}

@@ -36,6 +36,9 @@ def _merge_checks(target: dict, data: dict) -> None:
     scan = data.get("events_scan")
     if isinstance(scan, dict) and scan.get("false_alarm_rate_per_record") is not None:  # an outliers file: one axis
         target.setdefault("events_scanned", []).append(float(scan["false_alarm_rate_per_record"]))
+    if data.get("n_tested") is not None and data.get("f_min_hz") is not None:  # a lines file: the band it searched
+        target.setdefault("line_search", []).append(
+            {k: data.get(k) for k in ("f_min_hz", "f_max_hz", "resolution_hz", "alpha")})
     for key in CHECK_KEYS:
         if key not in data or data[key] in (None, [], {}):
             continue

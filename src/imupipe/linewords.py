@@ -1,0 +1,123 @@
+"""The words of spectral lines in the run summary: the FLAG of each line, once per line over the axes and records
+it is seen on, and the band the line search covered.
+
+The lines stage (:func:`imupipe.lines.find_lines`) writes one file per dataset, sensor type and axis; a line of the
+sensor (a cooling fan, a dither frequency) is often found on every axis of every record. The summary names it once:
+lines whose full-rate intervals overlap are one line (:func:`imupipe.lines.overlap_groups`, the rule by which the
+bound merges them). Plain dicts in (the lines files' entries, tagged with dataset, sensor, axis and units by the
+summary stage), strings out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+from imupipe.shown import num
+
+__all__ = ["MAX_LINE_FLAGS", "line_reports", "line_text", "search_band_text"]
+
+#: a sensor type with more lines than this (each counted once over its axes and records) has them FLAGged in one
+#: line (each stays in its lines file)
+MAX_LINE_FLAGS = 2
+
+
+def line_text(it: Mapping) -> tuple[str, str]:
+    r"""Where one narrowband line is (``dataset/sensor/axis``, else its ``curve``) and what it is: its frequency
+    (Hz), its sinusoid amplitude :math:`A = \sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``; else its
+    sigma), and its peak PSD over the running-median floor (``peak_ratio``, dimensionless)."""
+    units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
+    where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
+    f = it.get("frequency_hz", it.get("f0_hz"))
+    parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
+    if it.get("amplitude") is not None:
+        parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
+    elif it.get("sigma") is not None:
+        parts.append(f"sigma {num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
+    if it.get("peak_ratio") is not None:
+        parts.append(f"peak PSD {num(it['peak_ratio'])}x the floor")
+    return where or str(it.get("curve", "-")), ", ".join(parts)
+
+
+def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
+    """The FLAG texts of the lines `items` of one sensor type: (where, detail, the places of its members).
+
+    One per line (:func:`line_text`); a line seen on several axes or records (full-rate intervals ``f_lo_hz`` to
+    ``f_hi_hz`` that overlap; an entry without them occupies its frequency alone) one text naming every axis and its
+    strongest member (largest peak over the floor); more than :data:`MAX_LINE_FLAGS` lines (an accelerometer's line
+    with its sidebands and harmonics) one text naming every frequency, on how many axes each is seen, and the
+    strongest line."""
+    from imupipe.lines import overlap_groups
+
+    texts = [line_text(it) for it in items]
+
+    def interval(j):
+        it = items[j]
+        f = it.get("frequency_hz", it.get("f0_hz"))
+        lo, hi = it.get("f_lo_hz"), it.get("f_hi_hz")
+        if lo is None or hi is None:
+            lo = hi = f
+        return (float(lo), float(hi)) if lo is not None else (math.inf, math.inf)  # no frequency: a line apart
+
+    groups = overlap_groups([interval(j) for j in range(len(items))])
+    groups = [g for grp in groups for g in ([grp] if interval(grp[0])[0] < math.inf else [[j] for j in grp])]
+
+    def strongest(g):
+        top = max(g, key=lambda j: float(items[j].get("peak_ratio") or 0.0))
+        return f"the strongest [{texts[top][0]}]: {texts[top][1]}"
+
+    def axes(g):
+        return f" ({len(g)} axes)" if len(g) > 1 else ""
+
+    if len(groups) > MAX_LINE_FLAGS:
+        every = [j for g in groups for j in g]
+        return [(_places(texts, every), f"{len(groups)} lines at "
+                 + ", ".join(_frequencies(items, g) + axes(g) for g in groups) + f" Hz; {strongest(every)}",
+                 [texts[j][0] for j in every])]
+    return [(texts[g[0]][0], texts[g[0]][1], [texts[g[0]][0]]) if len(g) == 1 else
+            (_places(texts, g), f"one line on {len(g)} axes at {_frequencies(items, g)} Hz; {strongest(g)}",
+             [texts[j][0] for j in g]) for g in groups]
+
+
+def _frequencies(items: list, g: list) -> str:
+    """The frequency of the lines `g` of `items` (a number, Hz), or their range where they differ in 4 digits."""
+    fr = sorted(float(f) for f in (items[j].get("frequency_hz", items[j].get("f0_hz")) for j in g) if f is not None)
+    if not fr:
+        return "-"
+    lo, hi = num(fr[0], "{:.4g}"), num(fr[-1], "{:.4g}")
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def _places(texts: list, g: list) -> str:
+    """The places of the lines `g`, each record's axes together (``imu1/accel/x,y,z; imu2/accel/x``)."""
+    by: dict = {}
+    for j in g:
+        head, _, axis = texts[j][0].rpartition("/")
+        by.setdefault(head, [])
+        if axis not in by[head]:
+            by[head].append(axis)
+    return "; ".join((f"{head}/" if head else "") + ",".join(sorted(axes)) for head, axes in by.items())
+
+
+def search_band_text(searches: list) -> str | None:
+    """The band the line search covered on the sensor's full-rate records, from the lines files' ``f_min_hz``,
+    ``f_max_hz`` (Hz), ``resolution_hz`` (Hz) and ``alpha`` (each a list over the files; None: no lines file).
+
+    The lowest searched frequency is half a running-median window above 0 (:func:`imupipe.lines.find_lines`:
+    ``(floor_window_bins // 2 + 1) * resolution_hz``), where the floor is two-sided. A line below it is not
+    searched: it stays in the sample spectra as broadband power, which every bound covers (the data check holds
+    each candidate above the spectra's lower limits), not as a narrowband term."""
+    if not searches:
+        return None
+
+    def span(key, fmt="{:.4g}"):
+        vals = sorted({float(s[key]) for s in searches if s.get(key) is not None})
+        if not vals:
+            return "-"
+        lo, hi = num(vals[0], fmt), num(vals[-1], fmt)
+        return lo if lo == hi else f"{lo}-{hi}"
+
+    return (f"- line search (lines stage, each full-rate record): {span('f_min_hz')} to {span('f_max_hz')} Hz at "
+            f"{span('resolution_hz')} Hz resolution, family-wise level {span('alpha')} per record and axis; a line "
+            f"below {span('f_min_hz')} Hz is not searched for: it stays in the spectra as broadband power, which the "
+            "bound covers, not as a line term (a finer lines.resolution_hz lowers the limit)")
