@@ -123,7 +123,9 @@ def test_envelope_mode_needs_the_envelope():
         bound_psd(f, curves, None, dt=1.0, mode="envelope", edf=edf)
 
 
-def _identified(kind="joint", note=None, consistent=True, adequate=True):
+def _identified(kind="joint", note=None, consistent=True, adequate=True, axes=None):
+    """An identify record as candidate_modes reads it; `axes` {axis: (band note or None, adequate)}: the per-axis
+    entries of a record whose pooling test rejects one model (each band at 1 - 0.05/k)."""
     rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "worst_ratio_to_band": 1.05}
     if note:
         rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "note": note}
@@ -132,6 +134,14 @@ def _identified(kind="joint", note=None, consistent=True, adequate=True):
                                    "p_value": 0.5 if adequate else 3.9e-53}}}
     if kind != "marginal":
         out |= {"upper_envelope_kind": kind, "upper_envelope_joint": rec}
+    if axes is not None:
+        level = 1 - 0.05 / len(axes)
+        out["per_axis"] = {
+            ax: {"adequacy": {"adequate": ok, "chi2_per_dof": 1.0 if ok else 9.0, "p_value": 0.5 if ok else 1e-9},
+                 **({"upper_envelope_joint": {"band_hz": [1 / SPAN, 0.5], "confidence": level,
+                                              **({"note": bn} if bn else {"worst_ratio_to_band": 1.1})}}
+                    if kind != "marginal" else {})}
+            for ax, (bn, ok) in axes.items()}
     return out
 
 
@@ -142,12 +152,31 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
     assert candidate_modes(_identified(), no_line)[0][-1] == ENVELOPE_MODE
     for ident, lines, word in ((_identified("marginal"), None, "marginal"),
                                (_identified(note="fewer than 20 finite bootstrap replicates"), None, "fell back"),
-                               (_identified(consistent=False), None, "pooling"),
+                               (_identified(consistent=False), None, "no per-axis fits"),
+                               # not pooled: every axis's band and fit must hold, as the pooled ones must
+                               (_identified(consistent=False, axes={"x": (None, True), "y": ("fewer than 20", True)}),
+                                None, "(axis y) fell back"),
+                               (_identified(consistent=False, axes={"x": (None, True), "y": (None, False)}),
+                                None, "reject the model of axis y"),
+                               # records that differ are not what per-axis envelopes answer
+                               (_identified(consistent=False, axes={"x": (None, True)})
+                                | {"record_consistency": {"flagged": [{"dataset": "d3", "param": "white"}]}},
+                                None, "names d3 (white)"),
                                (_identified(), {"d0/x": {"lines": [{"frequency_hz": 0.1}]}}, "line"),
                                # the band is the spread of the selected model's refits: not where the data reject it
                                (_identified(adequate=False), None, "reject the selected model")):
         modes, why = candidate_modes(ident, lines)
         assert modes == AUTO_MODES and why.startswith("not built") and word in why, why
+
+
+def test_curves_that_are_not_pooled_build_the_envelope_candidate_on_every_axis_band():
+    # a pooling false alarm (its 1 % by design) removed the envelope candidate of five records of one truth; with
+    # every axis's own band (Bonferroni over the axes) and fit in order, the candidate is built on their envelope
+    ident = _identified(consistent=False, adequate=False, axes={"x": (None, True), "y": (None, True),
+                                                                 "z": (None, True)})
+    modes, why = candidate_modes(ident)
+    assert modes == AUTO_MODES + (ENVELOPE_MODE,), why
+    assert "level 0.983 per axis over 3 axes, family-wise 0.95" in why, why
 
 
 @pytest.mark.slow

@@ -313,6 +313,30 @@ class TestPerAxisIdentification:
         assert mod.envelope(only_kept, selection["kept"], curves, 0.95, 1200.0).random_walk == 0.0
 
 
+    def test_each_axis_band_is_at_the_bonferroni_level_so_the_axes_together_are_one_statement(self):
+        # where the pooling test rejects one model, each axis's joint band is at 1 - (1 - c)/k over the k axes: the
+        # auto bound's envelope candidate then rests on one family-wise statement at c for every curve
+        from imupipe.allan import allan_variance
+        from imupipe.stages import identify as mod
+
+        rate, n, rng = 10.0, 36000, np.random.default_rng(11)
+        curves = []
+        for axis, white in (("x", 1e-3), ("y", 2e-3), ("z", 1e-3)):
+            av = allan_variance(white * math.sqrt(rate) * rng.standard_normal(n), rate, taus="octave", units="rad/s")
+            ok = np.isfinite(av["avar"].values) & np.isfinite(av["edf"].values)
+            curves.append((f"d/{axis}", av["tau"].values[ok], av["avar"].values[ok], av["edf"].values[ok], n, rate,
+                           axis))
+        kw = dict(n_boot=40, confidence=0.95, dt=1.0 / rate, record_rate_hz=[rate] * 3, n_samples=[n] * 3)
+        selection = {"kept": ["white"], "dropped": []}
+        per = mod._per_axis(curves, ("white",), 1, selection, kw, 0.95, 1200.0, 5, envelope_kind="joint")
+        for axis in "xyz":
+            band = per[axis]["upper_envelope_joint"]
+            assert band["confidence"] == pytest.approx(1 - 0.05 / 3, rel=1e-12), band
+            assert not band.get("note") and band["worst_ratio_to_band"] is not None
+        # the marginal kind records no band
+        assert "upper_envelope_joint" not in mod._per_axis(curves, ("white",), 1, selection, kw, 0.95, 1200.0, 5)["x"]
+
+
 class TestDominatingModel:
     """models.dominating_model: the envelope the bound reads when the axes are identified apart."""
 

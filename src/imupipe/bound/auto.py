@@ -51,38 +51,66 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
 
     * the identify record's envelope is the joint one (``upper_envelope_kind: joint`` and its band record without a
       fallback note: at least 20 finite bootstrap replicates);
-    * the pooling test accepts one model for every curve (``pooling.consistent``): otherwise the envelope the bound
-      reads dominates per-axis envelopes whose kind is not recorded;
+    * where the pooling test rejects one model for every curve (``pooling.consistent`` false), every axis's own
+      joint band is recorded (``per_axis[axis].upper_envelope_joint``, each at level 1 - (1 - c)/k over the k axes:
+      together one statement at c for every curve) and every axis's model describes its Allan variances; the
+      envelope the bound reads then dominates the pooled and every per-axis envelope (five records of one held-out
+      truth lost the envelope candidate to a pooling false alarm, the test's 1 % by design, and the exported
+      model's conservatism rose to 2.02: docs/performance.md), and the record-consistency test names no record
+      (``record_consistency.flagged``): per-axis envelopes answer axes that differ, not records that do, whose
+      differences only the candidates built from every sample PSD cover;
     * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the
       envelope is a broadband model and carries no line, which only the sample PSDs' rows would bound;
-    * the selected model describes the Allan variances (the identify record's ``adequacy.pooled.adequate``): the
-      band is the spread of refits of that model, which says nothing of what the model cannot represent. Where the
-      data reject it (a floor of four GMs fitted as white noise alone: chi2/dof 3.3, p 4e-53), the envelope lay 2.9 % below
-      such a truth's PSD between 0.001 and 0.07 Hz, the envelope candidate sat on it, and a filter on it
-      under-stated its error (MSE/P 1.003); the candidates of :data:`AUTO_MODES` bound the records' own spectra.
+    * the selected model (per axis where the curves are not pooled) describes the Allan variances (the identify
+      record's ``adequacy.pooled.adequate``, each ``per_axis[axis].adequacy.adequate``): the band is the spread of
+      refits of that model, which says nothing of what the model cannot represent. Where the data reject it (a
+      floor of four GMs fitted as white noise alone: chi2/dof 3.3, p 4e-53), the envelope lay 2.9 % below such a
+      truth's PSD between 0.001 and 0.07 Hz, the envelope candidate sat on it, and a filter on it under-stated its
+      error (MSE/P 1.003); the candidates of :data:`AUTO_MODES` bound the records' own spectra.
 
     Returns (modes, reason)."""
     kind = identified.get("upper_envelope_kind", "marginal")
     rec = identified.get("upper_envelope_joint")
     n_lines = sum(len((doc or {}).get("lines") or ()) for doc in (lines or {}).values())
-    adequacy = (identified.get("adequacy") or {}).get("pooled") or {}
+    pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
+    axes = {} if pooled else (identified.get("per_axis") or {})
+    # what the bound reads: the pooled band and, where the curves are not pooled, each axis's band and fit
+    bands = [("pooled", rec)] + [(f"axis {ax}", e.get("upper_envelope_joint")) for ax, e in axes.items()]
+    fits = ([("selected model", (identified.get("adequacy") or {}).get("pooled") or {})] if pooled else
+            [(f"model of axis {ax}", e.get("adequacy") or {}) for ax, e in axes.items()])
+    open_band = next(((who, r) for who, r in bands
+                      if not isinstance(r, dict) or r.get("note") or r.get("worst_ratio_to_band") is None), None)
+    rejected = next(((who, a) for who, a in fits if a.get("adequate", True) is False), None)
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
-    elif not isinstance(rec, dict) or rec.get("note") or rec.get("worst_ratio_to_band") is None:
-        why = "not built: the joint band fell back to the marginal envelope (" + str((rec or {}).get("note")) + ")"
-    elif (identified.get("pooling") or {}).get("consistent", True) is False:
-        why = "not built: the pooling test rejects one model for every curve (per-axis envelopes)"
+    elif not pooled and not axes:
+        why = "not built: the pooling test rejects one model for every curve, and the file has no per-axis fits"
+    elif not pooled and ((identified.get("record_consistency") or {}).get("flagged")):
+        named = sorted({f"{r.get('dataset')} ({r.get('param')})" for r in identified["record_consistency"]["flagged"]
+                        if isinstance(r, dict)})
+        why = ("not built: the pooling test rejects one model for every curve and the record-consistency test names "
+               f"{', '.join(named)}: per-axis envelopes do not answer records that differ")
+    elif open_band is not None:
+        who, r = open_band
+        why = (f"not built: the joint band ({who}) fell back to the marginal envelope ("
+               + str((r or {}).get("note")) + ")")
     elif n_lines:
         why = f"not built: {n_lines} spectral line(s) found, which the broadband envelope does not carry"
-    elif adequacy.get("adequate", True) is False:
-        why = ("not built: the data reject the selected model (adequacy: chi2/dof "
-               f"{num(adequacy.get('chi2_per_dof'))}, p {num(adequacy.get('p_value'))}), so the joint band, the "
-               "spread of that model's refits, does not cover what the model cannot represent; the candidates "
-               "built from the sample PSDs bound the records' own spectra")
-    else:
+    elif rejected is not None:
+        who, a = rejected
+        why = (f"not built: the data reject the {who} (adequacy: chi2/dof {num(a.get('chi2_per_dof'))}, p "
+               f"{num(a.get('p_value'))}), so the joint band, the spread of that model's refits, does not cover what "
+               "the model cannot represent; the candidates built from the sample PSDs bound the records' own spectra")
+    elif pooled:
         return AUTO_MODES + (ENVELOPE_MODE,), (
             f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
             f"{rec.get('band_hz')} Hz) is the target")
+    else:
+        levels = sorted({num(r.get("confidence")) for _, r in bands[1:]})
+        return AUTO_MODES + (ENVELOPE_MODE,), (
+            f"built: the pooling test rejects one model for every curve, so the target dominates the pooled joint "
+            f"envelope and each axis's own (bands at level {', '.join(levels)} per axis over {len(axes)} axes, "
+            f"family-wise {num(rec.get('confidence'))}, over {rec.get('band_hz')} Hz)")
     return AUTO_MODES, why
 
 
