@@ -293,7 +293,7 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
             in render_summary({"accel": {"bound": one}}))
     mod._merge_checks(one, lines_file("x", 0.5669000, 0.0093500, 133.0))
     flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
-    assert flags == ["- FLAG lines [adis_imu2/accel/x,z]: one line on 2 axes at 0.5669 Hz; the strongest "
+    assert flags == ["- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes) at 0.5669 Hz; the strongest "
                      "[adis_imu2/accel/x]: 0.5669 Hz, amplitude 0.00935 m/s^2, peak PSD 133x the floor"], flags
     # lines whose intervals do not overlap stay apart (2 <= MAX_LINE_FLAGS: one FLAG each)
     apart = {}
@@ -301,6 +301,11 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
     mod._merge_checks(apart, lines_file("x", 0.6677, 0.0020, 9.0))
     flags = [ln for ln in render_summary({"accel": {"bound": apart}}).splitlines() if ln.startswith("- FLAG lines")]
     assert len(flags) == 2 and "[adis_imu2/accel/z]: 0.5669 Hz" in flags[0] and "[adis_imu2/accel/x]: 0.6677 Hz" in flags[1]
+    # two detections of one line on one axis beside one on another: two axes, three detections
+    mod._merge_checks(one, lines_file("x", 0.5670, 0.0050, 60.0))
+    flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
+    assert flags[0].startswith("- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes, 3 detections) at "
+                               "0.5669-0.567 Hz"), flags
 
 
 def test_a_sensor_with_a_line_family_gets_one_flag_naming_every_frequency_and_the_strongest():
@@ -551,7 +556,7 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
     checks = [ln for ln in text.splitlines() if ln.startswith("- FLAG") or ln.startswith("- FAIL")]
     assert checks[0] == flag
     stat_line = next(ln for ln in checks if ln.startswith("- FLAG stationarity [trial/accel/x]"))
-    line_line = next(ln for ln in checks if ln.startswith("- FLAG lines [trial/accel/x,y]: one line on 2 axes"))
+    line_line = next(ln for ln in checks if ln.startswith("- FLAG lines [trial/accel/x,y]: one line (2 axes)"))
     assert "stuck span" in stat_line and "stuck span" in line_line
 
 
@@ -745,3 +750,16 @@ def test_the_line_search_band_is_stated_with_its_lower_limit():
     assert ("- line search (lines stage, each full-rate record): 0.052 to 49.95 Hz at 0.002 Hz resolution, "
             "family-wise level 0.01 per record and axis; a line below 0.052 Hz is not searched for") in text
     assert "line search" not in render_summary({"gyro": {"bound": _bound()}})
+
+
+def test_a_margin_at_one_within_round_off_is_not_called_a_failed_margin():
+    # an outside evaluation read "FAIL bound [...]: not bounded: margin 1 < 1" beside a contract whose PSD margin
+    # held (0.9999999999999998, within the one tolerance imupipe.verdict.BOUNDED_TOLERANCE)
+    from imupipe.verdict import BOUNDED_TOLERANCE
+
+    failed = _bound(bounded=False, margin=1.0 - 2e-16, failed_checks=[
+        {"check": "allan_components", "component": "random_walk", "ratio": 0.27, "tau_s": 64.0}])
+    fl = {f.check: f for f in flags_of("gyro", bound=failed) if f.severity == "fail"}
+    assert "bound" not in fl and "the PSD margin 1 holds" in fl["verdict"].detail
+    short = _bound(bounded=False, margin=1.0 - 10 * BOUNDED_TOLERANCE)
+    assert any(f.check == "bound" and "margin" in f.detail for f in flags_of("gyro", bound=short))

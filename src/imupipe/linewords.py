@@ -66,8 +66,12 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
         top = max(g, key=lambda j: float(items[j].get("peak_ratio") or 0.0))
         return f"the strongest [{texts[top][0]}]: {texts[top][1]}"
 
+    def seen(g):  # on how many axes (records' axes) the line is seen, and in how many detections
+        n = len({texts[j][0] for j in g})
+        return (f"{n} axes" if n > 1 else "one axis") + (f", {len(g)} detections" if len(g) > n else "")
+
     def axes(g):
-        return f" ({len(g)} axes)" if len(g) > 1 else ""
+        return f" ({seen(g)})" if len(g) > 1 else ""
 
     if len(groups) > MAX_LINE_FLAGS:
         every = [j for g in groups for j in g]
@@ -75,7 +79,7 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
                  + ", ".join(_frequencies(items, g) + axes(g) for g in groups) + f" Hz; {strongest(every)}",
                  [texts[j][0] for j in every])]
     return [(texts[g[0]][0], texts[g[0]][1], [texts[g[0]][0]]) if len(g) == 1 else
-            (_places(texts, g), f"one line on {len(g)} axes at {_frequencies(items, g)} Hz; {strongest(g)}",
+            (_places(texts, g), f"one line ({seen(g)}) at {_frequencies(items, g)} Hz; {strongest(g)}",
              [texts[j][0] for j in g]) for g in groups]
 
 

@@ -22,7 +22,7 @@ from typing import Any
 from imupipe.linewords import line_reports, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, spec_unit
-from imupipe.verdict import chance_failures, unstated_t_max, within_tolerance
+from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, unstated_t_max, within_tolerance
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -205,7 +205,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += [Flag(sensor, "event", w, d + event_chance(bound)) for src in (bound, identify, stationarity)
             for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
-        if bound.get("margin") is None or float(bound["margin"]) < 1.0:
+        if bound.get("margin") is None or float(bound["margin"]) < 1.0 - BOUNDED_TOLERANCE:
             out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
                             f"{num(bound.get('margin_frequency_hz'))} Hz",
                             f"not bounded: margin {num(bound.get('margin'), '{:.4g}')} < 1", "fail"))

@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["chance_failures", "unstated_t_max", "within_tolerance"]
+__all__ = ["BOUNDED_TOLERANCE", "chance_failures", "unstated_t_max", "within_tolerance"]
+
+#: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
+#: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and
+#: the summary's verdict lines.
+BOUNDED_TOLERANCE = 1e-9
 
 
 def within_tolerance(check) -> str | None:

@@ -976,7 +976,9 @@ def integrity_contract(bound, allan=None, verification=None, export=None, interv
         verification ran and passed), ``failed_checks`` (list of {check, ...numbers}), ``checks_run``.
         A failing model is still exported by the caller, marked by this dict.
     """
-    eps = 1e-9
+    from imupipe.verdict import BOUNDED_TOLERANCE
+
+    eps = BOUNDED_TOLERANCE
     failed, run = [], []
     run.append("psd_margin")
     if not bound.margin >= 1 - eps:

@@ -13,6 +13,7 @@ from imupipe.bound.report import (  # noqa: F401
     BoundResult,
     _inflation,
 )
+from imupipe.verdict import BOUNDED_TOLERANCE
 
 
 #: Components a bound may hold (Kalman-filter states; flicker is represented by a GM).
@@ -21,7 +22,7 @@ BOUND_COMPONENTS = ("white", "gauss_markov", "random_walk")
 #: target at the bins: a candidate of ``bound.mode: auto``, docs/method.md "The auto bound").
 MODES = ("raw", "smoothed", "confidence", "pooled", "envelope")
 
-_EPS_BOUND = 1e-9  # a margin >= 1 - _EPS_BOUND counts as bounded
+_EPS_BOUND = BOUNDED_TOLERANCE  # a margin >= 1 - _EPS_BOUND counts as bounded (imupipe.verdict)
 #: Low-frequency band merging of the confidence mode (degrees of freedom per band).
 DEFAULT_MIN_EDF = 30.0
 
