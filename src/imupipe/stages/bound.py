@@ -146,7 +146,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     from imupipe.io import plain
     from imupipe.models import NoiseModel
     from imupipe.lines import line_policy_from_files
-    from imupipe.stages.identify import selected_model
+    from imupipe.stages.identify import fitted_model
 
     f = np.asarray(frequency, dtype=np.float64)
     curves = {k: np.asarray(v) for k, v in psd.items()}
@@ -182,7 +182,8 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             labels.append(lab)
             avars.append(a)
             edfs.append(e)
-        checked = check_allan(result.model, selected_model(identified), tau, kept=kept,
+        ref, ref_kept = fitted_model(identified, kept)
+        checked = check_allan(result.model, ref, tau, kept=ref_kept,
                               sample_avar=np.array(avars), sample_edf=np.array(edfs), labels=labels,
                               span_s=span_s, tau_min_s=tau_min_s)
         out["allan_check"] = plain(checked)
@@ -215,7 +216,8 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
                      "lines": line_kw[ax][1].to_dict() if line_kw.get(ax, ({}, None))[1] is not None else None}
             if allan is not None:
                 sel = [labels.index(lab) for lab in labs if lab in labels]
-                al_ax = check_allan(res.model, selected_model(axes_fit[ax]), allan[0], kept=kept,
+                ref, ref_kept = fitted_model(axes_fit[ax], kept)
+                al_ax = check_allan(res.model, ref, allan[0], kept=ref_kept,
                                     sample_avar=np.array(avars)[sel], sample_edf=np.array(edfs)[sel],
                                     labels=[labels[j] for j in sel], span_s=span_s, tau_min_s=tau_min_s)
                 entry |= {"allan_check": plain(al_ax), "allan_check_passed": bool(al_ax["passed"])}

@@ -32,17 +32,19 @@ def bound_model(d):
 
 def identified_shown(identify: dict):
     """The identified model Figure 6 draws (SI :class:`~imupipe.models.NoiseModel`): the kept components of the
-    selected refit (:func:`imupipe.stages.identify.selected_model`, what the bound's component check compares
-    with) and the components the selection dropped at their values in the fit with every component (drawn
+    selected refit as fitted (:func:`imupipe.stages.identify.fitted_model`, what the bound's component check
+    compares with) and the components the selection dropped at their values in the fit with every component (drawn
     dotted)."""
     from dataclasses import replace
 
     from imupipe.models import NoiseModel
-    from imupipe.stages.identify import selected_model
+    from imupipe.stages.identify import fitted_model
 
     full = NoiseModel.from_dict(identify["model"])
+    fitted = fitted_model(identify)[0]
     dropped = [c for c in identify["selection"]["dropped"] if hasattr(full, c)]
-    return replace(selected_model(identify), **{c: getattr(full, c) for c in dropped})
+    # a GM re-assigned after the fit is in the refit as fitted, not dropped from it
+    return replace(fitted, **{c: getattr(full, c) for c in dropped if not (c == "gauss_markov" and fitted.gauss_markov)})
 
 
 def line_aliases(paths: list, dt: float) -> list:

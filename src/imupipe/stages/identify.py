@@ -36,7 +36,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 __all__ = ["SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope", "envelope_ratio",
-           "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope", "selected_model"]
+           "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope",
+           "selected_model"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
 SEED_FIT, SEED_POOLING = 20211, 20212
@@ -53,15 +54,28 @@ UNITS = ("SI (u = rad/s or m/s^2): white u/sqrt(Hz), random_walk u/sqrt(s), flic
 
 
 def selected_model(doc: dict):
-    """The identified model of an identify file (or of one of its ``per_axis`` entries) that a bound is compared
-    with, component by component, and that inflation factors and figures are read against: the selected refit
-    (``model_selected``: the kept components, a re-assigned GM as the white noise or random walk it acts as), the
-    parameters the identification reports and the bound covers. ``model`` (the fit with every allowed component)
-    where there is no ``model_selected`` (a ``per_axis`` entry, whose ``model`` is the axis's selected refit).
-    Returns an SI :class:`~imupipe.models.NoiseModel`."""
+    """The identified model of an identify file (or of one of its ``per_axis`` entries) that the identification
+    reports and inflation factors are read against: the selected refit (``model_selected``: the kept components, a GM
+    the records do not resolve re-assigned to the white noise or random walk it acts as); ``model`` where there is
+    no ``model_selected`` (a ``per_axis`` entry, whose ``model`` is the axis's). SI
+    :class:`~imupipe.models.NoiseModel`."""
     from imupipe.models import NoiseModel
 
     return NoiseModel.from_dict(doc.get("model_selected") or doc["model"])
+
+
+def fitted_model(doc: dict, kept=None):
+    """The identified model a bound's components are compared with, each its own (the Allan-domain component check,
+    Figure 6), and the components it kept: the selected refit as fitted, before any re-assignment (``model_refit``,
+    ``model_refit_kept``), so that a GM the records do not resolve is checked as the GM the data gave (by the bound's
+    GM, then GM + white, then GM + white + random walk) and not as the random walk it acts as only at taus well below
+    its T. A file without ``model_refit``: :func:`selected_model` and `kept`. Returns (SI
+    :class:`~imupipe.models.NoiseModel`, list of component names)."""
+    from imupipe.models import NoiseModel
+
+    if doc.get("model_refit"):
+        return NoiseModel.from_dict(doc["model_refit"]), list(doc.get("model_refit_kept") or kept or [])
+    return selected_model(doc), kept
 
 
 class Curve(NamedTuple):
@@ -355,6 +369,8 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
                                           band_confidence=band_confidence)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
+                          "model_refit": getattr(fa, "envelope_fit", fa).model.to_dict(),
+                          "model_refit_kept": list(getattr(fa, "envelope_kept", selection["kept"])),
                           "params": d["params"], "intervals": d["intervals"], "adequacy": d["adequacy"],
                           "on_boundary": d["on_boundary"], "interval_kind": d["interval_kind"],
                           "conservative": d["conservative"],
@@ -446,6 +462,9 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "fit": fit.to_dict(),  # the full fit (every allowed component); `selected` inside: the refit
         "model": fit.model.to_dict(),
         "model_selected": selected.model.to_dict(),  # the parameters to report and bound
+        # the same refit before any re-assignment: what the bound's component check compares with (fitted_model)
+        "model_refit": getattr(selected, "envelope_fit", selected).model.to_dict(),
+        "model_refit_kept": list(getattr(selected, "envelope_kept", kept)),
         "selection": {k: selection[k] for k in ("kept", "dropped", "reasons", "reduced_model", "band_hz")},
         "adequacy": {"pooled": selected.to_dict()["adequacy"], "full_fit": fit.to_dict()["adequacy"],
                      "per_curve": {c["label"]: {k: c[k] for k in ("chi2", "dof", "chi2_per_dof", "p_value",
