@@ -178,3 +178,54 @@ def test_identification_stage_takes_the_lines_files_lines_as_known_terms():
     # (a GM of T < 5 s, or, where its T is not one the records resolve, re-assigned to the white noise it acts as)
     gms = blind["model_selected"]["gauss_markov"]
     assert (gms and gms[0]["T"] < 5.0) or blind["gm_reassigned"], (gms, blind["gm_reassigned"])
+
+
+def test_the_envelope_holds_each_line_at_the_upper_confidence_limit_of_its_power():
+    """An outside evaluation's 150 deg/h line (0.3 Hz, damping 0.002; two 2 h records) was estimated at 141 deg/h,
+    the envelope carried the estimate, and a filter on the bound under-stated its error in the first step (MSE/P
+    1.003). The envelope now takes each line at P1 nu / chi2_nu(1 - c), nu = 2 K max(1, Gamma / df) (one complex
+    Fourier coefficient per segment for a line narrower than a bin), and the merged line at its largest power and
+    fewest degrees of freedom (an upper limit at least every member's)."""
+    from scipy.stats import chi2
+
+    from imupipe.lines import Line, merge_lines
+    from imupipe.stages.identify import _with_lines
+
+    def line(p, dof, f=0.3):
+        return Line(frequency_hz=f, power=p, amplitude=math.sqrt(2 * p), sigma=math.sqrt(p), width_hz=0.002,
+                    zeta=0.002 / 0.6, peak_ratio=500.0, f_lo_hz=f - 0.01, f_hi_hz=f + 0.01, resolution_hz=0.002,
+                    dof=dof)
+
+    env = {"white": 1e-5, "gauss_markov": [], "random_walk": 0.0}
+    out = _with_lines(env, {"a/z": [line(4.0e-7, 28.0)], "b/z": [line(4.6e-7, 56.0)]}, confidence=0.95)
+    (term,) = out["narrowband"]
+    assert term["sigma"] ** 2 == pytest.approx(4.6e-7 * 28.0 / chi2.ppf(0.05, 28.0), rel=1e-12)
+    assert merge_lines([line(4.0e-7, 28.0), line(4.6e-7, 56.0)])[0].dof == 28.0
+    # a lines file written before the degrees of freedom were recorded: the estimate, as before
+    assert _with_lines(env, {"a/z": [line(4.0e-7, None)]})["narrowband"][0]["sigma"] == pytest.approx(math.sqrt(4e-7))
+
+
+def test_the_line_power_upper_limit_covers_a_simulated_damped_line():
+    """Coverage by simulation of the upper limit above: the evaluation's line (150 deg/h at 0.3 Hz, damping 0.002,
+    white 0.1 deg/sqrt(h); one 2 h record at 20 Hz, resolution 0.002 Hz: K = 14 segments, nu = 28) in 40 records of
+    their own seeds; the limit at 0.95 must cover the true power in at least 34 of 40 (P(X <= 33 | 40, 0.95) = 0.014)
+    and the power estimate must be unbiased to within its spread (median power / truth in [0.8, 1.2])."""
+    from scipy.stats import chi2
+
+    from imupipe.lines import find_lines
+    from imupipe.models import NoiseModel
+    from imupipe.simulate import simulate
+
+    d = math.pi / 180 / 3600
+    s, f0, rate = 150 * d, 0.3, 20.0
+    m = NoiseModel(white=0.1 * math.pi / 180 / 60, narrowband=((s, f0, 0.002),))
+    rng = np.random.default_rng(2718)
+    covered, ratios = 0, []
+    for _ in range(40):
+        res = find_lines(simulate(m, int(2 * 3600 * rate), rate, rng=rng), rate, resolution_hz=0.002)
+        ln = max((x for x in res.lines if abs(x.frequency_hz - f0) < 0.02), key=lambda x: x.power)
+        assert ln.dof == pytest.approx(28.0)
+        covered += ln.power * ln.dof / chi2.ppf(0.05, ln.dof) >= s * s
+        ratios.append(ln.power / s**2)
+    assert covered >= 34, covered
+    assert 0.8 <= float(np.median(ratios)) <= 1.2

@@ -145,6 +145,12 @@ class Line:
         Interval the line occupies at full rate (merged significant bins plus the Hann main lobe), Hz.
     resolution_hz : float
         Bin spacing of the detection spectrum, Hz.
+    dof : float or None
+        Equivalent degrees of freedom of the power estimate, dimensionless: 2 per averaged segment and per
+        resolution cell the line spans, :math:`2 K \max(1, \Gamma / df)` (a line narrower than a bin is one
+        complex Fourier coefficient per segment, its power a scaled chi-squared with 2 K degrees of freedom); the
+        identification's envelope takes the line at its upper confidence limit from it. None: not recorded (a lines
+        file written before it was).
     """
 
     frequency_hz: float
@@ -157,6 +163,7 @@ class Line:
     f_lo_hz: float
     f_hi_hz: float
     resolution_hz: float
+    dof: float | None = None
 
     @property
     def narrowband(self) -> tuple:
@@ -164,14 +171,15 @@ class Line:
         return (self.sigma, self.frequency_hz, self.zeta)
 
 
-def _line(f0, power, width_hz, peak_ratio, f_lo_hz, f_hi_hz, resolution_hz) -> Line:
+def _line(f0, power, width_hz, peak_ratio, f_lo_hz, f_hi_hz, resolution_hz, dof=None) -> Line:
     """A :class:`Line` from its centre f0 (Hz), power P1 (u^2) and half-power width Gamma (Hz): amplitude
     sqrt(2 P1) (u), sigma sqrt(P1) (u), damping ratio zeta = min(Gamma / (2 f0), 1/2); the other fields as given
-    (peak ratio dimensionless, interval and resolution Hz)."""
+    (peak ratio dimensionless, interval and resolution Hz, degrees of freedom)."""
     power = float(power)
     return Line(frequency_hz=float(f0), power=power, amplitude=math.sqrt(2.0 * power), sigma=math.sqrt(power),
                 width_hz=float(width_hz), zeta=float(min(width_hz / (2.0 * f0), 0.5)), peak_ratio=float(peak_ratio),
-                f_lo_hz=float(f_lo_hz), f_hi_hz=float(f_hi_hz), resolution_hz=float(resolution_hz))
+                f_lo_hz=float(f_lo_hz), f_hi_hz=float(f_hi_hz), resolution_hz=float(resolution_hz),
+                dof=None if dof is None else float(dof))
 
 
 _LINE_UNITS = {
@@ -185,6 +193,7 @@ _LINE_UNITS = {
     "f_lo_hz": "Hz",
     "f_hi_hz": "Hz",
     "resolution_hz": "Hz",
+    "dof": "1",
 }
 
 
@@ -430,7 +439,7 @@ def find_lines(
             f0 = float(np.sum(fk * ep) / np.sum(ep))
             enbw = power / float(ep.max())
             gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
-            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df))
+            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df, dof=2.0 * K * max(1.0, gamma_w / df)))
     return LineSearch(
         lines=tuple(lines),
         rate_hz=rate,
@@ -533,9 +542,10 @@ def overlap_groups(intervals) -> list[list[int]]:
 def merge_lines(lines) -> list:
     """Merge lines (e.g. from several axes and records) whose full-rate intervals overlap into one each.
 
-    The merged line's frequency is the power-weighted mean, its interval the union, its power the largest, and
-    its width the largest of the members' widths and of the spread of their frequencies, so that one fixed-shape
-    narrowband column covers every member's peak. Returns a list of :class:`Line` sorted by frequency.
+    The merged line's frequency is the power-weighted mean, its interval the union, its power the largest, its
+    degrees of freedom the fewest (so that its upper confidence limit is at least every member's; None if a member
+    has none), and its width the largest of the members' widths and of the spread of their frequencies, so that one
+    fixed-shape narrowband column covers every member's peak. Returns a list of :class:`Line` sorted by frequency.
     """
     lines = list(lines)
     groups = [[lines[i] for i in g] for g in overlap_groups([(ln.f_lo_hz, ln.f_hi_hz) for ln in lines])]
@@ -545,8 +555,10 @@ def merge_lines(lines) -> list:
         fr = np.array([m.frequency_hz for m in g])
         f0 = float(np.sum(w * fr) / np.sum(w))
         width = max(max(m.width_hz for m in g), float(fr.max() - fr.min()))
+        dofs = [m.dof for m in g]
         out.append(_line(f0, float(w.max()), width, max(m.peak_ratio for m in g), min(m.f_lo_hz for m in g),
-                         max(m.f_hi_hz for m in g), max(m.resolution_hz for m in g)))
+                         max(m.f_hi_hz for m in g), max(m.resolution_hz for m in g),
+                         dof=None if any(d is None for d in dofs) else min(dofs)))
     return sorted(out, key=lambda ln: ln.frequency_hz)
 
 
