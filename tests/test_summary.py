@@ -158,6 +158,15 @@ def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
     # beside the file): the line says what the file is
     late = end_of_run_text(str(res), "logs/t", md, failed=True)
     assert f"{md} was written before the failure and does not cover the failed job" in late
+    # the integrity job failed the run on purpose (NOT BOUNDED, verify.on_failure: fail) after the summary job: the
+    # summary is the verdict, not partial (an outside evaluation read "partial, not a verdict" beside NOT BOUNDED)
+    gate = tmp_path / "logs" / "t" / "contract" / "verdict.log"
+    gate.parent.mkdir(parents=True)
+    gate.write_text("ERROR imupipe integrity: NOT BOUNDED (gyro against STIM-300: allan components).\n")
+    md.write_text("# summary\n\n**Verdict:** gyro: NOT BOUNDED; 1 failed\n")
+    gated = end_of_run_text(str(res), str(tmp_path / "logs" / "t"), md, failed=True)
+    assert "**Verdict:** gyro: NOT BOUNDED" in gated and "partial" not in gated
+    assert gated.rstrip().splitlines()[-1].startswith("NOT BOUNDED: the integrity job failed the run on purpose")
 
 
 def test_markdown_to_html_renders_the_summary_and_the_inflation_table():

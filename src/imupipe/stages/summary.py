@@ -182,7 +182,12 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
     from imupipe.summary import first_screen
 
     md, text = Path(summary_md), ""
-    if not failed and md.is_file():
+    gate = Path(logs) / "contract" / "verdict.log"  # the integrity job's log (rule integrity)
+    # a run whose only verdict is NOT BOUNDED fails in its integrity job, on purpose, after the summary job: that
+    # summary is complete (a run starts by removing its stale outputs, so it is this run's), not partial
+    not_bounded = (failed and md.is_file() and gate.is_file()
+                   and "imupipe integrity: NOT BOUNDED" in gate.read_text(errors="replace"))
+    if (not failed or not_bounded) and md.is_file():
         text = md.read_text()
     elif Path(results).is_dir():
         text = summarise_results(results)
@@ -191,7 +196,10 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
         why = "; a job failed, so no check count below says the run passed" if failed else ""
         text = f"(partial: from the files this run has written so far{why})\n{text}" if text else ""
     parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
-    if failed:  # a run starts by removing its stale outputs: a summary.md here was written by this run
+    if not_bounded:
+        parts.append(f"NOT BOUNDED: the integrity job failed the run on purpose (verify.on_failure: fail; warn makes "
+                     f"it a warning); the verdict and its details: {md} (another job that failed is named above)")
+    elif failed:  # a run starts by removing its stale outputs: a summary.md here was written by this run
         parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); " +
                      (f"{md} was written before the failure and does not cover the failed job." if md.is_file()
                       else "summary.md is written only by a complete run."))
