@@ -123,7 +123,7 @@ _HANN_CORR_FACTOR = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0)  # variance factor of a
 
 @dataclass(frozen=True)
 class Line:
-    """One detected narrowband line (full-rate spectrum; see the module docstring for the estimators).
+    r"""One detected narrowband line (full-rate spectrum; see the module docstring for the estimators).
 
     Attributes
     ----------
