@@ -125,7 +125,7 @@ def test_envelope_mode_needs_the_envelope():
 
 def _identified(kind="joint", note=None, consistent=True, adequate=True, axes=None):
     """An identify record as candidate_modes reads it; `axes` {axis: (band note or None, adequate)}: the per-axis
-    entries of a record whose pooling test rejects one model (each band at 1 - 0.05/k)."""
+    entries of a record whose pooling test rejects one model (each band at 0.95)."""
     rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "worst_ratio_to_band": 1.05}
     if note:
         rec = {"band_hz": [1 / SPAN, 0.5], "confidence": 0.95, "note": note}
@@ -135,7 +135,7 @@ def _identified(kind="joint", note=None, consistent=True, adequate=True, axes=No
     if kind != "marginal":
         out |= {"upper_envelope_kind": kind, "upper_envelope_joint": rec}
     if axes is not None:
-        level = 1 - 0.05 / len(axes)
+        level = 0.95
         out["per_axis"] = {
             ax: {"adequacy": {"adequate": ok, "chi2_per_dof": 1.0 if ok else 9.0, "p_value": 0.5 if ok else 1e-9},
                  **({"upper_envelope_joint": {"band_hz": [1 / SPAN, 0.5], "confidence": level,
@@ -171,12 +171,13 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
 
 def test_curves_that_are_not_pooled_build_the_envelope_candidate_on_every_axis_band():
     # a pooling false alarm (its 1 % by design) removed the envelope candidate of five records of one truth; with
-    # every axis's own band (Bonferroni over the axes) and fit in order, the candidate is built on their envelope
+    # every axis's own band and fit in order, the candidate is built on their envelope, its level stated as the
+    # Bonferroni bound over the axes
     ident = _identified(consistent=False, adequate=False, axes={"x": (None, True), "y": (None, True),
                                                                  "z": (None, True)})
     modes, why = candidate_modes(ident)
     assert modes == AUTO_MODES + (ENVELOPE_MODE,), why
-    assert "level 0.983 per axis over 3 axes, family-wise 0.95" in why, why
+    assert "level 0.95 per axis over 3 axes: together at least 0.85 (Bonferroni)" in why, why
 
 
 @pytest.mark.slow

@@ -313,9 +313,9 @@ class TestPerAxisIdentification:
         assert mod.envelope(only_kept, selection["kept"], curves, 0.95, 1200.0).random_walk == 0.0
 
 
-    def test_each_axis_band_is_at_the_bonferroni_level_so_the_axes_together_are_one_statement(self):
-        # where the pooling test rejects one model, each axis's joint band is at 1 - (1 - c)/k over the k axes: the
-        # auto bound's envelope candidate then rests on one family-wise statement at c for every curve
+    def test_each_axis_records_its_joint_band(self):
+        # where the pooling test rejects one model, each axis's joint band is recorded (at the identification's
+        # level): the auto bound's envelope candidate is built on them only when every one is a joint band
         from imupipe.allan import allan_variance
         from imupipe.stages import identify as mod
 
@@ -331,7 +331,7 @@ class TestPerAxisIdentification:
         per = mod._per_axis(curves, ("white",), 1, selection, kw, 0.95, 1200.0, 5, envelope_kind="joint")
         for axis in "xyz":
             band = per[axis]["upper_envelope_joint"]
-            assert band["confidence"] == pytest.approx(1 - 0.05 / 3, rel=1e-12), band
+            assert band["confidence"] == pytest.approx(0.95, rel=1e-12), band
             assert not band.get("note") and band["worst_ratio_to_band"] is not None
         # the marginal kind records no band
         assert "upper_envelope_joint" not in mod._per_axis(curves, ("white",), 1, selection, kw, 0.95, 1200.0, 5)["x"]

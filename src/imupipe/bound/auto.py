@@ -52,8 +52,9 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     * the identify record's envelope is the joint one (``upper_envelope_kind: joint`` and its band record without a
       fallback note: at least 20 finite bootstrap replicates);
     * where the pooling test rejects one model for every curve (``pooling.consistent`` false), every axis's own
-      joint band is recorded (``per_axis[axis].upper_envelope_joint``, each at level 1 - (1 - c)/k over the k axes:
-      together one statement at c for every curve) and every axis's model describes its Allan variances; the
+      joint band is recorded (``per_axis[axis].upper_envelope_joint``, each at level c: over k axes they hold
+      together with probability at least 1 - k (1 - c), the level the reason states) and every axis's model
+      describes its Allan variances; the
       envelope the bound reads then dominates the pooled and every per-axis envelope (five records of one held-out
       truth lost the envelope candidate to a pooling false alarm, the test's 1 % by design, and the exported
       model's conservatism rose to 2.02: docs/performance.md), and the record-consistency test names no record
@@ -106,11 +107,12 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
             f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
             f"{rec.get('band_hz')} Hz) is the target")
     else:
-        levels = sorted({num(r.get("confidence")) for _, r in bands[1:]})
+        levels = [float(r.get("confidence")) for _, r in bands[1:]]
+        together = max(0.0, 1.0 - sum(1.0 - c for c in levels))
         return AUTO_MODES + (ENVELOPE_MODE,), (
             f"built: the pooling test rejects one model for every curve, so the target dominates the pooled joint "
-            f"envelope and each axis's own (bands at level {', '.join(levels)} per axis over {len(axes)} axes, "
-            f"family-wise {num(rec.get('confidence'))}, over {rec.get('band_hz')} Hz)")
+            f"envelope and each axis's own (bands at level {', '.join(sorted({num(c) for c in levels}))} per axis "
+            f"over {len(axes)} axes: together at least {num(together)} (Bonferroni), over {rec.get('band_hz')} Hz)")
     return AUTO_MODES, why
 
 

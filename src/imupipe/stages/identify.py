@@ -121,16 +121,15 @@ def curves_of(av) -> list[Curve]:
 ENVELOPE_KINDS = ("marginal", "joint")
 
 
-def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "marginal",
-             band_confidence: float | None = None):
+def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "marginal"):
     """The upper confidence envelope of the kept components of `fit`, SI :class:`~imupipe.models.NoiseModel`.
 
     `kind` ``"marginal"`` (default, the paper's): :func:`imupipe.bound.upper_envelope`, every component at its
     upper limit at once (a GM time constant the data leave open covered for f >= 1/span_s, span_s in s: fix period
     + outage), its random walk at most what the curves' Allan variances allow (:func:`imupipe.bound.random_walk_cap`
     at `confidence`). ``"joint"``: :func:`imupipe.identify.joint.joint_envelope`, the model above the simultaneous
-    band of the fit's PSD over its bootstrap replicates at `band_confidence` (default `confidence`; family-wise over
-    1/span_s .. half the records' rate); the marginal one where the fit has no bootstrap."""
+    band of the fit's PSD over its bootstrap replicates at `confidence` (family-wise over 1/span_s .. half
+    the records' rate); the marginal one where the fit has no bootstrap."""
     from imupipe.bound import random_walk_cap, upper_envelope
     from imupipe.bound.allan_check import gm_sigma_cap
 
@@ -146,8 +145,7 @@ def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "m
         from imupipe.identify.joint import joint_envelope
 
         # below the band: the marginal envelope's random walk (its upper limit, capped by the Allan variances)
-        env, rec = joint_envelope(fit, kept, span_s, 0.5 * min(float(c[5]) for c in curves),
-                                  confidence if band_confidence is None else band_confidence,
+        env, rec = joint_envelope(fit, kept, span_s, 0.5 * min(float(c[5]) for c in curves), confidence,
                                   random_walk_min=marginal.random_walk)
         fit.joint_envelope = rec  # the band's record (identify file: ``upper_envelope_joint``)
         if env is not None:
@@ -156,8 +154,7 @@ def envelope(fit, kept, curves, confidence: float, span_s: float, kind: str = "m
 
 
 def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: float, span_s: float,
-                          seed: int = SEED_FIT, T_range: dict | None = None, envelope_kind: str = "marginal",
-                          band_confidence: float | None = None):
+                          seed: int = SEED_FIT, T_range: dict | None = None, envelope_kind: str = "marginal"):
     """The selected refit of `fit` on `curves` (:func:`imupipe.identify.refit_selected`: a random walk the
     selection dropped keeps its upper limit, the GM intervals their hull with the fit with a random walk) and its
     upper envelope (:func:`envelope`); the one rule of the pooled and the per-axis identification. `seed`: the
@@ -167,8 +164,7 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
     the envelope is that of the re-assigned model, dominating the GM's own envelope (its box over the T interval)
     too where the statistical T interval is open above (:func:`imupipe.models.dominating_model`): the envelope only
     grows where the data leave it open. `envelope_kind`: :func:`envelope`'s `kind`; ``"joint"`` takes the band of
-    the refit before any re-assignment (its replicates are of the model fitted to the data), its band at
-    `band_confidence` (default `confidence`)."""
+    the refit before any re-assignment (its replicates are of the model fitted to the data)."""
     from imupipe.identify import refit_selected
     from imupipe.identify.resolve import reassign_unresolved_gm
 
@@ -177,14 +173,14 @@ def selected_and_envelope(fit, selection, curves, fit_kw: dict, confidence: floa
     kept = list(selection["kept"])
     if T_range is None:
         selected.envelope_fit, selected.envelope_kept = selected, kept
-        return selected, envelope(selected, kept, curves, confidence, span_s, envelope_kind, band_confidence)
+        return selected, envelope(selected, kept, curves, confidence, span_s, envelope_kind)
     # a GM the records do not resolve is reported and bounded as the white noise or random walk it acts as
     before = selected
     selected, kept, moved = reassign_unresolved_gm(selected, kept, T_range)
     selected.reassigned, selected.kept_after = moved, kept
     selected.envelope_fit, selected.envelope_kept = before, list(selection["kept"])
     if envelope_kind == "joint":
-        env = envelope(before, list(selection["kept"]), curves, confidence, span_s, envelope_kind, band_confidence)
+        env = envelope(before, list(selection["kept"]), curves, confidence, span_s, envelope_kind)
         selected.joint_envelope = getattr(before, "joint_envelope", None)
         return selected, env
     env = envelope(selected, kept, curves, confidence, span_s)
@@ -350,14 +346,14 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry. Under the joint envelope each
-    axis's band is at level 1 - (1 - `confidence`) / k over the k axes (Bonferroni), so that the per-axis bands
-    together are one statement at `confidence` for every curve, as the pooled band is (``upper_envelope_joint``
-    of each entry)."""
+    axis's band is at `confidence`, recorded as the entry's ``upper_envelope_joint`` (over k axes the bands hold
+    together with probability at least 1 - k (1 - `confidence`); a band at the Bonferroni level 1 - (1 - c)/k was
+    tried: with the workflow's 100 bootstrap replicates it is their largest sup statistic, and one outlying
+    replicate raised an axis's envelope, and with it the exported random walk, 16x above its own interval)."""
     from imupipe.identify import fit_allan
 
     per_axis = {}
     axes = sorted({c[6] for c in curves})
-    band_confidence = 1.0 - (1.0 - float(confidence)) / len(axes)
     for axis in axes:
         idx = [i for i, c in enumerate(curves) if c[6] == axis]
         ax_curves = [curves[i] for i in idx]
@@ -365,8 +361,7 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
         full = fit_allan([c[1] for c in ax_curves], [c[2] for c in ax_curves], [c[3] for c in ax_curves],
                          components=components, n_gm=n_gm, rng=seed, **{**kw, "n_boot": 0})
         fa, env_a = selected_and_envelope(full, selection, ax_curves, kw, confidence, span, seed=seed,
-                                          T_range=T_range, envelope_kind=envelope_kind,
-                                          band_confidence=band_confidence)
+                                          T_range=T_range, envelope_kind=envelope_kind)
         d = fa.to_dict()
         per_axis[axis] = {"curves": [c[0] for c in ax_curves], "model": fa.model.to_dict(),
                           "model_refit": getattr(fa, "envelope_fit", fa).model.to_dict(),
