@@ -54,10 +54,10 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     * where the pooling test rejects one model for every curve (``pooling.consistent`` false), every axis's own
       joint band is recorded (``per_axis[axis].upper_envelope_joint``, each at level c: over k axes they hold
       together with probability at least 1 - k (1 - c), the level the reason states) and every axis's model
-      describes its Allan variances; the
-      envelope the bound reads then dominates the pooled and every per-axis envelope (five records of one held-out
-      truth lost the envelope candidate to a pooling false alarm, the test's 1 % by design, and the exported
-      model's conservatism rose to 2.02: docs/performance.md), and the record-consistency test names no record
+      describes its Allan variances; the envelope the bound reads then dominates the pooled and every per-axis
+      envelope (five records of one held-out truth lost the envelope candidate to a pooling false alarm, the
+      test's 1 % by design, and the exported model's conservatism rose to 2.02: docs/performance.md), and the
+      record-consistency test names no record
       (``record_consistency.flagged``): per-axis envelopes answer axes that differ, not records that do, whose
       differences only the candidates built from every sample PSD cover;
     * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the

@@ -578,10 +578,7 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
     r"""The envelope `env` (:meth:`NoiseModel.to_dict`, SI) with the curves' lines as narrowband terms: merged as
     the bound's line policy merges them (:func:`imupipe.lines.merge_lines`: one term per group of overlapping lines,
     its power the largest member's, its width covering every member), each at the upper confidence limit of its power
-    at `confidence`, :math:`P_1\,
-u / \chi^2_
-u(1 - c)` with the line's degrees of freedom :math:`
-u`
+    at `confidence`, :math:`P_1\,\nu / \chi^2_\nu(1 - c)` with the line's degrees of freedom :math:`\nu`
     (:attr:`imupipe.lines.Line.dof`; its point estimate where the lines file records none); sigma = sqrt(power) u,
     f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not exclude: an outside
     evaluation's 150 deg/h line (two 2 h records) was estimated at 141 deg/h, and a filter on the bound that carried
