@@ -439,7 +439,8 @@ def find_lines(
             f0 = float(np.sum(fk * ep) / np.sum(ep))
             enbw = power / float(ep.max())
             gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
-            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df, dof=2.0 * K * max(1.0, gamma_w / df)))
+            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df,
+                               dof=2.0 * K * max(1.0, gamma_w / df)))
     return LineSearch(
         lines=tuple(lines),
         rate_hz=rate,

@@ -10,7 +10,6 @@ summary stage), strings out.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 from imupipe.shown import num
@@ -28,7 +27,7 @@ def line_text(it: Mapping) -> tuple[str, str]:
     sigma), and its peak PSD over the running-median floor (``peak_ratio``, dimensionless)."""
     units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
     where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
-    f = it.get("frequency_hz", it.get("f0_hz"))
+    f = _frequency(it)
     parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
     if it.get("amplitude") is not None:
         parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
@@ -50,17 +49,14 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
     from imupipe.lines import overlap_groups
 
     texts = [line_text(it) for it in items]
+    placed = [j for j, it in enumerate(items) if _frequency(it) is not None]  # an entry without one: a line apart
 
-    def interval(j):
-        it = items[j]
-        f = it.get("frequency_hz", it.get("f0_hz"))
+    def interval(it):
         lo, hi = it.get("f_lo_hz"), it.get("f_hi_hz")
-        if lo is None or hi is None:
-            lo = hi = f
-        return (float(lo), float(hi)) if lo is not None else (math.inf, math.inf)  # no frequency: a line apart
+        return (float(lo), float(hi)) if lo is not None and hi is not None else (float(_frequency(it)),) * 2
 
-    groups = overlap_groups([interval(j) for j in range(len(items))])
-    groups = [g for grp in groups for g in ([grp] if interval(grp[0])[0] < math.inf else [[j] for j in grp])]
+    groups = [[placed[k] for k in g] for g in overlap_groups([interval(items[j]) for j in placed])]
+    groups += [[j] for j in sorted(set(range(len(items))) - set(placed))]
 
     def strongest(g):
         top = max(g, key=lambda j: float(items[j].get("peak_ratio") or 0.0))
@@ -85,11 +81,16 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
 
 def _frequencies(items: list, g: list) -> str:
     """The frequency of the lines `g` of `items` (a number, Hz), or their range where they differ in 4 digits."""
-    fr = sorted(float(f) for f in (items[j].get("frequency_hz", items[j].get("f0_hz")) for j in g) if f is not None)
+    fr = sorted(float(f) for f in (_frequency(items[j]) for j in g) if f is not None)
     if not fr:
         return "-"
     lo, hi = num(fr[0], "{:.4g}"), num(fr[-1], "{:.4g}")
     return lo if lo == hi else f"{lo}-{hi}"
+
+
+def _frequency(it: Mapping):
+    """A line entry's frequency (Hz): ``frequency_hz`` of a lines file, ``f0_hz`` of a narrowband term; None."""
+    return it.get("frequency_hz", it.get("f0_hz"))
 
 
 def _places(texts: list, g: list) -> str:

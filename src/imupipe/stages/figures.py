@@ -44,7 +44,8 @@ def identified_shown(identify: dict):
     fitted = fitted_model(identify)[0]
     dropped = [c for c in identify["selection"]["dropped"] if hasattr(full, c)]
     # a GM re-assigned after the fit is in the refit as fitted, not dropped from it
-    return replace(fitted, **{c: getattr(full, c) for c in dropped if not (c == "gauss_markov" and fitted.gauss_markov)})
+    return replace(fitted, **{c: getattr(full, c) for c in dropped
+                              if not (c == "gauss_markov" and fitted.gauss_markov)})
 
 
 def line_aliases(paths: list, dt: float) -> list:
