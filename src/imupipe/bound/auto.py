@@ -51,13 +51,16 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
 
     * the identify record's envelope is the joint one (``upper_envelope_kind: joint`` and its band record without a
       fallback note: at least 20 finite bootstrap replicates);
-    * where the pooling test rejects one model for every curve (``pooling.consistent`` false), every axis's own
-      joint band is recorded (``per_axis[axis].upper_envelope_joint``, each at level c: over k axes they hold
-      together with probability at least 1 - k (1 - c), the level the reason states) and every axis's model
-      describes its Allan variances; the envelope the bound reads then dominates the pooled and every per-axis
-      envelope (five records of one held-out truth lost the envelope candidate to a pooling false alarm, the
-      test's 1 % by design, and the exported model's conservatism rose to 2.02: docs/performance.md), and the
-      record-consistency test names no record
+    * with more than one axis, every axis's own joint band is recorded (where the pooling test rejects one model
+      for every curve, ``pooling.consistent`` false: ``per_axis[axis].upper_envelope_joint``; where it accepts:
+      ``axis_envelopes[axis].upper_envelope_joint``), each at level c (over k axes they hold together with
+      probability at least 1 - k (1 - c), the level the reason states), and every axis's model describes its
+      Allan variances; the envelope the bound reads dominates the pooled and every per-axis envelope. Accepting
+      one model does not show the axes equal: a gyro z drifting 20 % more than x and y (two 1.5 h records) passed
+      the test (p 0.28), the pooled band lay under z's random walk and the candidate on it under-stated z's error
+      (MSE/P 1.07). Where the test rejects: five records of one held-out truth lost the envelope candidate to a
+      pooling false alarm, the test's 1 % by design, and the exported model's conservatism rose to 2.02
+      (docs/performance.md). Where the test rejects, also: the record-consistency test names no record
       (``record_consistency.flagged``): per-axis envelopes answer axes that differ, not records that do, whose
       differences only the candidates built from every sample PSD cover;
     * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the
@@ -74,16 +77,20 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     rec = identified.get("upper_envelope_joint")
     n_lines = sum(len((doc or {}).get("lines") or ()) for doc in (lines or {}).values())
     pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
-    axes = {} if pooled else (identified.get("per_axis") or {})
-    # what the bound reads: the pooled band and, where the curves are not pooled, each axis's band and fit
+    axes = (identified.get("axis_envelopes") if pooled else identified.get("per_axis")) or {}
+    # what the bound reads: the pooled band and each axis's band and fit (where pooled: ``axis_envelopes``)
     bands = [("pooled", rec)] + [(f"axis {ax}", e.get("upper_envelope_joint")) for ax, e in axes.items()]
-    fits = ([("selected model", (identified.get("adequacy") or {}).get("pooled") or {})] if pooled else
-            [(f"model of axis {ax}", e.get("adequacy") or {}) for ax, e in axes.items()])
+    fits = ([("selected model", (identified.get("adequacy") or {}).get("pooled") or {})] if pooled else []) + [
+        (f"model of axis {ax}", e.get("adequacy") or {}) for ax, e in axes.items()]
     open_band = next(((who, r) for who, r in bands
                       if not isinstance(r, dict) or r.get("note") or r.get("worst_ratio_to_band") is None), None)
     rejected = next(((who, a) for who, a in fits if a.get("adequate", True) is False), None)
+    n_axes = len({str(lab).rsplit("/", 1)[-1] for lab in identified.get("curves") or ()})
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
+    elif pooled and n_axes > 1 and not axes:
+        why = (f"not built: the identify file has no envelope of each of its {n_axes} axes (axis_envelopes: written "
+               "by this version's identify rule; re-run it), and the pooled band alone need not cover every axis")
     elif not pooled and not axes:
         why = "not built: the pooling test rejects one model for every curve, and the file has no per-axis fits"
     elif not pooled and ((identified.get("record_consistency") or {}).get("flagged")):
@@ -102,17 +109,19 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
         why = (f"not built: the data reject the {who} (adequacy: chi2/dof {num(a.get('chi2_per_dof'))}, p "
                f"{num(a.get('p_value'))}), so the joint band, the spread of that model's refits, does not cover what "
                "the model cannot represent; the candidates built from the sample PSDs bound the records' own spectra")
-    elif pooled:
+    elif pooled and not axes:
         return AUTO_MODES + (ENVELOPE_MODE,), (
             f"built: the joint envelope's band (level {rec.get('confidence')}, family-wise over "
             f"{rec.get('band_hz')} Hz) is the target")
     else:
         levels = [float(r.get("confidence")) for _, r in bands[1:]]
         together = max(0.0, 1.0 - sum(1.0 - c for c in levels))
+        why_axes = ("the pooling test rejects one model for every curve" if not pooled else
+                    "the pooling test accepts one model, which does not show the axes equal")
         return AUTO_MODES + (ENVELOPE_MODE,), (
-            f"built: the pooling test rejects one model for every curve, so the target dominates the pooled joint "
-            f"envelope and each axis's own (bands at level {', '.join(sorted({num(c) for c in levels}))} per axis "
-            f"over {len(axes)} axes: together at least {num(together)} (Bonferroni), over {rec.get('band_hz')} Hz)")
+            f"built: {why_axes}, so the target dominates the pooled joint envelope and each axis's own (bands at "
+            f"level {', '.join(sorted({num(c) for c in levels}))} per axis over {len(axes)} axes: together at least "
+            f"{num(together)} (Bonferroni), over {rec.get('band_hz')} Hz)")
     return AUTO_MODES, why
 
 
