@@ -208,6 +208,21 @@ class TestPolicy:
         assert m.width_hz == pytest.approx(0.01) and m.f_lo_hz == a.f_lo_hz and m.f_hi_hz == b.f_hi_hz
         assert len(merge_lines([_line(0.56), _line(1.69)])) == 2
 
+    def test_overlapping_intervals_of_two_lines_stay_two_lines(self):
+        # an outside evaluation's accelerometer: 0.06 Hz on x and y, 0.09 Hz on z, their full-rate intervals (Hann
+        # main lobes of strong lines) overlapping over 0.068-0.076 Hz. One merged column had to be as wide as their
+        # spread (damping 0.25) and 30x their power to cover both peaks; each keeps its own narrow column
+        x, y = _line(0.0597, 0.048, 0.076, power=2.9e-3, width=0.002), _line(0.0599, 0.048, 0.076, power=3.1e-3,
+                                                                              width=0.002)
+        z = _line(0.0901, 0.068, 0.108, power=2.7e-4, width=0.002)
+        merged = merge_lines([z, x, y])
+        assert [round(m.frequency_hz, 4) for m in merged] == [round((2.9 * 0.0597 + 3.1 * 0.0599) / 6.0, 4), 0.0901]
+        assert merged[0].width_hz == pytest.approx(0.002) and merged[1].width_hz == pytest.approx(0.002)
+        assert merged[0].power == pytest.approx(3.1e-3) and merged[1].power == pytest.approx(2.7e-4)
+        # one line through a chain: each neighbour's frequency inside the other's interval
+        chain = merge_lines([_line(0.50), _line(0.515), _line(0.53)])
+        assert len(chain) == 1 and chain[0].width_hz == pytest.approx(0.03)
+
     def test_bad_policy(self):
         with pytest.raises(ValueError, match="policy"):
             line_policy([], 1.0, self.band, "ignore")

@@ -3,8 +3,8 @@ it is seen on, and the band the line search covered.
 
 The lines stage (:func:`imupipe.lines.find_lines`) writes one file per dataset, sensor type and axis; a line of the
 sensor (a cooling fan, a dither frequency) is often found on every axis of every record. The summary names it once:
-lines whose full-rate intervals overlap are one line (:func:`imupipe.lines.overlap_groups`, the rule by which the
-bound merges them). Plain dicts in (the lines files' entries, tagged with dataset, sensor, axis and units by the
+lines each of whose frequency lies in the other's full-rate interval are one line
+(:func:`imupipe.lines.same_line_groups`, the rule by which the bound merges them). Plain dicts in (the lines files' entries, tagged with dataset, sensor, axis and units by the
 summary stage), strings out.
 """
 
@@ -41,21 +41,21 @@ def line_text(it: Mapping) -> tuple[str, str]:
 def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
     """The FLAG texts of the lines `items` of one sensor type: (where, detail, the places of its members).
 
-    One per line (:func:`line_text`); a line seen on several axes or records (full-rate intervals ``f_lo_hz`` to
-    ``f_hi_hz`` that overlap; an entry without them occupies its frequency alone) one text naming every axis and its
+    One per line (:func:`line_text`); a line seen on several axes or records (each member's frequency in another's
+    full-rate interval ``f_lo_hz`` to ``f_hi_hz``; an entry without them occupies its frequency alone) one text naming every axis and its
     strongest member (largest peak over the floor); more than :data:`MAX_LINE_FLAGS` lines (an accelerometer's line
     with its sidebands and harmonics) one text naming every frequency, on how many axes each is seen, and the
     strongest line."""
-    from imupipe.lines import overlap_groups
+    from imupipe.lines import same_line_groups
 
     texts = [line_text(it) for it in items]
     placed = [j for j, it in enumerate(items) if _frequency(it) is not None]  # an entry without one: a line apart
 
-    def interval(it):
-        lo, hi = it.get("f_lo_hz"), it.get("f_hi_hz")
-        return (float(lo), float(hi)) if lo is not None and hi is not None else (float(_frequency(it)),) * 2
+    def where(it):
+        f, lo, hi = float(_frequency(it)), it.get("f_lo_hz"), it.get("f_hi_hz")
+        return (f, float(lo), float(hi)) if lo is not None and hi is not None else (f, f, f)
 
-    groups = [[placed[k] for k in g] for g in overlap_groups([interval(items[j]) for j in placed])]
+    groups = [[placed[k] for k in g] for g in same_line_groups([where(items[j]) for j in placed])]
     groups += [[j] for j in sorted(set(range(len(items))) - set(placed))]
 
     def strongest(g):

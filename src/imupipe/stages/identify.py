@@ -390,6 +390,41 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
     return per_axis
 
 
+def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range,
+                     envelope_kind) -> None:
+    """Step 5 of the module docstring, into the identify record `out` (its ``pooling`` done; `env` the pooled
+    envelope, :class:`~imupipe.models.NoiseModel`): where the pooling test rejects one model, one identification per
+    axis (``per_axis``) and the envelope the bound reads (``upper_envelope_model``) dominating the pooled
+    (``upper_envelope_model_pooled``) and every axis's; where it accepts under the joint envelope with more than one
+    axis, the same envelope over each axis's own identification (``axis_envelopes``, :data:`AXIS_ENVELOPE_KEYS`)."""
+    from imupipe.models import NoiseModel, dominating_model
+
+    pooled = out["pooling"]["consistent"]
+    if pooled and (envelope_kind == "marginal" or len({c.axis for c in curves}) < 2):
+        out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
+        return
+    axes = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=T_range,
+                     envelope_kind=envelope_kind)
+    if pooled:
+        # the test's acceptance does not show the axes equal: a gyro z whose drift was 20 % above x and y's (two
+        # 1.5 h records per axis) passed it (p 0.28), the pooled joint band lay below z's random walk and a filter
+        # on the envelope candidate under-stated z's error (MSE/P 1.07). The band each axis has of its own is at
+        # level c whatever the others do, so the envelope the bound reads dominates them all.
+        out["axis_envelopes"] = {ax: {k: e[k] for k in AXIS_ENVELOPE_KEYS if k in e} for ax, e in axes.items()}
+        out["identification"] = ("pooled: the curves are consistent with one model (pooling test); "
+                                 "`upper_envelope_model` dominates the pooled joint envelope and each axis's own "
+                                 "(`axis_envelopes`): accepting one model does not show the axes equal")
+    else:
+        out["per_axis"] = axes
+        out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the pooled "
+                                 "fit is kept for reference, `per_axis` gives each axis's parameters and "
+                                 "`upper_envelope_model` dominates the pooled and every per-axis envelope")
+    # the pooled envelope need not cover an axis that differs: the envelope the bound reads covers each
+    out["upper_envelope_model_pooled"] = env.to_dict()
+    out["upper_envelope_model"] = dominating_model(
+        [env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()]).to_dict()
+
+
 def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, confidence: float,
                     significance: float, relevance: float, filter_rate_hz: float, outage_s: float,
                     adequacy_level: float = 0.01, pooling_level: float = 0.01, pooling_n_boot: int = 99,
@@ -494,34 +529,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
                                                     consistency_level, seed)
     band = out["selection"]["band_hz"]
     out["selection"]["band_hz"] = [float(v) for v in band] if band else None
-    if not pooling["consistent"]:
-        per_axis = _per_axis(curves, components, n_gm, fit.selection or selection, fit_kw, confidence, span, seed,
-                             T_range=T_range, envelope_kind=envelope_kind)
-        out["per_axis"] = per_axis
-        # the pooled envelope need not cover the axis that differs: the envelope the bound reads covers each
-        out["upper_envelope_model_pooled"] = env.to_dict()
-        env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in per_axis.values()])
-        out["upper_envelope_model"] = env.to_dict()
-        out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the "
-                                 "pooled fit is kept for reference, `per_axis` gives each axis's parameters and "
-                                 "`upper_envelope_model` dominates the pooled and every per-axis envelope")
-    else:
-        out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
-        if envelope_kind != "marginal" and len({c.axis for c in curves}) > 1:
-            # the test's acceptance does not show the axes equal: a gyro z whose drift was 20 % above x and y's
-            # (two 1.5 h records per axis) passed it (p 0.28), the pooled joint band lay below z's random walk and
-            # a filter on the envelope candidate under-stated z's error (MSE/P 1.07). The band each axis has of its
-            # own is at level c whatever the others do, so the envelope the bound reads dominates them all.
-            axis_env = _per_axis(curves, components, n_gm, fit.selection or selection, fit_kw, confidence, span,
-                                 seed, T_range=T_range, envelope_kind=envelope_kind)
-            out["axis_envelopes"] = {ax: {k: e[k] for k in AXIS_ENVELOPE_KEYS if k in e}
-                                     for ax, e in axis_env.items()}
-            out["upper_envelope_model_pooled"] = env.to_dict()
-            env = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"])
-                                            for v in axis_env.values()])
-            out["upper_envelope_model"] = env.to_dict()
-            out["identification"] += ("; `upper_envelope_model` dominates the pooled joint envelope and each axis's "
-                                      "own (`axis_envelopes`): accepting one model does not show the axes equal")
+    _axes_identified(out, env, curves, components, n_gm, fit.selection or selection, fit_kw, confidence, span, seed,
+                     T_range, envelope_kind)
     if known is not None and envelope_lines:
         out["upper_envelope_model"] = _with_lines(out["upper_envelope_model"], lines, envelope_lines_below_hz,
                                                   confidence)
