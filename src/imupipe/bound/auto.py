@@ -55,7 +55,8 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
       for every curve, ``pooling.consistent`` false: ``per_axis[axis].upper_envelope_joint``; where it accepts:
       ``axis_envelopes[axis].upper_envelope_joint``), each at level c (over k axes they hold together with
       probability at least 1 - k (1 - c), the level the reason states), and every axis's model describes its
-      Allan variances; the envelope the bound reads dominates the pooled and every per-axis envelope. Accepting
+      Allan variances; the candidate's target dominates the pooled and every per-axis envelope (where pooled:
+      the identify file's ``upper_envelope_model_axes``). Accepting
       one model does not show the axes equal: a gyro z drifting 20 % more than x and y (two 1.5 h records) passed
       the test (p 0.28), the pooled band lay under z's random walk and the candidate on it under-stated z's error
       (MSE/P 1.07). Where the test rejects: five records of one held-out truth lost the envelope candidate to a

@@ -43,6 +43,8 @@ bound_spec_units: the same in the spec sheet's units. inflation: bound/spec per 
 margin: min over curves and frequencies of S_model/S_sample (>= 1 when psd_bounded), margin_curve: where.
 all_frequency_margin: min of S_model/max(S_spec, S_upper) below the lowest bin (frequency 0: K asymptote, inf: N).
 upper_envelope: the identified model at its upper confidence limits (SI), imposed at every frequency.
+envelope_target: (auto's envelope candidate, pooled curves) the model it lies above instead: upper_envelope and each
+axis's own envelope (identify file: upper_envelope_model_axes); upper_envelope stays the verification's reference.
 allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.filter_rate_hz, horizon_s] s.
 per_axis_models: present when the pooling test rejected one model for all axes: per axis, the bound of that axis's
 curves (same fields as the global bound, SI), its envelope and Allan check; null when the axes are pooled."""
@@ -153,6 +155,10 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     edf_of = {k: np.broadcast_to(np.asarray(edf[k], dtype=np.float64), f.shape) for k in curves}
     kept = identified["selection"]["kept"]
     upper = upper_envelope_from_identification(identified)
+    # the envelope candidate's target: where the curves are pooled, also above each axis's own envelope (the
+    # identify file's upper_envelope_model_axes); the file's upper_envelope stays the verification's reference
+    target = (NoiseModel.from_dict(identified["upper_envelope_model_axes"])
+              if mode == "envelope" and identified.get("upper_envelope_model_axes") else upper)
     lines = dict(lines or {})
     pol = line_policy_from_files(lines, dt, f, line_policy, application_band_hz)
     pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
@@ -160,7 +166,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     pool_groups = None if pooled else [_axis_of(k) for k in curves]
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(list(edf_of.values())), keep=kept,
-                       taper=taper, span_s=span_s, upper_model=upper, pool_groups=pool_groups,
+                       taper=taper, span_s=span_s, upper_model=target, pool_groups=pool_groups,
                        **(pol.bound_kwargs() if pol is not None else {}))
     logging.info("bound %s: margin %.4g (%s), all-frequency margin %.4g, looseness %.4g, %d LPs in %.3g s",
                  result.model, result.margin, result.margin_curve, result.allf_margin, result.looseness,
@@ -172,6 +178,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
            "horizon_s": float(span_s), "n_curves": len(curves), "curves": list(curves),
            "states_kept_by_identification": kept, **body,
            "upper_envelope": upper.to_dict(),
+           **({"envelope_target": target.to_dict()} if target is not upper else {}),
            "identification_intervals": identified.get("intervals_bootstrap"),
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
     tau_min_s = 1.0 / float(filter_rate_hz)

@@ -18,8 +18,9 @@ From the Allan-variance curves of every included axis of every record (each at i
 5. the test whether the curves may be pooled (:func:`imupipe.identify.pooling_test`) and, where not, one
    identification per axis by the same rule, the envelope the bound reads then dominating the pooled and every
    per-axis envelope (:func:`imupipe.models.dominating_model`); where pooled under the joint envelope
-   (``identify.envelope: joint``), each axis's own identification too (``axis_envelopes``, :data:`AXIS_ENVELOPE_KEYS`),
-   the envelope dominating them as well: accepting one model does not show the axes equal;
+   (``identify.envelope: joint``), each axis's own identification too (``axis_envelopes``, :data:`AXIS_ENVELOPE_KEYS`)
+   and the model dominating the pooled envelope and them (``upper_envelope_model_axes``, the auto bound's envelope
+   candidate's target): accepting one model does not show the axes equal;
 6. slope-line readings (:func:`imupipe.identify.slope_line`) and, for simulated data, the truth beside the fit.
 
 Plain values in (:class:`Curve` tuples, the config's numbers, the truth as a
@@ -396,7 +397,11 @@ def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw
     envelope, :class:`~imupipe.models.NoiseModel`): where the pooling test rejects one model, one identification per
     axis (``per_axis``) and the envelope the bound reads (``upper_envelope_model``) dominating the pooled
     (``upper_envelope_model_pooled``) and every axis's; where it accepts under the joint envelope with more than one
-    axis, the same envelope over each axis's own identification (``axis_envelopes``, :data:`AXIS_ENVELOPE_KEYS`)."""
+    axis, each axis's own identification (``axis_envelopes``, :data:`AXIS_ENVELOPE_KEYS`) and the model dominating
+    the pooled envelope and every axis's (``upper_envelope_model_axes``): the target of the auto bound's envelope
+    candidate, which the sample PSDs do not hold up (:func:`imupipe.bound.auto.candidate_modes`). The envelope the
+    other candidates and the verification read stays the pooled one there: they bound every curve's own spectrum
+    in band, and on the outside evaluation's case below they bounded z with room (raw and smoothed: MSE/P 0.988)."""
     from imupipe.models import NoiseModel, dominating_model
 
     pooled = out["pooling"]["consistent"]
@@ -411,14 +416,17 @@ def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw
         # on the envelope candidate under-stated z's error (MSE/P 1.07). The band each axis has of its own is at
         # level c whatever the others do, so the envelope the bound reads dominates them all.
         out["axis_envelopes"] = {ax: {k: e[k] for k in AXIS_ENVELOPE_KEYS if k in e} for ax, e in axes.items()}
+        out["upper_envelope_model_axes"] = dominating_model(
+            [env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()]).to_dict()
         out["identification"] = ("pooled: the curves are consistent with one model (pooling test); "
-                                 "`upper_envelope_model` dominates the pooled joint envelope and each axis's own "
-                                 "(`axis_envelopes`): accepting one model does not show the axes equal")
-    else:
-        out["per_axis"] = axes
-        out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the pooled "
-                                 "fit is kept for reference, `per_axis` gives each axis's parameters and "
-                                 "`upper_envelope_model` dominates the pooled and every per-axis envelope")
+                                 "`upper_envelope_model_axes` dominates the pooled joint envelope and each axis's own "
+                                 "(`axis_envelopes`), the envelope candidate's target: accepting one model does not "
+                                 "show the axes equal")
+        return
+    out["per_axis"] = axes
+    out["identification"] = ("per axis: the curves are not consistent with one model (pooling test); the pooled "
+                             "fit is kept for reference, `per_axis` gives each axis's parameters and "
+                             "`upper_envelope_model` dominates the pooled and every per-axis envelope")
     # the pooled envelope need not cover an axis that differs: the envelope the bound reads covers each
     out["upper_envelope_model_pooled"] = env.to_dict()
     out["upper_envelope_model"] = dominating_model(
