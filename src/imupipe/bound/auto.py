@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+from imupipe.bound.axes import curves_by_axis
 from imupipe.shown import num
 
 __all__ = ["AUTO_MODES", "CRITERION", "ENVELOPE_MODE", "candidate_modes", "candidate_row", "select"]
@@ -86,7 +87,7 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     open_band = next(((who, r) for who, r in bands
                       if not isinstance(r, dict) or r.get("note") or r.get("worst_ratio_to_band") is None), None)
     rejected = next(((who, a) for who, a in fits if a.get("adequate", True) is False), None)
-    n_axes = len({str(lab).rsplit("/", 1)[-1] for lab in identified.get("curves") or ()})
+    n_axes = len(curves_by_axis(identified.get("curves") or ()))
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
     elif pooled and n_axes > 1 and not axes:

@@ -97,10 +97,6 @@ def phase_ends(history):
     return [dict(zip(keys, plain(list(h)))) for h in ends]
 
 
-def _axis_of(label: str) -> str:
-    return label.rsplit("/", 1)[-1]
-
-
 def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: dict, *, dt: float, sensor: str,
                  mode: str, n_gm: int, confidence: float, bands_per_decade: int, span_s: float,
                  filter_rate_hz: float = 1.0, taper: str = "hann", allan=None, lines: Mapping | None = None,
@@ -143,7 +139,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             filter_rate_hz=filter_rate_hz, taper=taper, allan=allan, lines=lines, line_policy=line_policy,
             application_band_hz=application_band_hz, axis_bounds=axis_bounds, compare_paper=compare_paper,
             spec_units=spec_units, spec_name=spec_name, spec_file=spec_file))
-    from imupipe.bound import (bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
+    from imupipe.bound import (axis_of, bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
                                upper_envelope_from_identification)
     from imupipe.io import plain
     from imupipe.models import NoiseModel
@@ -163,7 +159,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     pol = line_policy_from_files(lines, dt, f, line_policy, application_band_hz)
     pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
     # pooled mode: the curves share one true PSD where the identification's pooling test accepts it; else per axis
-    pool_groups = None if pooled else [_axis_of(k) for k in curves]
+    pool_groups = None if pooled else [axis_of(k) for k in curves]
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(list(edf_of.values())), keep=kept,
                        taper=taper, span_s=span_s, upper_model=target, pool_groups=pool_groups,
@@ -203,7 +199,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
                   if v.get("upper_envelope_model")}
         line_kw = {}
         for ax in axes_fit:
-            mine = {lab: doc for lab, doc in lines.items() if _axis_of(lab) == ax}
+            mine = {lab: doc for lab, doc in lines.items() if axis_of(lab) == ax}
             p_ax = line_policy_from_files(mine, dt, f, line_policy, application_band_hz)
             line_kw[ax] = (p_ax.bound_kwargs() if p_ax is not None else {}, p_ax)
         per = bound_by_axis(f, curves, spec_model, upper_models=uppers, edf=edf_of,
