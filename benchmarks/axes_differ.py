@@ -7,7 +7,8 @@ KF file's ``per_axis`` entry: its own model, or the global one) is analysed exac
 
 Truths: a base truth on x and y, a changed one on z (``noisy_z``: white noise x 2 and GM sigma x 1.5; ``shape_z``:
 the GM's T x 5; ``rw_z``: random walk x 3; ``subtle_z``: random walk x 1.25, a difference the pooling test often
-accepts: an outside evaluation's gyro z, 20 % above x and y, was under-stated by the pooled band). Spec sheet = the base truth halved. 10 h records at 10 Hz, the Welch
+accepts: an outside evaluation's gyro z, 20 % above x and y, was under-stated by the pooled band; ``equal_*``: z the
+same as x and y, for the cost of holding the envelope candidate above each axis's own envelope). Spec sheet = the base truth halved. 10 h records at 10 Hz, the Welch
 window by the workflow's rule, fixes 600 s at 1 Hz then a 3600 s outage (tests/exact_kf.py). Prints a Markdown table:
 pooled or not, the envelope candidate's reason, the exported mode, and per axis the worst MSE/P and mean P/MSE over
 the outage of the filter that axis gets.
@@ -35,6 +36,10 @@ BASE = {
     "shape_z": NoiseModel(white=1.5e-3, gauss_markov=((8e-4, 60.0),), random_walk=5e-6),
     "rw_z": NoiseModel(white=5e-5, gauss_markov=((4e-5, 20.0), (2e-5, 600.0)), random_walk=5e-8),
     "subtle_z": NoiseModel(white=2e-5, gauss_markov=((1.5e-5, 1200.0),), random_walk=1e-7),
+    # the axes equal: what the envelope candidate's per-axis target costs where the pooled band alone would do
+    "equal_tactical": NoiseModel(white=2e-5, gauss_markov=((1.5e-5, 1200.0),), random_walk=1e-7),
+    "equal_mems": NoiseModel(white=1.5e-3, gauss_markov=((8e-4, 60.0),), random_walk=5e-6),
+    "equal_two_gm": NoiseModel(white=5e-5, gauss_markov=((4e-5, 20.0), (2e-5, 600.0)), random_walk=5e-8),
 }
 
 
@@ -44,6 +49,8 @@ def changed(case: str, t: NoiseModel) -> NoiseModel:
         return replace(t, white=2 * t.white, gauss_markov=tuple((1.5 * s, T) for s, T in t.gauss_markov))
     if case == "shape_z":
         return replace(t, gauss_markov=tuple((s, 5 * T) for s, T in t.gauss_markov))
+    if case.startswith("equal"):
+        return t
     if case == "subtle_z":
         return replace(t, random_walk=1.25 * t.random_walk)
     return replace(t, random_walk=3 * t.random_walk)
