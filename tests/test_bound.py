@@ -594,6 +594,24 @@ class TestCheckAllan:
             rep = check_allan(NoiseModel(white=1e-5, gauss_markov=short, random_walk=rw), ident, tau, **kw)
             assert rep["components"]["gauss_markov"]["status"] == "shortfall" and not rep["passed"]
 
+    def test_gm_fitted_beside_lines_is_represented_by_the_line_states(self):
+        """An outside evaluation's gyro: lines at 0.06 and 0.09 Hz, the fit (each line's AV known at its estimate)
+        put the rest of their power into a GM of T 1.66 s whose white equivalent 2 sigma^2 T lies above the bound's
+        white noise. Its numbers, rounded: the bound's white, random walk and two lines (at their upper limits)
+        hold that power in the AV at every tau of the band (ok, the reason names the lines); without the line
+        states the same bound falls short (a real shortfall, named), as it did before, which failed the run."""
+        from imupipe.bound import check_allan
+
+        ident = NoiseModel(white=4.33e-5, gauss_markov=((4.03e-5, 1.66),))
+        lines = ((3.96e-4, 0.0601, 0.0166), (3.07e-4, 0.0900, 0.0111))
+        bound = NoiseModel(white=7.05e-5, random_walk=1.9e-7, narrowband=lines)
+        tau = 0.1 * 2.0 ** np.arange(14)
+        kw = dict(kept=["white", "gauss_markov"], span_s=1950.0, tau_min_s=1.0)
+        gm = check_allan(bound, ident, tau, **kw)["components"]["gauss_markov"]
+        assert gm["status"] == "ok" and "lines" in gm["reason"], gm
+        gm = check_allan(NoiseModel(white=7.05e-5, random_walk=1.9e-7), ident, tau, **kw)["components"]["gauss_markov"]
+        assert gm["status"] == "shortfall" and gm["margin"] < 0.97, gm
+
 
 class TestPerAxis:
     def test_per_axis_models_differ_where_the_axes_differ_and_bound_their_own_curves(self):

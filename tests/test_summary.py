@@ -700,6 +700,23 @@ def test_an_initial_bias_resting_on_the_default_time_constant_is_flagged_on_the_
         assert not [f for f in flags_of("gyro", bound=contract(max_bias_time_s=stated)) if f.check == "initial bias"]
 
 
+def test_a_stated_bias_time_within_the_records_reads_as_checked_and_one_member():
+    """identify.max_bias_time_s (1500 s) below the longest record (5400 s): an outside evaluation read "...extrapolated
+    to the longest admitted time constant; which the records resolve" and "for T 5.4e+03-5.4e+03 s". The statement
+    says T_max, the record that checks it, and the family's one member in words."""
+    from imupipe.biasinit import bias_initialisation
+    from imupipe.models import NoiseModel
+    from imupipe.summary import _bias_lines
+
+    model = NoiseModel(white=1e-4, random_walk=1e-7)
+    bi = bias_initialisation(model, spec=model, upper=model, record_s=5400.0, run_s=1950.0, max_bias_time_s=1500.0)
+    lines = _bias_lines(_bound(bias_initialisation={**bi.to_dict("rad/s"), "statement": bi.statement("rad/s")}))
+    text = "\n".join(lines)
+    assert "T_max = 1500 s (config: identify.max_bias_time_s) is within the longest record (5400 s)" in text, text
+    assert "5.4e+03-5.4e+03" not in text and "the GM of T = that record, 5.4e+03 s" in text, text
+    assert "cannot check" not in text
+
+
 def test_an_initial_bias_resting_on_the_spec_sheets_gm_time_constant_is_flagged():
     """A spec sheet whose longest GM time constant (7200 s) exceeds the records (3600 s) sets T_max; the sheet states
     its bias instability's correlation time, not that no bias persists longer, and the records cannot check it
@@ -741,8 +758,21 @@ def test_a_failed_component_check_reads_in_words_and_the_verdict_line_names_it()
     assert "bound" not in fl
     assert fl["verdict"].detail == "not bounded: failed allan components (lines below); the PSD margin 1 holds"
     assert fl["allan_components"].where == "tau 1.6 s"
-    assert fl["allan_components"].detail.startswith("the bound's random_walk term alone has 0.974x the Allan variance "
-                                                    "of the identified model's same term there (the selected fit")
+    assert fl["allan_components"].detail.startswith(
+        "the bound's random_walk term, with the terms that may represent it (white noise, random walk, lines), has "
+        "0.974x the Allan variance of the identified term there (the refit as fitted, identify file model_refit")
+
+
+def test_a_failed_ratio_next_to_1_is_not_shown_as_1():
+    # an outside evaluation read "worst_ratio=1" in FAIL lines whose ratios were 1.00015 and 1.0005: a ratio that
+    # failed its limit of 1 keeps the digits that tell it from 1
+    from imupipe.shown import ratio_text
+
+    assert [ratio_text(v) for v in (1.00015, 1.0005, 0.99999979, 1.0, 0.958, None)] == [
+        "1.0002", "1.0005", "0.9999998", "1", "0.958", "-"]
+    failed = _bound(bounded=False, margin=1.0, failed_checks=[{"check": "verify envelope", "worst_ratio": 1.00015}])
+    fl = [f for f in flags_of("gyro", bound=failed) if f.severity == "fail" and f.check == "verify envelope"]
+    assert fl and "worst_ratio=1.0002" in fl[0].detail, fl
 
 
 def test_the_line_search_band_is_stated_with_its_lower_limit():

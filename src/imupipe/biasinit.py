@@ -232,7 +232,8 @@ class BiasInitialisation:
                 "records": "the records' slow drift extrapolated to the longest admitted time constant",
                 "model": "the exported model's own GM states"}.get(self.rests_on, self.rests_on)
         if checked:
-            tail = "which the records resolve"
+            tail = (f"T_max = {self.T_max_s:.4g} s ({self.T_max_source}) is within the longest record "
+                    f"({self.record_s:.4g} s), which checks it (the drift taken over that record)")
         elif self.record_s:
             tail = (f"T_max = {self.T_max_s:.4g} s ({self.T_max_source}) is beyond what the records "
                     f"({self.record_s:.4g} s) can check")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "spec_unit"]
+__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "ratio_text", "spec_unit"]
 
 
 def num(v, fmt="{:.3g}") -> str:
@@ -16,6 +16,21 @@ def num(v, fmt="{:.3g}") -> str:
         return fmt.format(float(v))
     except (TypeError, ValueError):
         return "-" if v is None else str(v)
+
+
+def ratio_text(v) -> str:
+    """A ratio to a limit of 1 (an MSE/P, an AV or PSD margin) with the digits that tell it from 1: three
+    significant digits as :func:`num`, more where three round it to 1 (1.00015, not 1: a check that failed at
+    1.00015 must not read "1"); ``"-"`` for None."""
+    text = num(v)
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return text
+    digits = 4
+    while x != 1.0 and float(text) == 1.0 and digits <= 12:
+        text, digits = f"{x:.{digits}g}", digits + 1
+    return text
 
 
 #: SI unit of each value a summary pastes, per sensor (u = rad/s or m/s^2): the KF file's white noise N and

@@ -21,7 +21,7 @@ from typing import Any
 
 from imupipe.linewords import line_reports, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
-from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, spec_unit
+from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
 from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, unstated_t_max, within_tolerance
 
 
@@ -96,7 +96,7 @@ def _where_of(item: Mapping) -> str:
 def _detail_of(item: Mapping, skip=()) -> str:
     shown = ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
              "index", "time_s", "row", "file")
-    parts = [f"{k}={num(v) if isinstance(v, float) else v}" for k, v in item.items()
+    parts = [f"{k}={(ratio_text(v) if 'ratio' in k else num(v)) if isinstance(v, float) else v}" for k, v in item.items()
              if k not in shown and k not in skip and not isinstance(v, (Mapping, list))]
     return ", ".join(parts)
 
@@ -226,10 +226,10 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             out.append(Flag(sensor, "export rate", "KF file", _export_rate_detail({**exp, **fc}), "fail"))
         elif isinstance(fc, Mapping) and fc.get("check") == "allan_components" and fc.get("ratio") is not None:
             out.append(Flag(sensor, "allan_components", f"tau {num(fc.get('tau_s'))} s",
-                            f"the bound's {fc.get('component', '-')} term alone has {num(fc['ratio'])}x the Allan "
-                            "variance of the identified model's same term there (the selected fit, identify file "
-                            "model_selected; each component must bound its own, the bound's other terms do not "
-                            "count)", "fail"))
+                            f"the bound's {fc.get('component', '-')} term, with the terms that may represent it "
+                            f"(white noise, random walk, lines), has {ratio_text(fc['ratio'])}x the Allan variance of "
+                            "the identified term there (the refit as fitted, identify file model_refit; each "
+                            "identified component must be bounded by its representation in the bound)", "fail"))
         elif isinstance(fc, Mapping):
             out.append(Flag(sensor, str(fc.get("check", fc.get("name", "check"))), _where_of(fc),
                             _detail_of(fc, skip=("check", "name")) or "failed", "fail"))
@@ -720,10 +720,16 @@ def _bias_lines(bound: Mapping) -> list[str]:
     if isinstance(fam, Mapping):
         (lo, hi), (s_lo, s_hi) = fam.get("T_range_s") or (None, None), fam.get("sigma_range") or (None, None)
         u = (fam.get("units") or {}).get("sigma", "")
-        out.append(f"  - a bias slower than the records: drift K_eff {num(fam.get('k_eff'))} "
-                   f"{(fam.get('units') or {}).get('k_eff', '')}, any (sigma, T) with sigma^2 = K_eff^2 T / 2 for T "
-                   f"{num(lo)}-{num(hi)} s (sigma {num(s_lo)}-{num(s_hi)} {u}); the verification's slow_bias "
-                   f"truth is the worst member (T {num(hi)} s)")
+        drift = f"drift K_eff {num(fam.get('k_eff'))} {(fam.get('units') or {}).get('k_eff', '')}"
+        if lo is not None and lo == hi:  # the longest admitted T is not beyond the records: one member
+            out.append(f"  - a bias slower than the records: {drift}; the longest bias time admitted "
+                       f"({fam.get('T_max_source')}) is not beyond the longest record, so the slowest bias left open "
+                       f"is the GM of T = that record, {num(lo)} s, sigma {num(s_lo)} {u} (sigma^2 = K_eff^2 T / 2), "
+                       "the verification's slow_bias truth")
+        else:
+            out.append(f"  - a bias slower than the records: {drift}, any (sigma, T) with sigma^2 = K_eff^2 T / 2 "
+                       f"for T {num(lo)}-{num(hi)} s (sigma {num(s_lo)}-{num(s_hi)} {u}); the verification's "
+                       f"slow_bias truth is the worst member (T {num(hi)} s)")
     if not bi.get("checked_by_records"):
         out.append("  - the records cannot check this initial variance: set identify.max_bias_time_s (s) or a "
                    "spec sheet's turn_on_bias to state it")
