@@ -194,3 +194,29 @@ def test_ambiguous_time_unit_refused_then_given(tmp_path, capsys):
     assert "\t2\t" in text and "gyro_unit" in out and "no accel column recognised" in out
     assert "accel_x (column" not in out  # left out, not a cell to fill
     assert yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())["sensors"] == ["gyro"]
+
+
+def test_a_record_with_a_gap_gets_the_rate_of_its_spacing_and_a_note(tmp_path, capsys):
+    # an outside evaluation: a 10 Hz record with one 60 s gap; init took the span's mean rate (9.89 Hz), which the
+    # ingest then refused as contradicting the stamps without naming the gap. The head's median spacing gives the
+    # clock's rate; the note says how much is missing, and the ingest names the gap
+    from imupipe.init import inspect_record
+
+    t = np.arange(20000) / 10.0
+    t[10000:] += 60.0
+    x = np.random.default_rng(1).standard_normal((t.size, 6)) * 1e-3
+    x[:, 5] += 9.80665
+    path = tmp_path / "gap.csv"
+    np.savetxt(path, np.column_stack([t, x]), delimiter=",", fmt="%.10g", comments="",
+               header="t [s],gx [rad/s],gy [rad/s],gz [rad/s],ax [m/s^2],ay [m/s^2],az [m/s^2]")
+    info = inspect_record(path, "gap")
+    assert info.rate_hz == 10.0 and info.row["rate_hz"] == "10"
+    (note,) = [n for n in info.notes if "missing" in n]
+    assert "the timestamps' span gives 9.7 Hz but their spacing 10 Hz: about 62 s" in note, note  # the span's
+    # rate is the probe's, rounded to 1e-3 (readers.snap_rate): the missing time to +- 2 s here (60.1 s)
+    # a record without gaps: its span's rate, no note
+    path2 = tmp_path / "nogap.csv"
+    np.savetxt(path2, np.column_stack([np.arange(20000) / 10.0, x]), delimiter=",", fmt="%.10g", comments="",
+               header="t [s],gx [rad/s],gy [rad/s],gz [rad/s],ax [m/s^2],ay [m/s^2],az [m/s^2]")
+    info = inspect_record(path2, "nogap")
+    assert info.rate_hz == 10.0 and not [n for n in info.notes if "missing" in n]

@@ -20,7 +20,7 @@ from imupipe.readers.checks import check_file
 from imupipe.readers.core import _format_of, read_dataset, sheet_row_to_kwargs, snap_rate
 from imupipe.readers.text import _DELIMITERS, _content_lines, _is_header, _split
 
-__all__ = ["Probe", "probe", "probe_row"]
+__all__ = ["Probe", "head_rate", "probe", "probe_row"]
 
 
 @dataclass(frozen=True)
@@ -176,6 +176,39 @@ def probe(
             rate, rate_from = snap_rate(measured), "timestamps"
     duration = n / rate if rate else None
     return Probe(str(path), fmt, rate, rate_from, n, duration, tuple(names), st.st_size, st.st_mtime_ns, dataset)
+
+
+def head_rate(path, time_column, time_unit: str = "s", rows: int = 2000, delimiter=None) -> float | None:
+    """The rate (Hz) a text record's first `rows` timestamps give by their median spacing, or None (no time
+    column, fewer than 3 stamps, or no positive spacing). :func:`probe` takes a text record's rate from its span,
+    (n - 1) / (t_last - t_first), which a gap lowers: a 10 Hz record with one 60 s gap in 1.5 h reads 9.89 Hz. The
+    median spacing of the head is what the record's clock runs at, whatever its gaps (``imupipe init`` compares the
+    two)."""
+    path = Path(path)
+    if _blank(time_column):
+        return None
+    lines = _content_lines(path, 1)
+    first = next(lines, None)
+    if first is None:
+        return None
+    key = None if delimiter is None else (delimiter if delimiter in _DELIMITERS else str(delimiter).strip().lower())
+    delim = (_DELIMITERS.get(key) if key is not None else
+             "\t" if "\t" in first[1] else "," if "," in first[1] else ";" if ";" in first[1] else None)
+    tokens = _split(first[1], delim)
+    has_header = _is_header(tokens, None, time_column)
+    idx = tokens.index(str(time_column)) if has_header and str(time_column) in tokens else int(time_column)
+    stamps = [] if has_header else [first[1]]
+    for _, text in lines:
+        stamps.append(text)
+        if len(stamps) >= rows:
+            break
+    try:
+        t = np.array([float(_split(x, delim)[idx]) for x in stamps]) * _time_factor(time_unit, str(path))
+    except (ValueError, IndexError):
+        return None
+    d = np.diff(t)
+    d = d[d > 0]
+    return float(1.0 / np.median(d)) if d.size >= 2 else None
 
 
 def _probe_text(path: Path, delimiter, time_column, channels, where):
