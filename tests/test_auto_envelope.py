@@ -163,6 +163,12 @@ def test_candidate_modes_build_the_envelope_candidate_only_at_the_joint_level():
                                 | {"record_consistency": {"flagged": [{"dataset": "d3", "param": "white"}]}},
                                 None, "names d3 (white)"),
                                (_identified(), {"d0/x": {"lines": [{"frequency_hz": 0.1}]}}, "line"),
+                               # one line on two axes of two records: one line, four detections (an outside
+                               # evaluation read "6 spectral line(s)" beside FLAGs naming two)
+                               (_identified(), {f"d{d}/{a}": {"lines": [{"frequency_hz": 0.05, "f_lo_hz": 0.04,
+                                                                          "f_hi_hz": 0.06}]}
+                                                for d in (0, 1) for a in "xy"},
+                                "1 spectral line(s) (4 detections over axes and records)"),
                                # the band is the spread of the selected model's refits: not where the data reject it
                                (_identified(adequate=False), None, "reject the selected model")):
         modes, why = candidate_modes(ident, lines)

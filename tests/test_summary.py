@@ -315,6 +315,12 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
     flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
     assert flags[0].startswith("- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes, 3 detections) at "
                                "0.5669-0.567 Hz"), flags
+    # the same axis in two records is one axis (an outside evaluation read "one line (4 axes)" for 2 axes x 2 records)
+    two = {}
+    for ds, axis in (("r0", "x"), ("r1", "x"), ("r0", "y"), ("r1", "y")):
+        mod._merge_checks(two, {**lines_file(axis, 0.5669, 0.0069, 78.0), "dataset": ds})
+    flags = [ln for ln in render_summary({"accel": {"bound": two}}).splitlines() if ln.startswith("- FLAG lines")]
+    assert "one line (2 axes, 4 detections)" in flags[0], flags
 
 
 def test_a_sensor_with_a_line_family_gets_one_flag_naming_every_frequency_and_the_strongest():

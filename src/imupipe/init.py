@@ -207,9 +207,10 @@ def _gap_proof_rate(path, fmt: str, meta, time_column, time_unit, dataset: str) 
     """The record's rate (Hz) and a note when its timestamps' span and their spacing disagree. A text record's
     probed rate is its span's mean, (n - 1) / (t_last - t_first), which a gap lowers (a 10 Hz record with a 60 s
     gap in 1.5 h read 9.89 Hz, which the ingest then refused as contradicting the stamps, without naming the gap).
-    Where the median spacing of its first 2000 stamps (:func:`imupipe.readers.probe.head_rate`) stands for another
-    rate by more than 1 %, that rate is taken and the note says so; the ingest then names each gap
-    (``inputs.gap_policy``)."""
+    Where the spacing of its first 20000 stamps (:func:`imupipe.readers.probe.head_rate`) gives a rate more than
+    0.5 % above the span's (time missing: jitter does not lower the span's rate), that rate is taken (rounded as
+    :func:`imupipe.readers.snap_rate` does, within 0.5 %) and the note says so; the ingest then names each gap (the
+    dataset sheet's ``gap_policy`` says what is done with it)."""
     from imupipe.readers import snap_rate
     from imupipe.readers.probe import head_rate
 
@@ -217,13 +218,13 @@ def _gap_proof_rate(path, fmt: str, meta, time_column, time_unit, dataset: str) 
     if meta.rate_from != "timestamps" or fmt != "csv" or time_column is None:
         return rate, []
     head = head_rate(path, time_column, time_unit or "s")
-    if head is None or abs(head - rate) <= 0.01 * head:
+    if head is None or rate >= head * (1.0 - 0.005):
         return rate, []
-    clock = snap_rate(head)
+    clock = snap_rate(head, rtol=0.005)
     missing = meta.n_samples / rate - meta.n_samples / clock
     return clock, [f"{dataset}: the timestamps' span gives {rate:.6g} Hz but their spacing {clock:g} Hz: about "
                    f"{missing:.2g} s of the record are missing (gaps); rate_hz set to {clock:g}; the ingest names each "
-                   "gap and inputs.gap_policy says what is done with it (docs/inputs.md)"]
+                   "gap, and the dataset sheet's gap_policy column says what is done with it (docs/inputs.md)"]
 
 
 def welch_unused(n: int, nperseg: int, step: int) -> int:

@@ -62,8 +62,8 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
         top = max(g, key=lambda j: float(items[j].get("peak_ratio") or 0.0))
         return f"the strongest [{texts[top][0]}]: {texts[top][1]}"
 
-    def seen(g):  # on how many axes (records' axes) the line is seen, and in how many detections
-        n = len({texts[j][0] for j in g})
+    def seen(g):  # on how many axes the line is seen, and in how many detections (axes x records)
+        n = len({str(texts[j][0]).rsplit("/", 1)[-1] for j in g})
         return (f"{n} axes" if n > 1 else "one axis") + (f", {len(g)} detections" if len(g) > n else "")
 
     def axes(g):

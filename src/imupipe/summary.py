@@ -401,8 +401,8 @@ def exported_instead(sensor: str, bound: Mapping | None, as_key: str) -> str:
         return ""
     name = "white noise N" if as_key == "white" else "random walk K"
     v = m.get(as_key)
-    parts = [f"the exported filter model (KF file) has {name} "
-             + (both_units(sensor, bound, as_key, v) if v else "none")]
+    parts = [f"the exported filter model (KF file) has {name} {both_units(sensor, bound, as_key, v)}" if v else
+             f"the exported filter model (KF file) has no {'white noise' if as_key == 'white' else 'random walk'}"]
     gms = [g for g in m.get("gauss_markov") or [] if isinstance(g, Mapping) and g.get("sigma")]
     if gms:
         parts.append("and " + "; ".join(f"a GM of sigma {both_units(sensor, bound, 'gm_sigma', g.get('sigma'))}, "

@@ -77,7 +77,8 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     Returns (modes, reason)."""
     kind = identified.get("upper_envelope_kind", "marginal")
     rec = identified.get("upper_envelope_joint")
-    n_lines = sum(len((doc or {}).get("lines") or ()) for doc in (lines or {}).values())
+    found = [ln for doc in (lines or {}).values() for ln in (doc or {}).get("lines") or ()]
+    n_lines = len(found)
     pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
     axes = (identified.get("axis_envelopes") if pooled else identified.get("per_axis")) or {}
     # what the bound reads: the pooled band and each axis's band and fit (where pooled: ``axis_envelopes``)
@@ -105,7 +106,7 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
         why = (f"not built: the joint band ({who}) fell back to the marginal envelope ("
                + str((r or {}).get("note")) + ")")
     elif n_lines:
-        why = f"not built: {n_lines} spectral line(s) found, which the broadband envelope does not carry"
+        why = (f"not built: {_lines_counted(found)} found, which the broadband envelope does not carry")
     elif rejected is not None:
         who, a = rejected
         why = (f"not built: the data reject the {who} (adequacy: chi2/dof {num(a.get('chi2_per_dof'))}, p "
@@ -125,6 +126,18 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
             f"level {', '.join(sorted({num(c) for c in levels}))} per axis over {len(axes)} axes: together at least "
             f"{num(together)} (Bonferroni), over {rec.get('band_hz')} Hz)")
     return AUTO_MODES, why
+
+
+def _lines_counted(found: list) -> str:
+    """How many spectral lines the lines files' entries `found` are, and in how many detections (over axes and
+    records), by the rule that makes one line of several (:func:`imupipe.lines.same_line_groups`): "2 spectral
+    line(s) (6 detections over axes and records)"; an entry without its frequency and interval is a line apart."""
+    from imupipe.lines import same_line_groups
+
+    placed = [(float(d["frequency_hz"]), float(d["f_lo_hz"]), float(d["f_hi_hz"])) for d in found
+              if isinstance(d, dict) and all(d.get(k) is not None for k in ("frequency_hz", "f_lo_hz", "f_hi_hz"))]
+    n = len(same_line_groups(placed)) + len(found) - len(placed)
+    return f"{n} spectral line(s)" + (f" ({len(found)} detections over axes and records)" if len(found) > n else "")
 
 
 #: The stated criterion (written into the verification file).

@@ -225,10 +225,14 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
                 if T < 2.0 * T_lo_range else
                 [f"its T interval's lower end ({_seconds(min(lower_ends), T_lo_range)}) below twice the shortest T "
                  f"the records resolve ({T_lo_range:.3g} s)"] if few else [])
-        why = "; ".join(
-            near
-            + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
-            + (["its T interval reaches the longest T the records resolve"] if reaches_hi else []))
+        if reaches_lo and reaches_hi:  # one statement, not three that read as contradicting each other
+            why = (f"its T interval spans every T the records resolve ({T_lo_range:.3g} to {T_hi_range:.3g} s): "
+                   "the records do not fix T")
+        else:
+            why = "; ".join(
+                near
+                + (["its T interval reaches the shortest T the records resolve"] if reaches_lo else [])
+                + (["its T interval reaches the longest T the records resolve"] if reaches_hi else []))
         # what the statistical interval (the one the upper envelope reads) leaves open above: there the envelope
         # of the GM box is kept (stages.identify.selected_and_envelope), the data do not close it
         st = stat.get(f"gm_T_{i}")

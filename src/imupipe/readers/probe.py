@@ -178,12 +178,14 @@ def probe(
     return Probe(str(path), fmt, rate, rate_from, n, duration, tuple(names), st.st_size, st.st_mtime_ns, dataset)
 
 
-def head_rate(path, time_column, time_unit: str = "s", rows: int = 2000, delimiter=None) -> float | None:
-    """The rate (Hz) a text record's first `rows` timestamps give by their median spacing, or None (no time
-    column, fewer than 3 stamps, or no positive spacing). :func:`probe` takes a text record's rate from its span,
-    (n - 1) / (t_last - t_first), which a gap lowers: a 10 Hz record with one 60 s gap in 1.5 h reads 9.89 Hz. The
-    median spacing of the head is what the record's clock runs at, whatever its gaps (``imupipe init`` compares the
-    two)."""
+def head_rate(path, time_column, time_unit: str = "s", rows: int = 20000, delimiter=None) -> float | None:
+    """The rate (Hz) a text record's first `rows` timestamps give by their spacing, or None (no time column, fewer
+    than 5 stamps, or no positive spacing): 1 / the mean of the spacings between their quartiles. :func:`probe` takes
+    a text record's rate from its span, (n - 1) / (t_last - t_first), which a gap lowers: a 10 Hz record with one
+    60 s gap in 1.5 h reads 9.89 Hz. Gaps are outliers of the spacing, which the quartiles leave out, and jitter is
+    symmetric about the period, which the mean between them keeps: with the stamps of a 10 Hz record jittered by
+    +-40 ms (uniform) its standard error is about 0.15 % over 20000 stamps (the median alone, over 2000, erred by 1 %
+    and ``imupipe init`` wrote 9.9 Hz). ``imupipe init`` compares the two."""
     path = Path(path)
     if _blank(time_column):
         return None
@@ -208,7 +210,11 @@ def head_rate(path, time_column, time_unit: str = "s", rows: int = 2000, delimit
         return None
     d = np.diff(t)
     d = d[d > 0]
-    return float(1.0 / np.median(d)) if d.size >= 2 else None
+    if d.size < 4:
+        return None
+    lo, hi = np.percentile(d, [25.0, 75.0])
+    mid = d[(d >= lo) & (d <= hi)]
+    return float(1.0 / np.mean(mid))
 
 
 def _probe_text(path: Path, delimiter, time_column, channels, where):
