@@ -38,8 +38,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["AXIS_ENVELOPE_KEYS", "SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope", "envelope_ratio",
-           "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope",
+__all__ = ["AXIS_ENVELOPE_KEYS", "SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope",
+           "envelope_ratio", "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope",
            "selected_model"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
@@ -345,8 +345,8 @@ def _record_consistency(curves, selection, components, n_gm, fit_kw, confidence,
 
 
 #: What the identify file keeps of each axis's own identification where the curves are pooled under the joint
-#: envelope (``axis_envelopes``: the envelope the bound reads dominates each axis's): its curves, refit, adequacy
-#: and envelope with its band's record.
+#: envelope (``axis_envelopes``: the envelope candidate's target dominates each axis's): its curves, refit,
+#: adequacy and envelope with its band's record.
 AXIS_ENVELOPE_KEYS = ("curves", "model", "model_refit", "model_refit_kept", "params", "adequacy",
                       "upper_envelope_model", "upper_envelope_joint")
 
@@ -410,14 +410,14 @@ def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw
         return
     axes = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=T_range,
                      envelope_kind=envelope_kind)
+    dominating = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()])
     if pooled:
         # the test's acceptance does not show the axes equal: a gyro z whose drift was 20 % above x and y's (two
         # 1.5 h records per axis) passed it (p 0.28), the pooled joint band lay below z's random walk and a filter
         # on the envelope candidate under-stated z's error (MSE/P 1.07). The band each axis has of its own is at
-        # level c whatever the others do, so the envelope the bound reads dominates them all.
+        # level c whatever the others do, so the envelope candidate's target dominates them all.
         out["axis_envelopes"] = {ax: {k: e[k] for k in AXIS_ENVELOPE_KEYS if k in e} for ax, e in axes.items()}
-        out["upper_envelope_model_axes"] = dominating_model(
-            [env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()]).to_dict()
+        out["upper_envelope_model_axes"] = dominating.to_dict()
         out["identification"] = ("pooled: the curves are consistent with one model (pooling test); "
                                  "`upper_envelope_model_axes` dominates the pooled joint envelope and each axis's own "
                                  "(`axis_envelopes`), the envelope candidate's target: accepting one model does not "
@@ -429,8 +429,7 @@ def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw
                              "`upper_envelope_model` dominates the pooled and every per-axis envelope")
     # the pooled envelope need not cover an axis that differs: the envelope the bound reads covers each
     out["upper_envelope_model_pooled"] = env.to_dict()
-    out["upper_envelope_model"] = dominating_model(
-        [env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()]).to_dict()
+    out["upper_envelope_model"] = dominating.to_dict()
 
 
 def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, confidence: float,
@@ -465,7 +464,6 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
 
     Raises ValueError when `curves` is empty."""
     from imupipe.identify import fit_allan, pooling_test, select_components, slope_line
-    from imupipe.models import dominating_model
     from imupipe.models import NoiseModel
 
     curves = [Curve(*c) for c in curves]
