@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from imupipe.linewords import line_reports, search_band_text
+from imupipe.linewords import line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
 from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, unstated_t_max, within_tolerance
@@ -261,13 +261,17 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     for ex in _items(bound.get("excluded")):
         out.append(Flag(sensor, "excluded bins", _where_of(ex), _detail_of(ex) or "left out of the sample constraints"))
     chance = f"; {stationarity['chance']}" if stationarity.get("chance") else ""  # against chance: verdict.py
+    line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
+                  for it in _items(src.get(key)) if isinstance(it, Mapping)]
+    line_where = {line_text(it)[0] for it in line_items}
     for c in stationarity.get("curves") or []:
         if isinstance(c, Mapping) and c.get("stationary") is False:
             where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
             out.append(Flag(sensor, "stationarity", where,
                             f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
-                            + (STUCK_NOTE if where in stuck_where else "") + chance))
+                            + (STUCK_NOTE if where in stuck_where else "")
+                            + (LINE_NOTE if where in line_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
@@ -308,8 +312,6 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 continue  # a coefficient at 0: the component absent (a GM sigma too), not a fit pressed to its range
             out.append(Flag(sensor, "parameter on boundary", str(p), boundary_text(sensor, bound, identify, str(p),
                                                                                     value)))
-    line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
-                  for it in _items(src.get(key)) if isinstance(it, Mapping)]
     out += _line_flags(sensor, line_items, stuck_where)
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
@@ -738,6 +740,12 @@ def _bias_lines(bound: Mapping) -> list[str]:
 
 #: Added to a stationarity or lines FLAG of a record that holds a stuck span.
 STUCK_NOTE = "; this record holds a stuck span (stuck channel above): check it before this result"
+
+#: Added to a stationarity FLAG of an axis that holds a spectral line: the test's null is simulated from the axis's
+#: broadband Allan fit, without the line, and two outside evaluations saw steady lines flag stationary records (6 of
+#: 6 and 4 of 6 axes with a line, none without).
+LINE_NOTE = ("; this axis holds a spectral line (lines FLAG), which the test's null (the axis's broadband Allan fit) "
+             "does not: a steady line can fail it on a stationary record")
 
 
 def _stuck_flag(sensor: str, it: Mapping) -> Flag:
