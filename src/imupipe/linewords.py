@@ -3,9 +3,9 @@ it is seen on, and the band the line search covered.
 
 The lines stage (:func:`imupipe.lines.find_lines`) writes one file per dataset, sensor type and axis; a line of the
 sensor (a cooling fan, a dither frequency) is often found on every axis of every record. The summary names it once:
-lines each of whose frequency lies in the other's full-rate interval are one line
-(:func:`imupipe.lines.same_line_groups`, the rule by which the bound merges them). Plain dicts in (the lines files' entries, tagged with dataset, sensor, axis and units by the
-summary stage), strings out.
+two lines each of whose frequency lies in the other's full-rate interval are one line
+(:func:`imupipe.lines.same_line_groups`, the rule by which the bound merges them). Plain dicts in (the lines files'
+entries, tagged with dataset, sensor, axis and units by the summary stage), strings out.
 """
 
 from __future__ import annotations
@@ -42,10 +42,10 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
     """The FLAG texts of the lines `items` of one sensor type: (where, detail, the places of its members).
 
     One per line (:func:`line_text`); a line seen on several axes or records (each member's frequency in another's
-    full-rate interval ``f_lo_hz`` to ``f_hi_hz``; an entry without them occupies its frequency alone) one text naming every axis and its
-    strongest member (largest peak over the floor); more than :data:`MAX_LINE_FLAGS` lines (an accelerometer's line
-    with its sidebands and harmonics) one text naming every frequency, on how many axes each is seen, and the
-    strongest line."""
+    full-rate interval ``f_lo_hz`` to ``f_hi_hz``; an entry without them occupies its frequency alone) one text
+    naming every axis and its strongest member (largest peak over the floor); more than :data:`MAX_LINE_FLAGS` lines
+    (an accelerometer's line with its sidebands and harmonics) one text naming every frequency, on how many axes
+    each is seen, and the strongest line."""
     from imupipe.lines import same_line_groups
 
     texts = [line_text(it) for it in items]

@@ -861,7 +861,8 @@ def _component_checks(b, i, kept, t, band) -> dict:
             # as a GM bump (an outside evaluation: lines at 0.06 and 0.09 Hz, a GM of T 1.7 s fitted beside them,
             # its white equivalent above the records' floor); the bound carries that power in its line states
             alt = _compare(t, band, _gm_terms_avar(b, t) + b.white**2 / t + b.random_walk**2 * t / 3
-                           + _narrowband_terms_avar(b, t), _gm_terms_avar(i, t), "GM + white + random walk + lines vs GM")
+                           + _narrowband_terms_avar(b, t), _gm_terms_avar(i, t),
+                           "GM + white + random walk + lines vs GM")
             if alt["status"] == "ok":
                 alt["reason"] += (" (the identified GM lies where the bound's spectral lines are, whose states "
                                   "represent it)")

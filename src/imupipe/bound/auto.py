@@ -55,16 +55,15 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     * with more than one axis, every axis's own joint band is recorded (where the pooling test rejects one model
       for every curve, ``pooling.consistent`` false: ``per_axis[axis].upper_envelope_joint``; where it accepts:
       ``axis_envelopes[axis].upper_envelope_joint``), each at level c (over k axes they hold together with
-      probability at least 1 - k (1 - c), the level the reason states), and every axis's model describes its
-      Allan variances; the candidate's target dominates the pooled and every per-axis envelope (where pooled:
-      the identify file's ``upper_envelope_model_axes``). Accepting
-      one model does not show the axes equal: a gyro z drifting 20 % more than x and y (two 1.5 h records) passed
-      the test (p 0.28), the pooled band lay under z's random walk and the candidate on it under-stated z's error
-      (MSE/P 1.07). Where the test rejects: five records of one held-out truth lost the envelope candidate to a
-      pooling false alarm, the test's 1 % by design, and the exported model's conservatism rose to 2.02
-      (docs/performance.md). Where the test rejects, also: the record-consistency test names no record
-      (``record_consistency.flagged``): per-axis envelopes answer axes that differ, not records that do, whose
-      differences only the candidates built from every sample PSD cover;
+      probability at least 1 - k (1 - c), the level the reason states), and every axis's model describes its Allan
+      variances; the candidate's target dominates the pooled and every per-axis envelope (where pooled: the identify
+      file's ``upper_envelope_model_axes``). Accepting one model does not show the axes equal: a gyro z drifting
+      20 % more than x and y (two 1.5 h records) passed the test (p 0.28), the pooled band lay under z's random
+      walk and the candidate on it under-stated z's error (MSE/P 1.07). Where the test rejects: five records of one
+      held-out truth lost the envelope candidate to a pooling false alarm, the test's 1 % by design, and the
+      exported model's conservatism rose to 2.02 (docs/performance.md). Where the test rejects, also: the
+      record-consistency test names no record (``record_consistency.flagged``): per-axis envelopes answer axes
+      that differ, not records that do, whose differences only the candidates built from every sample PSD cover;
     * no spectral line in the lines files `lines` (curve label -> :meth:`imupipe.lines.LineSearch.to_dict`): the
       envelope is a broadband model and carries no line, which only the sample PSDs' rows would bound;
     * the selected model (per axis where the curves are not pooled) describes the Allan variances (the identify

@@ -39,8 +39,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 __all__ = ["AXIS_ENVELOPE_KEYS", "SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope",
-           "envelope_ratio", "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor", "selected_and_envelope",
-           "selected_model"]
+           "envelope_ratio", "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor",
+           "selected_and_envelope", "selected_model"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
 SEED_FIT, SEED_POOLING = 20211, 20212
