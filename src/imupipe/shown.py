@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "ratio_text", "spec_unit"]
+__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "ratio_text",
+           "spec_unit"]
 
 
 def num(v, fmt="{:.3g}") -> str:

@@ -96,7 +96,10 @@ def _where_of(item: Mapping) -> str:
 def _detail_of(item: Mapping, skip=()) -> str:
     shown = ("curve", "dataset", "sensor", "axis", "f0_hz", "frequency_hz", "tau_s", "start_s", "stop_s",
              "index", "time_s", "row", "file")
-    parts = [f"{k}={(ratio_text(v) if 'ratio' in k else num(v)) if isinstance(v, float) else v}" for k, v in item.items()
+    def text(k, v):  # a ratio keeps the digits that tell it from 1
+        return (ratio_text(v) if "ratio" in k else num(v)) if isinstance(v, float) else v
+
+    parts = [f"{k}={text(k, v)}" for k, v in item.items()
              if k not in shown and k not in skip and not isinstance(v, (Mapping, list))]
     return ", ".join(parts)
 

@@ -18,7 +18,7 @@ import numpy as np
 from imupipe.readers._common import _ROS_FIELDS, SENSORS, AXES, DataError, _blank, _time_factor
 from imupipe.readers.checks import check_file
 from imupipe.readers.core import _format_of, read_dataset, sheet_row_to_kwargs, snap_rate
-from imupipe.readers.text import _DELIMITERS, _content_lines, _is_header, _split
+from imupipe.readers.text import _content_lines, _delimiter_of, _is_header, _split
 
 __all__ = ["Probe", "head_rate", "probe", "probe_row"]
 
@@ -193,9 +193,7 @@ def head_rate(path, time_column, time_unit: str = "s", rows: int = 20000, delimi
     first = next(lines, None)
     if first is None:
         return None
-    key = None if delimiter is None else (delimiter if delimiter in _DELIMITERS else str(delimiter).strip().lower())
-    delim = (_DELIMITERS.get(key) if key is not None else
-             "\t" if "\t" in first[1] else "," if "," in first[1] else ";" if ";" in first[1] else None)
+    delim = _delimiter_of(first[1], delimiter)
     tokens = _split(first[1], delim)
     has_header = _is_header(tokens, None, time_column)
     idx = tokens.index(str(time_column)) if has_header and str(time_column) in tokens else int(time_column)
@@ -223,11 +221,7 @@ def _probe_text(path: Path, delimiter, time_column, channels, where):
     if first is None:
         raise DataError(f"{where}: file holds no data (only blank or comment lines)")
     header = first[1]
-    if delimiter is None:
-        delim = "\t" if "\t" in header else "," if "," in header else ";" if ";" in header else None
-    else:
-        key = delimiter if delimiter in _DELIMITERS else str(delimiter).strip().lower()
-        delim = _DELIMITERS.get(key)
+    delim = _delimiter_of(header, delimiter)
     tokens = _split(header, delim)
     specs = dict(channels) if channels else None
     has_header = _is_header(tokens, specs, time_column)

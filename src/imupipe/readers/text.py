@@ -62,6 +62,19 @@ def _content_lines(path: Path, start_line: int) -> Iterator[tuple[int, str]]:
                 yield number, text.rstrip("\r\n")
 
 
+def _delimiter_of(header: str, delimiter=None, where: str | None = None):
+    """The field separator of a text record: `delimiter` as the dataset sheet spells it (a key of ``_DELIMITERS``:
+    ',', tab, semicolon, space, ...), else the one the header line shows (tab, comma, semicolon; None: whitespace).
+    With `where` (the file, for the message) an unknown spelling is a :class:`DataError`; without, it reads as
+    whitespace (a probe, whose full read names it)."""
+    if delimiter is None:
+        return "\t" if "\t" in header else "," if "," in header else ";" if ";" in header else None
+    key = delimiter if delimiter in _DELIMITERS else str(delimiter).strip().lower()
+    if key not in _DELIMITERS and where is not None:
+        raise DataError(f"{where}: unknown delimiter {delimiter!r}; use ',', tab, semicolon, space")
+    return _DELIMITERS.get(key)
+
+
 def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
     if path.stat().st_size == 0:
         raise DataError(f"{where}: file is empty (0 bytes)")
@@ -72,13 +85,7 @@ def _load_text(path, specs, delimiter, time_column, time_unit, where) -> _Raw:
         break
     if header_line is None:
         raise DataError(f"{where}: file holds no data (only blank or comment lines)")
-    if delimiter is None:
-        delim = "\t" if "\t" in header else "," if "," in header else ";" if ";" in header else None
-    else:
-        key = delimiter if delimiter in _DELIMITERS else str(delimiter).strip().lower()
-        if key not in _DELIMITERS:
-            raise DataError(f"{where}: unknown delimiter {delimiter!r}; use ',', tab, semicolon, space")
-        delim = _DELIMITERS[key]
+    delim = _delimiter_of(header, delimiter, where)
     tokens = _split(header, delim)
     trailing = _trailing_delimiter(path, header_line, tokens, delim)
     if trailing and tokens[-1] == "":
