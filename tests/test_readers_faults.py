@@ -290,6 +290,29 @@ class TestGapFill:
         for d in drops:  # a gyro sample in a gap: the mean of its two neighbours
             assert rec["gyro", "z"][d] == pytest.approx(0.5 * (table[d - 1, 3] + table[d + 1, 3]) * DEG, rel=1e-12)
 
+    def test_jittered_stamps_are_not_gaps_and_real_drops_are(self, tmp_path, table, rng):
+        # 10 ms rms stamp jitter at 10 Hz (an outside evaluation's record): intervals longer than 1.5 periods
+        # occur (P = 2e-4 each, 3.5 sd of an interval), and the per-interval rule read each as a gap (fill
+        # inserted a sample in each, fail refused the record). A late stamp leaves the grid phase of its
+        # neighbours in place; a drop moves every later stamp by a period (grid_shift: 6.6 sd apart here).
+        from imupipe.readers.intervals import intervals_above
+
+        n, period = 36_000, 0.1
+        stamps = np.arange(n) * period + rng.normal(0.0, 0.01, n)
+        assert intervals_above(stamps, 1.5 * period).size >= 3  # the old rule's false gaps are there
+        data = np.resize(table, (n, 7))
+        data[:, 0] = stamps
+        clean = write_csv(tmp_path / "jitter.csv", data)
+        for policy in ("fail", "split", "fill"):
+            rec = read_dataset(clean, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy=policy)
+            assert rec.n_samples == n and rec.n_filled == 0 and len(rec.segments) == 1, policy
+        drops = [5000, 12_000, 12_001, 30_000]  # two single drops and a double one
+        keep = np.setdiff1d(np.arange(n), drops)
+        dropped = write_csv(tmp_path / "dropped.csv", data[keep])
+        rec = read_dataset(dropped, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy="fill")
+        assert [(g.row, g.n_missing) for g in rec.filled] == [(4999, 1), (11_998, 2), (29_996, 1)]
+        assert rec.n_samples == n
+
     def test_gap_longer_than_the_fill_limit_fails_or_splits(self, tmp_path, table):
         drops = list(range(100, 120)) + [300]
         path, _ = self.phone_log(tmp_path, table, drops)
