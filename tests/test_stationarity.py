@@ -350,3 +350,88 @@ class TestStableVerdicts:
         # a verdict far from the level is not extended
         far = calibrated_stationarity(x, 1.0, null, n_sim=199, n_sim_max=1000)
         assert not far["extended"] and far["n_sim_run"] == 199
+
+
+class TestNullWithLines:
+    """The calibrated null holds the axis's spectral lines (imupipe.stages.stationarity): a steady line is part of a
+    stationary record. Outside evaluations saw every axis with a line flagged (a null of white, GM, flicker and
+    random walk only, whose fit also absorbed the line's Allan variance)."""
+
+    @staticmethod
+    def line(f0, power, width_hz, resolution_hz=0.002):
+        from imupipe.lines import _line
+
+        return _line(f0, power, width_hz, peak_ratio=50.0, f_lo_hz=f0 - 0.004, f_hi_hz=f0 + 0.004,
+                     resolution_hz=resolution_hz)
+
+    def test_terms_at_the_alias_with_the_block_average_gain(self):
+        from imupipe.stages.stationarity import NULL_COHERENCE_RECORDS, null_line_sets
+
+        resolved = self.line(0.08, 4e-6, 0.01)  # wider than the resolution: its width is measured
+        folded = self.line(1.3, 1e-6, 0.02)  # above the 1 Hz record's Nyquist: at |1.3 - 1| Hz
+        on_dc = self.line(2.0, 1e-6, 0.02)  # a multiple of the rate: the block average removes it
+        (terms,) = null_line_sets([resolved, folded, on_dc], 1.0, 5400.0)
+        assert len(terms) == 2
+        (s0, f0, z0), (s1, f1, z1) = terms
+        assert (s0, f0) == pytest.approx((2e-3 * abs(np.sinc(0.08)), 0.08), rel=1e-12)
+        assert z0 == pytest.approx(0.01 / (2 * 0.08), rel=1e-12)  # Gamma kept: zeta = Gamma / (2 f)
+        assert (s1, f1) == pytest.approx((1e-3 * abs(np.sinc(1.3)), 0.3), rel=1e-12)
+        assert z1 == pytest.approx(0.02 / (2 * 0.3), rel=1e-12)
+        # an unresolved line (width at the resolution) is also tried at longer coherence times
+        sets = null_line_sets([self.line(0.08, 4e-6, 0.002)], 1.0, 5400.0)
+        assert len(sets) == 1 + len(NULL_COHERENCE_RECORDS)
+        for (_, fa, z), c in zip((s[0] for s in sets[1:]), NULL_COHERENCE_RECORDS):
+            assert 1.0 / (2 * math.pi * fa * z) == pytest.approx(c * 5400.0, rel=1e-12)  # tau_c = 1/(2 pi zeta f)
+        assert null_line_sets([], 1.0, 5400.0) == []
+
+    def test_a_steady_line_is_stationary(self):
+        """White noise + GM + a line at 0.08 Hz of damping 0.001 (coherence 2000 s, unresolved at 0.002 Hz), 1.5 h
+        at 10 Hz decimated to 1 Hz: the null without the line flags it (its fit absorbs the line); with the axis's
+        lines found by the workflow's search, the verdict is stationary. One record of a fixed seed; the rates over
+        20 records each are in docs/performance.md."""
+        from imupipe.allan import allan_variance
+        from imupipe.lines import find_lines
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+        from imupipe.spectra import decimate
+        from imupipe.stages.stationarity import stationarity_stage
+
+        truth = NoiseModel(white=1e-3, gauss_markov=((2e-4, 300.0),), narrowband=((3e-3, 0.08, 0.001),))
+        x = simulate(truth, 54_000, 10.0, np.random.default_rng(1))
+        av = allan_variance(x, 10.0)
+        found = find_lines(x, 10.0, resolution_hz=0.002).lines
+        assert len(found) == 1 and found[0].frequency_hz == pytest.approx(0.08, abs=0.002)
+        y, r = decimate(x, 10.0, 1.0)
+        allan = (av.tau, av.avar, av.edf)
+        without = stationarity_stage(y, r, allan=allan)
+        with_lines = stationarity_stage(y, r, allan=allan, lines=found)
+        assert not without["stationary"] and "null_lines" not in without["calibrated"]
+        assert with_lines["stationary"] and with_lines["calibrated"]["null_lines"]["tried"]
+        assert with_lines["calibrated"]["null_model"]["narrowband"]
+        (lo, hi), = with_lines["calibrated"]["null_lines"]["notch_hz"]
+        found_width = found[0].f_hi_hz - found[0].f_lo_hz  # the line's interval, plus 25 bins of 1/5400 Hz each side
+        assert lo < 0.08 < hi and hi - lo == pytest.approx(found_width + 50 / 5400.0, rel=1e-9)
+        # the broadband noise stepping by 1.6x halfway under the same line: still seen (the notch leaves it)
+        z = x.copy()
+        z[27_000:] += 0.6 * 1e-3 * np.sqrt(10.0) * np.random.default_rng(2).standard_normal(27_000)
+        av = allan_variance(z, 10.0)
+        y, r = decimate(z, 10.0, 1.0)
+        stepped = stationarity_stage(y, r, allan=(av.tau, av.avar, av.edf),
+                                     lines=find_lines(z, 10.0, resolution_hz=0.002).lines)
+        assert not stepped["stationary"]
+
+    def test_notch_removes_the_band_only(self):
+        from imupipe.stationarity import notch
+
+        n, rate = 1000, 1.0
+        t = np.arange(n) / rate
+        rng = np.random.default_rng(3)
+        other = rng.standard_normal(n)
+        line = 5.0 * np.sin(2 * np.pi * 0.1 * t + 0.3)  # on the bin k = 100
+        out = notch(np.stack([line + other, other]), rate, [(0.095, 0.105)])
+        np.testing.assert_allclose(out[0], out[1], atol=1e-12)  # the line gone, linear in the record
+        X, Y = np.fft.rfft(other - other.mean()), np.fft.rfft(out[1])
+        keep = np.abs(np.fft.rfftfreq(n) - 0.1) > 0.0051
+        keep[0] = False
+        np.testing.assert_allclose(Y[keep], X[keep], atol=1e-10)  # every other coefficient as it was
+        assert np.all(np.abs(Y[~keep]) < 1e-10)

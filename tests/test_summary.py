@@ -114,15 +114,18 @@ def test_stationarity_inclusion_is_stated(on_fail_included, phrase):
     assert phrase in flag.detail and flag.where == "d/accel/x"
 
 
-def test_a_non_stationary_axis_with_a_spectral_line_says_the_null_has_no_line():
-    # two outside evaluations: steady lines flagged their stationary axes (6 of 6, 4 of 6); the FLAG of an axis that
-    # holds a line says that the test's null does not hold it, and an axis without one reads as before
-    stat = {"curves": [{"dataset": "d", "axis": ax, "stationary": False, "p_value": 0.001, "test": "paper"}
+@pytest.mark.parametrize("test, phrase", [("paper", "which the paper's test's null (independent samples) does not hold"),
+                                          ("calibrated", "which the test leaves out (notched from the record")])
+def test_a_non_stationary_axis_with_a_spectral_line_says_what_the_test_does_with_it(test, phrase):
+    # two outside evaluations: steady lines flagged their stationary axes (6 of 6, 4 of 6). The calibrated test now
+    # notches the axis's lines out (imupipe.stages.stationarity); the paper's test cannot: the FLAG of an axis that
+    # holds a line says which, and an axis without one reads as before
+    stat = {"curves": [{"dataset": "d", "axis": ax, "stationary": False, "p_value": 0.001, "test": test}
                        for ax in "xy"],
             "lines": [{"dataset": "d", "sensor": "accel", "axis": "x", "frequency_hz": 0.05, "f_lo_hz": 0.04,
                        "f_hi_hz": 0.06, "peak_ratio": 50.0}]}
     flags = {f.where: f for f in flags_of("accel", stationarity=stat) if f.check == "stationarity"}
-    assert "holds a spectral line (lines FLAG), which the test's null" in flags["d/accel/x"].detail
+    assert phrase in flags["d/accel/x"].detail
     assert "spectral line" not in flags["d/accel/y"].detail
 
 

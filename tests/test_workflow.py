@@ -155,8 +155,9 @@ class TestCaching:
                                        "all"}),
         # warn: a report, which the run summary reads (and the run verdict, the last job)
         "outliers": ({"k": 6.0}, {"outliers", "summary", "integrity", "all"}),
-        # the identification (the lines' Allan variance, a known term of its fits) and the bounds read the lines
-        "lines": ({"alpha": 0.05}, {"lines"} | AFTER_IDENTIFY),
+        # the stationarity test (notches them), the identification (the lines' Allan variance, a known term of its
+        # fits) and the bounds read the lines
+        "lines": ({"alpha": 0.05}, {"lines", "stationarity"} | AFTER_VERDICTS),
     }
 
     @pytest.mark.parametrize("section", sorted(SECTIONS))

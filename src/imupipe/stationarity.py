@@ -73,6 +73,7 @@ __all__ = [
     "calibrated_stationarity",
     "ks_statistics",
     "levene_statistic",
+    "notch",
     "stationarity_tests",
 ]
 
@@ -397,6 +398,23 @@ def _rank_pvalues(w_obs, d_obs_max, w_sim, d_sim):
     return pvals[0], float(np.count_nonzero(minp <= minp[0]) / n_all)
 
 
+def notch(x, rate: float, bands) -> np.ndarray:
+    r"""The records `x` (u, rows of a (records, n) array or one record, at `rate` Hz) with their mean and the
+    Fourier coefficients inside each frequency band of `bands` (pairs (lo, hi) in Hz, lo <= hi) removed: the
+    real FFT :math:`X_k` of each mean-removed record is zeroed where :math:`lo \le k\,\mathrm{rate}/n \le hi`
+    and transformed back (an ideal band-stop of the record's own circulant extension; a linear map, so a null
+    drawn through it is the null of the notched record). Same shape as `x`."""
+    a = np.asarray(x, dtype=np.float64)
+    n = a.shape[-1]
+    f = np.fft.rfftfreq(n, 1.0 / float(rate))
+    stop = np.zeros(f.size, dtype=bool)
+    for lo, hi in bands:
+        stop |= (f >= lo) & (f <= hi)
+    X = np.fft.rfft(a - a.mean(axis=-1, keepdims=True), axis=-1)
+    X[..., stop] = 0.0
+    return np.fft.irfft(X, n=n, axis=-1)
+
+
 def calibrated_stationarity(
     x,
     rate: float,
@@ -409,6 +427,7 @@ def calibrated_stationarity(
     n_sim_max: int | None = 1599,
     close_z: float = 2.0,
     paper: bool = True,
+    transform: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> dict:
     r"""Levene + KS stationarity test calibrated on a simulated stationary null.
 
@@ -472,6 +491,10 @@ def calibrated_stationarity(
         is that of the full test; the p-values are then those of the ``n_sim_run`` records drawn.
         A clearly stationary record stops after 10-40 of 99 draws; one near the level draws all.
         Default True.
+    transform : callable, optional
+        Applied to the observed record and to every null record before the statistics (rows of a
+        (records, n) array in, the same shape out), e.g. :func:`notch` of an axis's spectral lines, so that
+        the test reads what is left of both. The generator is seeded from the record as given. Default None.
 
     Returns
     -------
@@ -514,9 +537,13 @@ def calibrated_stationarity(
 
     def draw(count):
         if batch is not None:
-            return batch(count)
-        return np.stack([np.asarray(one(n, gen), dtype=np.float64).reshape(n) for _ in range(count)])
+            out = batch(count)
+        else:
+            out = np.stack([np.asarray(one(n, gen), dtype=np.float64).reshape(n) for _ in range(count)])
+        return out if transform is None else transform(out)
 
+    if transform is not None:
+        a = np.asarray(transform(a[None, :]), dtype=np.float64).reshape(n)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # constant-record warnings belong to the observed record only
         out = _monte_carlo(a, k, m, alpha, n_sim, draw, null, stop_early=stop_early, n_sim_max=n_sim_max,

@@ -274,7 +274,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
                             + (STUCK_NOTE if where in stuck_where else "")
-                            + (LINE_NOTE if where in line_where else "") + chance))
+                            + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
@@ -747,8 +747,12 @@ STUCK_NOTE = "; this record holds a stuck span (stuck channel above): check it b
 #: Added to a stationarity FLAG of an axis that holds a spectral line: the test's null is simulated from the axis's
 #: broadband Allan fit, without the line, and two outside evaluations saw steady lines flag stationary records (6 of
 #: 6 and 4 of 6 axes with a line, none without).
-LINE_NOTE = ("; this axis holds a spectral line (lines FLAG), which the test's null (the axis's broadband Allan fit) "
-             "does not: a steady line can fail it on a stationary record")
+LINE_NOTE = {
+    "calibrated": ("; this axis holds a spectral line (lines FLAG), which the test leaves out (notched from the record "
+                   "and its null): the broadband noise around the line changes"),
+    "paper": ("; this axis holds a spectral line (lines FLAG), which the paper's test's null (independent samples) does "
+              "not hold: a steady line can fail it on a stationary record"),
+}
 
 
 def _stuck_flag(sensor: str, it: Mapping) -> Flag:

@@ -1,5 +1,5 @@
 # Levene + two-sample KS on one decimated axis (paper), or the same statistics calibrated on a null simulated
-# from the axis's own Allan-variance fit; then, per sensor type, the summary with stationarity.on_fail
+# from the axis's own Allan-variance fit and spectral lines (a steady line is stationary); then, per sensor type, the summary with stationarity.on_fail
 # applied (which curves the stacked files mark `included`).
 
 
@@ -7,6 +7,7 @@ rule stationarity:
     input:
         decimated=f"{RESULTS}/decimated/{{dataset}}/{{sensor}}/{{axis}}.nc",
         allan=f"{RESULTS}/allan/{{dataset}}/{{sensor}}/{{axis}}.nc",
+        lines=f"{RESULTS}/lines/{{dataset}}/{{sensor}}/{{axis}}.yaml",
     output:
         verdict=f"{RESULTS}/stationarity/{{dataset}}/{{sensor}}/{{axis}}.yaml",
     params:

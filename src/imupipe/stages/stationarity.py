@@ -26,43 +26,118 @@ Plain values in (the decimated record, its rate and labels, its Allan curve), th
 from __future__ import annotations
 
 import logging
+import math
+
+import numpy as np
 
 from imupipe.verdict import chance_failures
 
 __all__ = ["NULL_COMPONENTS", "paper_tests", "stationarity_stage", "summary_stage"]
 
-#: Components of the calibrated null's model (the axis's Allan fit).
+#: Components of the calibrated null's model (the axis's Allan fit), beside the axis's spectral lines.
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
+
+
+#: Coherence times of an unresolved spectral line that the calibrated null tries, in record lengths
+#: (:func:`null_line_sets`).
+NULL_COHERENCE_RECORDS = (0.125, 0.5, 2.0, 8.0)
+
+
+def null_line_sets(lines, rate: float, duration_s: float) -> list[tuple]:
+    r"""The narrowband terms (sigma u, f0 Hz, zeta) that the axis's full-rate spectral lines `lines`
+    (:class:`imupipe.lines.Line`) make in its record of `duration_s` (s) block-averaged to `rate` (Hz), as the
+    sets of terms the calibrated null tries (the first: each line as measured).
+
+    Each line lies at its alias :math:`f_a` (:func:`imupipe.lines.alias_frequency`) with its power times
+    :math:`\mathrm{sinc}^2(f_0/\mathrm{rate})` (the block average's gain) and its half-power width
+    :math:`\Gamma` kept: :math:`\zeta = \min(\Gamma / (2 f_a), 1/2)`. A line folded onto 0 Hz (a multiple of the
+    rate) is left out: the block average removes it. A line no wider than its search's resolution is unresolved:
+    its width is an upper limit, and its amplitude may wander over any coherence time
+    :math:`\tau_c = 1/(2\pi\zeta f_a)` longer than the measured width allows, which the segments' variances
+    see. The further sets give such lines :math:`\tau_c` = :data:`NULL_COHERENCE_RECORDS` x `duration_s`
+    (where that is narrower than measured); the verdict takes the largest p-value over the sets (a test of
+    level alpha whenever one of them holds the line's true width, up to the grid's spacing)."""
+    from imupipe.lines import alias_frequency
+
+    dt = 1.0 / float(rate)
+    base, unresolved = [], []
+    for line in lines:
+        fa = alias_frequency(line.frequency_hz, dt)
+        gain = abs(float(np.sinc(line.frequency_hz * dt)))
+        if fa > 0 and gain > 0:
+            if line.width_hz <= line.resolution_hz * (1.0 + 1e-9):
+                unresolved.append(len(base))
+            base.append((line.sigma * gain, fa, min(line.width_hz / (2.0 * fa), 0.5)))
+    sets = [tuple(base)] if base else []
+    for c in NULL_COHERENCE_RECORDS if unresolved else ():
+        terms = list(base)
+        for i in unresolved:
+            sigma, fa, zeta = terms[i]
+            terms[i] = (sigma, fa, min(zeta, 1.0 / (2.0 * math.pi * fa * c * duration_s)))
+        if tuple(terms) not in sets:
+            sets.append(tuple(terms))
+    return sets
+
+
+#: Half-width of a line's notch beyond its interval (:func:`notch_bands`): bins of the record's spectrum, and
+#: multiples of the line's half-power width.
+NOTCH_BINS, NOTCH_WIDTHS = 25, 10.0
+
+
+def notch_bands(lines, rate: float, n: int) -> list[tuple[float, float]]:
+    r"""The bands (Hz) of a record of `n` samples block-averaged to `rate` (Hz) that the stationarity test leaves
+    out for the axis's full-rate spectral lines `lines` (:class:`imupipe.lines.Line`; those of
+    :func:`null_line_sets`): each line's interval folded into the record's band
+    (:func:`imupipe.lines.decimated_line`), widened on each side by the larger of :data:`NOTCH_BINS` bins
+    (rate / n Hz each) and, for a resolved line (wider than its search's resolution), :data:`NOTCH_WIDTHS`
+    half-power widths :math:`\Gamma`. What a notch leaves of a line
+    leaks from beyond it: about :math:`2/(\pi^2 w)` of a sinusoid's power beyond w bins (0.8 % at 25) and
+    :math:`\Gamma/(\pi \Delta)` of a Lorentzian's beyond :math:`\Delta` Hz (3 % at 10 widths)."""
+    from imupipe.lines import alias_frequency, decimated_line
+
+    dt = 1.0 / float(rate)
+    out = []
+    for line in lines:
+        if alias_frequency(line.frequency_hz, dt) > 0 and np.sinc(line.frequency_hz * dt) != 0:
+            d = decimated_line(line, dt)
+            resolved = line.width_hz > line.resolution_hz * (1.0 + 1e-9)  # else the width is the search's floor
+            margin = max(NOTCH_BINS * float(rate) / n, NOTCH_WIDTHS * line.width_hz if resolved else 0.0)
+            out.append((max(0.0, d["f_lo_hz"] - margin), d["f_hi_hz"] + margin))
+    return out
 
 
 def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, allan=None, n_segments: int = 2,
                        alpha: float = 0.05, test: str = "calibrated", n_sim: int = 199, n_sim_max: int | None = None,
-                       close_z: float = 2.0, segments=None) -> dict:
+                       close_z: float = 2.0, segments=None, lines=()) -> dict:
     """The verdict of the decimated record `x` (u) at `rate` (Hz) of `dataset`/`sensor`/`axis`: the
     ``stationarity`` settings (`n_segments`, `alpha`, `test` ``calibrated`` or ``paper``, `n_sim`, `n_sim_max`,
     `close_z`), `allan` the axis's (tau s, avar u^2, edf) on its grid (NaN where missing: the fit drops them;
     needed by ``calibrated``); `segments` (:class:`imupipe.segments.Segments` of `x`, None: the whole record) each
-    tested as a record (module docstring)."""
+    tested as a record (module docstring); `lines` the axis's spectral lines found at full rate
+    (:class:`imupipe.lines.Line`), which the calibrated null holds as narrowband terms (:func:`null_lines`): a
+    steady line is part of a stationary record, and a null without it flagged such axes."""
     if segments is not None and not segments.is_whole:
         k = len(segments.bounds)
         parts = [stationarity_stage(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan,
                                     n_segments=n_segments, alpha=alpha / k, test=test, n_sim=n_sim,
-                                    n_sim_max=n_sim_max, close_z=close_z) for v in segments.views(x)]
+                                    n_sim_max=n_sim_max, close_z=close_z, lines=lines) for v in segments.views(x)]
         return {**_segment_verdict(parts, segments, "p_value"), "n_samples": int(x.size)}
     out = {"dataset": dataset, "sensor": sensor, "axis": axis, "rate_hz": rate, "n_samples": int(x.size),
            "test": test}
     if test == "calibrated":
         from imupipe.identify import fit_allan
-        from imupipe.stationarity import calibrated_stationarity
 
         tau, avar, edf = allan
-        fit = fit_allan(tau, avar, edf, components=NULL_COMPONENTS, n_boot=0)
-        # the null draws are seeded from the record itself (common random numbers): identical records give
-        # identical verdicts whatever their axis or dataset; close verdicts draw more (up to n_sim_max)
-        cal = calibrated_stationarity(x, rate, fit.model, n_segments=n_segments, alpha=alpha, n_sim=n_sim,
-                                      rng="data", n_sim_max=n_sim_max, close_z=close_z, paper=False)
+        sets = null_line_sets(lines, rate, x.size / rate)
+        known = None
+        if sets:  # the lines' AV is a known part of the curve: the broadband fit must not absorb it
+            from imupipe.lines import line_avar
+
+            known = line_avar(np.asarray(tau, dtype=np.float64), lines)
+        fit = fit_allan(tau, avar, edf, components=NULL_COMPONENTS, n_boot=0, known_avar=known)
+        cal = _calibrated_over(x, rate, fit.model, sets, notch_bands(lines, rate, x.size), n_segments=n_segments,
+                               alpha=alpha, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z)
         out["paper"] = "the paper's test on this record: in the sensor's stationarity summary"
-        cal["null_model"] = fit.model.to_dict()
         out["calibrated"] = cal
         out["stationary"] = bool(cal["stationary"])
         out["p_value"] = float(cal["p_value"])
@@ -77,6 +152,36 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
         out["stationary"] = bool(paper["stationary"])
         out["p_value"] = float(min(paper["levene_p"], min(paper["ks_p"])))
     return out
+
+
+def _calibrated_over(x, rate, model, sets, bands, **settings) -> dict:
+    """The calibrated test (:func:`imupipe.stationarity.calibrated_stationarity`) of `x` on the null `model` with
+    each set of line terms of :func:`null_line_sets` added (`model` alone without lines), the record and every null
+    record notched in `bands` (Hz, :func:`notch_bands`; none without lines), the verdict of the set with the
+    largest p-value, its ``null_model`` and, with lines, ``null_lines`` (the bands, each set's zetas and p-value)."""
+    from dataclasses import replace
+
+    from imupipe.stationarity import calibrated_stationarity, notch
+
+    transform = (lambda r: notch(r, rate, bands)) if bands else None
+    results = []
+    for terms in sets or [()]:
+        null = replace(model, narrowband=tuple(model.narrowband) + tuple(terms)) if terms else model
+        # the null draws are seeded from the record itself (common random numbers): identical records give
+        # identical verdicts whatever their axis or dataset; close verdicts draw more (up to n_sim_max)
+        cal = calibrated_stationarity(x, rate, null, rng="data", paper=False, transform=transform, **settings)
+        cal["null_model"] = null.to_dict()
+        results.append((terms, cal))
+    terms, best = max(results, key=lambda r: r[1]["p_value"])
+    if sets:
+        best["null_lines"] = {
+            "statement": (f"{len(terms)} spectral line(s) of the axis notched out of the record and of the null "
+                          "records, which carry them as narrowband terms at their alias in the decimated record; an "
+                          "unresolved line's width tried over coherence times, the largest p-value taken"),
+            "notch_hz": [[float(lo), float(hi)] for lo, hi in bands],
+            "tried": [{"zeta": [float(z) for _, _, z in t], "p_value": float(c["p_value"])} for t, c in results],
+        }
+    return best
 
 
 def paper_tests(verdicts: list, decimated: list) -> list:
