@@ -74,7 +74,8 @@ def main(argv=None) -> int:
             for step in a.step:
                 found, without, with_lines = flagged(case, zeta, step, a.records, seed)
                 seed += 1
-                print(f"| {case} | {zeta:g} | {step:g} | {a.records} | {found} | {without} | {with_lines} |", flush=True)
+                print(f"| {case} | {zeta:g} | {step:g} | {a.records} | {found} | {without} | {with_lines} |",
+                      flush=True)
     return 0
 
 

@@ -411,7 +411,8 @@ class TestNullWithLines:
         (lo, hi), = with_lines["calibrated"]["null_lines"]["notch_hz"]
         found_width = found[0].f_hi_hz - found[0].f_lo_hz  # the line's interval, plus 25 bins of 1/5400 Hz each side
         assert lo < 0.08 < hi and hi - lo == pytest.approx(found_width + 50 / 5400.0, rel=1e-9)
-        # the broadband noise stepping by 1.6x halfway under the same line: still seen (the notch leaves it)
+        # the white noise's sd stepping by sqrt(1 + 0.6^2) = 1.17x halfway under the same line: still seen (the
+        # notch leaves the broadband noise)
         z = x.copy()
         z[27_000:] += 0.6 * 1e-3 * np.sqrt(10.0) * np.random.default_rng(2).standard_normal(27_000)
         av = allan_variance(z, 10.0)

@@ -750,8 +750,8 @@ STUCK_NOTE = "; this record holds a stuck span (stuck channel above): check it b
 LINE_NOTE = {
     "calibrated": ("; this axis holds a spectral line (lines FLAG), which the test leaves out (notched from the record "
                    "and its null): the broadband noise around the line changes"),
-    "paper": ("; this axis holds a spectral line (lines FLAG), which the paper's test's null (independent samples) does "
-              "not hold: a steady line can fail it on a stationary record"),
+    "paper": ("; this axis holds a spectral line (lines FLAG), which the paper's test's null (independent samples) "
+              "does not hold: a steady line can fail it on a stationary record"),
 }
 
 
