@@ -114,8 +114,10 @@ def test_stationarity_inclusion_is_stated(on_fail_included, phrase):
     assert phrase in flag.detail and flag.where == "d/accel/x"
 
 
-@pytest.mark.parametrize("test, phrase", [("paper", "which the paper's test's null (independent samples) does not hold"),
-                                          ("calibrated", "which the test leaves out (notched from the record")])
+@pytest.mark.parametrize("test, phrase", [
+    ("paper", "which the paper's test's null (independent samples) does not hold"),
+    ("calibrated", "which the test leaves out (notched from the record"),
+])
 def test_a_non_stationary_axis_with_a_spectral_line_says_what_the_test_does_with_it(test, phrase):
     # two outside evaluations: steady lines flagged their stationary axes (6 of 6, 4 of 6). The calibrated test now
     # notches the axis's lines out (imupipe.stages.stationarity); the paper's test cannot: the FLAG of an axis that

@@ -1,6 +1,7 @@
 # Levene + two-sample KS on one decimated axis (paper), or the same statistics calibrated on a null simulated
-# from the axis's own Allan-variance fit and spectral lines (a steady line is stationary); then, per sensor type, the summary with stationarity.on_fail
-# applied (which curves the stacked files mark `included`).
+# from the axis's own Allan-variance fit, the axis's spectral lines notched out of both (a steady line is
+# stationary); then, per sensor type, the summary with stationarity.on_fail applied (which curves the stacked
+# files mark `included`).
 
 
 rule stationarity:
