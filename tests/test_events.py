@@ -213,6 +213,8 @@ class TestReportHelpers:
         y[100_000:] += 6e-3 * G * np.exp(-np.arange(900_000) / (0.3 * rate))
         [s] = find_steps(y, rate)["steps"]
         assert s["kind"] == "transient" and abs(s["index"] - 100_000) <= rate and s["size_low"] > 0, s
+        # its span is the scale it is sized at (an outside evaluation: sized over 1 s but said to last 64 s)
+        assert s["size_scale"] == s["scale"] and s["stop"] - s["index"] == s["scale"], s
 
 
 class TestStepLocalisation:

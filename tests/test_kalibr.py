@@ -244,7 +244,7 @@ def test_kalibr_follows_the_kf_export_that_dropped_every_line(tmp_path):
     assert k["accelerometer_noise_density"] == pytest.approx(n, rel=1e-6)
     assert k["accelerometer_random_walk"] == pytest.approx(kk, rel=1e-6)
     assert kk < _pair(ACCEL, STAGE_BAND)[1] * (1 - 1e-3)  # the two differ: the check can tell which was used
-    assert "dropped random_walk, narrowband f0=0.564 Hz" in text and "horizon only (600 s of outage" in text
+    assert "dropped random_walk, narrowband f0=0.564 Hz" in text and "scenario only (600 s of outage" in text
     # verified at the reference filter's 100 Hz, the Kalibr update_rate 100 Hz: no rate caveat
     assert "at that rate only" not in text
 

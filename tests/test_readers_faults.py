@@ -306,6 +306,13 @@ class TestGapFill:
         for policy in ("fail", "split", "fill"):
             rec = read_dataset(clean, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy=policy)
             assert rec.n_samples == n and rec.n_filled == 0 and len(rec.segments) == 1, policy
+        # uniform jitter of +-0.35 periods (rms 0.2), the rate left empty: the long intervals the next stamps make up
+        # stay in the mean rate (left out, 10 Hz read as 10.31 Hz and 436 gaps), and none is a gap
+        uniform = data.copy()
+        uniform[:, 0] = np.arange(n) * period + rng.uniform(-0.35, 0.35, n) * period
+        rec = read_dataset(write_csv(tmp_path / "uniform.csv", uniform), "csv", None, CHANNELS, UNITS,
+                           time_column="t", gap_policy="fill")
+        assert rec.rate_hz == 10.0 and rec.n_filled == 0 and rec.n_samples == n
         drops = [5000, 12_000, 12_001, 30_000]  # two single drops and a double one
         keep = np.setdiff1d(np.arange(n), drops)
         dropped = write_csv(tmp_path / "dropped.csv", data[keep])
@@ -317,8 +324,10 @@ class TestGapFill:
         drops = list(range(100, 120)) + [300]
         path, _ = self.phone_log(tmp_path, table, drops)
         kw = dict(time_column="t", gap_policy="fill", fill_max_s=0.05)
-        with pytest.raises(DataError, match=r"phone\.csv: timestamp gap of 0\.21 s between row 99 \(0-based\)"):
+        with pytest.raises(DataError, match=r"phone\.csv: timestamp gap of 0\.21 s between row 99 \(0-based\)") as info:
             read_dataset(path, "csv", 100.0, CHANNELS, UNITS, **kw)
+        # the short gap was filled already: the refusal names the long-gap policy, not gap_policy fill again
+        assert "longer than the fill limit" in str(info.value) and "long_gap_policy='split'" in str(info.value)
         with pytest.warns(GapWarning, match=r"1 timestamp gap"):
             rec = read_dataset(path, "csv", 100.0, CHANNELS, UNITS, **kw, long_gap_policy="split")
         assert rec.n_filled == 1 and rec.n_samples == N - 120  # rows 120..599 plus the one filled

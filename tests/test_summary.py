@@ -231,7 +231,8 @@ def _scope(dropped, vrate=1.0, kf_rate=1.0, horizon=600.0):
     from imupipe.kf import export_scope
 
     exported = {"reduced": bool(dropped), "model": {"white": 1e-4},
-                "verification": {"scenario": {"rate_hz": vrate, "fix_s": 600.0, "horizon_s": horizon}}}
+                "verification": {"scenario": {"rate_hz": vrate, "fix_s": 600.0, "horizon_s": horizon, "sigma_fix": 0.5,
+                                              "sigma_fix_unit": "m"}}}
     return export_scope(exported, {"accepted": dropped}, kf_rate)
 
 
@@ -244,8 +245,9 @@ def test_the_exported_filter_model_and_its_reduction_are_stated_per_sensor_and_p
     bound = _bound(export=_scope(["random_walk", "narrowband f0=0.564 Hz"]), per_axis_models=per)
     text = render_summary({"gyro": {"bound": bound, "identify": IDENTIFY}})
     assert ("- exported filter model (KF file): reduced model: the verified reduction dropped random_walk, "
-            "narrowband f0=0.564 Hz; the export is then valid for the configured horizon only (600 s of outage "
-            "after 600 s of fixes), not beyond it") in text
+            "narrowband f0=0.564 Hz; the export is then valid for the configured scenario only (600 s of outage "
+            "after 600 s of fixes of sigma 0.5 m), not beyond it: a longer outage or more accurate fixes need the "
+            "model before the reduction") in text
     assert "| x | 2.66 | yes | axis x: its own model | reduced model: the verified reduction dropped gauss_markov" in text
     assert "| y | 1.2 | no (global model) | axis y: the global model | global: reduced model: the verified" in text
     # the first screen's per-axis export table says it too, where a user picks the model for an axis
@@ -253,7 +255,7 @@ def test_the_exported_filter_model_and_its_reduction_are_stated_per_sensor_and_p
 
     table = "\n".join(per_axis_export_lines({"gyro": {"bound": bound}}))
     assert ("| gyro | x | own model |" in table and "| its own contract is bounded (the pooling test says the axes "
-            "differ); the verified reduction dropped gauss_markov: valid for the configured outage only |") in table
+            "differ); the verified reduction dropped gauss_markov: valid for the configured outage and fixes only |") in table
     assert "| gyro | y | global model |" in table and "the verified reduction dropped random_walk: valid" in table
     # the bound exported whole: said so, no horizon restriction claimed
     whole = render_summary({"gyro": {"bound": _bound(export=_scope([]))}})

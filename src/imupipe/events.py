@@ -459,7 +459,7 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         if abs(size) <= q * row["sigma_d"] and ms != m and t0 - m >= 0 and t0 + m <= n:
             # not a lasting shift: the mean moved over the detecting window only (an excursion shorter than the
             # size window); sized at the detecting scale
-            kind, row, stop, ms = "transient", sd_of[m], min(n, t0 + ms), m
+            kind, row, stop, ms = "transient", sd_of[m], min(n, t0 + m), m  # its span: the scale it is sized at
             size = float(_d_at(cs, t0, m))
             q = _t_isf((1.0 - confidence) / 2.0, row["nu"])
         steps.append({"index": int(t0), "size": size, "size_low": size - q * row["sigma_d"],

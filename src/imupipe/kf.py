@@ -461,10 +461,14 @@ def export_scope(exported: dict, reduction: dict | None, kf_rate_hz: float, hori
     nb = NoiseModel.from_dict(exported.get("model") or {}).narrowband
     line_states = [{"sigma": float(s), "f0_hz": float(f0), "zeta": float(z)} for s, f0, z in nb if s > 0]
     if dropped:
+        fixes = ""
+        if scen.get("fix_s") is not None:
+            fixes = f" after {float(scen['fix_s']):g} s of fixes"
+            if scen.get("sigma_fix") is not None:
+                fixes += f" of sigma {float(scen['sigma_fix']):g} {scen.get('sigma_fix_unit', '')}".rstrip()
         text = (f"reduced model: the verified reduction dropped {', '.join(dropped)}; the export is then valid for "
-                f"the configured horizon only ({_num_s(horizon_s)} s of outage"
-                + (f" after {float(scen['fix_s']):g} s of fixes" if scen.get("fix_s") is not None else "")
-                + "), not beyond it")
+                f"the configured scenario only ({_num_s(horizon_s)} s of outage{fixes}), not beyond it: a longer "
+                "outage or more accurate fixes need the model before the reduction (the bound file's)")
     else:
         text = "the bound's model, no state dropped"
     if mismatch:

@@ -749,7 +749,7 @@ STUCK_NOTE = "; this record holds a stuck span (stuck channel above): check it b
 #: 6 and 4 of 6 axes with a line, none without).
 LINE_NOTE = {
     "calibrated": ("; this axis holds a spectral line (lines FLAG), which the test leaves out (notched from the record "
-                   "and its null): the broadband noise around the line changes"),
+                   "and its null): the verdict is on the broadband noise around it"),
     "paper": ("; this axis holds a spectral line (lines FLAG), which the paper's test's null (independent samples) "
               "does not hold: a steady line can fail it on a stationary record"),
 }
@@ -1047,7 +1047,7 @@ def per_axis_export_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
             held = ", ".join(d.split(" ", 1)[0] for d in e["dropped"] if d not in gone)  # holds for the outage only
             rows.append(f"| {sensor} | {e['axis']} | {'own model' if e['own'] else 'global model'} | {n} | {gm} | "
                         f"{k} | {lines} | {e['why']}" + (f"; the verified reduction dropped {held}: valid for the "
-                                                         "configured outage only |" if held else " |"))
+                                                         "configured outage and fixes only |" if held else " |"))
     if not rows:
         return []
     return ["", "The axes differ: give each axis the model the KF file's `per_axis` exports for it, below (the tables "
