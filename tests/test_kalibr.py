@@ -111,6 +111,19 @@ def test_lp_pair_closed_forms():
     assert k == pytest.approx(s * math.sqrt(2.0 / T), rel=1.0 / (2 * math.pi * BAND[0] * T) ** 2 + LP_FEASIBILITY_TOL)
 
 
+def test_lp_pair_of_a_model_with_no_power_at_some_frequency():
+    """A sampled quantization term (dt 0.1 s) has no power at 10 Hz, inside a band up to 10 Hz (an outside
+    evaluation's identified accel model, whose pair the Kalibr file's comment compares with): such a frequency needs
+    no cover. Its 1/S made the LP's input infinite, and the Kalibr file was refused with linprog's message. The pair
+    is finite and bounds the PSD below the model's Nyquist frequency on a finer grid."""
+    m = NoiseModel(quantization=1.4e-3, dt=0.1)
+    pair = kalibr_pair(m, (5.6e-4, 10.0))
+    assert pair.noise_density > 0 and math.isfinite(pair.noise_density) and math.isfinite(pair.random_walk)
+    f = np.geomspace(5.6e-4, 4.9, 4001)
+    cover = pair.noise_density**2 + pair.random_walk**2 / (2 * np.pi * f) ** 2
+    assert np.all(cover >= m.psd(f) * (1 - 1e-6))
+
+
 def test_per_axis_models_take_the_largest_of_each():
     """Two axis models, one with the larger white noise, the other with the larger drift: Kalibr's pair is the
     largest N and the largest K, each named by its axis in the comment, and bounds both axes."""

@@ -222,6 +222,10 @@ def kalibr_pair(model, band_hz, *, per_decade: int = PER_DECADE, tol: float = LP
 
     if not np.any(psd(rows) > 0):
         return KalibrPair(0.0, 0.0, (lo, hi), (), float("inf"), int(rows.size))
+    # a frequency where the model has no power needs no cover and has no ratio (a sampled quantization term is 0 at
+    # the Nyquist frequency, and its 1/S made the LP's input infinite)
+    rows = rows[psd(rows) > 0]
+    f_obj = f_obj[psd(f_obj) > 0]
     w_obj = (2.0 * np.pi * f_obj) ** 2
     s_obj = psd(f_obj)
     c_raw = np.array([np.mean(1.0 / s_obj), np.mean(1.0 / (w_obj * s_obj))])
