@@ -57,9 +57,12 @@ def application_band(horizon_s: float, filter_rate_hz: float) -> tuple[float, fl
 
 
 def corner_frequencies(model: NoiseModel) -> list[float]:
-    r"""The model's corner frequencies, Hz: :math:`1/(2\pi T)` of each GM term, f0 of each line, and where the
-    random walk meets the white noise, :math:`K/(2\pi N)` (where both are present)."""
+    r"""The model's corner frequencies, Hz: :math:`1/(2\pi T)` of each GM term, f0 of each line, where the
+    random walk meets the white noise, :math:`K/(2\pi N)` (where both are present), and just below the Nyquist
+    frequency :math:`1/(2\,dt)` of a quantization term, where its band-limited PSD is largest and then drops to 0."""
     out = [1.0 / (2.0 * math.pi * T) for s, T in model.gauss_markov if s > 0]
+    if model.quantization > 0 and model.dt:
+        out.append(0.5 / model.dt * (1.0 - 1e-9))
     out += [f0 for s, f0, _ in model.narrowband if s > 0]
     if model.white > 0 and model.random_walk > 0:
         out.append(model.random_walk / (2.0 * math.pi * model.white))
