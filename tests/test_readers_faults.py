@@ -320,6 +320,25 @@ class TestGapFill:
         assert [(g.row, g.n_missing) for g in rec.filled] == [(4999, 1), (11_998, 2), (29_996, 1)]
         assert rec.n_samples == n
 
+    def test_a_wandering_clock_fills_no_jitter_and_says_what_it_cannot_resolve(self, tmp_path, table, rng):
+        # intervals jittering by 25 % rms, each on its own (the phase wanders): about 1 interval in 40 is longer than
+        # 1.5 periods, and fill inserted a sample in each (an outside evaluation, at 20 %: 251 made-up samples). The
+        # grid shift moves with the walk, so a long interval is a gap only beyond 5 robust sds of the intervals
+        # (1.25 periods above one): a 3-sample drop is found, a single one cannot be told from the jitter, and a
+        # GapWarning says so
+        n, period = 36_000, 0.1
+        steps = 1.0 + 0.25 * np.clip(rng.standard_normal(n - 1), -3.5, 3.5)  # clipped: time keeps increasing
+        stamps = np.concatenate([[0.0], np.cumsum(period * steps)])
+        data = np.resize(table, (n, 7))
+        data[:, 0] = stamps
+        keep = np.setdiff1d(np.arange(n), [9000, 9001, 9002])
+        path = write_csv(tmp_path / "wander.csv", data[keep])
+        with pytest.warns(GapWarning, match=r"wander\.csv: the timestamps jitter .* gaps of fewer than 2 samples"):
+            rec = read_dataset(path, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy="fill")
+        # the count is the interval's: 4 periods of 25 % jitter each span 4 +- 0.5 periods, so 3 +- 1 samples
+        (gap,) = rec.filled
+        assert gap.row == 8999 and abs(gap.n_missing - 3) <= 1 and rec.n_samples == n - 3 + gap.n_missing
+
     def test_gap_longer_than_the_fill_limit_fails_or_splits(self, tmp_path, table):
         drops = list(range(100, 120)) + [300]
         path, _ = self.phone_log(tmp_path, table, drops)

@@ -598,18 +598,67 @@ def grid_shift(t: np.ndarray, at: np.ndarray, period: float, stamps: int = GAP_P
     return out
 
 
-def _find_gaps(t: np.ndarray, nominal: float, gap_factor: float) -> tuple[np.ndarray, np.ndarray]:
+#: Robust standard deviations above its jitter that a long interval's evidence must lie to be a gap
+#: (:func:`_gap_mask`): of the grid shift, and of the interval itself.
+GAP_SHIFT_SDS, GAP_INTERVAL_SDS = 4.0, 5.0
+
+
+def _robust_sd(x: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation: the sd of a normal sample, unmoved by a few outliers (gaps)."""
+    x = np.asarray(x, dtype=np.float64)
+    return float(1.4826 * np.median(np.abs(x - np.median(x)))) if x.size else 0.0
+
+
+def _gap_mask(t: np.ndarray, long: np.ndarray, period: float, gap_factor: float, where: str | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    r"""(which of the long intervals `long` are gaps, the samples each misses). Gaps are the long intervals
+    (longer than `gap_factor` periods of `period` s) whose
+    stamps after them sit later on the sample grid by more than the stamps' own jitter shows, or that are
+    themselves longer than the intervals' jitter allows:
+
+    .. math:: s_i \ge \max(1/2,\ 4\,\hat\sigma_s) \quad\text{or}\quad
+              \Delta t_i - T \ge \max((g - 1) T,\ 5\,\hat\sigma_{\Delta t}),
+
+    :math:`s_i` the :func:`grid_shift`, :math:`\hat\sigma_s` its robust sd at up to 2000 ordinary intervals,
+    :math:`\hat\sigma_{\Delta t}` the robust sd of up to 100 000 intervals, g = `gap_factor`. Stamp jitter (each
+    stamp about its grid point) leaves the grid shift small and is read by the first test; a clock whose intervals
+    themselves jitter (its phase wanders) moves the grid shift by the walk and is read by the second, where a
+    20 % interval jitter made a long interval of every 160th and ``gap_policy: fill`` filled each. A gap of fewer
+    samples than either test can see at such jitter is not found, and `where` (the file, for the warning) is told
+    how many samples the stamps resolve. The samples missed: :math:`\mathrm{round}(s_i)` where the grid reads to
+    a half sample at four sds (:math:`\hat\sigma_s \le 1/8`), else :math:`\mathrm{round}(\Delta t_i / T) - 1`;
+    at least 1."""
+    n = len(t)
+    shift = grid_shift(t, long, period)
+    ordinary = np.setdiff1d(np.linspace(0, n - 2, min(2000, max(n - 1, 1))).astype(np.int64), long)
+    sd_s = _robust_sd(grid_shift(t, ordinary, period)) if ordinary.size >= 20 else 0.0
+    sample = np.linspace(0, n - 2, min(100_000, max(n - 1, 1))).astype(np.int64)
+    sd_dt = _robust_sd(intervals(t, sample))
+    gap = (shift >= max(0.5, GAP_SHIFT_SDS * sd_s)) | (
+        intervals(t, long) - period >= max((gap_factor - 1.0) * period, GAP_INTERVAL_SDS * sd_dt))
+    if sd_s <= 0.5 / GAP_SHIFT_SDS:
+        missing = np.rint(shift)
+    else:
+        missing = np.rint(intervals(t, long) / period) - 1.0
+    missing = np.maximum(missing, 1).astype(np.int64)
+    k_min = min(max(1, math.ceil(GAP_SHIFT_SDS * sd_s)), max(1, math.ceil(GAP_INTERVAL_SDS * sd_dt / period)))
+    if k_min > 1 and where is not None:
+        warnings.warn(f"{where}: the timestamps jitter (interval sd {sd_dt / period:.2g} periods, grid phase sd "
+                      f"{sd_s:.2g} periods over {GAP_PHASE_STAMPS} stamps): gaps of fewer than {k_min} samples cannot "
+                      "be told from jitter and are not found", GapWarning, stacklevel=4)
+    return gap, missing
+
+
+def _find_gaps(t: np.ndarray, nominal: float, gap_factor: float, where: str | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """(indices i, samples missing) of the gaps: intervals t[i] -> t[i+1] longer than ``gap_factor * nominal``
-    (s) after which the stamps sit at least half a period later on the sample grid (:func:`grid_shift`; a
-    long interval that the next short one makes up is jitter, not a gap). The samples missing are
-    ``max(1, round(dt / nominal) - 1)``, the interval's own count (a clock whose intervals jitter has no grid
-    to read them from)."""
+    (s) that :func:`_gap_mask` finds to be gaps, not jitter (a long interval that the next short one makes up, or a
+    wandering clock's long interval within its jitter), the samples missing counted as it says."""
     long = intervals_above(t, gap_factor * nominal)
     if not long.size:
         return long, np.empty(0, dtype=np.int64)
-    gaps = long[grid_shift(t, long, nominal) >= 0.5]
-    missing = np.maximum(np.rint(intervals(t, gaps) / nominal).astype(np.int64) - 1, 1)
-    return gaps, missing
+    gap, missing = _gap_mask(t, long, nominal, gap_factor, where)
+    return long[gap], missing[gap]
 
 
 def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]:
@@ -641,7 +690,7 @@ def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]
         long = intervals_above(t, gap_factor / mean_rate)
         if not long.size:
             break
-        jitter = grid_shift(t, long, 1.0 / mean_rate) < 0.5
+        jitter = ~_gap_mask(t, long, 1.0 / mean_rate, gap_factor)[0]
         if not jitter.any():
             break
         count, total = sum_between(t, long[~jitter])
@@ -696,7 +745,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
             f"give {mean_rate:.6g} Hz (mean interval)"
         )
     nominal = 1.0 / nominal_rate
-    gaps, _ = _find_gaps(t, nominal, gap_factor)
+    gaps, _ = _find_gaps(t, nominal, gap_factor, where)
     if gaps.size:
 
         def describe(i: int) -> str:
@@ -828,7 +877,7 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     if rate_hz is not None:
         _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where, time_unit)
     nominal_rate, _ = _nominal_rate(t, rate, gap_factor)
-    gaps, missing = _find_gaps(t, 1.0 / nominal_rate, gap_factor)
+    gaps, missing = _find_gaps(t, 1.0 / nominal_rate, gap_factor, where)
     gap_dt = intervals(t, gaps)  # s
     fill = missing <= max_missing
     gaps, gap_dt, missing = gaps[fill], gap_dt[fill], missing[fill]
