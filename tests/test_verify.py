@@ -151,6 +151,21 @@ class TestReductionAndContract:
         assert by["gauss_markov T=5 s"]["accepted"] is True
         assert reduced.random_walk > 0 and len(reduced.gauss_markov) == 1
 
+    def test_reduction_keeps_a_line_whose_skirt_covers_the_band(self):
+        """An outside evaluation: the accel bound's white noise was the sheet's (half the records'), and a 2.3 Hz line's
+        skirt covered the records' white floor in a 1 Hz filter's band; the reduction dropped the line (the 0.5 m
+        fixes hid the loss) and a filter with 1 mm fixes under-stated its velocity error 1.8x. A line whose PSD is
+        more than 1 % of the model's anywhere in the filter's band beyond a factor 3 of its frequency (here 55x the
+        white noise's below 0.5 Hz: 4 zeta sigma^2 / omega_0 against N^2) stays; one far above the band, whose skirt
+        there is below 1 %, may go."""
+        skirt = NoiseModel(white=1e-4, narrowband=((0.01, 2.3, 0.02),))
+        _, tried = reduce_by_integrity(skirt, [NoiseModel(white=1e-4)])
+        (t,) = tried
+        assert t["accepted"] is False and t["in_band_psd_kept"] < 0.05 and "filter's band" in t["why"]
+        far = NoiseModel(white=1e-4, narrowband=((0.01, 40.0, 2.5e-5),))  # 4 zeta sigma^2 / omega_0 = 4e-11: 0.4 %
+        reduced, tried = reduce_by_integrity(far, [NoiseModel(white=1e-4)])
+        assert tried[0]["accepted"] is True and not reduced.narrowband
+
     def test_contract_bounded_means_verified(self):
         f = np.linspace(0, 0.5, 101)
         curves = np.full((1, 101), TRUTH.white**2)
