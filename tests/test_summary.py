@@ -260,7 +260,15 @@ def test_the_exported_filter_model_and_its_reduction_are_stated_per_sensor_and_p
     # the bound exported whole: said so, no horizon restriction claimed
     whole = render_summary({"gyro": {"bound": _bound(export=_scope([]))}})
     assert "- exported filter model (KF file): the bound's model, no state dropped" in whole
-    assert "horizon only" not in whole
+    assert "scenario only" not in whole
+    # the first screen says it too, under the values to paste (an outside evaluation read only that screen)
+    from imupipe.summary import summary_sections
+
+    head, _ = summary_sections({"gyro": {"bound": {**bound, "model": {"white": 1e-4}}}})
+    assert ("- gyro: reduced model: the verified reduction dropped random_walk, narrowband f0=0.564 Hz; the export is "
+            "then valid for the configured scenario only") in head
+    whole_head = summary_sections({"gyro": {"bound": _bound(export=_scope([]), model={"white": 1e-4})}})[0]
+    assert "| gyro | KF | white noise N |" in whole_head and "- gyro: " not in whole_head
     assert "exported filter model" not in render_summary({"gyro": {"bound": _bound()}})  # no contract: no claim
 
 

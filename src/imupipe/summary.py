@@ -1080,6 +1080,17 @@ def kalibr_line_holders(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
     return out
 
 
+def _reduced_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Under the first screen's values: each sensor whose KF model the verified reduction reduced, with the scope of
+    that export (its statement, :func:`imupipe.kf.export_scope`): a user who reads only this screen learns it."""
+    out = []
+    for sensor, files in runs.items():
+        exp = (files.get("bound") or {}).get("export")
+        if isinstance(exp, Mapping) and exp.get("dropped_by_reduction") and exp.get("statement"):
+            out.append(f"- {sensor}: {exp['statement']}")
+    return ["", *out] if out else []
+
+
 def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[str]:
     """The first screen's values to paste: one table in the spec sheet's units, one in SI (rows of
     :func:`paste_rows` with the sensor in front); empty when there is nothing to paste."""
@@ -1091,6 +1102,7 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
                  "again.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
+        head += _reduced_lines(runs)
         head += per_axis_export_lines(runs)
         head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
                  "|---|---|---|---|---|"]
