@@ -117,6 +117,39 @@ def test_check_read_reads_every_record_and_names_the_bad_one(tmp_path, capsys):
     assert "psd.window_s = 7200 s" in err and "or correct rate_hz if it is not the record's rate" in err
 
 
+def test_check_read_refuses_a_split_record_shorter_than_the_psd_window(tmp_path, capsys):
+    # an outside evaluation: `gap_policy: split` kept 1500 s of a 7200 s record, `check --read` said ok (the start-up
+    # check sees the whole file) and the run stopped in the PSD job. Two 60 s gaps in a 1 h record at 20 Hz leave
+    # segments of at most 1260 s, below TINY's psd.window_s of 1800 s; one gap leaves 2000 s, which reads well,
+    # with the reader's gap warning shown
+    rng = np.random.default_rng(4)
+    n = 72_000
+    t = np.arange(n) / 20.0
+    sheet = tmp_path / "sheet.tsv"
+    cfg = tmp_path / "cfg.yaml"
+    text = TINY.read_text().replace("datasets: null", f"datasets: {sheet}")
+    cfg.write_text(text[: text.index("simulation:")] + "simulation: null\n" + text[text.index("sensors:"):])
+    for gaps, ok in (((1200.0, 2400.0), False), ((2000.0,), True)):
+        tt = t.copy()
+        for g in gaps:
+            tt[tt >= g] += 60.0
+        x = np.column_stack([tt, 0.01 * rng.standard_normal((n, 5)), 9.80665 + 1e-3 * rng.standard_normal(n)])
+        np.savetxt(tmp_path / "gappy.csv", x, delimiter=",", comments="", fmt="%.9f",
+                   header="t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z")
+        sheet.write_text("dataset\tpath\tformat\trate_hz\tgyro_unit\taccel_unit\ttime_column\tgap_policy\n"
+                         f"gappy\t{tmp_path / 'gappy.csv'}\tcsv\t20\tdeg/s\tm/s^2\tt\tsplit\n")
+        capsys.readouterr()
+        assert main(["check", str(cfg), "--no-dry-run", "--read"]) == (0 if ok else 1)
+        out = capsys.readouterr()
+        if ok:
+            assert "ok  read gappy: 40000 samples at 20 Hz" in out.out
+            assert "warn " in out.out and "1 timestamp gap(s)" in out.out and "Kept the longest" in out.out
+        else:
+            # segments of 1200, 1140 and 1260 s (the second gap 60 s later in the shifted stamps)
+            assert ("gappy: 1260 s read (gap_policy split kept the longest segment), shorter than psd.window_s = "
+                    "1800 s") in out.err and "read well: gappy" not in out.err
+
+
 def test_check_with_dry_run_and_run_dry(tmp_path):
     # the snakemake command line of the checkout, in a scratch working directory (nothing is run)
     proc = subprocess.run([sys.executable, "-m", "imupipe", "check", str(TINY), "--directory", str(tmp_path)],

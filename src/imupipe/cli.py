@@ -286,13 +286,15 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
     Returns
     -------
     list of str
-        One line per record read (dataset, samples, rate, duration, from the ingest logs).
+        One line per record read (dataset, samples, rate, duration, from the ingest logs), then the reader's
+        warnings (``warning: ...``: gaps split off, gaps the stamps cannot resolve).
 
     Raises
     ------
     ValueError
         Naming every record that failed, each with the reader's message (file, column or key, and what was
-        expected); the records that read well are listed too.
+        expected), and every record read shorter than ``psd.window_s`` (``gap_policy: split`` keeps the longest
+        segment, which the start-up check on the whole file cannot see); the records that read well are listed.
     """
     import os
     import tempfile
@@ -306,16 +308,27 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
         cmd = _snakemake_cmd(config, cores, Path(scratch), ["--until", "ingest", "--keep-going", "--quiet", "rules",
                                                             "host", "reason", "progress"])
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
-        read = []
+        read, warned, short = [], [], []
+        window_s = _window_s(config)
         for log in sorted(Path(scratch).glob("logs/*/ingest/*.log")):
             text = log.read_text()
             found = re.findall(r"INFO (\S+: \d+ samples at \S+ Hz \([^)]*\) from .*)$", text, re.M)
             if found and " done in " in text:  # run_job's last line of a job that succeeded
                 read.append(found[0])
+                # the reader's warnings (gaps split or not resolvable), each once (one per channel read)
+                warned += [f"warning: {w}" for w in dict.fromkeys(re.findall(r"GapWarning: (.*)$", text, re.M))]
+                n, rate = re.match(r"\S+: (\d+) samples at (\S+) Hz", found[0]).groups()
+                if window_s and int(n) / float(rate) < window_s:  # the start-up check saw the whole file
+                    kept = " (gap_policy split kept the longest segment)" if "Kept the longest" in text else ""
+                    read.pop()
+                    short.append(f"imupipe error: {found[0].split(':')[0]}: {int(n) / float(rate):.6g} s read{kept}, "
+                                 f"shorter than psd.window_s = {window_s:g} s: the PSD job would stop; record longer, "
+                                 "shorten psd.window_s, or fill the gaps (gap_policy fill)")
         # the jobs name a recording relative to their working directory (the scratch folder): name it as the
         # sheet does
         renamed = {os.path.relpath(full, scratch): shown for full, shown in _sheet_paths(config).items()}
     errors = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("imupipe error:")]
+    errors += short
     if proc.returncode != 0 and not errors:  # stopped before any job: the workflow's own message, without traceback
         errors = [ln.rstrip() for ln in proc.stderr.splitlines()
                   if ln.strip() and not ln.lstrip().startswith(("File ", "Traceback"))
@@ -323,10 +336,21 @@ def read_records(config: str | Path, cores: int = 2) -> list[str]:
     for rel, shown in sorted(renamed.items(), key=lambda kv: -len(kv[0])):
         errors = [e.replace(rel, shown) for e in errors]
         read = [r.replace(rel, shown) for r in read]
-    if proc.returncode != 0:
+    if proc.returncode != 0 or short:
         raise ValueError("reading the records failed:\n  " + "\n  ".join(errors or ["(Snakemake gave no message)"])
                          + ("\nread well: " + "; ".join(read) if read else ""))
-    return read
+    return read + warned
+
+
+def _window_s(config: Path) -> float | None:
+    """The config's ``psd.window_s`` (s), None where it is not a number."""
+    from imupipe import runconfig as rc
+    from imupipe.io import read_yaml
+
+    try:
+        return float(rc.merged_config(read_yaml(config), _root(), where=str(config))["psd"]["window_s"])
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def _sheet_paths(config: Path) -> dict[str, str]:
@@ -351,7 +375,7 @@ def _cmd_check(args) -> int:
             print("ok  records: simulated by the run, nothing to read")
         else:
             for line in read_records(args.config):
-                print(f"ok  read {line}")
+                print(f"warn {line[len('warning: '):]}" if line.startswith("warning: ") else f"ok  read {line}")
     if not args.no_dry_run:
         cmd = _snakemake_cmd(Path(args.config).resolve(), 1, Path(args.directory).resolve() if args.directory else None,
                              ["--dry-run", "--quiet", "all"])
