@@ -223,11 +223,9 @@ def kalibr_pair(model, band_hz, *, per_decade: int = PER_DECADE, tol: float = LP
     if not np.any(psd(rows) > 0):
         return KalibrPair(0.0, 0.0, (lo, hi), (), float("inf"), int(rows.size))
     # a frequency where the model has no power needs no cover and has no ratio (the quantization PSD, band-limited,
-    # is 0 from the model's Nyquist frequency on, and its 1/S made the LP's input infinite); just below such a row the
-    # PSD's limit from below is covered (at the Nyquist frequency it is the term's largest value)
-    dead = psd(rows) <= 0
-    below = rows[dead] * (1.0 - 1e-9)
-    rows = np.unique(np.concatenate([rows[~dead], below[psd(below) > 0]]))
+    # is 0 from the model's Nyquist frequency on, and its 1/S made the LP's input infinite); its largest value, just
+    # below that frequency, is a row (imupipe.inband.corner_frequencies)
+    rows = rows[psd(rows) > 0]
     f_obj = f_obj[psd(f_obj) > 0]
     w_obj = (2.0 * np.pi * f_obj) ** 2
     s_obj = psd(f_obj)

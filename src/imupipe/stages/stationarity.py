@@ -57,15 +57,12 @@ def null_line_sets(lines, rate: float, duration_s: float) -> list[tuple]:
     see. The further sets give such lines :math:`\tau_c` = :data:`NULL_COHERENCE_RECORDS` x `duration_s`
     (where that is narrower than measured); the verdict takes the largest p-value over the sets (a test of
     level alpha whenever one of them holds the line's true width, up to the grid's spacing)."""
-    from imupipe.lines import alias_frequency
-
-    dt = 1.0 / float(rate)
     base, unresolved = [], []
     for line in lines:
-        fa = alias_frequency(line.frequency_hz, dt)
-        gain = abs(float(np.sinc(line.frequency_hz * dt)))
-        if fa > 0 and gain > 0:
-            if line.width_hz <= line.resolution_hz * (1.0 + 1e-9):
+        folded = _in_record(line, rate)
+        if folded is not None:
+            fa, gain = folded
+            if not _resolved(line):
                 unresolved.append(len(base))
             base.append((line.sigma * gain, fa, min(line.width_hz / (2.0 * fa), 0.5)))
     sets = [tuple(base)] if base else []
@@ -93,17 +90,31 @@ def notch_bands(lines, rate: float, n: int) -> list[tuple[float, float]]:
     half-power widths :math:`\Gamma`. What a notch leaves of a line
     leaks from beyond it: about :math:`2/(\pi^2 w)` of a sinusoid's power beyond w bins (0.8 % at 25) and
     :math:`\Gamma/(\pi \Delta)` of a Lorentzian's beyond :math:`\Delta` Hz (3 % at 10 widths)."""
-    from imupipe.lines import alias_frequency, decimated_line
+    from imupipe.lines import decimated_line
 
-    dt = 1.0 / float(rate)
     out = []
     for line in lines:
-        if alias_frequency(line.frequency_hz, dt) > 0 and np.sinc(line.frequency_hz * dt) != 0:
-            d = decimated_line(line, dt)
-            resolved = line.width_hz > line.resolution_hz * (1.0 + 1e-9)  # else the width is the search's floor
-            margin = max(NOTCH_BINS * float(rate) / n, NOTCH_WIDTHS * line.width_hz if resolved else 0.0)
+        if _in_record(line, rate) is not None:
+            d = decimated_line(line, 1.0 / float(rate))
+            margin = max(NOTCH_BINS * float(rate) / n, NOTCH_WIDTHS * line.width_hz if _resolved(line) else 0.0)
             out.append((max(0.0, d["f_lo_hz"] - margin), d["f_hi_hz"] + margin))
     return out
+
+
+def _in_record(line, rate: float):
+    r"""(alias Hz, amplitude gain) of a full-rate line in the record block-averaged to `rate` (Hz): its frequency
+    folded into the record's band (:func:`imupipe.lines.alias_frequency`) and :math:`|\mathrm{sinc}(f_0/rate)|`;
+    None where it folds onto 0 Hz or the block average removes it."""
+    from imupipe.lines import alias_frequency
+
+    dt = 1.0 / float(rate)
+    fa, gain = alias_frequency(line.frequency_hz, dt), abs(float(np.sinc(line.frequency_hz * dt)))
+    return (fa, gain) if fa > 0 and gain > 0 else None
+
+
+def _resolved(line) -> bool:
+    """A line wider than its search's resolution (else its width is the search's floor, an upper limit)."""
+    return line.width_hz > line.resolution_hz * (1.0 + 1e-9)
 
 
 def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, allan=None, n_segments: int = 2,
