@@ -883,8 +883,9 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     only when the covariance analysis passes against every model in `truths` (b: upper envelope,
     spec) without it. A narrowband term is not dropped where its PSD is more than :data:`LINE_DROP_IN_BAND` of the
     model's anywhere in the filter's band beyond a factor 3 of its frequency (:func:`_in_band_kept`): a line's skirt
-    may be what covers the records' white noise there, which the scenario's fixes can hide (an outside evaluation: a 2.3 Hz line dropped at a 1 Hz
-    filter left the accel's white noise 4x low in variance; with 1 mm fixes instead of 0.5 m, MSE/P 1.8).
+    may be what covers the records' white noise there, which the scenario's fixes can hide (an outside evaluation:
+    a 2.3 Hz line dropped at a 1 Hz filter left the accel's white noise 4x low in variance; with 1 mm fixes instead
+    of 0.5 m, MSE/P 1.8).
 
     `analyse` (default :func:`covariance_analyses`): the function ``(filter_model, truths, scenario) -> list of
     Verification`` that runs the covariance analyses (a caller may pass one that keeps its results).
@@ -907,26 +908,24 @@ def reduce_by_integrity(model, truths, sensor: str = "accel", scenario: Scenario
     def worst(m):  # the truths of one candidate in one per-fix loop (covariance_analyses)
         return max(v.worst_ratio for v in analyse(m, truths, sc)) if truths else float("inf")
 
-    candidates = []
+    candidates = []  # (name, the model without it, the narrowband term it drops or None)
     if current.random_walk > 0:
         candidates.append(("random_walk", lambda m: NoiseModel(white=m.white, gauss_markov=m.gauss_markov, dt=m.dt,
-                                                               narrowband=getattr(m, "narrowband", ()))))
+                                                               narrowband=getattr(m, "narrowband", ())), None))
     for i, (s, T) in enumerate(sorted(current.gauss_markov, key=lambda st: st[1])):
         def drop_gm(m, T=T):
             return NoiseModel(white=m.white, gauss_markov=tuple(g for g in m.gauss_markov if g[1] != T),
                               random_walk=m.random_walk, dt=m.dt, narrowband=getattr(m, "narrowband", ()))
-        candidates.append((f"gauss_markov T={T:.4g} s", drop_gm))
-    name_term = {}
+        candidates.append((f"gauss_markov T={T:.4g} s", drop_gm, None))
     for term in getattr(current, "narrowband", ()):
         def drop_nb(m, term=term):
             return NoiseModel(white=m.white, gauss_markov=m.gauss_markov, random_walk=m.random_walk, dt=m.dt,
                               narrowband=tuple(t for t in m.narrowband if t != term))
-        candidates.append((f"narrowband f0={term[1]:.4g} Hz", drop_nb))
-        name_term[f"narrowband f0={term[1]:.4g} Hz"] = term
-    for name, drop in candidates:
+        candidates.append((f"narrowband f0={term[1]:.4g} Hz", drop_nb, term))
+    for name, drop, line in candidates:
         trial = drop(current)
-        if name.startswith("narrowband"):
-            kept = _in_band_kept(trial, current, sc, skip=name_term[name])
+        if line is not None:
+            kept = _in_band_kept(trial, current, sc, skip=line)
             if kept < 1.0 - LINE_DROP_IN_BAND:  # its skirt carries power in the filter's band: kept
                 tried.append({"drop": name, "worst_ratio": None, "accepted": False, "in_band_psd_kept": kept,
                               "why": f"its skirt carries the model's broadband power in the filter's band (without "

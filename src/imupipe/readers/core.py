@@ -207,10 +207,11 @@ def read_dataset(
         Relative tolerance between the sheet's rate and the file's or timestamps' rate.
         Defaults to 0.01 (1 %).
     gap_factor : float, optional
-        A timestamp interval longer than ``gap_factor / rate_hz`` is a gap when the stamps after it sit at
-        least half a period later on the sample grid than those before it (:func:`grid_shift`: a late or
-        early stamp is jitter); shorter positive ones are sample steps (jitter and clock quantisation, e.g.
-        integer-ms stamps at 300 Hz, are accepted). Defaults to 1.5.
+        A timestamp interval longer than ``gap_factor / rate_hz`` is a gap when it lies beyond the stamps'
+        own jitter (:func:`_gap_mask`: the stamps after it sit later on the sample grid, or the interval
+        itself is longer than the intervals' jitter allows; a late or early stamp is jitter); shorter positive
+        ones are sample steps (jitter and clock quantisation, e.g. integer-ms stamps at 300 Hz, are accepted).
+        Defaults to 1.5.
     fill_max_samples : int, optional
         ``gap_policy="fill"``: longest gap filled, in missing samples. Defaults to None: 10 samples
         unless ``fill_max_s`` is given.
@@ -578,8 +579,8 @@ def grid_shift(t: np.ndarray, at: np.ndarray, period: float, stamps: int = GAP_P
     0.65 sigma (two medians of eight). Simulated (10 h at 10 Hz, 20 records each, 20 drops each): at sigma = T/10,
     8.8 intervals per record longer than 1.5 T and no false gap, every drop found; at T/5, 1390 long intervals and
     0.05 false gaps per record, 7 % of the drops missed (their interval below 1.5 T); uniform +-0.35 T (2 h): no
-    false gap, the mean rate exact. A clock whose intervals themselves
-    jitter (a random-walk phase) moves s by the walk over about `stamps` intervals.
+    false gap, the mean rate exact. A clock whose intervals themselves jitter (a random-walk phase) moves s by the
+    walk over about `stamps` intervals.
     """
     at = np.asarray(at, dtype=np.int64)
     n = len(t)
@@ -629,17 +630,14 @@ def _gap_mask(t: np.ndarray, long: np.ndarray, period: float, gap_factor: float,
     a half sample at four sds (:math:`\hat\sigma_s \le 1/8`), else :math:`\mathrm{round}(\Delta t_i / T) - 1`;
     at least 1."""
     n = len(t)
-    shift = grid_shift(t, long, period)
+    shift, dt = grid_shift(t, long, period), intervals(t, long)
     ordinary = np.setdiff1d(np.linspace(0, n - 2, min(2000, max(n - 1, 1))).astype(np.int64), long)
     sd_s = _robust_sd(grid_shift(t, ordinary, period)) if ordinary.size >= 20 else 0.0
     sample = np.linspace(0, n - 2, min(100_000, max(n - 1, 1))).astype(np.int64)
     sd_dt = _robust_sd(intervals(t, sample))
     gap = (shift >= max(0.5, GAP_SHIFT_SDS * sd_s)) | (
-        intervals(t, long) - period >= max((gap_factor - 1.0) * period, GAP_INTERVAL_SDS * sd_dt))
-    if sd_s <= 0.5 / GAP_SHIFT_SDS:
-        missing = np.rint(shift)
-    else:
-        missing = np.rint(intervals(t, long) / period) - 1.0
+        dt - period >= max((gap_factor - 1.0) * period, GAP_INTERVAL_SDS * sd_dt))
+    missing = np.rint(shift) if sd_s <= 0.5 / GAP_SHIFT_SDS else np.rint(dt / period) - 1.0
     missing = np.maximum(missing, 1).astype(np.int64)
     k_min = min(max(1, math.ceil(GAP_SHIFT_SDS * sd_s)), max(1, math.ceil(GAP_INTERVAL_SDS * sd_dt / period)))
     if k_min > 1 and where is not None:
@@ -671,8 +669,8 @@ def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]
     ``count(ok) / sum(dt[ok])`` with ``ok = dt <= gap_factor / guess``. Computed block-wise over `t`
     (:mod:`imupipe.readers.intervals`, equal to the whole-array ``np.median`` and ``np.sum(dt, where=ok)`` to
     the last bit); when `rate` is None, `t` must increase strictly. Then the long intervals that are jitter, not
-    gaps (:func:`grid_shift` below 1/2 against that mean), are counted back in: a late stamp's long interval and
-    the short one after it average to a period, the short one alone does not.
+    gaps (:func:`_gap_mask` against that mean), are counted back in: a late stamp's long interval and the short one
+    after it average to a period, the short one alone does not.
     """
     guess = 1.0 / median_interval(t) if rate is None else rate
 
@@ -683,7 +681,7 @@ def _nominal_rate(t: np.ndarray, rate, gap_factor: float) -> tuple[float, float]
     mean_rate = mean_rate_below(gap_factor / guess, guess)
     if rate is None:  # second pass against the mean: the median of a quantised clock may be off by a quantum
         mean_rate = mean_rate_below(gap_factor / mean_rate, mean_rate)
-    # a long interval that the stamps after it make up (jitter, grid_shift < 1/2) is a sample step: left out, its
+    # a long interval that is jitter, not a gap (_gap_mask), is a sample step: left out, its
     # short partner kept, the mean would be biased high (uniform jitter of +-0.35 periods: 10 Hz read as 10.31)
     # (twice: the grid's period from a biased mean drifts by a few % per stamp)
     for _ in range(2):
@@ -719,8 +717,8 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     (``gap_policy: fill``) and `gap_policy` is the long-gap policy, which a refusal then names.
 
     Tolerance: an interval in (0, gap_factor / rate] is a sample step (jitter and clock quantisation
-    accepted); a longer one is a gap where the later stamps sit a period or more later (:func:`_find_gaps`),
-    else jitter; zero or negative is an error. The rate is the mean over the gap-free
+    accepted); a longer one is a gap where it lies beyond the stamps' own jitter (:func:`_find_gaps`), else
+    jitter; zero or negative is an error. The rate is the mean over the gap-free
     intervals and must agree with the sheet's (or the file's) within `rtol`.
     """
     t = raw.time
@@ -745,7 +743,8 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
             f"give {mean_rate:.6g} Hz (mean interval)"
         )
     nominal = 1.0 / nominal_rate
-    gaps, _ = _find_gaps(t, nominal, gap_factor, where)
+    # after filling, the fill's own gap search has warned already of what the stamps cannot resolve
+    gaps, _ = _find_gaps(t, nominal, gap_factor, None if after_fill else where)
     if gaps.size:
 
         def describe(i: int) -> str:

@@ -125,8 +125,9 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
     `close_z`), `allan` the axis's (tau s, avar u^2, edf) on its grid (NaN where missing: the fit drops them;
     needed by ``calibrated``); `segments` (:class:`imupipe.segments.Segments` of `x`, None: the whole record) each
     tested as a record (module docstring); `lines` the axis's spectral lines found at full rate
-    (:class:`imupipe.lines.Line`), which the calibrated null holds as narrowband terms (:func:`null_lines`): a
-    steady line is part of a stationary record, and a null without it flagged such axes."""
+    (:class:`imupipe.lines.Line`), which the calibrated test notches out of the record and its null
+    (:func:`notch_bands`) and its null carries (:func:`null_line_sets`): a steady line is part of a stationary
+    record, and a null without it flagged such axes."""
     if segments is not None and not segments.is_whole:
         k = len(segments.bounds)
         parts = [stationarity_stage(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan,
