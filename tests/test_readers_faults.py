@@ -320,6 +320,42 @@ class TestGapFill:
         assert [(g.row, g.n_missing) for g in rec.filled] == [(4999, 1), (11_998, 2), (29_996, 1)]
         assert rec.n_samples == n
 
+    def test_a_stamp_stepping_back_within_the_jitter_is_jitter_and_a_clock_set_back_is_not(self, tmp_path, table,
+                                                                                           rng):
+        # Gaussian stamp jitter of 15 % of a period steps back about once in 2 h at 10 Hz (an outside evaluation):
+        # every gap_policy refused the record. Here one pair of neighbours 0.6 periods late and 0.5 early (4 and 3.3
+        # sd of the jitter, within 5) makes an interval of -0.1 periods; a drop elsewhere must still be found.
+        n, period = 36_000, 0.1
+        stamps = np.arange(n) * period + rng.normal(0.0, 0.15 * period, n)
+        stamps[20_000] = 20_000.6 * period
+        stamps[20_001] = 20_000.5 * period
+        data = np.resize(table, (n, 7))
+        data[:, 0] = stamps
+        keep = np.setdiff1d(np.arange(n), [5000])
+        path = write_csv(tmp_path / "back.csv", data[keep])
+        for policy in ("fail", "split", "fill"):
+            with pytest.warns(GapWarning, match=r"back\.csv: \d+ timestamp\(s\) in 't' step back or repeat within the "
+                                                r"stamps' jitter .* the first at row \d+"):
+                if policy == "fail":
+                    with pytest.raises(DataError, match=r"timestamp gap .* row 4999"):  # the drop, not the step back
+                        read_dataset(path, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy=policy)
+                    continue
+                rec = read_dataset(path, "csv", 10.0, CHANNELS, UNITS, time_column="t", gap_policy=policy)
+            if policy == "fill":
+                assert [(g.row, g.n_missing) for g in rec.filled] == [(4999, 1)] and rec.n_samples == n
+            else:
+                assert [s.n for s in rec.segments] == [5000, n - 5001]
+        # the same jitter with the clock set back by five periods, or a row written twice: the stamps after sit
+        # on another grid, which no jitter explains
+        back = data.copy()
+        back[20_001:, 0] -= 5 * period
+        with pytest.raises(DataError, match=r"not increasing: .* row 20001 .* [45]\.\d+ periods earlier on the sample "
+                                            r"grid .*a clock set back"):
+            read_dataset(write_csv(tmp_path / "set_back.csv", back), "csv", 10.0, CHANNELS, UNITS, time_column="t")
+        twice = np.insert(data, 20_000, data[20_000], axis=0)
+        with pytest.raises(DataError, match=r"duplicate timestamp .* row 20000 .* row 20001 .* 1\.\d+ periods earlier"):
+            read_dataset(write_csv(tmp_path / "twice.csv", twice), "csv", 10.0, CHANNELS, UNITS, time_column="t")
+
     def test_a_wandering_clock_fills_no_jitter_and_says_what_it_cannot_resolve(self, tmp_path, table, rng):
         # intervals jittering by 25 % rms, each on its own (the phase wanders): about 1 interval in 40 is longer than
         # 1.5 periods, and fill inserted a sample in each (an outside evaluation, at 20 %: 251 made-up samples). The

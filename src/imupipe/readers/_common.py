@@ -130,7 +130,8 @@ class DataError(ValueError):
 
 
 class GapWarning(UserWarning):
-    """Timestamp gaps were found and ``gap_policy="split"`` kept the longest contiguous segment."""
+    """What the reader did with or could not tell from the timestamps: gaps found (``gap_policy="split"`` kept the
+    longest contiguous segment), gaps the stamps' jitter hides, stamps that step back within their jitter."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from imupipe.readers.rosbag import _load_rosbag
 from imupipe.readers.text import _load_text
 from imupipe.readers.checks import check_file, check_unchanged, check_values
 from imupipe.readers.intervals import (
-    count_zero, first_nonpositive, interval, intervals, intervals_above, median_interval, sum_between,
+    count_zero, first_nonpositive, interval, intervals, intervals_above, median_interval, nonpositive, sum_between,
 )
 
 #: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
@@ -423,7 +423,7 @@ def _rate_and_segments(raw, n, fmt, rate_hz, time_unit, gap_policy, long_gap_pol
                 max_missing = fill_max_samples
             elif fill_max_s is not None:
                 # the median interval needs increasing time (the check _fill_gaps makes first)
-                _check_increasing(raw.time, raw.time_name, where, row_text)
+                _order_stamps(raw, where, row_text)
                 guess = rate if rate is not None else _nominal_rate(raw.time, None, gap_factor)[1]
                 max_missing = int(math.floor(fill_max_s * guess))
             else:
@@ -733,7 +733,8 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
     n = len(t)
     if n < 2:
         return [Segment(0, n, float(t[0]), float(t[0]))], rate
-    _check_increasing(t, tname, where, row_text)
+    _order_stamps(raw, where, row_text)
+    t = raw.time
     if rate_hz is not None:
         _check_sheet_rate(t, rate_hz, rtol, gap_factor, tname, where, time_unit)
     nominal_rate, mean_rate = _nominal_rate(t, rate, gap_factor)
@@ -821,19 +822,95 @@ def _stamp(t) -> str:
     return f"{float(t):.15g}"
 
 
-def _check_increasing(t, tname, where, row_text) -> None:
-    """Time must increase strictly: the first interval <= 0 is named (a duplicate or a step back)."""
-    i = first_nonpositive(t)
+def _check_increasing(t, tname, where, row_text, i: int | None = None, why: str = "") -> None:
+    """Time must increase strictly: the first interval <= 0 (or interval `i`) is named (a duplicate or a step
+    back), with `why` it is not read as jitter."""
+    i = first_nonpositive(t) if i is None else i
     if i is not None:
         if interval(t, i) == 0:
             raise DataError(
                 f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
-                f"t = {_stamp(t[i])} s ({count_zero(t)} duplicates in all)"
+                f"t = {_stamp(t[i])} s ({count_zero(t)} duplicates in all){why}"
             )
         raise DataError(
             f"{where}: time in {tname} is not increasing: t = {_stamp(t[i + 1])} s at {row_text(i + 1)} comes "
-            f"after t = {_stamp(t[i])} s at {row_text(i)} ({_stamp(t[i] - t[i + 1])} s back)"
+            f"after t = {_stamp(t[i])} s at {row_text(i)} ({t[i] - t[i + 1]:.6g} s back){why}"
         )
+
+
+#: Robust sds of the stamps' own jitter about their sample grid within which a stamp that steps back (or repeats
+#: its neighbour) is read as jitter (:func:`_order_stamps`).
+STEP_BACK_SDS = 6.0
+
+
+def _grid_residual(t: np.ndarray, j: int, period: float, skip: tuple[int, ...] = (),
+                   stamps: int = GAP_PHASE_STAMPS) -> float:
+    r"""How late stamp `j` sits (s) on the sample grid of its neighbours:
+    :math:`t_j - \operatorname{med}_k (t_k + (j - k) T)` over up to `stamps` stamps on each side, `j` and `skip`
+    left out."""
+    k = np.arange(max(0, j - stamps), min(len(t), j + stamps + 1))
+    k = k[~np.isin(k, (j, *skip))]
+    return float(t[j] - np.median(t[k] + (j - k) * period))
+
+
+def _order_stamps(raw: _Raw, where, row_text) -> None:
+    r"""Stamps that step back (or repeat) within the stamps' own jitter are set to their grid times; any other
+    interval <= 0 is refused (:func:`_check_increasing`). Warns (:class:`GapWarning`) of those read as jitter.
+
+    An interval :math:`t_i \to t_{i+1}` of at most 0 is jitter when both its stamps lie within
+    :math:`6\,\hat\sigma` of the grid their 8 neighbours on each side give (:func:`_grid_residual`,
+    :math:`\hat\sigma` the robust sd of that residual over up to 2000 stamps, T the median interval) and the stamps
+    after it sit no earlier on the grid than those before (:func:`grid_shift` above -1/2, or above -4 of its robust
+    sds where the stamps jitter more, as :func:`_gap_mask` reads a gap; a later grid is a gap beside it, which the
+    gap search finds): stamp jitter of rms
+    :math:`\sigma` makes an interval <= 0 wherever two neighbours' errors differ by a period (Gaussian jitter of
+    0.15 T: about once in 2 h at 10 Hz; beyond 6 sds: one stamp in 5e8). Two rows swapped on a clean clock (each a
+    period off, :math:`\hat\sigma` 0), a repeated row (the stamps after it a period early) or a clock set back stay errors. The stamps are
+    only read for the rate and the gaps, so the values the record holds do not change.
+    """
+    t = raw.time
+    bad = nonpositive(t)
+    if not bad.size:
+        return
+    n = len(t)
+    period = float(np.median(intervals(t, np.linspace(0, n - 2, min(100_000, n - 1)).astype(np.int64))))
+    if not period > 0 or n < 2 * GAP_PHASE_STAMPS + 2 or bad.size > 0.01 * n:
+        _check_increasing(t, raw.time_name, where, row_text, int(bad[0]))
+    sample = np.setdiff1d(np.linspace(0, n - 1, min(2000, n)).astype(np.int64), np.concatenate([bad, bad + 1]))
+    sd = _robust_sd(np.array([_grid_residual(t, int(j), period) for j in sample]))
+    limit = STEP_BACK_SDS * sd
+    ordinary = np.setdiff1d(sample[:-1], np.concatenate([bad - 1, bad, bad + 1]))
+    shift_limit = max(0.5, GAP_SHIFT_SDS * _robust_sd(grid_shift(t, ordinary, period)))  # as _gap_mask's
+    if not t.flags.writeable:
+        t = raw.time = t.copy()
+    read: dict[int, float] = {}
+    for _ in range(4):  # a stamp set to its grid time may now sit before a jittered neighbour: another pass
+        for i in (int(i) for i in bad):
+            if t[i + 1] > t[i]:
+                continue  # an earlier repair set it right
+            late = np.array([_grid_residual(t, i, period, (i + 1,)), _grid_residual(t, i + 1, period, (i,))])
+            shift, off = float(grid_shift(t, np.array([i]), period)[0]), float(np.max(np.abs(late)))
+            if shift <= -shift_limit:  # later: a gap beside it, which the gap search then finds
+                _check_increasing(t, raw.time_name, where, row_text, i, (
+                    f"; the stamps after it sit {-shift:.3g} periods earlier on the sample grid than those before (a "
+                    "clock set back, or rows repeated or out of order)"))
+            if off >= limit:
+                _check_increasing(t, raw.time_name, where, row_text, i, (
+                    f"; not read as stamp jitter: a stamp {off / period:.2g} periods off the grid its neighbours "
+                    f"give, the stamps' own jitter {sd / period:.2g} periods sd"))
+            read.setdefault(i, float(t[i] - t[i + 1]))
+            t[[i, i + 1]] -= late
+        bad = nonpositive(t)
+        if not bad.size:
+            break
+    if bad.size:
+        _check_increasing(t, raw.time_name, where, row_text, int(bad[0]),
+                          "; at their grid times the stamps would still not increase")
+    if read:
+        i, back = next(iter(read.items()))
+        warnings.warn(f"{where}: {len(read)} timestamp(s) in {raw.time_name} step back or repeat within the stamps' "
+                      f"jitter (sd {sd / period:.2g} periods): read at their grid times, the samples kept; the first "
+                      f"at {row_text(i + 1)}, {back:.6g} s back", GapWarning, stacklevel=4)
 
 
 @dataclass(frozen=True)
@@ -871,8 +948,8 @@ def _fill_gaps(raw: _Raw, rate, rate_hz, rtol, gap_factor, max_missing, max_frac
     row in the file (-1 for an inserted sample). The timestamps and channels grow in place where they own
     their memory (:func:`_insert_filled`): no second record-length array.
     """
+    _order_stamps(raw, where, row_text)
     t = raw.time
-    _check_increasing(t, raw.time_name, where, row_text)
     if rate_hz is not None:
         _check_sheet_rate(t, rate_hz, rtol, gap_factor, raw.time_name, where, time_unit)
     nominal_rate, _ = _nominal_rate(t, rate, gap_factor)

@@ -26,6 +26,7 @@ __all__ = [
     "intervals",
     "interval_blocks",
     "first_nonpositive",
+    "nonpositive",
     "count_zero",
     "intervals_above",
     "median_interval",
@@ -79,6 +80,12 @@ def first_nonpositive(t: np.ndarray) -> int | None:
         if bad.size:
             return a + int(bad[0])
     return None
+
+
+def nonpositive(t: np.ndarray) -> np.ndarray:
+    """Indices i (int64, ascending) with ``dt[i] <= 0``: ``np.flatnonzero(np.diff(t) <= 0)``."""
+    found = [a + np.flatnonzero(d <= 0) for a, d in interval_blocks(t)]
+    return np.concatenate(found).astype(np.int64, copy=False) if found else np.empty(0, dtype=np.int64)
 
 
 def count_zero(t: np.ndarray) -> int:
