@@ -44,6 +44,7 @@ def test_init_writes_a_sheet_and_a_config_that_validate(record, tmp_path, capsys
     row = dict(zip(rows[0], rows[1]))
     assert row["format"] == "csv" and float(row["rate_hz"]) == RATE
     assert (row["gyro_unit"], row["accel_unit"], row["time_column"], row["time_unit"]) == ("deg/s", "g", "t [s]", "s")
+    assert row["gap_policy"] == "fill" and "# gap_policy fill: a gap of up to 10 missing samples" in sheet.read_text()
     assert [row[f"{s}_{a}"] for s in ("gyro", "accel") for a in "xyz"] == [
         "gx [deg/s]", "gy [deg/s]", "gz [deg/s]", "ax [g]", "ay [g]", "az [g]"]
     # the sheet has the columns of the shipped one (and the time columns)
@@ -81,6 +82,25 @@ def test_headerless_record_gets_placeholders_and_says_so(tmp_path, capsys):
     assert "FILL_ME" in out and "gyro_unit" in out and "gyro_x" in out
     sheet = (tmp_path / "o" / "datasets.tsv").read_text()
     assert "# replace every FILL_ME" in sheet and sheet.count(PLACEHOLDER) >= 8
+    assert "gap_policy fill" not in sheet  # no stamps: no gaps to see
+
+
+def test_a_record_with_a_few_drops_runs_from_the_sheet_init_writes(tmp_path):
+    # an outside evaluation: init wrote no gap_policy, so a record with a few dropped samples stopped at the ingest
+    from imupipe.init import inspect_record
+    from imupipe.readers import read_dataset_row
+
+    n = 20000
+    t = np.delete(np.arange(n + 3) / 10.0, [5000, 9000, 9001])
+    x = np.random.default_rng(4).standard_normal((n, 6)) * 1e-3
+    x[:, 5] += 9.80665
+    path = tmp_path / "drops.csv"
+    np.savetxt(path, np.column_stack([t, x]), delimiter=",", fmt="%.10g", comments="",
+               header="t [s],gx [rad/s],gy [rad/s],gz [rad/s],ax [m/s^2],ay [m/s^2],az [m/s^2]")
+    info = inspect_record(path, "drops")
+    assert info.row["gap_policy"] == "fill"
+    rec = read_dataset_row(info.row)
+    assert rec.n_filled == 3 and rec.n_samples == n + 3 and [g.row for g in rec.filled] == [4999, 8998]
 
 
 def test_guess_channels():

@@ -835,3 +835,16 @@ def test_a_margin_at_one_within_round_off_is_not_called_a_failed_margin():
     assert "bound" not in fl and "the PSD margin 1 holds" in fl["verdict"].detail
     short = _bound(bounded=False, margin=1.0 - 10 * BOUNDED_TOLERANCE)
     assert any(f.check == "bound" and "margin" in f.detail for f in flags_of("gyro", bound=short))
+
+
+def test_the_samples_a_gap_fill_made_up_are_counted_per_dataset():
+    # an outside evaluation: the summary of a gap_policy fill run did not say that samples were made up
+    usage = [{"dataset": "phone", "axis": a, "n_samples": 3600, "n_samples_used": 3600, "n_filled": 7,
+              "filled_rows": "49,118,198,329,475,600,700"} for a in "xyz"]
+    usage.append({"dataset": "lab", "axis": "x", "n_samples": 3600, "n_samples_used": 3600, "n_filled": 0,
+                  "filled_rows": ""})
+    text = render_summary({"gyro": {"bound": _bound(psd_usage=usage), "identify": IDENTIFY}})
+    assert ("- samples made up by linear interpolation (gap_policy fill): phone 7 samples in 7 gap(s) (after file "
+            "rows 49, 118, 198, 329, 475, ...)") in text
+    assert "lab" not in text
+    assert "made up" not in render_summary({"gyro": {"bound": _bound(psd_usage=usage[3:]), "identify": IDENTIFY}})

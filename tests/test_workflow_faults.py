@@ -388,7 +388,15 @@ def test_good_dataset_results_present(fault_run):
         # five gaps filled, each after the file row before the dropped one (rows shift by one per earlier drop)
         assert nc.getncattr("n_filled") == 5 and nc.dimensions["sample"].size == N
         assert nc.getncattr("filled_rows") == ",".join(str(r - 1 - i) for i, r in enumerate(DROPS))
-    assert (res / "psd" / "drops+1.v2" / "gyro" / "z.nc").is_file()
+    # the PSD file carries the fill to the summary (imupipe.stages.summary.psd_usage -> summary.filled_lines)
+    from imupipe.stages.summary import psd_usage
+    from imupipe.summary import filled_lines
+
+    usage = psd_usage(str(res / "psd" / "drops+1.v2" / "gyro" / "z.nc"))
+    assert usage["n_filled"] == 5 and usage["filled_rows"] == ",".join(str(r - 1 - i) for i, r in enumerate(DROPS))
+    assert filled_lines([usage, psd_usage(str(res / "psd" / "good" / "gyro" / "z.nc"))]) == [
+        "- samples made up by linear interpolation (gap_policy fill): drops+1.v2 5 samples in 5 gap(s) (after file "
+        f"rows {', '.join(str(r - 1 - i) for i, r in enumerate(DROPS))})"]
     with netCDF4.Dataset(res / "series" / "drops+1.v2" / "gyro" / "x.nc") as nc:
         assert nc.rate_hz == RATE_HZ  # rate_hz left empty: the mean interval of the jittered stamps, snapped
     with netCDF4.Dataset(res / "allan" / "drops+1.v2" / "gyro" / "x.nc") as nc:  # the AV carries the fill

@@ -23,6 +23,10 @@ derived, each by a stated rule (:func:`derive_settings`):
   frequency ``1/W`` the records measure, and one fix period plus one outage fits in the shortest record (the
   replay of :func:`imupipe.verify` needs records of at least ``fix_s + outage_s``).
 
+A record with timestamps (a time column, or a ROS bag's message headers) gets ``gap_policy: fill``: a few dropped
+samples, common in logged records, are filled and counted instead of stopping the ingest; a longer gap still stops
+it, naming the gap (:data:`FILL_NOTE`, the sheet's comment).
+
 Column names gyro_x .. accel_z are guessed from the header (:func:`guess_channels`); units from a bracketed
 suffix (``gx [deg/s]``), the file's attribute (netCDF: ``from_file``) or the format (ROS ``sensor_msgs/Imu``:
 SI). What cannot be guessed is written as the placeholder :data:`PLACEHOLDER`, which the reader refuses, and
@@ -179,6 +183,8 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None, time_unit: 
         raise ValueError(f"{path}: sample rate unknown (no timestamps or rate in the file): give --rate-hz")
     rate, notes = _gap_proof_rate(path, fmt, meta, row.get("time_column"), time_unit, dataset)
     row["rate_hz"] = f"{rate:.12g}"
+    if row.get("time_column") or fmt == "rosbag":  # stamps that can show dropped samples (a bag: its headers')
+        row["gap_policy"] = "fill"
     have = set(_SENSORS) if fmt == "rosbag" else {s for s in _SENSORS if any(f"{s}_{a}" in channels for a in _AXES)}
     for s in _SENSORS:
         if have and s not in have:  # the other sensor's columns were found: this one is absent from the record
@@ -285,7 +291,12 @@ def derive_settings(records: list[RecordInfo]) -> Settings:
 
 
 _SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", "gyro_x", "gyro_y", "gyro_z",
-                  "accel_x", "accel_y", "accel_z", "time_column", "time_unit"]
+                  "accel_x", "accel_y", "accel_z", "time_column", "time_unit", "gap_policy"]
+
+#: The sheet's comment where a row says ``gap_policy: fill`` (:func:`sheet_text`).
+FILL_NOTE = ("gap_policy fill: a gap of up to 10 missing samples (fill_max_samples) is filled by linear "
+             "interpolation, counted in the outputs (n_filled) and the run summary; a longer gap stops the ingest "
+             "naming it (long_gap_policy: split keeps the longest segment; docs/inputs.md)")
 
 
 def sheet_text(records: list[RecordInfo]) -> str:
@@ -296,6 +307,8 @@ def sheet_text(records: list[RecordInfo]) -> str:
         lines.append(f"# replace every {PLACEHOLDER} below before running:")
         lines += [f"#   {t}" for t in todo]
     lines += [f"# {t}" for r in records for t in r.notes]
+    if any(r.row.get("gap_policy") == "fill" for r in records):
+        lines.append(f"# {FILL_NOTE}")
     lines.append("\t".join(_SHEET_COLUMNS))
     lines += ["\t".join(str(r.row.get(c, "")) for c in _SHEET_COLUMNS) for r in records]
     return "\n".join(lines) + "\n"

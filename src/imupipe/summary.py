@@ -611,6 +611,20 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
     return out
 
 
+def filled_lines(usage) -> list[str]:
+    """The samples ``gap_policy: fill`` made up, per dataset (the PSD files' ``n_filled`` and ``filled_rows``; one
+    line, none where nothing was filled)."""
+    filled = {}
+    for u in usage or []:
+        if isinstance(u, Mapping) and int(u.get("n_filled") or 0) > 0:
+            rows = [r for r in str(u.get("filled_rows") or "").split(",") if r]
+            more = ", ..." if len(rows) > 5 else ""
+            filled[u.get("dataset", "-")] = (f"{u.get('dataset', '-')} {int(u['n_filled'])} samples in {len(rows)} "
+                                            f"gap(s) (after file rows {', '.join(rows[:5])}{more})")
+    return [f"- samples made up by linear interpolation (gap_policy fill): {'; '.join(filled.values())}"
+            ] if filled else []
+
+
 def _export_lines(bound: Mapping, kept) -> list[str]:
     """Summary bullets on the exported filter model (the contract's ``export``, imupipe.kf.export_scope): the states
     the verified reduction dropped and the horizon (s) the export then holds for, the verification rate against the
@@ -1175,6 +1189,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         if bound.get("spec_name") or bound.get("mode"):
             lines.append(f"- spec sheet: {bound.get('spec_name', '-')}; bound mode: {bound.get('mode', '-')}; "
                          f"curves: {bound.get('n_curves', len(bound.get('curves') or []))}")
+        lines += filled_lines(bound.get("psd_usage"))
         rows = _inflation_rows(bound) if bound else []
         if rows:
             lines += ["", "| parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|"]

@@ -10,7 +10,7 @@ def main(path_decimated: str, window_s: float, step_s: float, taper: str, detren
          path_psd: str) -> None:
     y, rate, attrs = read_series(path_decimated)
     seg = Segments.from_attrs(attrs, y.size, rate, path_decimated)
-    labels = {k: attrs[k] for k in ("dataset", "sensor", "axis") if k in attrs}
+    labels = {k: attrs[k] for k in ("dataset", "sensor", "axis", "n_filled", "filled_rows") if k in attrs}
     try:
         sp = pooled_psd(y, rate, seg, window_s=window_s, step_s=step_s, taper=taper,
                         detrend=None if detrend == "none" else detrend, confidence=confidence, units=attrs["units"])

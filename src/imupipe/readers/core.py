@@ -865,8 +865,8 @@ def _order_stamps(raw: _Raw, where, row_text) -> None:
     gap search finds): stamp jitter of rms
     :math:`\sigma` makes an interval <= 0 wherever two neighbours' errors differ by a period (Gaussian jitter of
     0.15 T: about once in 2 h at 10 Hz; beyond 6 sds: one stamp in 5e8). Two rows swapped on a clean clock (each a
-    period off, :math:`\hat\sigma` 0), a repeated row (the stamps after it a period early) or a clock set back stay errors. The stamps are
-    only read for the rate and the gaps, so the values the record holds do not change.
+    period off, :math:`\hat\sigma` 0), a repeated row (the stamps after it a period early) or a clock set back
+    stay errors. The stamps are only read for the rate and the gaps: the samples the record holds do not change.
     """
     t = raw.time
     bad = nonpositive(t)

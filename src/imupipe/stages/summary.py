@@ -61,7 +61,8 @@ def _merge_checks(target: dict, data: dict) -> None:
 
 def psd_usage(path: str) -> dict | None:
     """The PSD file's labels and sample counts (global attrs dataset, sensor, axis, n_samples, n_samples_used,
-    window_s, step_s, rate_hz), or None for a missing or unreadable file."""
+    window_s, step_s, rate_hz; n_filled and filled_rows: the samples ``gap_policy: fill`` inserted in the record and
+    the file rows before its gaps), or None for a missing or unreadable file."""
     import netCDF4
 
     if not Path(path).is_file():
@@ -71,7 +72,8 @@ def psd_usage(path: str) -> dict | None:
             attrs = {k: ds.getncattr(k) for k in ds.ncattrs()}
     except OSError:
         return None
-    keys = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "window_s", "step_s", "rate_hz")
+    keys = ("dataset", "sensor", "axis", "n_samples", "n_samples_used", "window_s", "step_s", "rate_hz", "n_filled",
+            "filled_rows")
     return {k: (attrs[k].item() if hasattr(attrs[k], "item") else attrs[k]) for k in keys if k in attrs}
 
 
