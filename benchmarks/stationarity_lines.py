@@ -6,8 +6,9 @@ null: the broadband Allan fit alone) and with them (the workflow's: notched out 
 
 Each record: 1.5 h at 10 Hz of a truth (``line``: white 1e-3 u/sqrt(Hz), a GM of 2e-4 u at T 300 s and a line of
 sigma 3e-3 u at 0.08 Hz, nine times the decimated white variance; ``two``: white 2e-3, a GM of 5e-4 at 60 s, lines
-at 0.11 Hz and at 1.3 Hz, which folds to 0.3 Hz at 1 Hz, damping zeta and 2 zeta; ``none``: the first without
-its line), the white noise's standard deviation times `step` over the second half (1: stationary); the lines found by
+at 0.11 Hz and at 1.3 Hz, which folds to 0.3 Hz at 1 Hz, damping zeta and 2 zeta; ``strong``: white 1e-3, a GM
+of 3e-4 at 200 s and lines of sigma 2e-2 and 3e-2 u at 0.3 and 2.45 Hz, 400 and 900 times the decimated white
+variance; ``none``: the first without its line), the white noise's standard deviation times `step` over the second half (1: stationary); the lines found by
 the workflow's search (0.002 Hz resolution), the Allan variance on the full-rate record, the block average to 1 Hz,
 and the stage's verdict (alpha 0.05, n_sim 199 up to 1599). Prints a Markdown table of counts.
 """
@@ -32,6 +33,9 @@ RATE_HZ, HOURS = 10.0, 1.5
 def truth_of(case: str, zeta: float) -> NoiseModel:
     if case == "none":
         return NoiseModel(white=1e-3, gauss_markov=((2e-4, 300.0),))
+    if case == "strong":
+        return NoiseModel(white=1e-3, gauss_markov=((3e-4, 200.0),),
+                          narrowband=((2e-2, 0.3, zeta), (3e-2, 2.45, zeta)))
     if case == "two":
         return NoiseModel(white=2e-3, gauss_markov=((5e-4, 60.0),),
                           narrowband=((2e-3, 0.11, zeta), (6e-3, 1.3, 2 * zeta)))
@@ -60,7 +64,7 @@ def flagged(case: str, zeta: float, step: float, records: int, seed: int) -> tup
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--case", nargs="+", default=["line"], choices=["line", "two", "none"])
+    ap.add_argument("--case", nargs="+", default=["line"], choices=["line", "two", "strong", "none"])
     ap.add_argument("--zeta", nargs="+", type=float, default=[0.001])
     ap.add_argument("--step", nargs="+", type=float, default=[1.0, 1.6], help="white noise sd factor, second half")
     ap.add_argument("--records", type=int, default=20)

@@ -2,7 +2,8 @@
 simulation: records of `--hours` at `--rate` Hz whose stamps jitter about their sample grid (Gaussian, sd in
 periods), with `--drops` single samples removed from each, read through the public `read_dataset` under
 ``gap_policy: split``. Prints a Markdown table per jitter: stamps stepping back per record, records refused, rates
-read, the gaps found (segment boundaries at a drop, over the records read) and the false ones.
+read, the gaps found (segment boundaries at a drop or one row beside it, over the records read) and the false
+ones.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/timestamps.py --jitter 0.15 0.2 0.25 --records 20
 """
@@ -40,7 +41,9 @@ def read_one(folder: Path, rng, hours: float, rate: float, jitter: float, drops:
         except DataError:
             return back, True, None, 0, 0, len(true)
     found = {s.start for s in rec.segments[1:]}
-    return back, False, rec.rate_hz, len(found & true), len(found - true), len(true)
+    # a gap placed one row off (the long interval beside the drop's: jitter) is that gap
+    near = {f for f in found if {f - 1, f, f + 1} & true}
+    return back, False, rec.rate_hz, len(near), len(found - near), len(true)
 
 
 def main(argv=None) -> int:

@@ -38,6 +38,10 @@ __all__ = ["NULL_COMPONENTS", "paper_tests", "stationarity_stage", "summary_stag
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
 
 
+#: Allan taus of the notched record's own curve, on which the null of an axis with lines is fitted
+#: (``allan_variance``'s `taus`: points per decade).
+NULL_FIT_TAUS = 8
+
 #: Coherence times of an unresolved spectral line that the calibrated null tries, in record lengths
 #: (:func:`null_line_sets`).
 NULL_COHERENCE_RECORDS = (0.125, 0.5, 2.0, 8.0)
@@ -139,15 +143,18 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
     if test == "calibrated":
         from imupipe.identify import fit_allan
 
-        tau, avar, edf = allan
         sets = null_line_sets(lines, rate, x.size / rate)
-        known = None
-        if sets:  # the lines' AV is a known part of the curve: the broadband fit must not absorb it
-            from imupipe.lines import line_avar
+        bands = notch_bands(lines, rate, x.size)
+        if bands:  # the broadband fit on what the test sees: the notched record (lines_null_fit)
+            from imupipe.allan import allan_variance
+            from imupipe.stationarity import notch
 
-            known = line_avar(np.asarray(tau, dtype=np.float64), lines)
-        fit = fit_allan(tau, avar, edf, components=NULL_COMPONENTS, n_boot=0, known_avar=known)
-        cal = _calibrated_over(x, rate, fit.model, sets, notch_bands(lines, rate, x.size), n_segments=n_segments,
+            av = allan_variance(notch(x, rate, bands), rate, taus=NULL_FIT_TAUS)
+            tau, avar, edf = av.tau, av.avar, av.edf
+        else:
+            tau, avar, edf = allan
+        fit = fit_allan(tau, avar, edf, components=NULL_COMPONENTS, n_boot=0)
+        cal = _calibrated_over(x, rate, fit.model, sets, bands, n_segments=n_segments,
                                alpha=alpha, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z)
         out["paper"] = "the paper's test on this record: in the sensor's stationarity summary"
         out["calibrated"] = cal
