@@ -132,11 +132,10 @@ __all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "even
 
 #: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
 POLICIES = ("warn", "exclude", "split")
-#: Asymptotic efficiency of the MAD as a scale estimator for Gaussian data (Rousseeuw & Croux 1993).
 #: Disjoint window pairs on each side of a step candidate whose |D| give its local scale (module docstring,
 #: "Steps": a candidate stands against the larger of the record's scale and its neighbourhood's).
 LOCAL_WINDOWS = 100
-
+#: Asymptotic efficiency of the MAD as a scale estimator for Gaussian data (Rousseeuw & Croux 1993).
 MAD_EFFICIENCY = 0.37
 MAD_TO_SIGMA = 1.482602218505602
 
@@ -432,8 +431,9 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
             reach = LOCAL_WINDOWS * 2 * m // h  # grid positions on each side of the local scale's span
             for g in np.split(hit, np.flatnonzero(np.diff(hit) > 8) + 1):  # 8 grid steps = 2m
                 j = int(g[np.argmax(z[g])])
-                local = float(np.median(z[max(0, j - reach) : j + reach + 1]))  # in units of sd / MAD_TO_SIGMA
-                if z[j] / max(1.0, MAD_TO_SIGMA * local) > zt:
+                # the local scale over the record's: MAD_TO_SIGMA x the median of z = |D| / sd nearby
+                local = MAD_TO_SIGMA * float(np.median(z[max(0, j - reach) : j + reach + 1]))
+                if z[j] / max(1.0, local) > zt:
                     cands.append((float(z[j]), m + j * h, m))
         del z
     cands.sort(key=lambda c: -c[0])

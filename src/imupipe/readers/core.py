@@ -862,9 +862,8 @@ def _order_stamps(raw: _Raw, where, row_text) -> None:
     :math:`\hat\sigma` the robust sd of that residual over up to 2000 stamps, T the median interval) and the stamps
     after it sit no earlier on the grid than those before (:func:`grid_shift` above -1/2, or above -4 of its robust
     sds where the stamps jitter more, as :func:`_gap_mask` reads a gap; a later grid is a gap beside it, which the
-    gap search finds): stamp jitter of rms
-    :math:`\sigma` makes an interval <= 0 wherever two neighbours' errors differ by a period (Gaussian jitter of
-    0.15 T: about once in 2 h at 10 Hz; beyond 6 sds: one stamp in 5e8). Two rows swapped on a clean clock (each a
+    gap search finds). Stamp jitter of rms :math:`\sigma` makes an interval <= 0 wherever two neighbours' errors
+    differ by a period (Gaussian jitter of 0.15 T: about once in 2 h at 10 Hz; beyond 6 sds: one stamp in 5e8). Two rows swapped on a clean clock (each a
     period off, :math:`\hat\sigma` 0), a repeated row (the stamps after it a period early) or a clock set back
     stay errors. The stamps are only read for the rate and the gaps: the samples the record holds do not change.
     """

@@ -131,7 +131,8 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
     tested as a record (module docstring); `lines` the axis's spectral lines found at full rate
     (:class:`imupipe.lines.Line`), which the calibrated test notches out of the record and its null
     (:func:`notch_bands`) and its null carries (:func:`null_line_sets`): a steady line is part of a stationary
-    record, and a null without it flagged such axes."""
+    record, and a null without it flagged such axes. With lines the null's broadband model is fitted to the Allan
+    variance of the notched record (:data:`NULL_FIT_TAUS`), not to `allan`."""
     if segments is not None and not segments.is_whole:
         k = len(segments.bounds)
         parts = [stationarity_stage(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan,
@@ -145,7 +146,7 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
 
         sets = null_line_sets(lines, rate, x.size / rate)
         bands = notch_bands(lines, rate, x.size)
-        if bands:  # the broadband fit on what the test sees: the notched record (lines_null_fit)
+        if bands:  # the broadband fit on what the test reads: the notched record's own Allan variance
             from imupipe.allan import allan_variance
             from imupipe.stationarity import notch
 
