@@ -6,13 +6,15 @@ alpha per record and axis (docs/method.md, "Spectral lines"), with the binomial 
 
 Truths: the default run's (config/truth/stim300_like.yaml, gyro and accel: white, GM, flicker, random walk) at its
 10 h at 125 Hz, and a MEMS-like one (white 1e-3 u/sqrt(Hz), a GM of 2e-4 u at T 200 s) at 2 h at 20 Hz, the length
-and rate of an outside evaluation's records (few Welch segments: a higher threshold, each detection 3-4x its floor).
+and rate of an outside evaluation's records (few Welch segments: a higher threshold, each detection 3-4x its floor),
+also with its white noise 2x and 3x its sd over the second half (a level change: segments of unequal level).
 Records drawn as the workflow draws them (imupipe.simulate.simulate_chunks), the search at the default settings.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -28,11 +30,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def cases() -> dict:
-    """name -> (truth, hours, rate Hz)."""
+    """name -> (truth, hours, rate Hz, white noise sd factor over the second half)."""
     sheet = load_spec(ROOT / "config" / "truth" / "stim300_like.yaml")
-    return {"default gyro": (sheet.models["gyro"], 10.0, 125.0),
-            "default accel": (sheet.models["accel"], 10.0, 125.0),
-            "mems 2 h at 20 Hz": (NoiseModel(white=1e-3, gauss_markov=((2e-4, 200.0),)), 2.0, 20.0)}
+    mems = NoiseModel(white=1e-3, gauss_markov=((2e-4, 200.0),))
+    return {"default gyro": (sheet.models["gyro"], 10.0, 125.0, 1.0),
+            "default accel": (sheet.models["accel"], 10.0, 125.0, 1.0),
+            "mems 2 h at 20 Hz": (mems, 2.0, 20.0, 1.0),
+            "mems, white 2x over the second half": (mems, 2.0, 20.0, 2.0),
+            "mems, white 3x over the second half": (mems, 2.0, 20.0, 3.0)}
 
 
 def main(argv=None) -> int:
@@ -46,13 +51,16 @@ def main(argv=None) -> int:
     print(f"| truth | records | segments | records with a line | expected at alpha {a.alpha:g} (95 % range) | "
           "peak/floor of the detections |")
     print("|---|---|---|---|---|---|")
-    for i, (name, (truth, hours, rate)) in enumerate(cases().items()):
+    for i, (name, (truth, hours, rate, factor)) in enumerate(cases().items()):
         n = int(hours * 3600 * rate)
         hits, ratios, segments = 0, [], 0
         for r in range(a.records):
+            rng = np.random.default_rng([a.seed, i, r])
             x = np.empty(n)
-            for start, c in simulate_chunks(truth, n, rate, np.random.default_rng([a.seed, i, r])):
+            for start, c in simulate_chunks(truth, n, rate, rng):
                 x[start:start + c.size] = c
+            if factor != 1.0:  # a noise-level change: no line, but segments of unequal level
+                x[n // 2:] += math.sqrt(factor**2 - 1.0) * truth.white * math.sqrt(rate) * rng.standard_normal(n - n // 2)
             res = find_lines(x, rate, resolution_hz=a.resolution_hz, alpha=a.alpha)
             segments = res.n_segments
             hits += bool(res.lines)

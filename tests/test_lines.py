@@ -126,6 +126,30 @@ class TestDetection:
         assert back.attrs["alpha"] == res.alpha
 
 
+def test_a_noise_level_change_is_not_a_line_train():
+    """White noise 3x its sd over the second half (an outside evaluation: four lines of 3x their floor on a record
+    with no line): the averaged bins of unequal segments are Gamma of K_eff = (sum c)^2 / sum c^2 degrees of
+    freedom (closed form here: 14 segments, levels 1 and 9 in halves, K_eff = 14 x 25/41 = 8.54); the search uses
+    it and finds nothing on 10 such records (the fixed K found a line on 20 of 40: benchmarks are in
+    docs/performance.md). A stationary record keeps K and reports no effective count."""
+    from imupipe.lines import find_lines
+    from imupipe.models import NoiseModel
+    from imupipe.simulate import simulate
+
+    rate, n = 20.0, 144_000
+    truth = NoiseModel(white=1e-3, gauss_markov=((2e-4, 200.0),))
+    for r in range(10):
+        rng = np.random.default_rng([992, r])
+        x = simulate(truth, n, rate, rng)
+        res = find_lines(x, rate, resolution_hz=0.002, alpha=0.01)
+        assert res.effective_segments == res.n_segments == 14 and "effective_segments" not in res.to_dict()
+        x[n // 2:] += math.sqrt(8.0) * 1e-3 * math.sqrt(rate) * rng.standard_normal(n - n // 2)
+        res = find_lines(x, rate, resolution_hz=0.002, alpha=0.01)
+        assert res.lines == () and res.n_segments == 14
+        assert res.effective_segments == pytest.approx(14 * 25 / 41, rel=0.02)  # the levels' own scatter: < 1 %
+        assert res.to_dict()["effective_segments"] == res.effective_segments
+
+
 class TestAliasing:
     def test_alias_frequency(self):
         assert alias_frequency(0.56, 1.0) == pytest.approx(0.44)

@@ -356,6 +356,23 @@ class TestGapFill:
         with pytest.raises(DataError, match=r"duplicate timestamp .* row 20000 .* row 20001 .* 1\.\d+ periods earlier"):
             read_dataset(write_csv(tmp_path / "twice.csv", twice), "csv", 10.0, CHANNELS, UNITS, time_column="t")
 
+    def test_a_drop_beside_a_jittered_stamp_is_found(self, tmp_path, table, rng):
+        # an outside evaluation (0.15-period stamp jitter at 20 Hz): a drop beside a late stamp made two neighbouring
+        # intervals long (1.52 and 1.64 periods) and split its grid shift between them (0.28 and 0.39, each below
+        # half a period): not filled, not counted, no warning. The run of long intervals is now tested as one.
+        n, period, d = 36_000, 0.1, 20_000
+        stamps = (np.arange(n) + rng.normal(0.0, 0.15, n)) * period
+        stamps[d - 2 : d + 2] = (np.array([d - 2, d - 1, d, d + 1]) + [-0.08, 0.52, 0.0, 0.08]) * period
+        data = np.resize(table, (n, 7))
+        data[:, 0] = stamps
+        kept = np.delete(data, d, axis=0)  # the sample at d dropped: intervals of 1.60 and 1.56 periods around d - 1
+        dt = np.diff(kept[:, 0]) / period
+        assert dt[d - 2] > 1.5 and dt[d - 1] > 1.5
+        rec = read_dataset(write_csv(tmp_path / "beside.csv", kept), "csv", 10.0, CHANNELS, UNITS, time_column="t",
+                           gap_policy="fill")
+        (gap,) = rec.filled
+        assert gap.n_missing == 1 and abs(gap.row - (d - 1)) <= 1 and rec.n_samples == n  # placed within a row
+
     def test_a_wandering_clock_fills_no_jitter_and_says_what_it_cannot_resolve(self, tmp_path, table, rng):
         # intervals jittering by 25 % rms, each on its own (the phase wanders): about 1 interval in 40 is longer than
         # 1.5 periods, and fill inserted a sample in each (an outside evaluation, at 20 %: 251 made-up samples). The

@@ -848,3 +848,17 @@ def test_the_samples_a_gap_fill_made_up_are_counted_per_dataset():
             "rows 49, 118, 198, 329, 475, ...)") in text
     assert "lab" not in text
     assert "made up" not in render_summary({"gyro": {"bound": _bound(psd_usage=usage[3:]), "identify": IDENTIFY}})
+
+
+def test_an_event_on_an_axis_that_fails_the_stationarity_test_names_a_level_change():
+    # an outside evaluation: white noise 3x over half a record gave 7 "mean steps", each FLAG blaming a step that
+    # does not exist, while the stationarity test failed those axes; the FLAG now says a level change reads so too
+    item = {"dataset": "rec", "sensor": "accel", "axis": "x", "kind": "step", "time_s": 2345.6, "start_s": 2345.6,
+            "stop_s": 2345.6, "size": 0.0333, "size_low": 0.032, "size_high": 0.0345, "units": "m/s^2",
+            "action": "kept in the analysis"}
+    curves = [{"dataset": "rec", "axis": "x", "stationary": False, "p_value": 0.005, "test": "calibrated"},
+              {"dataset": "rec", "axis": "y", "stationary": True, "p_value": 0.4, "test": "calibrated"}]
+    (flag,) = [f for f in flags_of("accel", {"events": [item]}, {}, {"curves": curves}) if f.check == "event"]
+    assert "the record's axis x also fails the stationarity test: a change of the noise level" in flag.detail
+    (flag,) = [f for f in flags_of("accel", {"events": [item]}, {}, {"curves": curves[1:]}) if f.check == "event"]
+    assert "stationarity" not in flag.detail

@@ -19,6 +19,15 @@ variance inflation of a mean of Hann-correlated bins, power correlations 4/9 and
 quadrature). Without this the level would be exceeded many times over (an Exp(1) tail at t = 20 with a 14 %
 floor error is 50x heavier).
 
+Segments of unequal noise level (a record whose noise changes): each averaged bin is then
+:math:`S(f) \sum_k c_k E_k / \sum_k c_k` with :math:`E_k \sim` Exp(1) and :math:`c_k` segment k's level, a
+Gamma variable of :math:`K_\mathrm{eff} = (\sum c_k)^2 / \sum c_k^2 \le K` degrees of freedom (Satterthwaite):
+its tail is heavier than Gamma(K, 1/K)'s, and white noise 3x its sd over half of a 2 h record at 20 Hz gave four
+lines of 3x their floor (an outside evaluation). The level :math:`c_k` is the segment's mean squared first
+difference (the white noise it holds); where :math:`K_\mathrm{eff} < 0.9 K` (:data:`LEVEL_SPREAD_MIN`; a
+stationary record's estimation scatter moves it by about 2/nperseg) the threshold, the floor's median and the
+lines' degrees of freedom use :math:`K_\mathrm{eff}`, reported as ``effective_segments``.
+
 Significant bins closer than the Hann main-lobe half width (2 bins) are merged into one line. Over the merged bins
 extended by 2 bins on each side (the Hann main lobe: > 99.9 % of a sinusoid's power) the excess
 :math:`E_k = P_k - \mathrm{floor}_k` (one-sided density) gives
@@ -222,6 +231,7 @@ class LineSearch:
     f_max_hz: float
     units: str = "u"
     label: str | None = None
+    effective_segments: float | None = None
     frequency: np.ndarray = field(default=None, repr=False, compare=False)
     psd: np.ndarray = field(default=None, repr=False, compare=False)
     floor: np.ndarray = field(default=None, repr=False, compare=False)
@@ -239,6 +249,8 @@ class LineSearch:
             "rate_hz": float(self.rate_hz),
             "resolution_hz": float(self.resolution_hz),
             "n_segments": int(self.n_segments),
+            **({"effective_segments": float(self.effective_segments)} if self.effective_segments is not None
+               and self.effective_segments != self.n_segments else {}),
             "n_tested": int(self.n_tested),
             "alpha": float(self.alpha),
             "threshold": float(self.threshold),
@@ -302,7 +314,7 @@ def detection_threshold(alpha: float, n_tested: int, n_segments: int = 1, floor_
 
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
-    K = int(n_segments)
+    K = float(n_segments)  # an effective count of unequal segments need not be whole (module docstring)
     p = alpha / max(int(n_tested), 1)
     t0 = float(gammainccinv(K, p)) / K
     if floor_window_bins is None:
@@ -338,7 +350,8 @@ SPECTRUM_BATCH = 1 << 18
 
 
 def _spectrum(x: np.ndarray, rate: float, nperseg: int):
-    """One-sided density (u^2/Hz) averaged over non-overlapping mean-removed Hann segments, and K.
+    """One-sided density (u^2/Hz) averaged over non-overlapping mean-removed Hann segments, K, and each segment's
+    level (its mean squared first difference, u^2: the white noise it holds; module docstring).
 
     The K periodograms are summed a batch of segments at a time (:data:`SPECTRUM_BATCH` samples), then divided
     by K: the same average as transforming all segments at once, without K segments' worth of copies."""
@@ -346,8 +359,10 @@ def _spectrum(x: np.ndarray, rate: float, nperseg: int):
     w = np.hanning(nperseg + 1)[:-1]  # periodic Hann (exact main-lobe/ENBW figures)
     step = max(1, SPECTRUM_BATCH // nperseg)
     total = np.zeros(nperseg // 2 + 1)
+    levels = np.empty(K)
     for k0 in range(0, K, step):
         seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
+        levels[k0 : k0 + seg.shape[0]] = np.mean(np.diff(seg, axis=1) ** 2, axis=1)
         seg = seg - seg.mean(axis=1, keepdims=True)
         seg *= w
         X = np.fft.rfft(seg, axis=1)
@@ -356,7 +371,18 @@ def _spectrum(x: np.ndarray, rate: float, nperseg: int):
     p[0] /= 2.0
     if nperseg % 2 == 0:
         p[-1] /= 2.0
-    return np.fft.rfftfreq(nperseg, 1.0 / rate), p, K
+    return np.fft.rfftfreq(nperseg, 1.0 / rate), p, K, levels
+
+
+#: Effective over actual segment count below which the line search uses the effective one (module docstring).
+LEVEL_SPREAD_MIN = 0.9
+
+
+def effective_segments(levels) -> float:
+    r""":math:`K_\mathrm{eff} = (\sum c_k)^2 / \sum c_k^2` of the segments' levels `levels` (u^2), the degrees of
+    freedom of an average of K exponential bins of those scales (Satterthwaite); K when every level is equal."""
+    c = np.asarray(levels, dtype=np.float64)
+    return float(np.sum(c) ** 2 / np.sum(c * c)) if c.size and np.sum(c * c) > 0 else float(c.size)
 
 
 def find_lines(
@@ -409,7 +435,9 @@ def find_lines(
     if W < 11:
         raise ValueError(f"floor_window_bins must be >= 11, got {floor_window_bins!r}")
     W += 1 - W % 2
-    f, p, K = _spectrum(x, rate, nperseg)
+    f, p, K_segments, levels = _spectrum(x, rate, nperseg)
+    K_eff = effective_segments(levels)
+    K = K_eff if K_eff < LEVEL_SPREAD_MIN * K_segments else K_segments  # noise level unequal over the segments
     df = f[1] - f[0]
     # running median over W bins (edges mirrored), normalised to the mean level
     win = np.lib.stride_tricks.sliding_window_view(np.pad(p, W // 2, mode="symmetric"), W)
@@ -445,7 +473,8 @@ def find_lines(
         lines=tuple(lines),
         rate_hz=rate,
         resolution_hz=float(df),
-        n_segments=int(K),
+        n_segments=int(K_segments),
+        effective_segments=float(K),
         n_tested=M,
         alpha=float(alpha),
         threshold=float(t),

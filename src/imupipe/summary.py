@@ -179,6 +179,21 @@ def event_chance(bound: Mapping) -> str:
     return f"; {text}" if text else ""
 
 
+def _level_change_note(where: str, stationarity: Mapping) -> str:
+    """``"; ... fails the stationarity test ..."``: an event FLAG's note where the record's axis (``dataset/sensor/
+    axis``) or, for a record's group of events (``dataset/sensor``), any of its axes fails the stationarity test: a
+    change of the noise level also reads as mean steps (an outside evaluation: white noise 3x over half a record gave
+    7 "mean steps"). Empty otherwise."""
+    parts = where.split("/")
+    failed = [c for c in _items(stationarity.get("curves")) if isinstance(c, Mapping) and c.get("stationary") is False
+              and str(c.get("dataset")) == parts[0] and (len(parts) < 3 or str(c.get("axis")) == parts[2])]
+    if not failed:
+        return ""
+    axes = ", ".join(sorted({str(c.get("axis")) for c in failed}))
+    return (f"; the record's axis {axes} also fails the stationarity test: a change of the noise level, not of the "
+            "mean, reads as mean steps too (look at the record's spread over time)")
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -205,8 +220,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += stuck
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
-    out += [Flag(sensor, "event", w, d + event_chance(bound)) for src in (bound, identify, stationarity)
-            for w, d in event_flags(src.get("events"))]
+    out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity))
+            for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
         if bound.get("margin") is None or float(bound["margin"]) < 1.0 - BOUNDED_TOLERANCE:
             out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
@@ -1113,7 +1128,8 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
         head += ["## Values to paste, in the spec sheet's units", "",
                  "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
                  "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
-                 "again.", "",
+                 "again, with the KF file's states and its initial bias variance P0: a filter that takes the bias "
+                 "as known at the start under-states its error.", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
         head += _reduced_lines(runs)

@@ -23,13 +23,14 @@ Plain values in (the dataset sheet's row, the channels, the output paths), the c
 from __future__ import annotations
 
 import logging
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from imupipe.io import write_series
 from imupipe.readers import (
-    check_gravity, format_of, gravity_removed, read_channel, read_dataset_row, sheet_row_to_kwargs,
+    GapWarning, check_gravity, format_of, gravity_removed, read_channel, read_dataset_row, sheet_row_to_kwargs,
 )
 from imupipe.units import SI_UNITS, STANDARD_GRAVITY
 
@@ -60,7 +61,10 @@ def channels(row: dict, keys: list, dataset: str):
     if fmt in PER_CHANNEL_FORMATS:
         path, kwargs["format"] = kwargs.pop("path"), fmt
         for i, key in enumerate(pairs):
-            rec = read_channel(key, path, **kwargs)
+            with warnings.catch_warnings():
+                if i:  # the same stamps read again with each channel: their warnings once, with the first
+                    warnings.simplefilter("ignore", GapWarning)
+                rec = read_channel(key, path, **kwargs)
             if i == 0:
                 _log_record(rec, dataset)
             yield (*key, rec[key], _meta(rec, key))
