@@ -862,3 +862,7 @@ def test_an_event_on_an_axis_that_fails_the_stationarity_test_names_a_level_chan
     assert "the record's axis x also fails the stationarity test: a change of the noise level" in flag.detail
     (flag,) = [f for f in flags_of("accel", {"events": [item]}, {}, {"curves": curves[1:]}) if f.check == "event"]
     assert "stationarity" not in flag.detail
+    curves[1]["stationary"] = False
+    group = [dict(item, axis=a, time_s=t) for a in "xy" for t in (100.0, 200.0, 300.0)]  # more than 3: one FLAG
+    (flag,) = [f for f in flags_of("accel", {"events": group}, {}, {"curves": curves}) if f.check == "event"]
+    assert flag.where == "rec/accel" and "the record's axes x, y also fail the stationarity test" in flag.detail

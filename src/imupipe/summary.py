@@ -189,9 +189,10 @@ def _level_change_note(where: str, stationarity: Mapping) -> str:
               and str(c.get("dataset")) == parts[0] and (len(parts) < 3 or str(c.get("axis")) == parts[2])]
     if not failed:
         return ""
-    axes = ", ".join(sorted({str(c.get("axis")) for c in failed}))
-    return (f"; the record's axis {axes} also fails the stationarity test: a change of the noise level, not of the "
-            "mean, reads as mean steps too (look at the record's spread over time)")
+    axes = sorted({str(c.get("axis")) for c in failed})
+    which = f"axis {axes[0]} also fails" if len(axes) == 1 else f"axes {', '.join(axes)} also fail"
+    return (f"; the record's {which} the stationarity test: a change of the noise level, not of the mean, reads as "
+            "mean steps too (look at the record's spread over time)")
 
 
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
