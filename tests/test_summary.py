@@ -866,3 +866,17 @@ def test_an_event_on_an_axis_that_fails_the_stationarity_test_names_a_level_chan
     group = [dict(item, axis=a, time_s=t) for a in "xy" for t in (100.0, 200.0, 300.0)]  # more than 3: one FLAG
     (flag,) = [f for f in flags_of("accel", {"events": group}, {}, {"curves": curves}) if f.check == "event"]
     assert flag.where == "rec/accel" and "the record's axes x, y also fail the stationarity test" in flag.detail
+
+
+def test_a_verdict_over_records_that_are_not_stationary_says_what_it_covers():
+    # an outside evaluation: white noise 2.5x over the last third of a record, every axis non-stationary and kept:
+    # BOUNDED, while the filter under-stated its error in that stretch (MSE/P up to 1.5); the bound covers the
+    # records' average PSD, and the verdict now says so where the failures are more than chance gives
+    stat = {"curves": STATIONARITY["curves"], "chance": "3 of 3 axes failed at level 0.05 each; ... more than "
+            "chance gives: look at the records named"}
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
+    assert ("**Verdict:** gyro: BOUNDED for the records' average noise (they are not stationary: FLAGs below)."
+            in text)
+    stat["chance"] = "1 of 3 axes failed at level 0.05 each; ...: consistent with chance"
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
+    assert "**Verdict:** gyro: BOUNDED. " in text

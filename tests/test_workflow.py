@@ -349,7 +349,10 @@ class TestRealData:
             # the KF file is exported at the verified reference filter's rate: the export_rate check ran and passed
             assert "export_rate" in c["checks_run"] and c["export"]["rate_mismatch"] is False
         summary = (res / "summary.md").read_text()
-        assert "gyro: BOUNDED; accel: BOUNDED" in summary
+        # the gyro's axes fail the stationarity test more often than chance gives (4 of 6): its verdict says what the
+        # bound then covers; the accel's one failure is consistent with chance
+        assert ("gyro: BOUNDED for the records' average noise (they are not stationary: FLAGs below); accel: BOUNDED"
+                in summary)
         assert "FLAG per-axis model" not in summary and "tau from 0.01 to 1.2e+03 s" in summary
         assert "FLAG export rate" not in summary
         assert ("verified scenario: reference filter at 100 Hz, fixes at 1 Hz (sigma 0.5 m) for 600 s, then an "

@@ -414,7 +414,7 @@ def _rate_and_segments(raw, n, fmt, rate_hz, time_unit, gap_policy, long_gap_pol
     # the unit the stamps were read in, for the time_unit hint (netCDF without time_unit: the file's, not known here)
     stamp_unit = str(time_unit).strip() if not _blank(time_unit) else None if fmt in ("netcdf", "rosbag") else "s"
     filled: tuple[FilledGap, ...] = ()
-    policy = gap_policy
+    policy, max_missing = gap_policy, None
     if raw.time is not None and gap_policy == "fill":
         if not (np.isfinite(raw.time.min()) and np.isfinite(raw.time.max())) or len(raw.time) < 2:
             pass  # _check_time names the bad value
@@ -436,7 +436,7 @@ def _rate_and_segments(raw, n, fmt, rate_hz, time_unit, gap_policy, long_gap_pol
         pass  # no timestamps: no gaps to see
     if raw.time is not None:
         segments, rate = _check_time(raw, rate, rate_hz, policy, rate_rtol, gap_factor, where, row_text, stamp_unit,
-                                     after_fill=gap_policy == "fill")
+                                     after_fill=max_missing)
         raw.time = None  # checked: its memory is free for the unit conversion below
     if rate is None:
         raise DataError(f"{where}: sample rate unknown: give rate_hz (no timestamps and no rate in the file)")
@@ -733,9 +733,12 @@ def snap_rate(rate_hz: float, rtol: float = 1e-3) -> float:
 
 
 def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, row_text, time_unit=None,
-                after_fill: bool = False):
-    """Check timestamps; return (segments, rate in Hz). `after_fill`: the short gaps are filled already
-    (``gap_policy: fill``) and `gap_policy` is the long-gap policy, which a refusal then names.
+                after_fill: int | None = None):
+    """Check timestamps; return (segments, rate in Hz). `after_fill`: the fill limit (samples) where the short gaps
+    are filled already (``gap_policy: fill``); `gap_policy` is then the long-gap policy, which a refusal names, and a
+    gap of at most that many samples found only now is not one (the fill's own search looked for those: it sits
+    beside a filled drop among jittered stamps, which an outside evaluation saw refused as "longer than the fill
+    limit").
 
     Tolerance: an interval in (0, gap_factor / rate] is a sample step (jitter and clock quantisation
     accepted); a longer one is a gap where it lies beyond the stamps' own jitter (:func:`_find_gaps`), else
@@ -766,7 +769,9 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
         )
     nominal = 1.0 / nominal_rate
     # after filling, the fill's own gap search has warned already of what the stamps cannot resolve
-    gaps, _ = _find_gaps(t, nominal, gap_factor, None if after_fill else where)
+    gaps, missing = _find_gaps(t, nominal, gap_factor, None if after_fill is not None else where)
+    if after_fill is not None:
+        gaps = gaps[missing > after_fill]
     if gaps.size:
 
         def describe(i: int) -> str:
@@ -777,7 +782,7 @@ def _check_time(raw: _Raw, rate, rate_hz, gap_policy, rtol, gap_factor, where, r
 
         if gap_policy == "fail":
             remedy = ("longer than the fill limit (fill_max_samples / fill_max_s) after the short ones were filled; "
-                      "long_gap_policy='split' keeps the longest contiguous segment" if after_fill else
+                      "long_gap_policy='split' keeps the longest contiguous segment" if after_fill is not None else
                       "gap_policy='fill' fills short gaps, 'split' keeps the longest contiguous segment")
             raise DataError(
                 f"{where}: timestamp gap of {describe(int(gaps[0]))} in {tname}, expected "
