@@ -25,7 +25,7 @@ from imupipe.readers.rosbag import _load_rosbag
 from imupipe.readers.text import _load_text
 from imupipe.readers.checks import check_file, check_unchanged, check_values
 from imupipe.readers.intervals import (
-    count_zero, first_nonpositive, interval, intervals, intervals_above, median_interval, nonpositive, sum_between,
+    count_zero, interval, intervals, intervals_above, median_interval, nonpositive, sum_between,
 )
 
 #: ``{sensor}_unit`` value that takes the unit from the file's own attribute (netCDF ``units``).
@@ -848,20 +848,18 @@ def _stamp(t) -> str:
     return f"{float(t):.15g}"
 
 
-def _check_increasing(t, tname, where, row_text, i: int | None = None, why: str = "") -> None:
-    """Time must increase strictly: the first interval <= 0 (or interval `i`) is named (a duplicate or a step
-    back), with `why` it is not read as jitter."""
-    i = first_nonpositive(t) if i is None else i
-    if i is not None:
-        if interval(t, i) == 0:
-            raise DataError(
-                f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
-                f"t = {_stamp(t[i])} s ({count_zero(t)} duplicates in all){why}"
-            )
+def _check_increasing(t, tname, where, row_text, i: int, why: str = "") -> None:
+    """Time must increase strictly: refuses interval `i` (<= 0: a duplicate or a step back that
+    :func:`_order_stamps` does not read as jitter), naming both rows and `why`."""
+    if interval(t, i) == 0:
         raise DataError(
-            f"{where}: time in {tname} is not increasing: t = {_stamp(t[i + 1])} s at {row_text(i + 1)} comes "
-            f"after t = {_stamp(t[i])} s at {row_text(i)} ({t[i] - t[i + 1]:.6g} s back){why}"
+            f"{where}: duplicate timestamp in {tname}: {row_text(i)} and {row_text(i + 1)} both have "
+            f"t = {_stamp(t[i])} s ({count_zero(t)} duplicates in all){why}"
         )
+    raise DataError(
+        f"{where}: time in {tname} is not increasing: t = {_stamp(t[i + 1])} s at {row_text(i + 1)} comes "
+        f"after t = {_stamp(t[i])} s at {row_text(i)} ({t[i] - t[i + 1]:.6g} s back){why}"
+    )
 
 
 #: Robust sds of the stamps' own jitter about their sample grid within which a stamp that steps back (or repeats
