@@ -30,7 +30,7 @@ SHARED_PRIVATE = {"_kernels"}
 LAYERS = [
     {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults", "markdown"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
-     "events", "segments", "summary", "shown", "verdict", "linewords"},
+     "events", "segments", "stretches", "summary", "shown", "verdict", "linewords"},
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},

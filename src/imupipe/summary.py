@@ -22,7 +22,7 @@ from typing import Any
 from imupipe.linewords import line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
-from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, unstated_t_max, within_tolerance
+from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, unstated_t_max, within_tolerance
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -177,13 +177,6 @@ def event_chance(bound: Mapping) -> str:
     text = chance_failures(len(axes), len(rates), max(rates), "show an event", "show one",
                            "no event in any record") if rates and axes else None
     return f"; {text}" if text else ""
-
-
-#: The verdict's qualifier where more of a sensor's axes fail the stationarity test than chance gives
-#: (:func:`imupipe.verdict.chance_failures`) and the bound keeps them: the bound covers the records' average PSD, and
-#: a filter meeting their noisiest stretch may under-state its error there (an outside evaluation: white noise 2.5x
-#: over the last third of a record, MSE/P up to 1.5 in that stretch under BOUNDED).
-NONSTATIONARY_VERDICT = " for the records' average noise (they are not stationary: FLAGs below)"
 
 
 def _level_change_note(where: str, stationarity: Mapping) -> str:
@@ -1190,8 +1183,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         verdict = ("NOT BOUNDED" if bounded is False else "BOUNDED" if bounded else "no bound")
         if bounded and fails:
             verdict += " (with failed checks)"
-        if bounded and "more than chance" in str(stat.get("chance") or ""):
-            verdict += NONSTATIONARY_VERDICT
+        verdict += nonstationary_qualifier(stat) if bounded else ""
         verdicts.append(f"{sensor}: {verdict}")
         ver = bound.get("verified")
         within = sorted({f"{name} ({label})" for label, name, _ in _tolerance_passes(bound)})

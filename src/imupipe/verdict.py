@@ -1,5 +1,6 @@
 """The words of a verification check that passed only by its sampling tolerance, of an initial bias that rests
-on an assumption nobody stated, and of stationarity failures against what chance gives.
+on an assumption nobody stated, and of stationarity failures against what chance gives (and the verdict's
+qualifier for them).
 
 One home for those sentences: the verification writes it into the verify and contract files
 (:mod:`imupipe.verify`), the run summary prints it as a FLAG (:mod:`imupipe.summary`), so the wording is the same
@@ -9,8 +10,10 @@ wherever a user reads the verdict. Plain dicts in, a string out: no numerics her
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
-__all__ = ["BOUNDED_TOLERANCE", "chance_failures", "unstated_t_max", "within_tolerance"]
+__all__ = ["BOUNDED_TOLERANCE", "NONSTATIONARY_VERDICT", "STRETCH_VERDICT", "beyond_chance", "chance_failures",
+           "failure_tail", "nonstationary_qualifier", "unstated_t_max", "within_tolerance"]
 
 #: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
 #: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and
@@ -95,6 +98,23 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
             "(identify.max_bias_time_s, s) if it is known")
 
 
+def failure_tail(n_failed: int, n_tests: int, alpha) -> float | None:
+    r""":math:`P(X \ge k)` for X ~ Binomial(`n_tests`, `alpha`) and k = `n_failed` (:func:`chance_failures`), or
+    None without failures or a level in (0, 1)."""
+    k, n = int(n_failed), int(n_tests)
+    if k <= 0 or n <= 0 or not (alpha and 0.0 < float(alpha) < 1.0):
+        return None
+    a = float(alpha)
+    return min(1.0, sum(math.comb(n, j) * a**j * (1.0 - a) ** (n - j) for j in range(k, n + 1)))
+
+
+def beyond_chance(n_failed: int, n_tests: int, alpha) -> bool:
+    """Whether `n_failed` of `n_tests` tests at level `alpha` failing is more than chance gives (the tail
+    :func:`failure_tail` below `alpha`; :func:`chance_failures` words it)."""
+    tail = failure_tail(n_failed, n_tests, alpha)
+    return tail is not None and tail < float(alpha)
+
+
 def chance_failures(n_failed: int, n_tests: int, alpha: float, outcome: str = "failed", by_chance: str = "fail",
                     null: str = "every axis stationary") -> str | None:
     r"""How `n_failed` failures among `n_tests` independent tests, each at level `alpha`, compare with chance: with
@@ -103,11 +123,31 @@ def chance_failures(n_failed: int, n_tests: int, alpha: float, outcome: str = "f
     `alpha` is worded as consistent with chance, a smaller one as more than chance gives. None without failures or a
     level. Used for the stationarity tests of a sensor's axes (one per axis, each at the configured level) and for
     the event scan (`outcome` "show an event", `by_chance` "show one", `null` "no event in any record")."""
-    k, n = int(n_failed), int(n_tests)
-    if k <= 0 or n <= 0 or not (alpha and 0.0 < float(alpha) < 1.0):
+    tail = failure_tail(n_failed, n_tests, alpha)
+    if tail is None:
         return None
-    a = float(alpha)
-    tail = min(1.0, sum(math.comb(n, j) * a**j * (1.0 - a) ** (n - j) for j in range(k, n + 1)))
+    k, n, a = int(n_failed), int(n_tests), float(alpha)
     verdict = "consistent with chance" if tail >= a else "more than chance gives: look at the records named"
     return (f"{k} of {n} axes {outcome} at level {a:g} each; with {null} {n * a:.2g} {by_chance} by chance on "
             f"average and P(>= {k}) = {tail:.2g}: {verdict}")
+
+
+#: The verdict's qualifier where the bound covers the noisiest stretch of records that fail the stationarity test
+#: (:func:`nonstationary_qualifier`).
+STRETCH_VERDICT = " with the noisiest stretch of its {n} non-stationary curve{s} (FLAGs below)"
+#: ... and where more of a sensor's axes fail than chance gives and the bound keeps them without a stretch scan (records
+#: too short for it): it covers their average PSD; a filter meeting their noisiest stretch may under-state its error
+#: there (an outside evaluation: white noise 2.5x over the last third of a record, MSE/P up to 1.5 in that stretch).
+NONSTATIONARY_VERDICT = " for the records' average noise (they are not stationary: FLAGs below)"
+
+
+def nonstationary_qualifier(stat: Mapping) -> str:
+    """What a sensor's verdict adds for its non-stationary records (its stationarity summary `stat`):
+    :data:`STRETCH_VERDICT` where curves carry a ``noisiest_stretch``, else :data:`NONSTATIONARY_VERDICT` where
+    the failures are beyond chance (:func:`beyond_chance`) and kept; empty otherwise."""
+    n = sum(1 for c in stat.get("curves") or () if isinstance(c, Mapping) and c.get("noisiest_stretch"))
+    if n:
+        return STRETCH_VERDICT.format(n=n, s="" if n == 1 else "s")
+    kept = stat.get("on_fail") == "warn"
+    return NONSTATIONARY_VERDICT if kept and beyond_chance(stat.get("n_non_stationary") or 0, stat.get("n_curves") or 0,
+                                                           stat.get("alpha")) else ""

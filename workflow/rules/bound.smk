@@ -4,7 +4,8 @@
 # the lowest PSD bin down to 0.01 / span (span = verify.fix_s + application.outage_s, SPAN_S) the bound's PSD
 # stays above the spec sheet's and the identified model's upper confidence envelope (docs/method.md, "Bound
 # over all frequencies"). Spectral lines found by the lines stage enter through the sensor's line policy
-# (`lines.policy`: model | exclude | keep).
+# (`lines.policy`: model | exclude | keep). A record that fails the stationarity test beyond chance enters the
+# global bound a second time, its PSD raised to its noisiest stretch's (the stationarity summary).
 # With kf, verify, contract, figures and tables the only stages that read the spec sheet: a new spec sheet
 # re-runs these jobs alone.
 
@@ -46,6 +47,7 @@ rule bound:
         spec=spec_file,
         axis_bounds=axis_bounds_of,
         lines=lines_files_of,
+        stationarity=f"{RESULTS}/stationarity/{{sensor}}.yaml",  # the noisiest stretches the bound covers
     output:
         bound=f"{RESULTS}/bound/{{spec}}/{{sensor}}.yaml",
     params:

@@ -1,5 +1,6 @@
 """The global bound of one sensor type against one spec sheet (rule bound): imupipe.stages.bound.bound_stage on the
-included curves of the stacked spectra and Allan files, the identify, spec, lines and per-axis bound files."""
+included curves of the stacked spectra and Allan files, the identify, spec, lines and per-axis bound files, and the
+noisiest stretches the stationarity summary marks."""
 
 from pathlib import Path
 
@@ -8,7 +9,8 @@ from imupipe.io import read_yaml, run_job, write_yaml_atomic
 
 def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: str, axis_bounds: list, mode: str,
          n_gm: int, confidence: float, bands_per_decade: int, compare_paper: bool, span_s: float, lines: list,
-         lines_params: dict, path_out: str, sensor: str, filter_rate_hz: float = 1.0) -> None:
+         lines_params: dict, path_out: str, sensor: str, filter_rate_hz: float = 1.0,
+         path_stationarity: str | None = None) -> None:
     from imupipe.merge import Stacked
     from imupipe.specsheet import display_units, load_spec
     from imupipe.stages.bound import HEADER, bound_stage
@@ -26,8 +28,15 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
                       application_band_hz=lines_params["application_band_hz"],
                       axis_bounds=[read_yaml(path) for path in axis_bounds], compare_paper=compare_paper,
                       spec_units=display_units(spec, sensor), spec_name=spec.name,
-                      spec_file=path_spec.rsplit("/", 1)[-1])
+                      spec_file=path_spec.rsplit("/", 1)[-1], stretches=stretches_of(path_stationarity))
     write_yaml_atomic(out, path_out, header=HEADER)
+
+
+def stretches_of(path_stationarity: str | None) -> dict:
+    """Curve label -> noisiest-stretch scan of the curves the stationarity summary marks (its stretch_rule)."""
+    summary = read_yaml(path_stationarity) if path_stationarity else {}
+    return {f"{c['dataset']}/{c['axis']}": c["noisiest_stretch"] for c in summary.get("curves") or ()
+            if c.get("noisiest_stretch")}
 
 
 if __name__ == "__main__":
@@ -36,4 +45,4 @@ if __name__ == "__main__":
             path_spec=i.spec, mode=p.mode, n_gm=p.n_gm, confidence=p.confidence, bands_per_decade=p.bands_per_decade,
             compare_paper=p.compare_paper, span_s=p.span_s, lines=list(i.get("lines", [])),
             lines_params=p.lines, axis_bounds=list(i.axis_bounds), path_out=o.bound,
-            sensor=snakemake.wildcards.sensor, filter_rate_hz=p.filter_rate_hz)
+            sensor=snakemake.wildcards.sensor, filter_rate_hz=p.filter_rate_hz, path_stationarity=i.stationarity)

@@ -42,7 +42,7 @@ AUTO_MODES = ("raw", "smoothed", "confidence", "pooled")
 ENVELOPE_MODE = "envelope"
 
 
-def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]:
+def candidate_modes(identified: dict, lines=None, stretched=()) -> tuple[tuple[str, ...], str]:
     r"""The modes ``bound.mode: auto`` builds a candidate of, and why the ``envelope`` candidate is or is not one.
 
     :data:`AUTO_MODES` always. :data:`ENVELOPE_MODE` (:func:`imupipe.bound.bound_psd` ``mode="envelope"``: the
@@ -73,6 +73,11 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
       truth's PSD between 0.001 and 0.07 Hz, the envelope candidate sat on it, and a filter on it under-stated its
       error (MSE/P 1.003); the candidates of :data:`AUTO_MODES` bound the records' own spectra.
 
+    * no curve whose noisiest stretch the bound covers (`stretched`: the curves' labels,
+      :func:`imupipe.stages.bound.with_stretches`): the envelope is fitted to the records' average Allan variance, a
+      filter meeting a record's noisier stretch needs more (an outside evaluation: white noise 2.5x over a record's
+      last third, MSE/P 1.5 there under a bound of the average).
+
     Returns (modes, reason)."""
     kind = identified.get("upper_envelope_kind", "marginal")
     rec = identified.get("upper_envelope_joint")
@@ -90,6 +95,10 @@ def candidate_modes(identified: dict, lines=None) -> tuple[tuple[str, ...], str]
     n_axes = len(curves_by_axis(identified.get("curves") or ()))
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
+    elif stretched:
+        why = (f"not built: {len(stretched)} curve(s) fail the stationarity test beyond chance (noisiest stretch of "
+               f"{', '.join(stretched)} among the bound's curves), and the envelope, fitted to the records' average "
+               "noise, does not cover a noisier stretch")
     elif pooled and n_axes > 1 and not axes:
         why = (f"not built: the identify file has no envelope of each of its {n_axes} axes (axis_envelopes: written "
                "by this version's identify rule; re-run it), and the pooled band alone need not cover every axis")

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AXIS_T_PER_DECADE", "HEADER", "BoundStage", "axis_bound_stage", "bound_sensor", "bound_stage", "phase_ends"]
+__all__ = ["AXIS_T_PER_DECADE", "HEADER", "STRETCH_LABEL", "BoundStage", "axis_bound_stage", "bound_sensor",
+           "bound_stage", "phase_ends", "with_stretches"]
 
 #: T grid (points per decade) of the per-axis bound (rule bound_axis): coarser than the global bound's,
 #: refined by a bounded search all the same.
@@ -46,6 +47,8 @@ upper_envelope: the identified model at its upper confidence limits (SI), impose
 envelope_target: (auto's envelope candidate, pooled curves) the model it lies above instead: upper_envelope and each
 axis's own envelope (identify file: upper_envelope_model_axes); upper_envelope stays the verification's reference.
 allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.filter_rate_hz, horizon_s] s.
+noisiest_stretch: curves of records that fail the stationarity test beyond chance, each entering the bound a second
+time with its PSD raised band by band to its noisiest stretch's (label -> the curve, largest gain, stretch length s).
 per_axis_models: present when the pooling test rejected one model for all axes: per axis, the bound of that axis's
 curves (same fields as the global bound, SI), its envelope and Allan check; null when the axes are pooled."""
 
@@ -70,7 +73,7 @@ def _auto(frequency, psd, edf, spec_model, identified, settings) -> BoundStage:
     ``candidates`` holds every candidate's entry."""
     from imupipe.bound.auto import candidate_modes
 
-    modes, why = candidate_modes(identified, settings.get("lines"))
+    modes, why = candidate_modes(identified, settings.get("lines"), stretched=list(settings.get("stretches") or ()))
     cands = {}
     for m in modes:
         kw = dict(settings, mode=m)
@@ -101,7 +104,8 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
                  mode: str, n_gm: int, confidence: float, bands_per_decade: int, span_s: float,
                  filter_rate_hz: float = 1.0, taper: str = "hann", allan=None, lines: Mapping | None = None,
                  line_policy: str = "model", application_band_hz=None, axis_bounds=(), compare_paper: bool = False,
-                 spec_units=None, spec_name: str = "", spec_file: str | None = None) -> BoundStage:
+                 spec_units=None, spec_name: str = "", spec_file: str | None = None,
+                 stretches: Mapping | None = None) -> BoundStage:
     """The bound of one sensor type (module docstring).
 
     Parameters
@@ -132,13 +136,17 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
         Also run the paper's hand inflation and its looseness.
     spec_units, spec_name, spec_file :
         The spec sheet's display units (:func:`imupipe.specsheet.display_units`), name and file name.
+    stretches : mapping of str to dict, optional
+        Curve label -> its noisiest-stretch scan (:meth:`imupipe.stretches.StretchLevels.to_dict`), for the curves
+        whose noisiest stretch the bound covers (the stationarity summary's ``noisiest_stretch``): each enters as a
+        further curve, its PSD times the scan's gain (:func:`with_stretches`).
     """
     if mode == "auto":
         return _auto(frequency, psd, edf, spec_model, identified, dict(
             dt=dt, sensor=sensor, n_gm=n_gm, confidence=confidence, bands_per_decade=bands_per_decade, span_s=span_s,
             filter_rate_hz=filter_rate_hz, taper=taper, allan=allan, lines=lines, line_policy=line_policy,
             application_band_hz=application_band_hz, axis_bounds=axis_bounds, compare_paper=compare_paper,
-            spec_units=spec_units, spec_name=spec_name, spec_file=spec_file))
+            spec_units=spec_units, spec_name=spec_name, spec_file=spec_file, stretches=stretches))
     from imupipe.bound import (axis_of, bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
                                upper_envelope_from_identification)
     from imupipe.io import plain
@@ -149,6 +157,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     f = np.asarray(frequency, dtype=np.float64)
     curves = {k: np.asarray(v) for k, v in psd.items()}
     edf_of = {k: np.broadcast_to(np.asarray(edf[k], dtype=np.float64), f.shape) for k in curves}
+    stretched = with_stretches(f, curves, edf_of, stretches)
     kept = identified["selection"]["kept"]
     upper = upper_envelope_from_identification(identified)
     # the envelope candidate's target: where the curves are pooled, also above each axis's own envelope (the
@@ -158,11 +167,10 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     lines = dict(lines or {})
     pol = line_policy_from_files(lines, dt, f, line_policy, application_band_hz)
     pooled = (identified.get("pooling") or {}).get("consistent", True) is not False
-    # pooled mode: the curves share one true PSD where the identification's pooling test accepts it; else per axis
-    pool_groups = None if pooled else [axis_of(k) for k in curves]
     result = bound_psd(f, curves, spec_model, dt=dt, mode=mode, n_gm=n_gm, confidence=confidence,
                        bands_per_decade=bands_per_decade, edf=np.array(list(edf_of.values())), keep=kept,
-                       taper=taper, span_s=span_s, upper_model=target, pool_groups=pool_groups,
+                       taper=taper, span_s=span_s, upper_model=target,
+                       pool_groups=_pool_groups(curves, stretched, pooled),
                        **(pol.bound_kwargs() if pol is not None else {}))
     logging.info("bound %s: margin %.4g (%s), all-frequency margin %.4g, looseness %.4g, %d LPs in %.3g s",
                  result.model, result.margin, result.margin_curve, result.allf_margin, result.looseness,
@@ -171,11 +179,12 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     body["psd_bounded"] = body.pop("bounded")
     body.pop("solve_time_s", None)  # wall clock: in the log, not in the file (identical runs, identical files)
     out = {"spec_name": spec_name, "spec_file": spec_file, "sensor": sensor, "dt_s": dt,
-           "horizon_s": float(span_s), "n_curves": len(curves), "curves": list(curves),
+           "horizon_s": float(span_s), "n_curves": len(psd), "curves": list(psd),
            "states_kept_by_identification": kept, **body,
            "upper_envelope": upper.to_dict(),
            **({"envelope_target": target.to_dict()} if target is not upper else {}),
            "identification_intervals": identified.get("intervals_bootstrap"),
+           "noisiest_stretch": stretched or None,
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
     tau_min_s = 1.0 / float(filter_rate_hz)
     labels, avars, edfs = [], [], []
@@ -214,7 +223,8 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             b_ax["psd_bounded"] = b_ax.pop("bounded")
             b_ax.pop("solve_time_s", None)
             b_ax.pop("details", None)
-            entry = {"axis": ax, "curves": labs, **b_ax,
+            entry = {"axis": ax, "curves": [lab for lab in labs if lab not in stretched], **b_ax,
+                     "noisiest_stretch": [lab for lab in labs if lab in stretched] or None,
                      "upper_envelope": uppers[ax].to_dict() if ax in uppers else None,
                      "lines": line_kw[ax][1].to_dict() if line_kw.get(ax, ({}, None))[1] is not None else None}
             if allan is not None:
@@ -240,6 +250,43 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             "phases": phase_ends(hand.details.get("history", [])),
         }
     return BoundStage(record=plain(out), result=result, upper=upper, policy=pol)
+
+
+def _pool_groups(curves, stretched, pooled: bool):
+    """The ``pooled`` mode's group of each curve: one group where the identification's pooling test accepts one
+    true PSD for every curve (None), else one per axis; a noisiest-stretch copy (`stretched`) is a group of its own
+    (it repeats its record's periodogram, raised)."""
+    from imupipe.bound import axis_of
+
+    if pooled and not stretched:
+        return None
+    return [k if k in stretched else "all" if pooled else axis_of(k) for k in curves]
+
+
+#: Label of a curve's noisiest-stretch copy (:func:`with_stretches`): the axis stays after the last "/".
+STRETCH_LABEL = "{dataset} noisiest stretch/{axis}"
+
+
+def with_stretches(frequency, curves: dict, edf_of: dict, stretches: Mapping | None) -> dict:
+    """Add (in place) to `curves` and `edf_of` a copy of each curve of `stretches` (label -> scan dict,
+    :meth:`imupipe.stretches.StretchLevels.to_dict`) raised to its noisiest stretch, :math:`g(f) \\hat S(f)` with
+    g the scan's gain on `frequency` (Hz; :meth:`imupipe.stretches.StretchLevels.gain`) and the curve's own edf,
+    labelled :data:`STRETCH_LABEL`. Returns the bound file's ``noisiest_stretch`` record: new label -> the curve it
+    copies, the scan's largest gain and stretch length (s). A label not among `curves` is an error."""
+    from imupipe.bound import axis_of
+    from imupipe.stretches import StretchLevels
+
+    out = {}
+    for label, scan in (stretches or {}).items():
+        if label not in curves:
+            raise ValueError(f"noisiest stretch of {label!r}: no such curve among the bound's ({', '.join(curves)})")
+        levels = StretchLevels.from_dict(scan)
+        axis = axis_of(label)
+        new = STRETCH_LABEL.format(dataset=label[: -len(axis) - 1], axis=axis)
+        curves[new] = np.asarray(curves[label]) * levels.gain(frequency)
+        edf_of[new] = edf_of[label]
+        out[new] = {"curve": label, "max_gain": levels.max_gain, "stretch_s": float(levels.stretch_s)}
+    return out
 
 
 def bound_stage(frequency, psd: Mapping, edf: Mapping, spec_model, identified: dict, **settings) -> dict:

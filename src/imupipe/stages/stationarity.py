@@ -132,13 +132,29 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
     (:class:`imupipe.lines.Line`), which the calibrated test notches out of the record and its null
     (:func:`notch_bands`) and its null carries (:func:`null_line_sets`): a steady line is part of a stationary
     record, and a null without it flagged such axes. With lines the null's broadband model is fitted to the Allan
-    variance of the notched record (:data:`NULL_FIT_TAUS`), not to `allan`."""
-    if segments is not None and not segments.is_whole:
+    variance of the notched record (:data:`NULL_FIT_TAUS`), not to `allan`. ``stretches``: the record's
+    noisiest-stretch scan (:func:`imupipe.stretches.stretch_levels`, over the segments' views under split; None for
+    a record too short for it), which the bound applies where the sensor's failures are beyond chance
+    (:func:`summary_stage`)."""
+    from imupipe.stretches import stretch_levels
+
+    whole = segments is None or segments.is_whole
+    levels = stretch_levels(x, rate, views=None if whole else list(segments.views(x)))
+    stretches = levels.to_dict() if levels is not None else None
+    if not whole:
         k = len(segments.bounds)
-        parts = [stationarity_stage(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan,
-                                    n_segments=n_segments, alpha=alpha / k, test=test, n_sim=n_sim,
-                                    n_sim_max=n_sim_max, close_z=close_z, lines=lines) for v in segments.views(x)]
-        return {**_segment_verdict(parts, segments, "p_value"), "n_samples": int(x.size)}
+        parts = [_tested(v, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan, n_segments=n_segments,
+                         alpha=alpha / k, test=test, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, lines=lines)
+                 for v in segments.views(x)]
+        return {**_segment_verdict(parts, segments, "p_value"), "n_samples": int(x.size), "stretches": stretches}
+    return {**_tested(x, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan, n_segments=n_segments,
+                      alpha=alpha, test=test, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, lines=lines),
+            "stretches": stretches}
+
+
+def _tested(x, rate, *, dataset, sensor, axis, allan, n_segments, alpha, test, n_sim, n_sim_max, close_z,
+            lines) -> dict:
+    """The verdict of one record or segment `x` (:func:`stationarity_stage`'s arguments), without the scan."""
     out = {"dataset": dataset, "sensor": sensor, "axis": axis, "rate_hz": rate, "n_samples": int(x.size),
            "test": test}
     if test == "calibrated":
@@ -266,8 +282,31 @@ def summary_stage(verdicts: list, on_fail: str, sensor: str, papers: list | None
     if not any(c["included"] for c in curves):
         raise ValueError(f"every {sensor} record failed the stationarity test and on_fail = exclude: nothing to bound")
     alpha = _axis_level(verdicts[0]) if verdicts else None
+    _stretch_bound(curves, verdicts, len(failing), alpha)
     return {"sensor": sensor, "on_fail": on_fail, "n_curves": len(curves), "n_non_stationary": len(failing),
-            "alpha": alpha, "chance": chance_failures(len(failing), len(curves), alpha or 0.0), "curves": curves}
+            "alpha": alpha, "chance": chance_failures(len(failing), len(curves), alpha or 0.0),
+            "stretch_rule": STRETCH_RULE, "curves": curves}
+
+
+#: When the bound covers a curve's noisiest stretch (:func:`summary_stage`, the stationarity summary's field).
+STRETCH_RULE = ("a curve kept by the bound that fails the stationarity test, where the sensor's failures are more "
+                "than chance gives or its own p-value is below alpha / number of curves, enters the bound with its "
+                "PSD raised to its noisiest stretch's (noisiest_stretch; docs/method.md, 'Stationarity')")
+
+
+def _stretch_bound(curves: list, verdicts: list, n_failed: int, alpha) -> None:
+    """Mark (in place) each curve of `curves` whose noisiest stretch the bound covers (:data:`STRETCH_RULE`): its
+    ``noisiest_stretch`` is its verdict's scan (:func:`imupipe.stretches.stretch_levels`); beyond chance where the
+    sensor's `n_failed` failures are (:func:`imupipe.verdict.beyond_chance`) or, for one curve, where its p-value is
+    below alpha over the number of curves (Bonferroni: family-wise level alpha)."""
+    from imupipe.verdict import beyond_chance
+
+    n = len(curves)
+    many = bool(alpha) and beyond_chance(n_failed, n, alpha)
+    for c, v in zip(curves, verdicts, strict=True):
+        alone = bool(alpha) and float(c["p_value"]) < float(alpha) / max(n, 1)
+        if c["included"] and not c["stationary"] and (many or alone) and v.get("stretches"):
+            c["noisiest_stretch"] = v["stretches"]
 
 
 def _axis_level(verdict: dict) -> float | None:

@@ -1,0 +1,100 @@
+"""The noisiest-stretch scan (imupipe.stretches) and where the bound takes it in (stationarity summary, bound stage,
+auto candidates): closed forms of a white-noise level change, the chance level of a stationary record."""
+
+import math
+
+import numpy as np
+import pytest
+
+from imupipe.bound.auto import ENVELOPE_MODE, candidate_modes
+from imupipe.stages.bound import STRETCH_LABEL, with_stretches
+from imupipe.stages.stationarity import summary_stage
+from imupipe.stretches import StretchLevels, stretch_levels
+
+
+def _change(n, start, factor, rng):
+    x = rng.standard_normal(n)
+    x[int(start * n):] *= factor
+    return x
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13, 14, 15])
+def test_a_white_level_change_gives_the_noisy_stretch_over_the_average_in_every_band(seed):
+    # white noise of sd 2.5 over the last third: the average PSD is (2/3 + 6.25/3) = 2.75 x the quiet level, the
+    # noisy stretch's 6.25 x: gain 6.25 / 2.75 = 2.27 in every band. A band of one stretch has relative sd at most
+    # sqrt(2 / edf_min) (edf counted at half the nominal); the largest of the fully noisy stretches' estimates lies
+    # within -3 and +4 such sds of the closed form
+    x = _change(7200, 2 / 3, 2.5, np.random.default_rng(seed))
+    s = stretch_levels(x, 1.0)
+    truth = 6.25 / 2.75
+    sd = math.sqrt(2.0 / s.edf_min)
+    assert s.stretch_s == 900.0 and s.n_stretches == 15
+    assert all(truth * (1 - 3 * sd) <= r <= truth * (1 + 4 * sd) for r in s.ratio), (s.ratio, truth, sd)
+    # the stretch that sets each band lies in the noisy third (it starts at 4800 s or later)
+    assert min(s.start_s) >= 4800.0 - 1e-9
+
+
+def test_a_stationary_record_gains_little_and_only_by_chance():
+    # white noise, 40 records: the median of each band's gain (the largest of 15 overlapping band estimates, each
+    # relative sd <= sqrt(2 / edf)) stays below 1 + 2 sqrt(2 / edf); a scan that compared unlike levels (windows of
+    # one stretch against the record's with another normalisation) would be off by a constant factor
+    rng = np.random.default_rng(2027)
+    gains = np.array([stretch_levels(rng.standard_normal(36000), 1.0).ratio for _ in range(40)])
+    s = stretch_levels(rng.standard_normal(36000), 1.0)
+    assert np.all(np.median(gains, axis=0) <= 1 + 2 * math.sqrt(2 / s.edf_min)), np.median(gains, axis=0)
+    assert np.all(np.median(gains, axis=0) >= 1.0)  # a maximum over stretches whose mean is the record's
+
+
+def test_the_gain_on_a_psd_grid_is_one_below_the_scan_and_floored_at_one():
+    s = StretchLevels(f_lo_hz=(0.01, 0.05), f_hi_hz=(0.04, 0.5), ratio=(0.8, 2.0), start_s=(0.0, 10.0),
+                      stretch_s=100.0, n_stretches=3, edf_min=120.0)
+    f = np.array([0.001, 0.01, 0.03, 0.045, 0.2, 0.5, 0.7])
+    np.testing.assert_array_equal(s.gain(f), [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0])
+    assert s.max_gain == 2.0
+    assert StretchLevels.from_dict(s.to_dict()) == s
+
+
+def test_segments_keep_their_stretches_inside_and_a_short_record_has_no_scan():
+    rng = np.random.default_rng(5)
+    quiet, noisy = rng.standard_normal(4000), 3.0 * rng.standard_normal(4000)
+    s = stretch_levels(None, 1.0, views=[quiet, noisy])
+    assert min(s.start_s) >= 4000.0  # the noisiest stretch lies in the second segment
+    assert stretch_levels(rng.standard_normal(8 * 8 * 15), 1.0) is None  # a window of 15 samples
+
+
+def _verdict(dataset, axis, stationary, p, scan):
+    return {"dataset": dataset, "axis": axis, "stationary": stationary, "p_value": p, "test": "calibrated",
+            "paper": {"stationary": stationary}, "calibrated": {"alpha": 0.05}, "stretches": scan}
+
+
+def test_the_summary_marks_a_noisiest_stretch_only_beyond_chance():
+    scan = stretch_levels(_change(7200, 2 / 3, 2.5, np.random.default_rng(1)), 1.0).to_dict()
+    # 3 of 3 axes fail: beyond chance (P = 1.25e-4 < 0.05): every failing kept axis carries its scan
+    three = [_verdict("d", a, False, 0.02, scan) for a in "xyz"]
+    out = summary_stage(three, "warn", "gyro")
+    assert all(c.get("noisiest_stretch") == scan for c in out["curves"])
+    # 1 of 6 fails at p 0.02 (> 0.05 / 6): consistent with chance, no scan taken in; at p 0.001 (< 0.05 / 6) it is
+    six = [_verdict(d, a, a != "x" or d != "d1", 0.02, scan) for d in ("d1", "d2") for a in "xyz"]
+    assert not any(c.get("noisiest_stretch") for c in summary_stage(six, "warn", "gyro")["curves"])
+    six[0]["p_value"] = 0.001
+    marked = [c for c in summary_stage(six, "warn", "gyro")["curves"] if c.get("noisiest_stretch")]
+    assert [(c["dataset"], c["axis"]) for c in marked] == [("d1", "x")]
+    # excluded axes are not in the bound: nothing to raise
+    assert not any(c.get("noisiest_stretch") for c in summary_stage(three[:2] + [_verdict("d", "q", True, 0.5, scan)],
+                                                                      "exclude", "gyro")["curves"])
+
+
+def test_the_bound_takes_a_raised_copy_and_the_envelope_candidate_steps_aside():
+    f = np.linspace(0.0, 0.5, 11)
+    scan = StretchLevels(f_lo_hz=(0.1,), f_hi_hz=(0.5,), ratio=(2.5,), start_s=(0.0,), stretch_s=900.0,
+                         n_stretches=15, edf_min=120.0)
+    curves, edf = {"d/x": np.ones(11), "d/y": np.ones(11)}, {"d/x": 4.0, "d/y": 4.0}
+    rec = with_stretches(f, curves, edf, {"d/x": scan.to_dict()})
+    new = STRETCH_LABEL.format(dataset="d", axis="x")
+    assert list(rec) == [new] and rec[new]["curve"] == "d/x" and rec[new]["max_gain"] == 2.5
+    np.testing.assert_array_equal(curves[new], np.where(f < 0.1, 1.0, 2.5))
+    assert edf[new] == 4.0 and new.rsplit("/", 1)[1] == "x"
+    with pytest.raises(ValueError, match="no such curve"):
+        with_stretches(f, curves, edf, {"e/x": scan.to_dict()})
+    modes, why = candidate_modes({"upper_envelope_kind": "joint"}, stretched=[new])
+    assert ENVELOPE_MODE not in modes and "stationarity" in why
