@@ -50,7 +50,8 @@ def truths(gm_T_s: float = 200.0):
 def level_change_csv(path, truth: dict, rate_hz: float, hours: float, start: float, stop: float, factor: float,
                      seed: int) -> None:
     """Three gyro and three accel axes of `truth` (sensor -> SI model, :func:`imupipe.simulate.simulate`), white noise
-    `factor` x its sd over [`start`, `stop`) (fractions of the record), as a CSV in deg/s and g with a time column."""
+    `factor` x its sd over [`start`, `stop`) (fractions of the record), gravity on z, as a CSV in deg/s and g with a time
+    column."""
     from imupipe.simulate import simulate
 
     rng, n = np.random.default_rng(seed), int(hours * 3600 * rate_hz)
@@ -60,6 +61,7 @@ def level_change_csv(path, truth: dict, rate_hz: float, hours: float, start: flo
         x = simulate(truth[sensor], n, rate_hz, rng)
         x[i0:i1] += math.sqrt(factor**2 - 1) * truth[sensor].white * math.sqrt(rate_hz) * rng.standard_normal(i1 - i0)
         cols.append(x / D2R if sensor == "gyro" else x / G)
+    cols[5] = cols[5] + 1.0  # 1 g on accel z
     np.savetxt(path, np.column_stack([np.arange(n) / rate_hz] + cols), delimiter=",", fmt="%.9g", comments="",
                header="t [s],gx [deg/s],gy [deg/s],gz [deg/s],ax [g],ay [g],az [g]")
 

@@ -45,11 +45,20 @@ def test_a_stationary_record_gains_little_and_only_by_chance():
     assert np.all(np.median(gains, axis=0) >= 1.0)  # a maximum over stretches whose mean is the record's
 
 
-def test_the_gain_on_a_psd_grid_is_one_below_the_scan_and_floored_at_one():
+def test_the_gain_on_a_psd_grid_never_steps_up_and_covers_each_band():
+    # band 0 (0.01 ..) gain 0.8 -> 1, band 1 (0.05 ..) gain 2: 2 from 0.05 on, a ramp 2^(1 + log10(f / 0.05)) over
+    # the decade below it, 1 below 0.005
     s = StretchLevels(f_lo_hz=(0.01, 0.05), f_hi_hz=(0.04, 0.5), ratio=(0.8, 2.0), start_s=(0.0, 10.0),
                       stretch_s=100.0, n_stretches=3, edf_min=120.0)
-    f = np.array([0.001, 0.01, 0.03, 0.045, 0.2, 0.5, 0.7])
-    np.testing.assert_array_equal(s.gain(f), [1.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.0])
+    f = np.array([0.001, 0.005, 0.01, 0.03, 0.045, 0.05, 0.2, 0.5, 0.7])
+    ramp = [2.0 ** (1 + math.log10(v / 0.05)) for v in (0.01, 0.03, 0.045)]
+    np.testing.assert_allclose(s.gain(f), [1.0, 1.0, *ramp, 2.0, 2.0, 2.0, 2.0], rtol=1e-12)
+    # a band above a higher one: the lower band keeps its own gain up to the next band's lowest bin, then it falls
+    s2 = StretchLevels(f_lo_hz=(0.01, 0.05), f_hi_hz=(0.04, 0.5), ratio=(3.0, 2.0), start_s=(0.0, 10.0),
+                       stretch_s=100.0, n_stretches=3, edf_min=120.0)
+    np.testing.assert_allclose(s2.gain(np.array([0.01, 0.045, 0.05, 0.4])), [3.0, 3.0, 2.0, 2.0])
+    grid = np.logspace(-4, 0, 400)
+    assert np.all(np.diff(np.log(s.gain(grid))) <= math.log(2.0) * np.diff(np.log10(grid)) + 1e-12)
     assert s.max_gain == 2.0
     assert StretchLevels.from_dict(s.to_dict()) == s
 
@@ -92,7 +101,9 @@ def test_the_bound_takes_a_raised_copy_and_the_envelope_candidate_steps_aside():
     rec = with_stretches(f, curves, edf, {"d/x": scan.to_dict()})
     new = STRETCH_LABEL.format(dataset="d", axis="x")
     assert list(rec) == [new] and rec[new]["curve"] == "d/x" and rec[new]["max_gain"] == 2.5
-    np.testing.assert_array_equal(curves[new], np.where(f < 0.1, 1.0, 2.5))
+    np.testing.assert_allclose(curves[new], scan.gain(f))
+    assert np.all(curves[new][f >= 0.1] == 2.5) and curves[new][0] == 1.0  # f = 0: below the ramp
+    assert curves[new][1] == pytest.approx(2.5 ** (1 + math.log10(0.5)))  # 0.05 Hz: the ramp below 0.1 Hz
     assert edf[new] == 4.0 and new.rsplit("/", 1)[1] == "x"
     with pytest.raises(ValueError, match="no such curve"):
         with_stretches(f, curves, edf, {"e/x": scan.to_dict()})
