@@ -109,3 +109,15 @@ def test_the_bound_takes_a_raised_copy_and_the_envelope_candidate_steps_aside():
         with_stretches(f, curves, edf, {"e/x": scan.to_dict()})
     modes, why = candidate_modes({"upper_envelope_kind": "joint"}, stretched=[new])
     assert ENVELOPE_MODE not in modes and "stationarity" in why
+
+
+def test_the_pooled_mode_pools_a_datasets_raised_copies_apart_from_the_records():
+    from imupipe.stages.bound import _pool_groups
+
+    curves = ["d/x", "d/y", "e/x", "d noisiest stretch/x", "d noisiest stretch/y"]
+    stretched = {"d noisiest stretch/x": {}, "d noisiest stretch/y": {}}
+    assert _pool_groups(curves, stretched, pooled=True) == ["all", "all", "all", "d noisiest stretch",
+                                                             "d noisiest stretch"]
+    assert _pool_groups(curves, stretched, pooled=False) == ["x", "y", "x", "d noisiest stretch/x",
+                                                              "d noisiest stretch/y"]
+    assert _pool_groups(curves[:3], {}, pooled=True) is None

@@ -254,13 +254,15 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
 
 def _pool_groups(curves, stretched, pooled: bool):
     """The ``pooled`` mode's group of each curve: one group where the identification's pooling test accepts one
-    true PSD for every curve (None), else one per axis; a noisiest-stretch copy (`stretched`) is a group of its own
-    (it repeats its record's periodogram, raised)."""
+    true PSD for every curve (None), else one per axis. The noisiest-stretch copies (`stretched`) are pooled apart
+    from the records (each repeats its record's periodogram, raised): one group per dataset where the axes are
+    pooled (its axes' copies, raised by their own gains), else each copy alone."""
     from imupipe.bound import axis_of
 
     if pooled and not stretched:
         return None
-    return [k if k in stretched else "all" if pooled else axis_of(k) for k in curves]
+    return [(k.rsplit("/", 1)[0] if pooled else k) if k in stretched else "all" if pooled else axis_of(k)
+            for k in curves]
 
 
 #: Label of a curve's noisiest-stretch copy (:func:`with_stretches`): the axis stays after the last "/".
