@@ -19,6 +19,10 @@ every segment is; its p-value is min(1, K min_k p_k), the Bonferroni-adjusted sm
 fields are those of that segment, with ``segments`` listing each one's span (s from the record's start), verdict
 and p-value.
 
+Noisiest stretch: each verdict also carries the record's scan (:func:`imupipe.stretches.stretch_levels`, field
+``stretches``); the summary marks the curves whose scan the bound takes in (:data:`STRETCH_RULE`, field
+``noisiest_stretch``).
+
 Plain values in (the decimated record, its rate and labels, its Allan curve), the verdict file's dict out
 (:func:`stationarity_stage`). p-values are probabilities, the rate in Hz.
 """
@@ -32,7 +36,7 @@ import numpy as np
 
 from imupipe.verdict import chance_failures
 
-__all__ = ["NULL_COMPONENTS", "paper_tests", "stationarity_stage", "summary_stage"]
+__all__ = ["NULL_COMPONENTS", "STRETCH_RULE", "paper_tests", "stationarity_stage", "summary_stage"]
 
 #: Components of the calibrated null's model (the axis's Allan fit), beside the axis's spectral lines.
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
