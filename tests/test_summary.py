@@ -884,3 +884,17 @@ def test_a_verdict_over_records_that_are_not_stationary_says_what_it_covers():
     for stat, verdict in cases:
         text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
         assert f"**Verdict:** gyro: {verdict}" in text, (stat, text[:300])
+
+
+def test_a_stationarity_flag_says_the_bound_took_in_the_noisiest_stretch():
+    scan = {"stretch_s": 900.0, "n_stretches": 15, "edf_min": 135.0, "max_gain": 2.6,
+            "bands": [{"f_lo_hz": 0.0089, "f_hi_hz": 0.08, "ratio": 2.4, "start_s": 4950.0},
+                      {"f_lo_hz": 0.089, "f_hi_hz": 0.5, "ratio": 2.6, "start_s": 5400.0}]}
+    curves = [dict(c, noisiest_stretch=scan) if not c["stationary"] else c for c in STATIONARITY["curves"]]
+    stat = {"curves": curves, "on_fail": "warn", "alpha": 0.05, "n_non_stationary": 1, "n_curves": 2}
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
+    assert ("FLAG stationarity [sim2/gyro/z]: non-stationary (p = 0.003, calibrated); kept in the bound with its "
+            "noisiest stretch: its PSD raised up to 2.6x (the 900 s from 5400 s, 0.089-0.5 Hz)") in text
+    # a curve without a scan: the FLAG as before
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": STATIONARITY}})
+    assert "non-stationary (p = 0.003, calibrated); kept in the bound" in text and "noisiest" not in text

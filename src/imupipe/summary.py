@@ -22,7 +22,8 @@ from typing import Any
 from imupipe.linewords import line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
-from imupipe.verdict import BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, unstated_t_max, within_tolerance
+from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, stretch_note, unstated_t_max,
+                             within_tolerance)
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -289,7 +290,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
             out.append(Flag(sensor, "stationarity", where,
                             f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
-                            + (STUCK_NOTE if where in stuck_where else "")
+                            + stretch_note(c.get("noisiest_stretch")) + (STUCK_NOTE if where in stuck_where else "")
                             + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:

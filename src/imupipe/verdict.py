@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping
 
 __all__ = ["BOUNDED_TOLERANCE", "NONSTATIONARY_VERDICT", "STRETCH_VERDICT", "beyond_chance", "chance_failures",
-           "failure_tail", "nonstationary_qualifier", "unstated_t_max", "within_tolerance"]
+           "failure_tail", "nonstationary_qualifier", "stretch_note", "unstated_t_max", "within_tolerance"]
 
 #: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
 #: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and
@@ -151,3 +151,15 @@ def nonstationary_qualifier(stat: Mapping) -> str:
     kept = stat.get("on_fail") == "warn"
     return NONSTATIONARY_VERDICT if kept and beyond_chance(stat.get("n_non_stationary") or 0, stat.get("n_curves") or 0,
                                                            stat.get("alpha")) else ""
+
+
+def stretch_note(scan) -> str:
+    """``"; with its noisiest stretch ..."``: what a stationarity FLAG adds where the bound took in the curve's
+    noisiest stretch (`scan`: the stationarity summary's ``noisiest_stretch``, :meth:`imupipe.stretches.StretchLevels
+    .to_dict`); empty otherwise."""
+    if not isinstance(scan, Mapping) or not scan.get("bands"):
+        return ""
+    top = max(scan["bands"], key=lambda b: float(b.get("ratio", 0.0)))
+    return (f" with its noisiest stretch: its PSD raised up to {float(scan.get('max_gain', 1.0)):.3g}x (the "
+            f"{float(scan['stretch_s']):.6g} s from {float(top.get('start_s', 0.0)):.6g} s, "
+            f"{float(top['f_lo_hz']):.3g}-{float(top['f_hi_hz']):.3g} Hz)")
