@@ -114,6 +114,17 @@ def figures_stage(path_spectra, path_allan, path_identified, path_bound, path_sp
     aliases = line_aliases(lines, 1.0 / float(decimate_rate_hz)) if lines else []
     logging.info("%d line(s) marked at their aliases: %s", len(aliases), aliases)
     mark_aliases(fig, aliases)
+    raised = bound.get("noisiest_stretch") or {}
+    if raised:  # the bound's raised copies are not drawn: the legend says they are there
+        from matplotlib.lines import Line2D
+
+        ax = fig.axes[0]
+        handles, names = ax.get_legend_handles_labels()
+        size = ax.get_legend().get_texts()[0].get_fontsize() if ax.get_legend() else None
+        ax.legend(handles + [Line2D([], [], linestyle="none")],
+                  names + [f"bound also above {len(raised)} curve(s) raised to their noisiest stretch\n(up to "
+                           f"{max(float(v['max_gain']) for v in raised.values()):.3g}x; not drawn)"],
+                  loc="lower left", fontsize=size)
     save_all(fig, out_psd, copies, "psd_bound")
     save_all(plot_allan_components(av["tau"], every_curve(av, "avar"), identified, model, sensor=sensor,
                                    avar_lower=every_curve(av, "avar_lower"),
