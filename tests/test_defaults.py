@@ -30,8 +30,10 @@ def test_config_yaml_ships_the_table():
         assert cfg[section][name] == value, key
 
 
-#: keys the API resolves inside noise_model (one argument, `sigma_fix`, whose default depends on the sensor)
-RESOLVED_INSIDE = {"verify.sigma_fix_m", "verify.sigma_fix_rad"}
+#: keys the API resolves inside noise_model (one argument, `sigma_fix`, whose default depends on the sensor; the
+#: `stationarity` argument's settings, each defaulting to the table's)
+RESOLVED_INSIDE = {"verify.sigma_fix_m", "verify.sigma_fix_rad", "stationarity.n_segments", "stationarity.alpha",
+                   "stationarity.test", "stationarity.n_sim", "stationarity.n_sim_max", "stationarity.close_z"}
 
 
 def test_api_defaults_are_the_table():

@@ -1,6 +1,7 @@
 """One orchestration: the workflow (the shared tiny run, `tiny_run`) and the one-call API
 (:func:`imupipe.noise_model`) on the same records with the same settings give the same identification
-(selection, selected model, upper envelope), the same bound and the same Kalman-filter matrices.
+(selection, selected model, upper envelope), the same stationarity marks (the curves bounded at their noisiest
+stretch), the same bound and the same Kalman-filter matrices.
 
 Two runs: the shared tiny run, whose axes pool (one model per sensor type), and the tiny configuration on
 recordings whose gyro x differs from y and z (`axes_run`: the pooling test rejects one model, so the per-axis
@@ -99,7 +100,9 @@ def both(request):
         lines_alpha=cfg["lines"]["alpha"], lines_floor_window_bins=cfg["lines"]["floor_window_bins"],
         fix_s=ver["fix_s"], fix_rate_hz=ver.get("fix_rate_hz"),
         sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"], reduce=ver["reduce"],
-        replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"] if cfg.get("simulation") else None)
+        replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"] if cfg.get("simulation") else None,
+        stationarity={k: cfg["stationarity"][k] for k in ("n_segments", "alpha", "test", "n_sim", "n_sim_max",
+                                                          "close_z")})
     files = {"identify": read_yaml(res / "identify" / f"{sensor}.yaml"),
              "bound": read_yaml(res / "bound" / spec_name / f"{sensor}.yaml"),
              "kf": read_yaml(res / "kf" / spec_name / f"{sensor}.yaml"),

@@ -898,3 +898,21 @@ def test_a_stationarity_flag_says_the_bound_took_in_the_noisiest_stretch():
     # a curve without a scan: the FLAG as before
     text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": STATIONARITY}})
     assert "non-stationary (p = 0.003, calibrated); kept in the bound" in text and "noisiest" not in text
+
+
+def test_a_curve_whose_level_changes_though_it_passes_the_stationarity_test_is_flagged_and_says_why():
+    scan = {"stretch_s": 900.0, "n_stretches": 15, "edf_min": 135.0, "max_gain": 3.5,
+            "bands": [{"f_lo_hz": 0.0089, "f_hi_hz": 0.5, "ratio": 3.5, "start_s": 3600.0}]}
+    quiet = dict(STATIONARITY["curves"][0], noisiest_stretch=scan, stretch_test_p=0.001)
+    stat = {"curves": [quiet], "on_fail": "warn", "alpha": 0.05, "n_non_stationary": 0, "n_curves": 1}
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
+    assert ("FLAG noise level [sim1/gyro/x]: the noise level changes along the record (stretch test p = 0.001, below "
+            "alpha / 1) though the stationarity test passes (p = 0.4); kept in the bound with its noisiest stretch: "
+            "its PSD raised up to 3.5x (the 900 s from 3600 s, 0.0089-0.5 Hz)") in text
+    assert "BOUNDED with the noisiest stretch of its 1 non-stationary curve" in text
+    # a failing curve taken in by its own p-value where the count alone is chance says so beside the chance sentence
+    failing = dict(STATIONARITY["curves"][1], noisiest_stretch=scan)
+    stat = {"curves": [STATIONARITY["curves"][0], failing], "on_fail": "warn", "alpha": 0.05,
+            "n_non_stationary": 1, "n_curves": 2, "chance": "1 of 2 axes failed ...: consistent with chance"}
+    text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
+    assert "(taken in: its own p-value is below alpha / 2 = 0.025)" in text

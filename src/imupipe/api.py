@@ -250,6 +250,7 @@ def noise_model(
     fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
     fix_rate_hz: float | None = None, reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"],
     truth=None, events: bool | Mapping = True, envelope: str = _D["identify.envelope"],
+    stationarity: bool | Mapping = True,
 ) -> NoiseModelResult:
     r"""Identification, bound and Kalman-filter export of one sensor type from in-memory records.
 
@@ -258,14 +259,12 @@ def noise_model(
     curves : mapping of str to array_like
         Curve label (e.g. ``"lab1/x"``) -> 1-D static record of one axis, in SI (rad/s for a gyro,
         m/s^2 for an accelerometer; a constant offset such as gravity is harmless), sampled at `record_rate_hz`.
-    record_rate_hz : float
-        Sample rate of every record, Hz.
-    sensor : {"gyro", "accel"}
-        Sensor type (selects the spec sheet's section).
+    record_rate_hz, sensor :
+        Sample rate of every record, Hz; the sensor type, ``"gyro"`` or ``"accel"`` (the spec sheet's section).
     spec : str, pathlib.Path or imupipe.specsheet.SpecSheet
         The manufacturer's spec sheet (YAML file or parsed).
     decimate_hz : float, optional
-        Block-average rate for the PSD, Hz (default 1.0, the paper's).
+        Block-average rate for the PSD and stationarity stages, Hz (default 1.0, the paper's).
     window_s, step_s, taper, detrend, psd_confidence :
         Welch settings (window and step in s; default None: :func:`imupipe.defaults.psd_window_step` of the
         shortest curve, the workflow's rule for an unset ``psd.window_s``/``psd.step_s``; Hann, mean removed, 0.95).
@@ -287,7 +286,7 @@ def noise_model(
         verified, the tightest passing exported (:mod:`imupipe.bound.auto`; the result's ``bound`` is the winner's,
         ``records["bound"]`` holds every candidate).
     seed : int, optional
-        Seed of the fit's bootstrap (default 20211, the workflow's :data:`imupipe.stages.identify.SEED_FIT`).
+        Seed of the fit's bootstrap (default 20211, :data:`imupipe.stages.identify.SEED_FIT`, the workflow's).
     lines_policy : {None, "model", "exclude", "keep"}, optional
         Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
         `lines_resolution_hz`, Hz, `lines_alpha` and `lines_floor_window_bins`) and apply the policy
@@ -299,11 +298,10 @@ def noise_model(
     verify, sigma_fix, reduce, replay_z :
         Run the verification stage on the bound (:func:`imupipe.stages.verify.verify_sensor`: the covariance
         checks, the replay of the decimated records and, with `reduce`, the reduction by integrity; default
-        True), as the workflow does; `sigma_fix` is the fix standard deviation (m for accel, rad for gyro;
-        default the workflow's ``verify.sigma_fix_m`` / ``verify.sigma_fix_rad``, 0.5 m / 0.001745 rad).
-        `fix_rate_hz`: the fixes' rate, Hz (``verify.fix_rate_hz``; None: the filter's). Then the contract and the
-        KF file's matrices of the model the verification exported (:func:`imupipe.stages.kf.kf_stage`), as the workflow's; with ``verify=False`` the bound's,
-        unreduced, its P0 of p from :meth:`imupipe.biasinit.BiasInitialisation.p0`.
+        True), as the workflow does; `sigma_fix` the fix sd (m, accel; rad, gyro; default 0.5 m / 0.001745 rad as
+        ``verify.sigma_fix_m`` / ``_rad``); `fix_rate_hz` the fixes' rate, Hz (None: the filter's). Then the contract
+        and the KF file's matrices of the exported model (:func:`imupipe.stages.kf.kf_stage`); with
+        ``verify=False`` the bound's, unreduced, its P0 of p from :meth:`imupipe.biasinit.BiasInitialisation.p0`.
     truth : str, pathlib.Path, imupipe.specsheet.SpecSheet or imupipe.models.NoiseModel, optional
         The true model of simulated records (the workflow's ``simulation.truth``): recorded beside the fit and
         checked by the verification.
@@ -314,6 +312,9 @@ def noise_model(
         ``events`` settings (:data:`imupipe.stages.outliers.EVENT_DEFAULTS`); a mapping: those settings over them
         (its ``policy``, if given, must be ``warn``: the API analyses the records as given); False: no search.
         Found events are in the result's ``events``, ``flags`` and ``to_dict()``.
+    stationarity : bool or mapping, optional
+        The workflow's stationarity stage on every curve, all kept (:func:`_stationarity_of`): a curve it marks is
+        bounded over its noisiest stretch. True (default), settings over the defaults, or False (no test).
     envelope : {"marginal", "joint"}, optional
         The upper envelope's construction (``identify.envelope``, :func:`imupipe.stages.identify.envelope`):
         ``"marginal"`` (default, the paper's) every kept component at its upper limit at once; ``"joint"`` the model
@@ -330,6 +331,7 @@ def noise_model(
         unknown sensor, or a spec sheet without that sensor; with `verify`, no decimated record as long as
         ``fix_s + outage_s`` (the replay's window, as in the workflow's verify stage).
     """
+    from imupipe.lines import lines_by_curve
     from imupipe.specsheet import display_units
     from imupipe.stages.bound import bound_sensor
     from imupipe.stages.identify import identify_sensor
@@ -342,8 +344,6 @@ def noise_model(
                                                      detrend, psd_confidence, taus, allan_confidence)
     # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
     true_model = _truth_of(truth, sensor)
-    from imupipe.lines import lines_by_curve
-
     lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
                                                       lines_floor_window_bins)
     ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
@@ -354,7 +354,8 @@ def noise_model(
                             truth=true_model, seed=seed, lines=lines_by_curve(lines, lines_policy or "model"),
                             envelope_lines=lines_policy == "model", envelope_lines_below_hz=0.5 * decimate_hz,
                             envelope_kind=envelope)
-    # bound (rule bound): the stacked spectra (one grid), the stacked Allan grid, the lines files
+    # stationarity (the curves bounded at their noisiest stretch), bound: the stacked spectra, Allan grid, lines files
+    stat, stretches = _stationarity_of(curves, decimated, allan, decimate_hz, sensor, lines, stationarity)
     f, dt, first = _stacked_spectra(spectra, decimate_hz)
     with _no_stdout_fd():
         bound = bound_sensor(f, {k: sp["psd"].values for k, sp in spectra.items()},
@@ -363,10 +364,10 @@ def noise_model(
                              bands_per_decade=bands_per_decade, span_s=fix_s + outage_s,
                              filter_rate_hz=filter_rate_hz, taper=first.attrs.get("taper", taper),
                              allan=_stacked_allan(allan), lines=lines, line_policy=lines_policy or "model",
-                             spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name)
+                             spec_units=display_units(spec_sheet, sensor), spec_name=spec_sheet.name,
+                             stretches=stretches)
     # verification (rule verify), the contract (rule contract) and the KF file's matrices (rule kf)
-    if sigma_fix is None:
-        sigma_fix = _D["verify.sigma_fix_m"] if sensor == "accel" else _D["verify.sigma_fix_rad"]
+    sigma_fix = _D["verify.sigma_fix_" + ("m" if sensor == "accel" else "rad")] if sigma_fix is None else sigma_fix
     kf_dt = 1.0 / float(filter_rate_hz)
     verification, contract, kf = _verified_kf(
         bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, outage_s, sigma_fix, filter_rate_hz, reduce,
@@ -380,7 +381,42 @@ def noise_model(
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
                             verification=verification, contract=contract,
                             records={"identify": ident.record, "bound": bound_record, "verify": verification,
-                                     "contract": contract}, events=found)
+                                     "contract": contract, "stationarity": stat}, events=found)
+
+
+def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, settings):
+    """(summary, curve label -> noisiest-stretch scan of the curves it marks) of the decimated curves at `rate` (Hz):
+    the rules stationarity (:func:`imupipe.stages.stationarity.stationarity_stage`: the calibrated Levene + KS test,
+    the noisiest-stretch scan and its stretch test) and stationarity_summary
+    (:func:`~imupipe.stages.stationarity.summary_stage`) with ``on_fail: warn``; (None, {}) when `settings` is False.
+    `settings`: True (the workflow's defaults) or a mapping of ``n_segments``, ``alpha``, ``test``, ``n_sim``,
+    ``n_sim_max``, ``close_z`` over them (:func:`noise_model`'s ``stationarity``; docs/method.md, "Stationarity")."""
+    if settings is False:
+        return None, {}
+    from imupipe.lines import lines_by_curve
+    from imupipe.stages.stationarity import stationarity_stage, summary_stage
+    from imupipe.stationarity import stationarity_tests
+
+    keys = ("n_segments", "alpha", "test", "n_sim", "n_sim_max", "close_z")
+    given = dict(settings) if isinstance(settings, Mapping) else {}
+    unknown = sorted(set(given) - set(keys))
+    if unknown:
+        raise ValueError(f"stationarity: unknown setting(s) {unknown}; expected some of {list(keys)}")
+    kw = {k: given.get(k, _D[f"stationarity.{k}"]) for k in keys}
+    by_curve = lines_by_curve(lines) if lines else {}  # the stationarity job reads every line (policy aside)
+    verdicts, papers = [], []
+    for label in curves:
+        dataset, axis = label.rsplit("/", 1) if "/" in label else (label, label)
+        av = allan[label]
+        v = stationarity_stage(decimated[label], float(rate), dataset=dataset, sensor=sensor, axis=axis,
+                               allan=(av["tau"].values, av["avar"].values, av["edf"].values),
+                               lines=by_curve.get(label, ()), **kw)
+        verdicts.append(v)
+        papers.append(v["paper"] if isinstance(v.get("paper"), dict) else
+                      stationarity_tests(decimated[label], n_segments=int(kw["n_segments"]), alpha=float(kw["alpha"])))
+    summary = summary_stage(verdicts, "warn", sensor, papers)
+    return summary, {f"{c['dataset']}/{c['axis']}": c["noisiest_stretch"] for c in summary["curves"]
+                     if c.get("noisiest_stretch")}
 
 
 def _checked_inputs(curves, record_rate_hz, sensor, spec):

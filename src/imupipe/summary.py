@@ -22,8 +22,8 @@ from typing import Any
 from imupipe.linewords import line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
-from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, stretch_note, unstated_t_max,
-                             within_tolerance)
+from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, stretch_note, taken_in_why,
+                             unstated_t_max, within_tolerance)
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -196,6 +196,17 @@ def _level_change_note(where: str, stationarity: Mapping) -> str:
             "mean steps too (look at the record's spread over time)")
 
 
+def _level_flags(sensor: str, c, stationarity: Mapping) -> list:
+    """The FLAG of a curve `c` of the stationarity summary whose noise level changes along the record by its stretch
+    test while the stationarity test passes (its ``noisiest_stretch`` taken in: :mod:`imupipe.stretches`)."""
+    if not isinstance(c, Mapping) or c.get("stationary") is False or not c.get("noisiest_stretch"):
+        return []
+    return [Flag(sensor, "noise level", f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}",
+                 f"the noise level changes along the record (stretch test p = {num(c.get('stretch_test_p'))}, below "
+                 f"alpha / {stationarity.get('n_curves')}) though the stationarity test passes (p = "
+                 f"{num(c.get('p_value'))}); kept in the bound" + stretch_note(c["noisiest_stretch"]))]
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -285,12 +296,13 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                   for it in _items(src.get(key)) if isinstance(it, Mapping)]
     line_where = {line_text(it)[0] for it in line_items}
     for c in stationarity.get("curves") or []:
+        out += _level_flags(sensor, c, stationarity)
         if isinstance(c, Mapping) and c.get("stationary") is False:
             where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
             out.append(Flag(sensor, "stationarity", where,
                             f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
                             + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
-                            + stretch_note(c.get("noisiest_stretch")) + (STUCK_NOTE if where in stuck_where else "")
+                            + stretch_note(c.get("noisiest_stretch")) + taken_in_why(c, stationarity) + (STUCK_NOTE if where in stuck_where else "")
                             + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:

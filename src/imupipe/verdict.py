@@ -13,7 +13,7 @@ import math
 from collections.abc import Mapping
 
 __all__ = ["BOUNDED_TOLERANCE", "NONSTATIONARY_VERDICT", "STRETCH_VERDICT", "beyond_chance", "chance_failures",
-           "failure_tail", "nonstationary_qualifier", "stretch_note", "unstated_t_max", "within_tolerance"]
+           "failure_tail", "nonstationary_qualifier", "stretch_note", "taken_in_why", "unstated_t_max", "within_tolerance"]
 
 #: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
 #: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and
@@ -161,5 +161,20 @@ def stretch_note(scan) -> str:
         return ""
     top = max(scan["bands"], key=lambda b: float(b.get("ratio", 0.0)))
     return (f" with its noisiest stretch: its PSD raised up to {float(scan.get('max_gain', 1.0)):.3g}x (the "
-            f"{float(scan['stretch_s']):.6g} s from {float(top.get('start_s', 0.0)):.6g} s, "
+            f"{float(top.get('stretch_s', scan['stretch_s'])):.6g} s from {float(top.get('start_s', 0.0)):.6g} s, "
             f"{float(top['f_lo_hz']):.3g}-{float(top['f_hi_hz']):.3g} Hz)")
+
+
+def taken_in_why(curve: Mapping, stat: Mapping) -> str:
+    """Why a failing curve's noisiest stretch is in the bound where the sensor's failures alone are consistent with
+    chance (the stationarity summary `stat` and its `curve`): its own p-value, or its stretch test's, below alpha / n
+    (family-wise; :func:`imupipe.stages.stationarity.summary_stage`). Empty where the count is beyond chance or no
+    stretch was taken in."""
+    n, alpha = stat.get("n_curves") or 0, stat.get("alpha")
+    if not curve.get("noisiest_stretch") or not alpha or beyond_chance(stat.get("n_non_stationary") or 0, n, alpha):
+        return ""
+    own = curve.get("p_value")
+    if own is not None and float(own) < float(alpha) / max(n, 1):
+        return f" (taken in: its own p-value is below alpha / {n} = {float(alpha) / max(n, 1):.2g})"
+    return (f" (taken in: its stretch test, p = {float(curve.get('stretch_test_p', float('nan'))):.2g}, is below "
+            f"alpha / {n} = {float(alpha) / max(n, 1):.2g})")

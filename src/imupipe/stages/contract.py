@@ -153,6 +153,9 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
         "allan_check_passed": bound.get("allan_check_passed"),
         "allan_tau_band_s": ((bound.get("allan_check") or {}).get("total") or {}).get("tau_band_s"),
         "per_axis": bound.get("per_axis"),
+        # what the bound covers of records whose noise level changes: each such curve's noisiest stretch (its label,
+        # the curve and the largest gain), or null: the records' average PSD (docs/method.md, "Stationarity")
+        "noisiest_stretch": bound.get("noisiest_stretch"),
         **{k: bound.get(k) for k in ("mode", "n_curves", "bound", "spec", "bound_spec_units", "spec_spec_units")},
         "verification": verification_checks(exported),
         "reduction": None if ver.get("reduction") is None else

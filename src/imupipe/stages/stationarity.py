@@ -151,9 +151,15 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
                          alpha=alpha / k, test=test, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, lines=lines)
                  for v in segments.views(x)]
         return {**_segment_verdict(parts, segments, "p_value"), "n_samples": int(x.size), "stretches": stretches}
-    return {**_tested(x, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan, n_segments=n_segments,
-                      alpha=alpha, test=test, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, lines=lines),
-            "stretches": stretches}
+    out = _tested(x, rate, dataset=dataset, sensor=sensor, axis=axis, allan=allan, n_segments=n_segments, alpha=alpha,
+                  test=test, n_sim=n_sim, n_sim_max=n_sim_max, close_z=close_z, lines=lines)
+    if test == "calibrated" and levels is not None:  # does the noise level change beyond a stationary record's?
+        from imupipe.models import NoiseModel
+        from imupipe.stretches import stretch_test
+
+        out["stretch_test"] = stretch_test(x, rate, NoiseModel.from_dict(out["calibrated"]["null_model"]),
+                                           levels=levels)
+    return {**out, "stretches": stretches}
 
 
 def _tested(x, rate, *, dataset, sensor, axis, allan, n_segments, alpha, test, n_sim, n_sim_max, close_z,
@@ -294,22 +300,29 @@ def summary_stage(verdicts: list, on_fail: str, sensor: str, papers: list | None
 
 #: When the bound covers a curve's noisiest stretch (:func:`summary_stage`, the stationarity summary's field).
 STRETCH_RULE = ("a curve kept by the bound that fails the stationarity test, where the sensor's failures are more "
-                "than chance gives or its own p-value is below alpha / number of curves, enters the bound with its "
-                "PSD raised to its noisiest stretch's (noisiest_stretch; docs/method.md, 'Stationarity')")
+                "than chance gives or its own p-value is below alpha / number of curves, or whose stretch test "
+                "(the noise level along the record) has a p-value below alpha / number of curves, enters the bound "
+                "with its PSD raised to its noisiest stretch's (noisiest_stretch; docs/method.md, 'Stationarity')")
 
 
 def _stretch_bound(curves: list, verdicts: list, n_failed: int, alpha) -> None:
     """Mark (in place) each curve of `curves` whose noisiest stretch the bound covers (:data:`STRETCH_RULE`): its
     ``noisiest_stretch`` is its verdict's scan (:func:`imupipe.stretches.stretch_levels`); beyond chance where the
     sensor's `n_failed` failures are (:func:`imupipe.verdict.beyond_chance`) or, for one curve, where its p-value is
-    below alpha over the number of curves (Bonferroni: family-wise level alpha)."""
+    below alpha over the number of curves (Bonferroni: family-wise level alpha); and where its stretch test
+    (:func:`imupipe.stretches.stretch_test`, the verdict's ``stretch_test``) has a p-value below that, whatever the
+    stationarity test said (its p-value is the curve's ``stretch_test_p``)."""
     from imupipe.verdict import beyond_chance
 
     n = len(curves)
     many = bool(alpha) and beyond_chance(n_failed, n, alpha)
     for c, v in zip(curves, verdicts, strict=True):
         alone = bool(alpha) and float(c["p_value"]) < float(alpha) / max(n, 1)
-        if c["included"] and not c["stationary"] and (many or alone) and v.get("stretches"):
+        level = (v.get("stretch_test") or {}).get("p_value")
+        if level is not None:
+            c["stretch_test_p"] = float(level)
+        changes = bool(alpha) and level is not None and float(level) < float(alpha) / max(n, 1)
+        if c["included"] and (changes or (not c["stationary"] and (many or alone))) and v.get("stretches"):
             c["noisiest_stretch"] = v["stretches"]
 
 
