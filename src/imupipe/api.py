@@ -133,14 +133,15 @@ class NoiseModelResult:
     @property
     def flags(self) -> list[str]:
         """Every failed or flagged check, as the workflow's summary words them (``"FAIL|FLAG check [where]:
-        detail"``; :func:`imupipe.summary.flags_of` on the bound, contract and identification records): a
+        detail"``; :func:`imupipe.summary.flags_of` on the bound, contract, identification and stationarity records): a
         plausibility FLAG (a unit slip, data far below the sheet, an event in a record: :attr:`events`) does not
         change :attr:`bounded`, so read these too. Empty when nothing failed or was flagged."""
         from imupipe.summary import flags_of
 
         bound = {**(self.records.get("bound") or {}), **(self.contract or {}), "events": list(self.events)}
         return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
-                for f in flags_of(self.sensor, bound, self.records.get("identify") or {}, None)]
+                for f in flags_of(self.sensor, bound, self.records.get("identify") or {},
+                                  self.records.get("stationarity"))]
 
     @property
     def psd_bounded(self) -> bool:
