@@ -120,7 +120,9 @@ class NoiseModelResult:
 
     @property
     def model(self):
-        """The bounding :class:`~imupipe.models.NoiseModel` (SI)."""
+        """The bound's :class:`~imupipe.models.NoiseModel` (SI), before the verification's reduction: the exported
+        model, the KF file's (:attr:`kf`), is ``contract["model"]`` (it may drop states the verified outage does not
+        need, and then holds for that outage and those fixes only)."""
         return self.bound.model
 
     @property

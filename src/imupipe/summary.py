@@ -181,19 +181,19 @@ def event_chance(bound: Mapping) -> str:
 
 
 def _level_change_note(where: str, stationarity: Mapping) -> str:
-    """``"; ... fails the stationarity test ..."``: an event FLAG's note where the record's axis (``dataset/sensor/
-    axis``) or, for a record's group of events (``dataset/sensor``), any of its axes fails the stationarity test: a
-    change of the noise level also reads as mean steps (an outside evaluation: white noise 3x over half a record gave
-    7 "mean steps"). Empty otherwise."""
+    """An event FLAG's note where the record's axis (``dataset/sensor/axis``) or, for a record's group of events
+    (``dataset/sensor``), any of its axes fails the stationarity test or is bounded at its noisiest stretch: a level
+    change also reads as mean steps (white noise 3x over half a record gave 7 "mean steps"). Empty otherwise."""
     parts = where.split("/")
-    failed = [c for c in _items(stationarity.get("curves")) if isinstance(c, Mapping) and c.get("stationary") is False
+    failed = [c for c in _items(stationarity.get("curves")) if isinstance(c, Mapping)
+              and (c.get("stationary") is False or c.get("noisiest_stretch"))
               and str(c.get("dataset")) == parts[0] and (len(parts) < 3 or str(c.get("axis")) == parts[2])]
     if not failed:
         return ""
     axes = sorted({str(c.get("axis")) for c in failed})
     which = f"axis {axes[0]} also fails" if len(axes) == 1 else f"axes {', '.join(axes)} also fail"
-    return (f"; the record's {which} the stationarity test: a change of the noise level, not of the mean, reads as "
-            "mean steps too (look at the record's spread over time)")
+    return (f"; the record's {which} the stationarity test or its stretch test: a change of the noise level, not of "
+            "the mean, reads as mean steps too (look at the record's spread over time)")
 
 
 def _level_flags(sensor: str, c, stationarity: Mapping) -> list:
