@@ -397,7 +397,7 @@ def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, 
     if settings is False:
         return None, {}
     from imupipe.lines import lines_by_curve
-    from imupipe.stages.stationarity import stationarity_stage, summary_stage
+    from imupipe.stages.stationarity import marked_stretches, stationarity_stage, summary_stage
     from imupipe.stationarity import stationarity_tests
 
     keys = ("n_segments", "alpha", "test", "n_sim", "n_sim_max", "close_z")
@@ -418,8 +418,7 @@ def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, 
         papers.append(v["paper"] if isinstance(v.get("paper"), dict) else
                       stationarity_tests(decimated[label], n_segments=int(kw["n_segments"]), alpha=float(kw["alpha"])))
     summary = summary_stage(verdicts, "warn", sensor, papers)
-    return summary, {f"{c['dataset']}/{c['axis']}": c["noisiest_stretch"] for c in summary["curves"]
-                     if c.get("noisiest_stretch")}
+    return summary, marked_stretches(summary)
 
 
 def _checked_inputs(curves, record_rate_hz, sensor, spec):

@@ -3,15 +3,16 @@ r"""The noisiest stretch of a record: how far the PSD of its worst part stands a
 A bound over a record's average PSD covers a filter that meets the record's average noise. Where the noise level
 changes along the record (white noise 2.5x over its last third: an average PSD 2.75x the quiet level, the noisy
 stretch's 6.25x), a filter running through the noisy stretch under-states its error there (MSE/P 1.5 under a bound
-of the average). The bound of a record that fails the stationarity test therefore also covers its noisiest stretch
-(docs/method.md, "Stationarity"): its PSD raised, band by band, by the gain this module measures.
+of the average). The bound of a record that fails the stationarity test, or whose level changes by this module's
+stretch test, therefore also covers its noisiest stretch (docs/method.md, "Stationarity"): its PSD raised, band by
+band, by the gain this module measures.
 
 Scan (:func:`stretch_levels`). The decimated record of n samples at rate :math:`f_s` is cut into stretches of
 :math:`L = \lfloor n / S \rfloor` samples, one every L/2 samples (a change that lasts 1.5 L fills one stretch
 whatever its phase), at each scale S of :data:`SCALES` (8, 4 and 2 stretches per record: the longer stretches
 resolve lower frequencies, where a slow GM's level shows; each scale's bands are the scan's). Each stretch's PSD is
-the Welch average of its Hann windows of :math:`w = \lfloor L / W \rfloor` samples (:data:`WINDOWS_PER_STRETCH` = W) at 50 % overlap, mean removed; the whole
-record's is the average of every such window. Over log bands of the window's bins (5 per decade, merged from the
+the Welch average of its Hann windows of :math:`w = \lfloor L / W \rfloor` samples (:data:`WINDOWS_PER_STRETCH` =
+W) at 50 % overlap, mean removed; the whole record's is the average of every such window. Over log bands of the window's bins (5 per decade, merged from the
 lowest until each holds at least :data:`MIN_EDF` degrees of freedom per stretch) the band means give
 
 .. math::
@@ -130,7 +131,8 @@ class StretchLevels:
     @classmethod
     def from_dict(cls, d: dict) -> "StretchLevels":
         bands = d.get("bands") or []
-        return cls(f_lo_hz=tuple(float(b["f_lo_hz"]) for b in bands), f_hi_hz=tuple(float(b["f_hi_hz"]) for b in bands),
+        return cls(f_lo_hz=tuple(float(b["f_lo_hz"]) for b in bands),
+                   f_hi_hz=tuple(float(b["f_hi_hz"]) for b in bands),
                    ratio=tuple(float(b["ratio"]) for b in bands), start_s=tuple(float(b["start_s"]) for b in bands),
                    stretch_s=float(d["stretch_s"]), n_stretches=int(d["n_stretches"]), edf_min=float(d["edf_min"]),
                    statistic=float(d.get("statistic", 0.0)),
@@ -235,8 +237,7 @@ def _data_seed(x) -> int:
     return int.from_bytes(h.digest(), "little")
 
 
-def stretch_test(x, rate: float, null_model, seed: int | None = None, views_at=None,
-                 levels: StretchLevels | None = None) -> dict:
+def stretch_test(x, rate: float, null_model, seed: int | None = None, levels: StretchLevels | None = None) -> dict:
     r"""Does the noise level change along the record more than a stationary record's would? A Monte Carlo test of
     the scan's statistic :math:`T = \max_b \ln(r_b) \sqrt{\nu_b / 2}` (each band's log gain over its sd for the
     counted degrees of freedom :math:`\nu_b`; :func:`stretch_levels`) on records of the same length drawn from
@@ -252,15 +253,14 @@ def stretch_test(x, rate: float, null_model, seed: int | None = None, views_at=N
     largest of about 15 stretches' band estimates, each about N(0, 1/2) with the counted degrees of freedom (half the
     nominal); its 95th and 99th percentiles were 2.8-3.1 and 3.2-3.3 on 2 h records of white, white + GM + random
     walk and GM-dominated noise (300 each), so about five in a hundred stationary records are simulated (their test is
-    then at its exact level: 7 of 400 stationary records rejected at 0.0167, each tested on its own true model). Otherwise up to :data:`SIM_MAX` records,
-    stopping at
-    :data:`SIM_STOP` exceedances; p = (1 + exceedances) / (1 + records drawn). `views_at`: the sample indices where
-    the record is cut into segments (the null records are cut there too). Returns the statistic, the p-value, the
-    records drawn and what was done."""
+    then at its exact level: 7 of 400 stationary records rejected at 0.0167, each tested on its own true model).
+    Otherwise up to :data:`SIM_MAX` records, stopping at :data:`SIM_STOP` exceedances; p = (1 + exceedances) / (1 +
+    records drawn). `levels`: the record's scan when already made. Returns the statistic, the p-value, the records
+    drawn and what was done. A whole record only (the stationarity stage does not run it on a record cut into
+    segments)."""
     from imupipe.simulate import simulate
 
-    obs = levels if levels is not None else stretch_levels(
-        x, rate, views=np.split(np.asarray(x), views_at) if views_at else None)
+    obs = levels if levels is not None else stretch_levels(x, rate)
     if obs is None:
         return {"statistic": None, "p_value": None, "n_sim": 0, "note": "record too short for the scan"}
     out = {"statistic": float(obs.statistic), "screen": SCREEN, "p_value": None, "n_sim": 0}
@@ -272,7 +272,7 @@ def stretch_test(x, rate: float, null_model, seed: int | None = None, views_at=N
     while drawn < SIM_MAX and hits < SIM_STOP:
         batch = min(SIM_BATCH, SIM_MAX - drawn)
         for y in np.atleast_2d(simulate(null_model, n, rate, rng, n_records=batch)):
-            sim = stretch_levels(y, rate, views=np.split(y, views_at) if views_at else None)
+            sim = stretch_levels(y, rate)
             hits += int(sim is not None and sim.statistic >= obs.statistic)
         drawn += batch
     out.update(p_value=(1 + hits) / (1 + drawn), n_sim=drawn,

@@ -13,7 +13,8 @@ import math
 from collections.abc import Mapping
 
 __all__ = ["BOUNDED_TOLERANCE", "NONSTATIONARY_VERDICT", "STRETCH_VERDICT", "beyond_chance", "chance_failures",
-           "failure_tail", "nonstationary_qualifier", "stretch_note", "taken_in_why", "unstated_t_max", "within_tolerance"]
+           "failure_tail", "nonstationary_qualifier", "stretch_note", "taken_in_why", "unstated_t_max",
+           "within_tolerance"]
 
 #: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
 #: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and

@@ -4,8 +4,8 @@
 # the lowest PSD bin down to 0.01 / span (span = verify.fix_s + application.outage_s, SPAN_S) the bound's PSD
 # stays above the spec sheet's and the identified model's upper confidence envelope (docs/method.md, "Bound
 # over all frequencies"). Spectral lines found by the lines stage enter through the sensor's line policy
-# (`lines.policy`: model | exclude | keep). A record that fails the stationarity test beyond chance enters the
-# global bound a second time, its PSD raised to its noisiest stretch's (the stationarity summary).
+# (`lines.policy`: model | exclude | keep). A record whose noise level changes (the stationarity summary's marks)
+# enters the global bound a second time, its PSD raised to its noisiest stretch's.
 # With kf, verify, contract, figures and tables the only stages that read the spec sheet: a new spec sheet
 # re-runs these jobs alone.
 

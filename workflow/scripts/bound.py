@@ -14,6 +14,7 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
     from imupipe.merge import Stacked
     from imupipe.specsheet import display_units, load_spec
     from imupipe.stages.bound import HEADER, bound_stage
+    from imupipe.stages.stationarity import marked_stretches
 
     spec = load_spec(path_spec)  # a missing sensor section: refused at start-up (imupipe.runconfig.check_specs)
     sp, al = Stacked(path_spectra), Stacked(path_allan)
@@ -28,15 +29,9 @@ def main(path_spectra: str, path_allan: str, path_identified: str, path_spec: st
                       application_band_hz=lines_params["application_band_hz"],
                       axis_bounds=[read_yaml(path) for path in axis_bounds], compare_paper=compare_paper,
                       spec_units=display_units(spec, sensor), spec_name=spec.name,
-                      spec_file=path_spec.rsplit("/", 1)[-1], stretches=stretches_of(path_stationarity))
+                      spec_file=path_spec.rsplit("/", 1)[-1],
+                      stretches=marked_stretches(read_yaml(path_stationarity) if path_stationarity else None))
     write_yaml_atomic(out, path_out, header=HEADER)
-
-
-def stretches_of(path_stationarity: str | None) -> dict:
-    """Curve label -> noisiest-stretch scan of the curves the stationarity summary marks (its stretch_rule)."""
-    summary = read_yaml(path_stationarity) if path_stationarity else {}
-    return {f"{c['dataset']}/{c['axis']}": c["noisiest_stretch"] for c in summary.get("curves") or ()
-            if c.get("noisiest_stretch")}
 
 
 if __name__ == "__main__":

@@ -96,7 +96,7 @@ def candidate_modes(identified: dict, lines=None, stretched=()) -> tuple[tuple[s
     if kind != "joint":
         why = f"not built: the identification's envelope is {kind!r}, not the joint band (identify.envelope: joint)"
     elif stretched:
-        why = (f"not built: {len(stretched)} curve(s) fail the stationarity test beyond chance (noisiest stretch of "
+        why = (f"not built: {len(stretched)} curve(s) change their noise level along the record (noisiest stretch of "
                f"{', '.join(stretched)} among the bound's curves), and the envelope, fitted to the records' average "
                "noise, does not cover a noisier stretch")
     elif pooled and n_axes > 1 and not axes:

@@ -47,8 +47,9 @@ upper_envelope: the identified model at its upper confidence limits (SI), impose
 envelope_target: (auto's envelope candidate, pooled curves) the model it lies above instead: upper_envelope and each
 axis's own envelope (identify file: upper_envelope_model_axes); upper_envelope stays the verification's reference.
 allan_check.total.tau_band_s: the application band of the total-AV check, [1/application.filter_rate_hz, horizon_s] s.
-noisiest_stretch: curves of records that fail the stationarity test beyond chance, each entering the bound a second
-time with its PSD raised band by band to its noisiest stretch's (label -> the curve, largest gain, stretch length s).
+noisiest_stretch: curves whose noise level changes (the stationarity summary's marks: failing beyond chance, or the
+stretch test), each entering the bound a second time with its PSD raised band by band to its noisiest stretch's
+(label -> the curve, its largest gain, the shortest stretch length s).
 per_axis_models: present when the pooling test rejected one model for all axes: per axis, the bound of that axis's
 curves (same fields as the global bound, SI), its envelope and Allan check; null when the axes are pooled."""
 

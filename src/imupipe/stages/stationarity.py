@@ -36,7 +36,7 @@ import numpy as np
 
 from imupipe.verdict import chance_failures
 
-__all__ = ["NULL_COMPONENTS", "STRETCH_RULE", "paper_tests", "stationarity_stage", "summary_stage"]
+__all__ = ["NULL_COMPONENTS", "STRETCH_RULE", "marked_stretches", "paper_tests", "stationarity_stage", "summary_stage"]
 
 #: Components of the calibrated null's model (the axis's Allan fit), beside the axis's spectral lines.
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
@@ -138,8 +138,9 @@ def stationarity_stage(x, rate: float, *, dataset=None, sensor=None, axis=None, 
     record, and a null without it flagged such axes. With lines the null's broadband model is fitted to the Allan
     variance of the notched record (:data:`NULL_FIT_TAUS`), not to `allan`. ``stretches``: the record's
     noisiest-stretch scan (:func:`imupipe.stretches.stretch_levels`, over the segments' views under split; None for
-    a record too short for it), which the bound applies where the sensor's failures are beyond chance
-    (:func:`summary_stage`)."""
+    a record too short for it) and, for a whole record under the calibrated test, ``stretch_test``
+    (:func:`imupipe.stretches.stretch_test` on the null the test fitted); the bound takes the scan in by
+    :func:`summary_stage`'s rule (:data:`STRETCH_RULE`)."""
     from imupipe.stretches import stretch_levels
 
     whole = segments is None or segments.is_whole
@@ -303,6 +304,13 @@ STRETCH_RULE = ("a curve kept by the bound that fails the stationarity test, whe
                 "than chance gives or its own p-value is below alpha / number of curves, or whose stretch test "
                 "(the noise level along the record) has a p-value below alpha / number of curves, enters the bound "
                 "with its PSD raised to its noisiest stretch's (noisiest_stretch; docs/method.md, 'Stationarity')")
+
+
+def marked_stretches(summary: dict | None) -> dict:
+    """Curve label (``dataset/axis``) -> noisiest-stretch scan of each curve the stationarity summary `summary`
+    (:func:`summary_stage`; None: none) marks: what the bound takes in (:func:`imupipe.stages.bound.with_stretches`)."""
+    return {f"{c['dataset']}/{c['axis']}": c["noisiest_stretch"] for c in (summary or {}).get("curves") or ()
+            if c.get("noisiest_stretch")}
 
 
 def _stretch_bound(curves: list, verdicts: list, n_failed: int, alpha) -> None:
