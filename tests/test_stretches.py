@@ -158,3 +158,14 @@ def test_the_stretch_test_sees_a_white_change_the_segment_tests_miss_and_rarely_
     quiet = simulate(NoiseModel(white=1.0), 7200, 1.0, rng)
     t = stretch_test(quiet, 1.0, NoiseModel(white=1.0), seed=1)
     assert (t["p_value"] is None and t["n_sim"] == 0) or t["p_value"] > 0.01
+
+
+def test_the_summary_records_which_rule_took_a_curve_in():
+    scan = stretch_levels(_change(7200, 2 / 3, 2.5, np.random.default_rng(1)), 1.0).to_dict()
+    three = [_verdict("d", a, False, 0.02, scan) for a in "xyz"]
+    assert {c["taken_in_by"] for c in summary_stage(three, "warn", "gyro")["curves"]} == {"failures beyond chance"}
+    six = [_verdict(d, a, a != "x" or d != "d1", 0.02, scan) for d in ("d1", "d2") for a in "xyz"]
+    six[0]["p_value"] = 0.001
+    six[1]["stretch_test"] = {"p_value": 0.001}
+    by = {(c["dataset"], c["axis"]): c.get("taken_in_by") for c in summary_stage(six, "warn", "gyro")["curves"]}
+    assert by[("d1", "x")] == "own p-value" and by[("d1", "y")] == "stretch test" and by[("d2", "z")] is None

@@ -912,7 +912,7 @@ def test_a_curve_whose_level_changes_though_it_passes_the_stationarity_test_is_f
             "its PSD raised up to 3.5x (the 900 s from 3600 s, 0.0089-0.5 Hz)") in text
     assert "BOUNDED with the noisiest stretch of its 1 non-stationary curve" in text
     # a failing curve taken in by its own p-value where the count alone is chance says so beside the chance sentence
-    failing = dict(STATIONARITY["curves"][1], noisiest_stretch=scan)
+    failing = dict(STATIONARITY["curves"][1], noisiest_stretch=scan, taken_in_by="own p-value")
     stat = {"curves": [STATIONARITY["curves"][0], failing], "on_fail": "warn", "alpha": 0.05,
             "n_non_stationary": 1, "n_curves": 2, "chance": "1 of 2 axes failed ...: consistent with chance"}
     text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})

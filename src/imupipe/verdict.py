@@ -168,14 +168,14 @@ def stretch_note(scan) -> str:
 
 def taken_in_why(curve: Mapping, stat: Mapping) -> str:
     """Why a failing curve's noisiest stretch is in the bound where the sensor's failures alone are consistent with
-    chance (the stationarity summary `stat` and its `curve`): its own p-value, or its stretch test's, below alpha / n
-    (family-wise; :func:`imupipe.stages.stationarity.summary_stage`). Empty where the count is beyond chance or no
-    stretch was taken in."""
-    n, alpha = stat.get("n_curves") or 0, stat.get("alpha")
-    if not curve.get("noisiest_stretch") or not alpha or beyond_chance(stat.get("n_non_stationary") or 0, n, alpha):
+    chance: the rule the stationarity summary `stat` recorded for its `curve` (``taken_in_by``,
+    :func:`imupipe.stages.stationarity.summary_stage`), its own p-value or its stretch test's below alpha / n
+    (family-wise). Empty where the failures beyond chance took it in, or no stretch was taken in."""
+    n, alpha, by = stat.get("n_curves") or 0, stat.get("alpha"), curve.get("taken_in_by")
+    if not curve.get("noisiest_stretch") or not alpha or by not in ("own p-value", "stretch test"):
         return ""
-    own = curve.get("p_value")
-    if own is not None and float(own) < float(alpha) / max(n, 1):
-        return f" (taken in: its own p-value is below alpha / {n} = {float(alpha) / max(n, 1):.2g})"
-    return (f" (taken in: its stretch test, p = {float(curve.get('stretch_test_p', float('nan'))):.2g}, is below "
-            f"alpha / {n} = {float(alpha) / max(n, 1):.2g})")
+    level = f"alpha / {n} = {float(alpha) / max(n, 1):.2g}"
+    if by == "own p-value":
+        return f" (taken in: its own p-value is below {level})"
+    p = float(curve.get("stretch_test_p", float("nan")))
+    return f" (taken in: its stretch test, p = {p:.2g}, is below {level})"

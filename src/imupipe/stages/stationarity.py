@@ -319,7 +319,8 @@ def _stretch_bound(curves: list, verdicts: list, n_failed: int, alpha) -> None:
     sensor's `n_failed` failures are (:func:`imupipe.verdict.beyond_chance`) or, for one curve, where its p-value is
     below alpha over the number of curves (Bonferroni: family-wise level alpha); and where its stretch test
     (:func:`imupipe.stretches.stretch_test`, the verdict's ``stretch_test``) has a p-value below that, whatever the
-    stationarity test said (its p-value is the curve's ``stretch_test_p``)."""
+    stationarity test said (its p-value is the curve's ``stretch_test_p``). ``taken_in_by`` says which rule took it
+    in: ``failures beyond chance``, ``own p-value`` or ``stretch test``."""
     from imupipe.verdict import beyond_chance
 
     n = len(curves)
@@ -330,8 +331,11 @@ def _stretch_bound(curves: list, verdicts: list, n_failed: int, alpha) -> None:
         if level is not None:
             c["stretch_test_p"] = float(level)
         changes = bool(alpha) and level is not None and float(level) < float(alpha) / max(n, 1)
-        if c["included"] and (changes or (not c["stationary"] and (many or alone))) and v.get("stretches"):
+        failing = not c["stationary"] and (many or alone)
+        if c["included"] and (changes or failing) and v.get("stretches"):
             c["noisiest_stretch"] = v["stretches"]
+            c["taken_in_by"] = ("failures beyond chance" if failing and many else "own p-value" if failing
+                                else "stretch test")
 
 
 def _axis_level(verdict: dict) -> float | None:
