@@ -754,6 +754,32 @@ class TestRandomWalkCap:
         assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-4).random_walk == 1e-4
         assert upper_envelope(fit, ["white", "random_walk"], random_walk_cap=1e-6).random_walk == 2e-5
 
+    def test_a_fitted_ramp_is_carried_as_a_random_walk_over_the_window(self):
+        """A rate ramp the fit gives power to (its estimate above 0) enters the envelope's K as the random walk whose
+        Allan variance dominates the ramp's (at its upper limit) at every tau up to the window, and whose outage error
+        dominates the ramp's drift: K_R^2 tau / 3 >= R^2 tau^2 / 2 and K_R^2 t^3 / 3 >= (R t^2 / 2)^2 for t <= h;
+        a ramp fitted as zero changes nothing (a 2 h record whose K went to a ramp: a per-axis model under-stated
+        its axis's error 2.03x)."""
+        from types import SimpleNamespace
+
+        from imupipe.bound import upper_envelope
+        from imupipe.bound.allan_check import ramp_random_walk
+        from imupipe.models import NoiseModel
+
+        h, R_up = 2400.0, 3.0e-8
+        fit = SimpleNamespace(params={"white": 1e-4, "random_walk": 0.0, "ramp": 2.8e-8},
+                              intervals={"random_walk": (0.0, 5.5e-7), "ramp": (2.3e-8, R_up)})
+        env = upper_envelope(fit, ["white", "ramp"], span_s=h)
+        K_R = ramp_random_walk(R_up, h)
+        assert env.random_walk == pytest.approx(math.hypot(5.5e-7, K_R), rel=1e-12)
+        tau = np.geomspace(1.0, h, 200)
+        assert np.all(NoiseModel(random_walk=K_R).avar(tau) >= (R_up * tau) ** 2 / 2.0 * (1 - 1e-12))
+        assert np.all(K_R**2 * tau**3 / 3.0 >= (R_up * tau**2 / 2.0) ** 2)
+        zero = SimpleNamespace(params={**fit.params, "ramp": 0.0}, intervals=fit.intervals)
+        assert upper_envelope(zero, ["white"], span_s=h).random_walk == 5.5e-7
+        assert upper_envelope(fit, ["white", "ramp"]).random_walk == 5.5e-7  # no window: nothing to cover
+        assert ramp_random_walk(0.0, h) == 0.0 and ramp_random_walk(R_up, None) == 0.0
+
 
 class TestUpperEnvelopeOpenInterval:
     """imupipe.bound.upper_envelope where the data leave a GM time constant's interval open (one-sided): the

@@ -604,6 +604,22 @@ def gm_bank_envelope(sigma_up: float, a: float, c: float, lower_open: bool, uppe
     return tuple((math.sqrt(float(v)), float(t)) for v, t in zip(w[keep], T[keep]))
 
 
+def ramp_random_walk(ramp: float, span_s: float | None) -> float:
+    r"""The random walk that stands in for a fitted rate ramp R (u/s) over a filter's window h = `span_s` (s):
+    :math:`K_R = R \sqrt{1.5\,h}` (u/sqrt(s)); 0 without a ramp or a window.
+
+    A ramp is no filter state, and over a record of a few hours a random walk's path often looks like one: the fit
+    then gives the rise of the long-tau Allan variance to the ramp and the random walk's upper limit falls with it
+    (a 2 h gyro record whose random walk was fitted as zero beside a ramp: the envelope's K 0.74x the truth's, and a
+    per-axis model on it under-stated its axis's error 2.03x over an 1800 s outage). The envelope carries the ramp's
+    power as a random walk instead: :math:`K_R^2 \tau/3 \ge R^2 \tau^2/2` (the ramp's Allan variance) for every
+    :math:`\tau \le h`, and over an outage t <= h its angle (velocity) error variance :math:`K_R^2 t^3/3` is at
+    least twice the ramp's :math:`(R t^2/2)^2`. Added in quadrature to the envelope's K (:func:`upper_envelope`)."""
+    if not (ramp > 0 and span_s and math.isfinite(float(span_s)) and span_s > 0):
+        return 0.0
+    return float(ramp) * math.sqrt(1.5 * float(span_s))
+
+
 def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_cap: float | None = None,
                    span_s: float | None = None, max_box_ratio: float = BOX_SPLIT_RATIO, gm_cap=None,
                    cap_record: list | None = None):
@@ -624,7 +640,8 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
     the box, and far below the single GM in between.
     The random walk at its upper limit **whether or not it was kept**: a random walk the data cannot
     exclude at the stated confidence is an integrity risk below the lowest bin (the profile limit
-    ``random_walk_profile["upper"]`` exists when K was fitted as zero).
+    ``random_walk_profile["upper"]`` exists when K was fitted as zero); a ramp the fit gives power to (estimate
+    above 0) adds its stand-in :func:`ramp_random_walk` at the ramp's upper limit, in quadrature, over `span_s`.
 
     Parameters
     ----------
@@ -736,6 +753,7 @@ def upper_envelope(fit, kept=None, intervals: str = "statistical", random_walk_c
         k = max(k, float(prof["upper"]))
     if random_walk_cap is not None and math.isfinite(random_walk_cap):
         k = max(min(k, float(random_walk_cap)), float(p.get("random_walk", 0.0) or 0.0))
+    k = math.sqrt(k * k + ramp_random_walk(up("ramp") if float(p.get("ramp", 0.0) or 0.0) > 0 else 0.0, span_s) ** 2)
     white = up("white") if is_kept("white") else 0.0
     return NoiseModel(white=math.sqrt(white**2 + white_add), gauss_markov=tuple(gm), random_walk=k,
                       flicker=up("flicker") if is_kept("flicker") else 0.0)

@@ -148,7 +148,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             filter_rate_hz=filter_rate_hz, taper=taper, allan=allan, lines=lines, line_policy=line_policy,
             application_band_hz=application_band_hz, axis_bounds=axis_bounds, compare_paper=compare_paper,
             spec_units=spec_units, spec_name=spec_name, spec_file=spec_file, stretches=stretches))
-    from imupipe.bound import (axis_of, bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
+    from imupipe.bound import (bound_by_axis, bound_psd, check_allan, looseness, paper_inflation,
                                upper_envelope_from_identification)
     from imupipe.io import plain
     from imupipe.models import NoiseModel
@@ -185,6 +185,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
            "upper_envelope": upper.to_dict(),
            **({"envelope_target": target.to_dict()} if target is not upper else {}),
            "identification_intervals": identified.get("intervals_bootstrap"),
+           "upper_envelope_kind": identified.get("upper_envelope_kind", "marginal"),
            "noisiest_stretch": stretched or None,
            "lines": pol.to_dict() if pol is not None else {"policy": None, "note": "no lines files (lines stage not run)"}}
     tau_min_s = 1.0 / float(filter_rate_hz)
@@ -207,11 +208,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
     if not pooled and axes_fit:
         uppers = {ax: NoiseModel.from_dict(v["upper_envelope_model"]) for ax, v in axes_fit.items()
                   if v.get("upper_envelope_model")}
-        line_kw = {}
-        for ax in axes_fit:
-            mine = {lab: doc for lab, doc in lines.items() if axis_of(lab) == ax}
-            p_ax = line_policy_from_files(mine, dt, f, line_policy, application_band_hz)
-            line_kw[ax] = (p_ax.bound_kwargs() if p_ax is not None else {}, p_ax)
+        line_kw = _axis_line_policies(axes_fit, lines, dt, f, line_policy, application_band_hz)
         per = bound_by_axis(f, curves, spec_model, upper_models=uppers, edf=edf_of,
                             line_kwargs={ax: kw for ax, (kw, _) in line_kw.items()}, dt=dt, mode=mode, n_gm=n_gm,
                             confidence=confidence, bands_per_decade=bands_per_decade, keep=kept, taper=taper,
@@ -227,6 +224,7 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             entry = {"axis": ax, "curves": [lab for lab in labs if lab not in stretched], **b_ax,
                      "noisiest_stretch": [lab for lab in labs if lab in stretched] or None,
                      "upper_envelope": uppers[ax].to_dict() if ax in uppers else None,
+                     "identification_level": axes_fit[ax].get("level"),
                      "lines": line_kw[ax][1].to_dict() if line_kw.get(ax, ({}, None))[1] is not None else None}
             if allan is not None:
                 sel = [labels.index(lab) for lab in labs if lab in labels]
@@ -251,6 +249,20 @@ def bound_sensor(frequency, psd: Mapping, edf: Mapping, spec_model, identified: 
             "phases": phase_ends(hand.details.get("history", [])),
         }
     return BoundStage(record=plain(out), result=result, upper=upper, policy=pol)
+
+
+def _axis_line_policies(axes, lines: Mapping, dt: float, f, line_policy: str, application_band_hz) -> dict:
+    """Axis -> (the bound's line keyword arguments, the line policy or None) of that axis's curves' lines files
+    (:func:`imupipe.lines.line_policy_from_files`): each per-axis model carries its own axis's lines."""
+    from imupipe.bound import axis_of
+    from imupipe.lines import line_policy_from_files
+
+    out = {}
+    for ax in axes:
+        p_ax = line_policy_from_files({lab: doc for lab, doc in lines.items() if axis_of(lab) == ax}, dt, f,
+                                      line_policy, application_band_hz)
+        out[ax] = (p_ax.bound_kwargs() if p_ax is not None else {}, p_ax)
+    return out
 
 
 def _pool_groups(curves, stretched, pooled: bool):

@@ -38,8 +38,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["AXIS_ENVELOPE_KEYS", "SEED_FIT", "SEED_POOLING", "Curve", "Identification", "curves_of", "envelope",
-           "envelope_ratio", "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor",
+__all__ = ["AXIS_ENVELOPE_KEYS", "SEED_FIT", "SEED_POOLING", "Curve", "Identification", "axis_level", "curves_of",
+           "envelope", "envelope_ratio", "fitted_model", "gm_cap_record", "identification_stage", "identify_sensor",
            "selected_and_envelope", "selected_model"]
 
 #: Seeds of the fit's bootstrap and of the pooling test's (the workflow's and the API's).
@@ -356,9 +356,9 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
     """One identification per axis (its datasets pooled; one dataset: one curve) by the pooled path's rule: the
     axis's fit with every allowed component (no bootstrap: it only sets the components and the T search), then
     the pooled selection refitted on the axis; axis -> its identify-file entry. Under the joint envelope each
-    axis's band is at `confidence`, recorded as the entry's ``upper_envelope_joint`` (over k axes the bands hold
-    together with probability at least 1 - k (1 - `confidence`); a band at the Bonferroni level 1 - (1 - c)/k was
-    tried: with the workflow's 100 bootstrap replicates it is their largest sup statistic, and one outlying
+    axis's band is at `confidence` (the caller's per-axis level, :func:`axis_level`: the Bonferroni level with
+    replicates to match where the pooling test rejects), recorded as the entry's ``upper_envelope_joint``. A band
+    at the Bonferroni level from the pooled fit's 100 replicates would be their largest sup statistic: one outlying
     replicate raised an axis's envelope, and with it the exported random walk, 16x above its own interval)."""
     from imupipe.identify import fit_allan
 
@@ -391,6 +391,29 @@ def _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, see
     return per_axis
 
 
+def axis_level(confidence: float, k: int, pooled: bool, envelope_kind: str, n_boot: int) -> dict:
+    r"""The level of each axis's own identification (its intervals and joint band) and its bootstrap replicates.
+
+    Where the pooling test rejects one model and the envelope is the joint one, each axis's model is a statement of
+    its own (the KF file gives an axis its own model) and every statement must hold at once: each axis's band at the
+    Bonferroni level :math:`c_a = 1 - (1 - c)/k` over k axes, so that all hold together with probability at least c
+    (at :math:`c_a = c` each, only :math:`1 - k(1 - c)`, 0.85 for three axes at 0.95). The band's level is the
+    order statistic :math:`\lceil (B + 1) c_a \rceil` of B replicates, so the replicates grow to
+    :math:`B_a = k (B + 1) - 1`: as many lie beyond it as beyond the pooled band's (5 of 99 at 0.95; 5 of 299 at
+    0.9833), not its largest one. Elsewhere (the pooled path's per-axis guard, or the marginal envelope, every
+    component at its own upper limit at once) each axis stays at c with B replicates. Returns ``confidence``
+    (:math:`c_a`), ``n_boot`` (:math:`B_a`), ``family_confidence`` (c) and ``rule`` (one sentence)."""
+    if pooled or envelope_kind == "marginal" or k < 2:
+        return {"confidence": float(confidence), "n_boot": int(n_boot), "family_confidence": None,
+                "rule": "each axis at the identification's level (the pooled model is the statement)"
+                if pooled else "each axis at the identification's level (marginal envelope)"}
+    c_a = 1.0 - (1.0 - float(confidence)) / k
+    return {"confidence": c_a, "n_boot": k * (int(n_boot) + 1) - 1 if n_boot > 0 else 0,
+            "family_confidence": float(confidence),
+            "rule": f"Bonferroni over {k} axes: each axis's band at 1 - (1 - {confidence:g}) / {k} = {c_a:.4g}, "
+                    f"all {k} together at least {confidence:g}"}
+
+
 def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range,
                      envelope_kind) -> None:
     """Step 5 of the module docstring, into the identify record `out` (its ``pooling`` done; `env` the pooled
@@ -408,8 +431,12 @@ def _axes_identified(out: dict, env, curves, components, n_gm, selection, fit_kw
     if pooled and (envelope_kind == "marginal" or len({c.axis for c in curves}) < 2):
         out["identification"] = "pooled: the curves are consistent with one model (pooling test)"
         return
-    axes = _per_axis(curves, components, n_gm, selection, fit_kw, confidence, span, seed, T_range=T_range,
-                     envelope_kind=envelope_kind)
+    level = axis_level(confidence, len({c.axis for c in curves}), pooled, envelope_kind, int(fit_kw["n_boot"]))
+    axes = _per_axis(curves, components, n_gm, selection, {**fit_kw, "n_boot": level["n_boot"],
+                                                           "confidence": level["confidence"]},
+                     level["confidence"], span, seed, T_range=T_range, envelope_kind=envelope_kind)
+    for entry in axes.values():
+        entry["level"] = dict(level)
     dominating = dominating_model([env] + [NoiseModel.from_dict(v["upper_envelope_model"]) for v in axes.values()])
     if pooled:
         # the test's acceptance does not show the axes equal: a gyro z whose drift was 20 % above x and y's (two
