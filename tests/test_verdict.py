@@ -79,3 +79,62 @@ def test_an_event_flag_says_how_many_events_chance_gives():
     assert "P(>= 1) = 0.14: consistent with chance" in f.detail
     (g,) = [f for f in flags_of("gyro", bound={"events": [ev]}) if f.check == "event"]  # no scan record: no clause
     assert "by chance" not in g.detail
+
+
+class TestConfidenceStatement:
+    """imupipe.verdict.confidence_statement / confidence_lines: the level a bounded verdict rests on, read from the
+    bound's identification level and each per-axis model's, stated where the user reads the verdict."""
+
+    def test_the_identification_level_and_the_envelope_kind(self):
+        from imupipe.verdict import confidence_statement
+
+        st = confidence_statement({"identification_intervals": {"n_boot": 100, "confidence": 0.9},
+                                   "upper_envelope_kind": "joint", "per_axis_models": None})
+        assert st["level"] == 0.9 and st["envelope"] == "joint" and st["per_axis_level"] is None
+        assert "confidence 0.9" in st["statement"] and "0.1 of runs" in st["statement"]
+        marginal = confidence_statement({"identification_intervals": {"confidence": 0.95}})
+        assert marginal["envelope"] == "marginal" and "each at 0.95" in marginal["statement"]
+        assert confidence_statement({}) is None
+
+    def test_per_axis_models_state_their_own_level(self):
+        from imupipe.stages.identify import axis_level
+        from imupipe.verdict import confidence_statement
+
+        level = axis_level(0.95, 3, pooled=False, envelope_kind="joint", n_boot=100)
+        st = confidence_statement({"identification_intervals": {"confidence": 0.95}, "upper_envelope_kind": "joint",
+                                   "per_axis_models": {ax: {"identification_level": level} for ax in "xyz"}})
+        assert st["per_axis_level"] == pytest.approx(1 - 0.05 / 3)
+        assert "0.9833" in st["statement"] and "Bonferroni over 3 axes" in st["statement"]
+
+    def test_the_summary_line_names_the_sensors_of_each_statement(self):
+        from imupipe.verdict import confidence_lines
+
+        st = {"statement": "the envelope X"}
+        lines = confidence_lines({"gyro": {"confidence": st}, "accel": {"confidence": st}, "mag": {}})
+        assert lines == ["What BOUNDED rests on (gyro, accel): the envelope X", ""]
+        assert confidence_lines({"gyro": None}) == []
+
+
+class TestAxisLevel:
+    """imupipe.stages.identify.axis_level: each axis's own identification at the Bonferroni level where the axes get
+    their own models (pooling rejected, joint band), with the bootstrap replicates that resolve that quantile."""
+
+    def test_bonferroni_where_the_axes_have_their_own_models(self):
+        import math
+
+        from imupipe.stages.identify import axis_level
+
+        lv = axis_level(0.95, 3, pooled=False, envelope_kind="joint", n_boot=99)
+        assert lv["confidence"] == pytest.approx(1 - 0.05 / 3) and lv["family_confidence"] == 0.95
+        # as many replicates beyond the band's order statistic as beyond the pooled band's: (B + 1)(1 - c)
+        assert (lv["n_boot"] + 1) * (1 - lv["confidence"]) == pytest.approx(100 * 0.05)
+        assert math.ceil((lv["n_boot"] + 1) * lv["confidence"]) < lv["n_boot"]  # not the largest replicate
+        # k axes at c_a each hold together with probability at least 1 - k (1 - c_a) = c
+        assert 1 - 3 * (1 - lv["confidence"]) == pytest.approx(0.95)
+
+    @pytest.mark.parametrize("pooled, kind, k", [(True, "joint", 3), (False, "marginal", 3), (False, "joint", 1)])
+    def test_the_identification_level_elsewhere(self, pooled, kind, k):
+        from imupipe.stages.identify import axis_level
+
+        lv = axis_level(0.95, k, pooled=pooled, envelope_kind=kind, n_boot=100)
+        assert lv["confidence"] == 0.95 and lv["n_boot"] == 100 and lv["family_confidence"] is None

@@ -22,8 +22,8 @@ from typing import Any
 from imupipe.linewords import line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
-from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, nonstationary_qualifier, stretch_note, taken_in_why,
-                             unstated_t_max, within_tolerance)
+from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, confidence_lines, nonstationary_qualifier,
+                             stretch_note, taken_in_why, unstated_t_max, within_tolerance)
 
 
 __all__ = ["DETAILS_HEADING", "Flag", "first_screen", "flags_of", "markdown_to_html", "paste_rows", "psd_usage_flags",
@@ -1283,7 +1283,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
     head += ["| sensor | verdict | PSD margin (min S_model/target; raw mode: the sample PSDs) | verification | KF file |",
-             "|---|---|---|---|---|", *table, ""]
+             "|---|---|---|---|---|", *table, "", *confidence_lines({k: f.get("bound") for k, f in runs.items()})]
     head += _paste_section(runs, paste)
     if isinstance(kalibr, Mapping):
         where = f" [{kalibr_path}]" if kalibr_path else ""

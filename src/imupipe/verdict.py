@@ -1,6 +1,6 @@
 """The words of a verification check that passed only by its sampling tolerance, of an initial bias that rests
-on an assumption nobody stated, and of stationarity failures against what chance gives (and the verdict's
-qualifier for them).
+on an assumption nobody stated, of stationarity failures against what chance gives (and the verdict's
+qualifier for them), and of the confidence a ``bounded`` verdict is stated at.
 
 One home for those sentences: the verification writes it into the verify and contract files
 (:mod:`imupipe.verify`), the run summary prints it as a FLAG (:mod:`imupipe.summary`), so the wording is the same
@@ -13,8 +13,8 @@ import math
 from collections.abc import Mapping
 
 __all__ = ["BOUNDED_TOLERANCE", "NONSTATIONARY_VERDICT", "STRETCH_VERDICT", "beyond_chance", "chance_failures",
-           "failure_tail", "nonstationary_qualifier", "stretch_note", "taken_in_why", "unstated_t_max",
-           "within_tolerance"]
+           "confidence_lines", "confidence_statement", "failure_tail", "nonstationary_qualifier", "stretch_note",
+           "taken_in_why", "unstated_t_max", "within_tolerance"]
 
 #: A margin (model over target, dimensionless) of at least 1 - BOUNDED_TOLERANCE counts as bounded: the linear
 #: programme's solution touches its constraints up to round-off. The one tolerance of the bound, the contract and
@@ -179,3 +179,49 @@ def taken_in_why(curve: Mapping, stat: Mapping) -> str:
         return f" (taken in: its own p-value is below {level})"
     p = float(curve.get("stretch_test_p", float("nan")))
     return f" (taken in: its stretch test, p = {p:.2g}, is below {level})"
+
+
+def confidence_statement(bound: Mapping) -> dict | None:
+    """The confidence a ``bounded`` verdict is stated at, from a bound file's dict `bound` (or a candidate's): its
+    ``identification_intervals`` (the identification's level c, ``identify.confidence``), ``upper_envelope_kind``
+    and each per-axis model's ``identification_level`` (:func:`imupipe.stages.identify.axis_level`). Every check
+    behind ``bounded`` is exact given the identified upper envelope (the model covers it in the reference filter,
+    and every sample PSD or its confidence limits in band); the envelope is the one statistical statement: the
+    noise the records allow at level c (docs/method.md, "What bounded rests on"). Returns ``level`` (c),
+    ``envelope``, ``per_axis_level`` (None where no axis has its own model) and ``statement`` (one paragraph), or
+    None where the bound records no identification level."""
+    ident = bound.get("identification_intervals")
+    if not isinstance(ident, Mapping) or ident.get("confidence") is None:
+        return None
+    c, kind = float(ident["confidence"]), str(bound.get("upper_envelope_kind") or "marginal")
+    if kind == "joint":
+        env = (f"the simultaneous band of the fit's bootstrap at confidence {c:g}, family-wise over its frequencies, "
+               f"and that model below them")
+    else:
+        env = f"every kept component at its upper confidence limit at once, each at {c:g}"
+    text = (f"the identified upper envelope ({env}) is the one statistical statement behind it: the truth's noise "
+            f"lies under it with confidence {c:g}; in the other {1.0 - c:.2g} of runs a noise above it can be "
+            f"under-stated by a filter on the exported model. The other checks are computations on the records and "
+            f"that envelope: they can fail a bound, not lower this level.")
+    levels = {str(ax): pa.get("identification_level") for ax, pa in (bound.get("per_axis_models") or {}).items()
+              if isinstance(pa, Mapping)}
+    level = next((v for v in levels.values() if isinstance(v, Mapping) and v.get("confidence") is not None), None)
+    if levels:
+        c_a = float(level["confidence"]) if level else c
+        text += (f" Each axis's own model (the KF file's per_axis) rests on its axis's envelope at {c_a:.4g}"
+                 + (f" ({level['rule']})." if level and level.get("family_confidence") else "."))
+    return {"level": c, "envelope": kind, "per_axis_level": (float(level["confidence"]) if level else c)
+            if levels else None, "statement": text}
+
+
+def confidence_lines(contracts: Mapping) -> list[str]:
+    """The run summary's lines under the verdict table: per distinct statement of the contracts' ``confidence``
+    (`contracts`: sensor -> contract dict, :func:`confidence_statement`), the sensors it holds for and the
+    statement; a blank line after. Empty where no contract states one."""
+    by: dict = {}
+    for sensor, contract in contracts.items():
+        st = (contract or {}).get("confidence") if isinstance(contract, Mapping) else None
+        if isinstance(st, Mapping) and st.get("statement"):
+            by.setdefault(str(st["statement"]), []).append(str(sensor))
+    return [line for text, sensors in by.items() for line in (f"What BOUNDED rests on ({', '.join(sensors)}): {text}",
+                                                                "")]

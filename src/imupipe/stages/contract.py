@@ -28,7 +28,9 @@ bounded: true only when every check below passed and the verification ran; verif
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk
 u/sqrt(s)), model_spec_units: the same in the spec sheet's units; inflation: bound/spec per parameter of the BOUND's
-model, before the verified reduction (not of model when the reduction dropped a state); inflation_scope: the
+model, before the verified reduction (not of model when the reduction dropped a state); confidence: the one
+statistical statement bounded rests on, the identified upper envelope's level (level; per_axis_level: each axis's
+own model's; statement); inflation_scope: the
 components the exported model dropped and one statement of this (imupipe.kf.inflation_scope). export: the
 states the verified reduction dropped (dropped_by_reduction; the model then holds for horizon_s s of outage only), the
 reference filter's rate against the KF export's (verified_filter_rate_hz, kf_rate_hz Hz, rate_mismatch), its
@@ -122,6 +124,7 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
     band [1/outage_s, filter_rate_hz/2] of the in-band inflation (:mod:`imupipe.inband`; None: not computed)."""
     from imupipe.inband import application_band
     from imupipe.kf import inflation_scope
+    from imupipe.verdict import confidence_statement
 
     ver = verification
     sel = ver.get("auto_selection")
@@ -138,6 +141,8 @@ def contract_stage(bound: dict, verification: dict, spec, *, sensor: str, kf_fil
         "model": exported["model"], "model_spec_units": in_spec_units,
         "model_reduced": bool(exported["reduced"]), "model_reason": exported["reason"],
         "inflation": bound.get("inflation"),
+        # the one statistical statement behind bounded: the identified upper envelope's level (imupipe.verdict)
+        "confidence": confidence_statement(bound),
         "inflation_scope": inflation_scope(exported, ver.get("reduction")),
         "kf_file": kf_file,
         # what the exported filter model is: states the verified reduction dropped, the horizon it then holds for,
