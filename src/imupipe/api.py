@@ -397,8 +397,7 @@ def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, 
     if settings is False:
         return None, {}
     from imupipe.lines import lines_by_curve
-    from imupipe.stages.stationarity import marked_stretches, stationarity_stage, summary_stage
-    from imupipe.stationarity import stationarity_tests
+    from imupipe.stages.stationarity import marked_stretches, paper_test, stationarity_stage, summary_stage
 
     keys = ("n_segments", "alpha", "test", "n_sim", "n_sim_max", "close_z")
     given = dict(settings) if isinstance(settings, Mapping) else {}
@@ -415,8 +414,7 @@ def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, 
                                allan=(av["tau"].values, av["avar"].values, av["edf"].values),
                                lines=by_curve.get(label, ()), **kw)
         verdicts.append(v)
-        papers.append(v["paper"] if isinstance(v.get("paper"), dict) else
-                      stationarity_tests(decimated[label], n_segments=int(kw["n_segments"]), alpha=float(kw["alpha"])))
+        papers.append(paper_test(v, decimated[label]))
     summary = summary_stage(verdicts, "warn", sensor, papers)
     return summary, marked_stretches(summary)
 

@@ -36,7 +36,8 @@ import numpy as np
 
 from imupipe.verdict import chance_failures
 
-__all__ = ["NULL_COMPONENTS", "STRETCH_RULE", "marked_stretches", "paper_tests", "stationarity_stage", "summary_stage"]
+__all__ = ["NULL_COMPONENTS", "STRETCH_RULE", "marked_stretches", "paper_test", "paper_tests", "stationarity_stage",
+           "summary_stage"]
 
 #: Components of the calibrated null's model (the axis's Allan fit), beside the axis's spectral lines.
 NULL_COMPONENTS = ("white", "gauss_markov", "flicker", "random_walk")
@@ -232,29 +233,40 @@ def _calibrated_over(x, rate, model, sets, bands, **settings) -> dict:
 
 
 def paper_tests(verdicts: list, decimated: list) -> list:
-    """The paper's test of each axis: the per-axis verdict's own (test = paper), else run here on the axis's
-    decimated record (test = calibrated), with the verdict's segments and level."""
+    """The paper's test of each axis (:func:`paper_test`) of the per-axis verdicts `verdicts` and their decimated
+    record files `decimated` (read only where the verdict does not carry the test)."""
     out = []
     for v, path in zip(verdicts, decimated, strict=True):
         if isinstance(v.get("paper"), dict):
             out.append(v["paper"])
             continue
         from imupipe.io import read_series
-        from imupipe.stationarity import stationarity_tests
+        from imupipe.segments import Segments
 
         x, rate, attrs = read_series(path)
         if (str(attrs.get("dataset")), str(attrs.get("axis"))) != (str(v["dataset"]), str(v["axis"])):
             raise ValueError(f"{path}: holds {attrs.get('dataset')}/{attrs.get('axis')}, expected the verdict's "
                              f"{v['dataset']}/{v['axis']}")
-        from imupipe.segments import Segments
-
-        seg = Segments.from_attrs(attrs, x.size, rate, path)
-        cal = v["calibrated"]  # its alpha: the level of each segment's test (alpha/K under split)
-        tests = [stationarity_tests(y, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"]))
-                 for y in seg.views(x)]
-        out.append(tests[0] if seg.is_whole else _segment_verdict(
-            [{**t, "p_value": min(t["levene_p"], min(t["ks_p"]))} for t in tests], seg, "p_value"))
+        out.append(paper_test(v, x, Segments.from_attrs(attrs, x.size, rate, path)))
     return out
+
+
+def paper_test(verdict: dict, x, segments=None) -> dict:
+    """The paper's test of one axis: the verdict's own (test = paper), else run on its decimated record `x` (u; test
+    = calibrated) with the verdict's level and number of segments, on each of `segments`
+    (:class:`imupipe.segments.Segments` of `x`; None: the whole record). The one rule of the workflow's summary
+    (:func:`paper_tests`) and of :func:`imupipe.api.noise_model`."""
+    if isinstance(verdict.get("paper"), dict):
+        return verdict["paper"]
+    from imupipe.stationarity import stationarity_tests
+
+    cal = verdict["calibrated"]  # its alpha: the level of each segment's test (alpha/K under split)
+    views = [x] if segments is None else segments.views(x)
+    tests = [stationarity_tests(y, n_segments=int(cal["n_segments"]), alpha=float(cal["alpha"])) for y in views]
+    if segments is None or segments.is_whole:
+        return tests[0]
+    return _segment_verdict([{**t, "p_value": min(t["levene_p"], min(t["ks_p"]))} for t in tests], segments,
+                            "p_value")
 
 
 def _segment_verdict(parts: list, segments, key: str) -> dict:
