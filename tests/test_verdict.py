@@ -138,3 +138,17 @@ class TestAxisLevel:
 
         lv = axis_level(0.95, k, pooled=pooled, envelope_kind=kind, n_boot=100)
         assert lv["confidence"] == 0.95 and lv["n_boot"] == 100 and lv["family_confidence"] is None
+
+
+def test_pooled_axes_say_what_the_statement_assumes():
+    """Where the pooling test accepts one model for several axes the statement is that model's: with each axis's own
+    joint band (the bound file's axis_upper_envelopes) the model is also verified against each; without, it says the
+    axes are pooled. One axis says neither."""
+    from imupipe.verdict import confidence_statement
+
+    base = {"identification_intervals": {"confidence": 0.95}, "curves": ["a/x", "a/y", "a/z"]}
+    checked = confidence_statement({**base, "upper_envelope_kind": "joint", "axis_upper_envelopes": {"x": {}}})
+    assert "verified against each axis's own envelope at 0.95" in checked["statement"]
+    assert "The axes are pooled: the statement is for the one model" in confidence_statement(base)["statement"]
+    one = confidence_statement({**base, "curves": ["a/x", "b/x"]})["statement"]
+    assert "pooled" not in one

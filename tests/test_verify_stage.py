@@ -164,3 +164,21 @@ def test_a_global_model_is_checked_against_each_axis_envelope():
         return next(t["worst_ratio"] for t in rep["reduction"]["tried"] if t["drop"] == "random_walk")
 
     assert drop_rw(axis_uppers={"z": z_env}) > 2.0 * drop_rw()
+
+
+def test_pooled_axes_with_their_own_bands_are_each_checked():
+    """Where the pooling test accepts one model while each axis has its own joint band, the bound file carries
+    ``axis_upper_envelopes`` and the verification checks the global model against each, as where the axes differ: a
+    model on the pooled envelope with half the random walk of axis y's own fails upper_envelope_y (an outside
+    evaluation: y's random walk 4x x and z's, pooling p 1.0, MSE/P 1.42 under a model checked on the pooled one)."""
+    from imupipe.stages.verify import verify_sensor
+
+    y_env = NoiseModel(white=TRUTH.white, gauss_markov=TRUTH.gauss_markov, random_walk=2.0 * TRUTH.random_walk)
+    bound = {"bound": TRUTH.to_dict(), "upper_envelope": TRUTH.to_dict(), "spec_name": "s", "psd_bounded": True,
+             "per_axis_models": None, "axis_upper_envelopes": {"x": TRUTH.to_dict(), "y": y_env.to_dict()}}
+    rep, _ = verify_sensor(bound, "accel", spec=TRUTH, reduce=False, **SHORT)
+    checks = rep["verification"]["checks"]
+    assert checks["upper_envelope_x"]["passed"] and not checks["upper_envelope_y"]["passed"]
+    assert rep["passed"] is False
+    rep, _ = verify_sensor({**bound, "axis_upper_envelopes": None}, "accel", spec=TRUTH, reduce=False, **SHORT)
+    assert "upper_envelope_y" not in rep["verification"]["checks"]

@@ -203,6 +203,12 @@ def confidence_statement(bound: Mapping) -> dict | None:
             f"lies under it with confidence {c:g}; in the other {1.0 - c:.2g} of runs a noise above it can be "
             f"under-stated by a filter on the exported model. The other checks are computations on the records and "
             f"that envelope: they can fail a bound, not lower this level.")
+    axes = {str(c).rsplit("/", 1)[-1] for c in bound.get("curves") or () if "/" in str(c)}
+    if bound.get("axis_upper_envelopes"):
+        text += (f" The axes are pooled (the pooling test accepts one model for them), and the model is also verified "
+                 f"against each axis's own envelope at {c:g}: a difference between axes the test does not detect.")
+    elif len(axes) > 1 and not bound.get("per_axis_models"):
+        text += " The axes are pooled: the statement is for the one model the pooling test accepts for them."
     levels = {str(ax): pa.get("identification_level") for ax, pa in (bound.get("per_axis_models") or {}).items()
               if isinstance(pa, Mapping)}
     level = next((v for v in levels.values() if isinstance(v, Mapping) and v.get("confidence") is not None), None)

@@ -23,7 +23,7 @@ from types import SimpleNamespace
 __all__ = ["HEADER", "candidate_contract", "contract_stage", "failed_names", "inband", "per_axis_contracts", "verdict_stage"]
 
 #: Header of the contract file (what its fields mean, units).
-HEADER = """integrity contract (docs/method.md, "Integrity: what bounded must mean, and how to check it").
+HEADER = """integrity contract (docs/method.md, "Integrity: what bounded means").
 bounded: true only when every check below passed and the verification ran; verified: the exported model passed the
 reference-filter verification; failed_checks: each failed check with its numbers and where (frequencies Hz, tau s,
 times s). model: the exported model (SI; u = rad/s gyro, m/s^2 accel: white u/sqrt(Hz), sigma u, T s, random_walk

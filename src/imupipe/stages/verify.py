@@ -22,14 +22,15 @@ from collections.abc import Mapping
 __all__ = ["HEADER", "model_of", "records_at_one_rate", "read_records", "verify_sensor", "verify_stage", "verify_job"]
 
 #: Header of the verification file (what its fields mean, units).
-HEADER = """verification of the bound in the reference filter (docs/method.md, "Integrity: what bounded must mean").
+HEADER = """verification of the bound in the reference filter (docs/method.md, "Integrity: what bounded means").
 SI: times s; sigma_fix m (accel) or rad (gyro); ratio = true (or replayed) MSE / filter variance P, dimensionless.
 worst_outage_ratio: the largest MSE/P after the fixes end (the informative number), at worst_outage_t_s s;
 worst_ratio at worst_t_s: the same over the whole run (fixes included); mean_conservatism: mean P/MSE
 over the outage. exported: the model the KF file carries (the bound's, or its reduction when every check passes).
 per_axis_models: the same per axis (each against that axis's envelope, the spec sheet and that axis's records), when
 the bound file has per-axis models; null otherwise. The global model is then also checked against each axis's own
-envelope and slowest admitted bias (checks upper_envelope_<axis>, slow_bias_<axis>).
+envelope and slowest admitted bias (checks upper_envelope_<axis>, slow_bias_<axis>), and so where the axes are pooled
+while each has its own joint band (the bound file's axis_upper_envelopes).
 auto_selection (bound.mode auto only): every candidate mode verified the same way; criterion, winner, reason and per
 candidate bounded, failed_checks, criterion_mean_conservatism (mean P/MSE over the outage against the upper
 envelope), worst outage MSE/P of every check; the rest of this file is the winner's verification."""
@@ -89,9 +90,12 @@ def verify_sensor(bound: dict, sensor: str, *, spec, records: Mapping | None = N
               filter_rate_hz=filter_rate_hz, reduce=reduce, replay_z=replay_z, max_bias_time_s=max_bias_time_s,
               turn_on_bias=turn_on_bias, fix_rate_hz=fix_rate_hz)
     upper = NoiseModel.from_dict(bound["upper_envelope"]) if bound.get("upper_envelope") else None
-    # the axes differ: the global model must also bound each axis's own envelope (a user may give it to any axis)
+    # the axes differ, or are pooled while each has its own band: the global model must also bound each axis's own
+    # envelope (a user may give it to any axis)
     axis_uppers = {ax: NoiseModel.from_dict(pa["upper_envelope"])
                    for ax, pa in (bound.get("per_axis_models") or {}).items() if pa.get("upper_envelope")}
+    axis_uppers = axis_uppers or {ax: NoiseModel.from_dict(m)
+                                  for ax, m in (bound.get("axis_upper_envelopes") or {}).items()}
     report, checks = verification_stage(model_of(bound["bound"]), sensor, upper=upper,
                                         records=list(records.values()) or None, axis_uppers=axis_uppers or None,
                                         **kw)
