@@ -204,9 +204,15 @@ def confidence_statement(bound: Mapping) -> dict | None:
             f"under-stated by a filter on the exported model. The other checks are computations on the records and "
             f"that envelope: they can fail a bound, not lower this level.")
     axes = {str(c).rsplit("/", 1)[-1] for c in bound.get("curves") or () if "/" in str(c)}
-    if bound.get("axis_upper_envelopes"):
+    if ident.get("model_adequate") is False:
+        text += (" The selected model does not describe the records' Allan variances (the adequacy test: FLAG below):"
+                 " the envelope is then that of a model the data reject, and its level holds only as far as the model"
+                 " does; the verification's replay of the records is the model-free check.")
+    k = len(bound.get("axis_upper_envelopes") or {})
+    if k:
         text += (f" The axes are pooled (the pooling test accepts one model for them), and the model is also verified "
-                 f"against each axis's own envelope at {c:g}: a difference between axes the test does not detect.")
+                 f"against each axis's own envelope (each at {c:g}, all {k} together at least "
+                 f"{max(0.0, 1.0 - k * (1.0 - c)):.2g}): a difference between axes the test does not detect.")
     elif len(axes) > 1 and not bound.get("per_axis_models"):
         text += " The axes are pooled: the statement is for the one model the pooling test accepts for them."
     levels = {str(ax): pa.get("identification_level") for ax, pa in (bound.get("per_axis_models") or {}).items()

@@ -558,6 +558,8 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         out["lines_known"] = _lines_record(curves, lines, known)
     out["adequacy_lines"] = (_adequacy_with_lines(curves, fit, components, n_gm, fit_kw, seed)
                              if known is not None else None)
+    # what the envelope's level rests on: the bootstrap's model describing the data (the contract's confidence)
+    out["intervals_bootstrap"]["model_adequate"] = bool(out["adequacy"]["pooled"].get("adequate", True))
     out["record_consistency"] = _record_consistency(curves, selection, components, n_gm, fit_kw, confidence,
                                                     consistency_level, seed)
     band = out["selection"]["band_hz"]

@@ -205,8 +205,9 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
         parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); " +
                      (f"{md} was written before the failure and does not cover the failed job." if md.is_file()
                       else "summary.md is written only by a complete run."))
-    elif md.is_file():
-        parts.append(f"Summary with the details: {md}; report: snakemake --report {results}/report.html (make report)")
+    elif md.is_file():  # absolute: `imupipe run` runs in the checkout, not where the user typed it
+        parts.append(f"Summary with the details: {md.resolve()}; report: snakemake --report "
+                     f"{Path(results).resolve()}/report.html (make report)")
     return "".join(f"\n{p}\n" for p in parts).rstrip("\n")
 
 
