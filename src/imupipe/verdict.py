@@ -203,7 +203,7 @@ def confidence_statement(bound: Mapping) -> dict | None:
             f"lies under it with confidence {c:g}; in the other {1.0 - c:.2g} of runs a noise above it can be "
             f"under-stated by a filter on the exported model. The other checks are computations on the records and "
             f"that envelope: they can fail a bound, not lower this level.")
-    axes = {str(c).rsplit("/", 1)[-1] for c in bound.get("curves") or () if "/" in str(c)}
+    axes = {str(lab).rsplit("/", 1)[-1] for lab in bound.get("curves") or () if "/" in str(lab)}
     if ident.get("model_adequate") is False:
         text += (" The selected model does not describe the records' Allan variances (the adequacy test: FLAG below):"
                  " the envelope is then that of a model the data reject, and its level holds only as far as the model"
@@ -215,15 +215,14 @@ def confidence_statement(bound: Mapping) -> dict | None:
                  f"{max(0.0, 1.0 - k * (1.0 - c)):.2g}): a difference between axes the test does not detect.")
     elif len(axes) > 1 and not bound.get("per_axis_models"):
         text += " The axes are pooled: the statement is for the one model the pooling test accepts for them."
-    levels = {str(ax): pa.get("identification_level") for ax, pa in (bound.get("per_axis_models") or {}).items()
-              if isinstance(pa, Mapping)}
-    level = next((v for v in levels.values() if isinstance(v, Mapping) and v.get("confidence") is not None), None)
-    if levels:
-        c_a = float(level["confidence"]) if level else c
+    per = [pa.get("identification_level") for pa in (bound.get("per_axis_models") or {}).values()
+           if isinstance(pa, Mapping)]
+    level = next((v for v in per if isinstance(v, Mapping) and v.get("confidence") is not None), None)
+    c_a = float(level["confidence"]) if level else c
+    if per:
         text += (f" Each axis's own model (the KF file's per_axis) rests on its axis's envelope at {c_a:.4g}"
                  + (f" ({level['rule']})." if level and level.get("family_confidence") else "."))
-    return {"level": c, "envelope": kind, "per_axis_level": (float(level["confidence"]) if level else c)
-            if levels else None, "statement": text}
+    return {"level": c, "envelope": kind, "per_axis_level": c_a if per else None, "statement": text}
 
 
 def confidence_lines(contracts: Mapping) -> list[str]:
