@@ -420,6 +420,16 @@ class TestNullWithLines:
         stepped = stationarity_stage(y, r, allan=(av.tau, av.avar, av.edf),
                                      lines=find_lines(z, 10.0, resolution_hz=0.002).lines)
         assert not stepped["stationary"]
+        # the nulls are tried in order until one does not reject: the stationary record ran the first (its line as
+        # measured) only; the rejected one ran all five (the measured width and four coherence times) and reports
+        # the largest p-value, below the level
+        from imupipe.stages.stationarity import NULL_COHERENCE_RECORDS
+
+        assert len(with_lines["calibrated"]["null_lines"]["tried"]) == 1
+        assert with_lines["p_value"] > 0.05
+        tried = stepped["calibrated"]["null_lines"]["tried"]
+        assert len(tried) == 1 + len(NULL_COHERENCE_RECORDS)
+        assert stepped["p_value"] == max(t["p_value"] for t in tried) <= 0.05
 
     def test_the_null_beside_strong_lines_keeps_the_slow_gm(self):
         """Lines 400 and 900 times the decimated white variance (0.3 Hz and 2.45 Hz, which folds to 0.45 Hz at 1 Hz)

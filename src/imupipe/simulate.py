@@ -191,7 +191,7 @@ def _narrowband(rng, shape, sigma: float, f0_hz: float, zeta: float, dt: float) 
     eta = e @ L.T
     x0 = rng.standard_normal(shape[:-1] + (2,)) * np.sqrt(np.diag(P0))
     drive = np.empty(shape, dtype=np.complex128)
-    drive[..., 1:] = eta[..., :-1, :] @ Vinv[k]
+    _modal_drive(eta[..., :-1, :], Vinv[k], drive[..., 1:])
     drive[..., 0] = x0 @ Vinv[k]
     if np.iscomplexobj(mu) and abs(mu[k].imag) > 0:
         s = lfilter([1.0], [1.0, -mu[k]], drive, axis=-1)
@@ -203,6 +203,15 @@ def _narrowband(rng, shape, sigma: float, f0_hz: float, zeta: float, dt: float) 
         out[..., i] = st[..., 0]
         st = st @ phi.T + eta[..., i, :]
     return out
+
+
+def _modal_drive(eta: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """out = eta @ v for real `eta` (..., 2) and complex `v` (2,), into complex `out` (...), in real arithmetic:
+    Re = eta_0 Re v_0 + eta_1 Re v_1, Im likewise (a real times a complex number has no cross terms), without the
+    complex copy of `eta` that ``@`` makes."""
+    for part, w in ((out.real, v.real), (out.imag, v.imag)):
+        np.multiply(eta[..., 0], w[0], out=part)
+        part += eta[..., 1] * w[1]
 
 
 def _psd_sqrt(Q: np.ndarray) -> np.ndarray:

@@ -175,11 +175,11 @@ def _tested(x, rate, *, dataset, sensor, axis, allan, n_segments, alpha, test, n
         sets = null_line_sets(lines, rate, x.size / rate)
         bands = notch_bands(lines, rate, x.size)
         if bands:  # the broadband fit on what the test reads: the notched record's own Allan variance
-            from imupipe.allan import allan_variance
+            from imupipe.allan import allan_variance_labelled
             from imupipe.stationarity import notch
 
-            av = allan_variance(notch(x, rate, bands), rate, taus=NULL_FIT_TAUS)
-            tau, avar, edf = av.tau, av.avar, av.edf
+            av = allan_variance_labelled(notch(x, rate, bands), rate, taus=NULL_FIT_TAUS)  # no xarray import
+            tau, avar, edf = av.coords["tau"][0], av.data_vars["avar"][0], av.data_vars["edf"][0]
         else:
             tau, avar, edf = allan
         fit = fit_allan(tau, avar, edf, components=NULL_COMPONENTS, n_boot=0)
@@ -205,8 +205,14 @@ def _tested(x, rate, *, dataset, sensor, axis, allan, n_segments, alpha, test, n
 def _calibrated_over(x, rate, model, sets, bands, **settings) -> dict:
     """The calibrated test (:func:`imupipe.stationarity.calibrated_stationarity`) of `x` on the null `model` with
     each set of line terms of :func:`null_line_sets` added (`model` alone without lines), the record and every null
-    record notched in `bands` (Hz, :func:`notch_bands`; none without lines), the verdict of the set with the
-    largest p-value, its ``null_model`` and, with lines, ``null_lines`` (the bands, each set's zetas and p-value)."""
+    record notched in `bands` (Hz, :func:`notch_bands`; none without lines): the verdict of the first set that does
+    not reject, else of the set with the largest p-value, its ``null_model`` and, with lines, ``null_lines`` (the
+    bands, each tried set's zetas and p-value).
+
+    The verdict is that of the largest p-value over all sets (stationary when any set does not reject), so the sets
+    after the first that does not reject are not run: they cannot change it. The p-value reported for a stationary
+    record is then that set's, a lower bound of the largest (above the level either way); a rejected record runs
+    every set and reports the largest."""
     from dataclasses import replace
 
     from imupipe.stationarity import calibrated_stationarity, notch
@@ -220,12 +226,15 @@ def _calibrated_over(x, rate, model, sets, bands, **settings) -> dict:
         cal = calibrated_stationarity(x, rate, null, rng="data", paper=False, transform=transform, **settings)
         cal["null_model"] = null.to_dict()
         results.append((terms, cal))
+        if cal["stationary"]:
+            break
     terms, best = max(results, key=lambda r: r[1]["p_value"])
     if sets:
         best["null_lines"] = {
             "statement": (f"{len(terms)} spectral line(s) of the axis notched out of the record and of the null "
                           "records, which carry them as narrowband terms at their alias in the decimated record; an "
-                          "unresolved line's width tried over coherence times, the largest p-value taken"),
+                          "unresolved line's width tried over coherence times until one does not reject (else the "
+                          "largest p-value taken)"),
             "notch_hz": [[float(lo), float(hi)] for lo, hi in bands],
             "tried": [{"zeta": [float(z) for _, _, z in t], "p_value": float(c["p_value"])} for t, c in results],
         }
