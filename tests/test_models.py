@@ -281,3 +281,18 @@ def test_from_dict_reads_a_bound_yaml_section():
     m = NoiseModel.from_dict(section)
     assert m == NoiseModel(white=1e-4, gauss_markov=((2e-5, 300.0),), narrowband=((1e-5, 0.45, 0.01),))
     assert model_of_bound({"bound": section}) == m  # the lines are kept (Kalibr then refuses them by name)
+
+
+def test_scaled_multiplies_the_psd_and_the_allan_variance():
+    # every term's PSD and AV is its squared coefficient times a shape, so scaling each squared coefficient by k
+    # scales both by k at every frequency and tau (the bound's dense and data lifts rest on this)
+    m = NoiseModel(white=2e-4, gauss_markov=((1e-4, 150.0), (5e-5, 2000.0)), random_walk=2e-7, flicker=1e-5,
+                   quantization=2e-6, ramp=1e-9, narrowband=((3e-4, 0.3, 0.01),), dt=0.1)
+    f, tau = np.geomspace(1e-5, 5.0, 200), np.geomspace(0.1, 1e4, 60)
+    k = 2.7
+    np.testing.assert_allclose(m.scaled(k).psd(f), k * m.psd(f), rtol=1e-12)
+    np.testing.assert_allclose(m.scaled(k).psd_sampled(f, 0.1), k * m.psd_sampled(f, 0.1), rtol=1e-12)
+    np.testing.assert_allclose(m.scaled(k).avar(tau), k * m.avar(tau), rtol=1e-12)
+    assert m.scaled(k).gauss_markov[1][1] == 2000.0 and m.scaled(k).narrowband[0][1:] == (0.3, 0.01)
+    with pytest.raises(ValueError, match="factor"):
+        m.scaled(0.0)

@@ -487,6 +487,18 @@ class NoiseModel:
             out[key] = NoiseModel(narrowband=(term,), dt=self.dt)
         return out
 
+    def scaled(self, factor: float) -> "NoiseModel":
+        """The model whose PSD and Allan variance are `factor` (> 0) times this one's at every frequency and tau:
+        every squared coefficient (white, each GM and line variance, random walk, flicker, quantization, ramp) times
+        `factor`, the time constants, line frequencies and damping kept."""
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"factor must be a positive number, got {factor!r}")
+        a = math.sqrt(float(factor))
+        return replace(self, white=self.white * a, random_walk=self.random_walk * a, flicker=self.flicker * a,
+                       quantization=self.quantization * a, ramp=self.ramp * a,
+                       gauss_markov=tuple((sg * a, T) for sg, T in self.gauss_markov),
+                       narrowband=tuple((sg * a, f0, z) for sg, f0, z in self.narrowband))
+
     def to_dict(self) -> dict:
         """Plain-Python dict (SI) for YAML; inverse of :meth:`from_dict`.
 

@@ -1051,7 +1051,11 @@ def _envelope_finish(prob, model, comps, spec_model, upper_model, allf, k_env):
 
     model, dense = _dominate_densely(model, spec_model, upper_model, allf, float(prob.f.max()))
     model = replace(model, random_walk=max(model.random_walk, k_env))
-    prob.details.update(dense_check=dense, random_walk=k_env,
+    from imupipe.bound.datacheck import lift_to_data
+
+    model, lift = lift_to_data(model, prob.model_bins, prob.f, prob.raw, prob.raw_edf, prob.labels,
+                               prob.data_confidence, prob.data_mask)
+    prob.details.update(dense_check=dense, random_walk=k_env, data_lift=lift,
                         split="white + GM terms above the envelope's and the spec's stationary parts at every "
                               "frequency; the random walk max(K_envelope, K_spec) beside them")
     if k_env > 0 and "random_walk" not in comps:
@@ -1146,8 +1150,6 @@ def _dominate_densely(model, spec_model, upper_model, allf: dict, f_max_hz: floa
     :math:`(\ln S)'' = \sum_i w_i h_i'' + \mathrm{Var}_w(h_i') \in [-1, 1]` (w_i the shares of S), the log ratio
     of two such sums has a second derivative in [-2, 2], and one that is >= :math:`\delta^2/4` at two grid
     points :math:`\delta` apart is >= 0 between them."""
-    from dataclasses import replace
-
     f_lo = float(allf["f_floor_hz"])
     f_hi = float(allf.get("f_above_hz") or 1e3 * f_max_hz)
     n = int(math.ceil(DENSE_PER_DECADE * math.log10(f_hi / f_lo))) + 1
@@ -1162,11 +1164,7 @@ def _dominate_densely(model, spec_model, upper_model, allf: dict, f_max_hz: floa
                 r = min(r, float(np.min(m[ok] / t[ok])))
     delta = math.log(10.0) / DENSE_PER_DECADE
     factor = max(1.0, 1.0 / r) * math.exp(delta * delta / 4.0)
-    a = math.sqrt(factor)
-    scaled = replace(model, white=model.white * a, random_walk=model.random_walk * a, flicker=model.flicker * a,
-                     gauss_markov=tuple((sg * a, T) for sg, T in model.gauss_markov),
-                     narrowband=tuple((sg * a, f0, z) for sg, f0, z in model.narrowband))
-    return scaled, {"per_decade": DENSE_PER_DECADE, "band_hz": [f_lo, f_hi], "worst_ratio_before": r,
+    return model.scaled(factor), {"per_decade": DENSE_PER_DECADE, "band_hz": [f_lo, f_hi], "worst_ratio_before": r,
                     "variance_factor": factor}
 
 
