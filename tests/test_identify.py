@@ -50,6 +50,22 @@ class TestFitAllan:
         assert sel["reduced_model"] is True
         assert "white" in sel["kept"]
 
+    def test_a_random_walk_the_fit_gave_to_a_ramp_is_tested_and_kept(self):
+        # a consumer-grade gyro (white 1.5e-3, GM 8e-4 at 60 s, K 5e-6 in rad/s units), one 10 h record at 10 Hz
+        # (seed 8299 of benchmarks/bound_modes.py): the full fit gives the long-tau rise to a rate ramp and the
+        # random walk 0. The random walk was dropped untested ("fitted coefficient is zero") and the ramp, tested
+        # alone against a GM free to lengthen, too: the selected refit lost the rise (chi2/dof 9.8). Tested against
+        # its own null (the ramp dropped too, the GM's T capped), the rise is shown and the random walk kept.
+        truth = NoiseModel(white=1.5e-3, gauss_markov=((8e-4, 60.0),), random_walk=5e-6)
+        av = allan_variance(simulate(truth, 360_000, 10.0, np.random.default_rng(8299)), 10.0)
+        tau, avar, edf = av.tau.values, av.avar.values, av.edf.values
+        fit = fit_allan(tau, avar, edf, n_boot=0)
+        assert fit.model.random_walk == 0.0 and fit.model.ramp > 0  # the case: the ramp took the rise
+        sel = select_components(fit, tau, avar, edf, filter_rate_hz=1.0, outage_s=3600.0)
+        assert "random_walk" in sel["kept"] and not sel["reduced_model"]
+        d = sel["details"]["random_walk"]
+        assert d["delta_chi2"] > d["delta_chi2_crit"]
+
     def test_bootstrap_spread_matches_record_to_record_spread(self):
         # The intervals are only right if the bootstrap spread of N equals the spread of N over independent
         # records. R records give the latter with relative standard error 1/sqrt(2 (R - 1)), B replicates the former
