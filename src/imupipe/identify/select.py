@@ -47,6 +47,18 @@ def _component_av(model, name, tau):
     return np.asarray(NoiseModel(**kw).avar(t), dtype=np.float64)
 
 
+def _tested(fit: AllanFit) -> list:
+    """The components :func:`select_components` tests: those of ``fit.model`` that are non-zero, and two the fit set to
+    zero that a substitute took. A white noise the full fit gave to quantization and a GM at the shortest T: the
+    selected model must not lose it (n_gm = 2 did in most records). A random walk fitted 0 beside a ramp that took the
+    rise (its null drops the ramp too and caps the GM time constants): the ramp is no filter state, and with the random
+    walk dropped untested the selected model lost the rise (a held-out consumer-grade truth, K 5e-6: the selected refit
+    at chi2/dof 9.8)."""
+    present = _present(fit.model)
+    extra = {"white"} | ({"random_walk"} if "ramp" in present else set())
+    return [c for c in COMPONENTS if c in present or (c in extra and c in fit.components)]
+
+
 def _present(model):
     out = []
     for c in COMPONENTS:
@@ -167,16 +179,7 @@ def select_components(
     known = fit.known if getattr(fit, "known", np.zeros(0)).size == t.size else None
     m = np.asarray(model.avar(t), dtype=np.float64) + (0.0 if known is None else known)
     sd = m * np.sqrt(2.0 / e)
-    present = _present(model)
-    if "white" in fit.components and "white" not in present:
-        # a white noise the full fit gave to quantization and a GM at the shortest T is still tested: the
-        # selected model must not lose it (n_gm = 2 did in most records)
-        present = ["white"] + present
-    if "random_walk" in fit.components and "random_walk" not in present and "ramp" in present:
-        # a random walk fitted 0 beside a ramp that took the rise is still tested (its null drops the ramp too and
-        # caps the GM time constants): the ramp is no filter state, and with the random walk dropped untested the
-        # selected model lost the rise (a held-out consumer-grade truth, K 5e-6: the selected refit chi2/dof 9.8)
-        present = [c for c in COMPONENTS if c in present or c == "random_walk"]
+    present = _tested(fit)
     n_tested = max(1, len(present))
     # Bonferroni over the AV points and over the components tested
     zcrit = float(-ndtri(significance / (t.size * n_tested)))
