@@ -130,6 +130,20 @@ def test_the_reason_says_why_the_envelope_candidate_is_absent():
         built, reps_b, candidate_contract)["reason"]
 
 
+def test_the_reason_says_when_the_winner_was_lifted_to_the_data():
+    # an envelope candidate scaled where the records' lower confidence limit lay above it by chance (the bound's
+    # details.data_lift) wins: the reason says so with the factor; an unlifted winner's reason does not mention it
+    cands = {m: _cand() for m in AUTO_MODES}
+    reps = {"raw": _rep(3.0, 0.5), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 0.8), "pooled": _rep(1.8, 0.9)}
+    plain = select({**cands, ENVELOPE_MODE: _cand()}, {**reps, ENVELOPE_MODE: _rep(1.1, 0.95)})
+    assert plain["winner"] == ENVELOPE_MODE and "data_lift" not in plain["reason"]
+    lifted = {**_cand(), "details": {"data_lift": {"variance_factor": 1.038, "frequency_hz": 0.465}}}
+    sel = select({**cands, ENVELOPE_MODE: lifted}, {**reps, ENVELOPE_MODE: _rep(1.1, 0.95)})
+    assert sel["winner"] == ENVELOPE_MODE and "scaled by 1.038" in sel["reason"] and "data_lift" in sel["reason"]
+    row = {r["mode"]: r for r in sel["candidates"]}[ENVELOPE_MODE]
+    assert row["data_lift"] == 1.038
+
+
 def test_select_none_passing_exports_the_safest_marked():
     cands = {m: _cand(allan=False) for m in AUTO_MODES}
     reps = {"raw": _rep(3.0, 0.8), "smoothed": _rep(2.0, 0.7), "confidence": _rep(1.5, 1.2), "pooled": _rep(1.8, 0.9)}

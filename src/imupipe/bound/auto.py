@@ -182,6 +182,7 @@ def candidate_row(mode: str, bound: dict, report: dict, contract_of) -> dict:
             "worst_outage_ratio_sampled": None if near is None else near["worst_outage_ratio"],
             "sampled_tolerance": None if near is None else near["tolerance"],
             "model_reduced": bool(report["exported"].get("reduced")), "inflation": bound.get("inflation"),
+            "data_lift": ((bound.get("details") or {}).get("data_lift") or {}).get("variance_factor"),
             "checks": per}
 
 
@@ -214,7 +215,9 @@ def select(candidates: dict, reports: dict, contract_of, envelope_candidate: str
         others = ", ".join(f"{r['mode']} {r['criterion_mean_conservatism']:.3g}" for r in ok if r is not best)
         failed = ", ".join(f"{r['mode']} ({'; '.join(r['failed_checks']) or 'no verification'})"
                            for r in rows if not r["bounded"])
-        reason = (f"bounded and the tightest passing candidate, mean P/MSE {val:.3g} over the outage "
+        lift = (f" (its PSD scaled by {best['data_lift']:.4g} where the records' lower confidence limit lay above it "
+                "by chance: the bound's details.data_lift)") if best.get("data_lift") else ""
+        reason = (f"bounded and the tightest passing candidate{lift}, mean P/MSE {val:.3g} over the outage "
                   f"against the upper envelope" + (f" (other passing: {others})" if others else "")
                   + (f"; not passing: {failed}" if failed else ""))
         bounded = True
