@@ -92,6 +92,8 @@ class TestConfidenceStatement:
                                    "upper_envelope_kind": "joint", "per_axis_models": None})
         assert st["level"] == 0.9 and st["envelope"] == "joint" and st["per_axis_level"] is None
         assert "confidence 0.9" in st["statement"] and "0.1 of runs" in st["statement"]
+        # the level's assumption is stated with it: a process coherent over a whole record is seen once
+        assert "decorrelates within the records" in st["statement"] and "slow narrow oscillation" in st["statement"]
         marginal = confidence_statement({"identification_intervals": {"confidence": 0.95}})
         assert marginal["envelope"] == "marginal" and "each at 0.95" in marginal["statement"]
         assert confidence_statement({}) is None

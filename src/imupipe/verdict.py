@@ -202,7 +202,10 @@ def confidence_statement(bound: Mapping) -> dict | None:
     text = (f"the identified upper envelope ({env}) is the one statistical statement behind it: the truth's noise "
             f"lies under it with confidence {c:g}; in the other {1.0 - c:.2g} of runs a noise above it can be "
             f"under-stated by a filter on the exported model. The other checks are computations on the records and "
-            f"that envelope: they can fail a bound, not lower this level.")
+            f"that envelope: they can fail a bound, not lower this level. The level assumes noise that decorrelates "
+            f"within the records (the fit's white, GM, random-walk and flicker terms): a process coherent over a "
+            f"whole record, e.g. a slow narrow oscillation, shows one random amplitude per record and is not covered "
+            f"at it (docs/method.md, \"What bounded rests on\").")
     axes = {str(lab).rsplit("/", 1)[-1] for lab in bound.get("curves") or () if "/" in str(lab)}
     if ident.get("model_adequate") is False:
         text += (" The selected model does not describe the records' Allan variances (the adequacy test: FLAG below):"
