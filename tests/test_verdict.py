@@ -81,6 +81,26 @@ def test_an_event_flag_says_how_many_events_chance_gives():
     assert "by chance" not in g.detail
 
 
+def test_a_line_flag_says_how_many_lines_chance_gives():
+    # the default run (a line-free truth) FLAGs a weak line on one of 15 gyro series, each searched at family-wise
+    # level 0.01: P(>= 1) = 1 - 0.99^15 = 0.14, consistent with chance (an outside evaluation asked); six of six axes
+    # with lines (the ADIS16405 accelerometers) are more than chance gives
+    from imupipe.summary import flags_of
+
+    line = {"dataset": "sim03", "sensor": "gyro", "axis": "x", "frequency_hz": 16.88, "amplitude": 5e-6,
+            "peak_ratio": 1.77, "units": {"amplitude": "rad/s"}}
+    search = [{"f_min_hz": 0.052, "f_max_hz": 62.45, "resolution_hz": 0.002, "alpha": 0.01}] * 15
+    (f,) = [f for f in flags_of("gyro", bound={"lines": [line], "line_search": search}) if f.check == "lines"]
+    assert f.detail.endswith("; " + chance_failures(1, 15, 0.01, "show a line", "show one", "no line in any record"))
+    assert "P(>= 1) = 0.14: consistent with chance" in f.detail
+    six = [{**line, "dataset": d, "axis": a} for d in ("i1", "i2") for a in "xyz"]
+    flags = [f for f in flags_of("gyro", bound={"lines": six, "line_search": search[:6]}) if f.check == "lines"]
+    assert flags and all("6 of 6 axes show a line" in f.detail and "more than chance gives" in f.detail
+                         for f in flags)
+    (g,) = [f for f in flags_of("gyro", bound={"lines": [line]}) if f.check == "lines"]  # no search record: no clause
+    assert "by chance" not in g.detail
+
+
 class TestConfidenceStatement:
     """imupipe.verdict.confidence_statement / confidence_lines: the level a bounded verdict rests on, read from the
     bound's identification level and each per-axis model's, stated where the user reads the verdict."""

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 
 from imupipe.shown import num
 
-__all__ = ["MAX_LINE_FLAGS", "line_reports", "line_text", "search_band_text"]
+__all__ = ["MAX_LINE_FLAGS", "line_chance", "line_reports", "line_text", "search_band_text"]
 
 #: a sensor type with more lines than this (each counted once over its axes and records) has them FLAGged in one
 #: line (each stays in its lines file)
@@ -77,6 +77,22 @@ def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
     return [(texts[g[0]][0], texts[g[0]][1], [texts[g[0]][0]]) if len(g) == 1 else
             (_places(texts, g), f"one line ({seen(g)}) at {_frequencies(items, g)} Hz; {strongest(g)}",
              [texts[j][0] for j in g]) for g in groups]
+
+
+def line_chance(merged: Mapping) -> str:
+    """``"; k of n axes show a line ..."``: how many of the searched series (records x axes) show a line against what
+    the search's family-wise false-alarm level gives with no line in any record
+    (:func:`imupipe.verdict.chance_failures`; `merged`: a sensor's run files merged, ``line_search`` one entry per
+    lines file with its ``alpha``, ``lines`` the found lines tagged with their dataset and axis); empty without them.
+    A line on a record whose truth has none reads as a FLAG like any other: this says how many the level explains."""
+    from imupipe.verdict import chance_failures
+
+    alphas = [float(s["alpha"]) for s in merged.get("line_search") or [] if isinstance(s, Mapping) and s.get("alpha")]
+    found = {(it.get("dataset"), it.get("axis")) for it in merged.get("lines") or []
+             if isinstance(it, Mapping) and it.get("dataset") is not None}
+    text = chance_failures(len(found), len(alphas), max(alphas), "show a line", "show one",
+                           "no line in any record") if alphas and found else None
+    return f"; {text}" if text else ""
 
 
 def _frequencies(items: list, g: list) -> str:

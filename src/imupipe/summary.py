@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from imupipe.linewords import line_reports, line_text, search_band_text
+from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
 from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, confidence_lines, nonstationary_qualifier,
@@ -344,7 +344,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 continue  # a coefficient at 0: the component absent (a GM sigma too), not a fit pressed to its range
             out.append(Flag(sensor, "parameter on boundary", str(p), boundary_text(sensor, bound, identify, str(p),
                                                                                     value)))
-    out += _line_flags(sensor, line_items, stuck_where)
+    out += _line_flags(sensor, line_items, stuck_where, line_chance(bound))
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
@@ -812,10 +812,10 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
                 + (f" ({num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
 
 
-def _line_flags(sensor: str, items: list, stuck_where=frozenset()) -> list[Flag]:
+def _line_flags(sensor: str, items: list, stuck_where=frozenset(), chance: str = "") -> list[Flag]:
     """The FLAGs of narrowband lines (:func:`imupipe.linewords.line_reports`), with :data:`STUCK_NOTE` where a
-    line's record holds a stuck span (`stuck_where`: the stuck FLAGs' places)."""
-    return [Flag(sensor, "lines", where, detail + (STUCK_NOTE if stuck_where & set(places) else ""))
+    line's record holds a stuck span (`stuck_where`: the stuck FLAGs' places) and `chance` (:func:`line_chance`)."""
+    return [Flag(sensor, "lines", where, detail + chance + (STUCK_NOTE if stuck_where & set(places) else ""))
             for where, detail, places in line_reports(items)]
 
 
