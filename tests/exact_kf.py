@@ -25,13 +25,17 @@ SIGMA_FIX = {"accel": 0.5, "gyro": math.radians(0.1)}  # m, rad
 def truth_discrete(truth, sensor: str, dt: float):
     """(Phi, Qd, P0) of the truth's error state at step dt: kinematic states, one per GM term, the random walk.
 
-    Continuous model: the rate error e = -(w + sum_i b_i + r) with w white (PSD N^2, one-sided convention of the
-    project: N in u/sqrt(Hz)), db_i/dt = -b_i/T_i + sqrt(2 sigma_i^2/T_i) xi_i, dr/dt = K xi_r; Qd by Van Loan
-    (C. F. Van Loan, "Computing integrals involving the matrix exponential", IEEE TAC 23(3), 1978)."""
+    Continuous model: the rate error e = -(w + sum_i b_i + r + sum_j n_j) with w white (PSD N^2, one-sided
+    convention of the project: N in u/sqrt(Hz)), db_i/dt = -b_i/T_i + sqrt(2 sigma_i^2/T_i) xi_i, dr/dt = K xi_r,
+    and per narrowband term (sigma, f0, zeta) a damped oscillator n'' + 2 zeta w0 n' + w0^2 n = sqrt(q) xi,
+    w0 = 2 pi f0, q = 4 zeta w0^3 sigma^2 (its stationary variance is sigma^2; started at its stationary covariance
+    diag(sigma^2, w0^2 sigma^2)); Qd by Van Loan (C. F. Van Loan, "Computing integrals involving the matrix
+    exponential", IEEE TAC 23(3), 1978)."""
     n_kin = 2 if sensor == "accel" else 1
     gms = list(truth.gauss_markov)
     has_rw = truth.random_walk > 0
-    n = n_kin + len(gms) + int(has_rw)
+    nbs = list(getattr(truth, "narrowband", ()) or ())
+    n = n_kin + len(gms) + int(has_rw) + 2 * len(nbs)
     F = np.zeros((n, n))
     if sensor == "accel":
         F[0, 1] = 1.0
@@ -44,6 +48,14 @@ def truth_discrete(truth, sensor: str, dt: float):
         F[j, j] = -1.0 / T
         noises.append(2.0 * s * s / T)
         G_cols.append(np.eye(n)[:, j])
+    for i, (s, f0, z) in enumerate(nbs):
+        j = n_kin + len(gms) + 2 * i
+        w0 = 2.0 * math.pi * f0
+        F[rate_row, j] = -1.0
+        F[j, j + 1] = 1.0
+        F[j + 1, j], F[j + 1, j + 1] = -w0 * w0, -2.0 * z * w0
+        noises.append(4.0 * z * w0**3 * s * s)
+        G_cols.append(np.eye(n)[:, j + 1])
     if has_rw:
         j = n - 1
         F[rate_row, j] = -1.0
@@ -64,6 +76,9 @@ def truth_discrete(truth, sensor: str, dt: float):
         P0[1, 1] = 1.0
     for i, (s, _T) in enumerate(gms):
         P0[n_kin + i, n_kin + i] = s * s
+    for i, (s, f0, _z) in enumerate(nbs):
+        j = n_kin + len(gms) + 2 * i
+        P0[j, j], P0[j + 1, j + 1] = s * s, (2.0 * math.pi * f0 * s) ** 2
     return Phi, Qd, P0
 
 

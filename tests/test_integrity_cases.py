@@ -154,3 +154,23 @@ def test_a_random_walk_the_fit_gave_to_a_ramp_stays_in_each_axis_model():
         kf = {**res.kf, **per[ax]} if per.get(ax, {}).get("model") == "own" else res.kf
         r = kf_against_truth(kf, t_ax, "gyro", 600.0, 1800.0)
         assert r["worst"] <= 1.0 + 1e-6, (ax, per.get(ax, {}).get("model"), r)
+
+
+@pytest.mark.parametrize("sensor", ["accel", "gyro"])
+def test_exact_analysis_carries_a_narrowband_truth(sensor):
+    """tests/exact_kf.py's damped oscillator (the slow oscillation of benchmarks/slow_oscillation.py): its stationary
+    covariance diag(sigma^2, w0^2 sigma^2) is invariant under the discrete step (Phi P0 Phi' + Qd = P0 to round-off),
+    and the project's KF export of the same truth (imupipe.kf: its own oscillator discretisation) gives MSE/P = 1 to
+    the accuracy of the matrix exponentials, as for a GM above."""
+    from imupipe.kf import export_kf
+    from imupipe.models import NoiseModel
+
+    truth = NoiseModel(white=2e-4, gauss_markov=((3e-5, 30.0),), random_walk=5e-8, narrowband=((2e-5, 3e-4, 0.02),))
+    Phi, Qd, P0 = truth_discrete(truth, sensor, 1.0)
+    j = (2 if sensor == "accel" else 1) + 1  # after the kinematic states and the GM
+    b = slice(j, j + 2)
+    step = Phi[b, b] @ P0[b, b] @ Phi[b, b].T + Qd[b, b]
+    assert np.allclose(step, P0[b, b], rtol=1e-9, atol=1e-12 * P0[j + 1, j + 1])
+    # the truth's random walk starts at 0 in the exact analysis: the export's initial variance of it 0 too
+    r = kf_against_truth(export_kf(truth, 1.0, sensor=sensor, p0_random_walk=0.0), truth, sensor)
+    assert abs(r["worst"] - 1.0) < 1e-6 and abs(r["end_p_over_mse"] - 1.0) < 1e-6, r
