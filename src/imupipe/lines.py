@@ -44,7 +44,10 @@ extended by 2 bins on each side (the Hann main lobe: > 99.9 % of a sinusoid's po
   bound is not affected in validity (the LP covers the sample PSD whatever the column's shape), only in
   tightness;
 - the narrowband term (sigma, f0, zeta) of :class:`imupipe.models.NoiseModel` with :math:`\zeta = \Gamma/(2 f_0)`
-  (half-power width of the oscillator :math:`2\zeta f_0` for small zeta), whose PSD integrates to the measured power.
+  (half-power width of the oscillator :math:`2\zeta f_0` for small zeta), whose PSD integrates to the measured power;
+- the power's degrees of freedom :math:`2 K_\ell \max(1, \Gamma/df)`, :math:`K_\ell \le K` the independent looks
+  at it in the K segments (:func:`line_looks`: from the correlation of the line's power between consecutive
+  segments; fewer than K where its amplitude wanders over several segments).
 
 Bins within half a floor window of 0 and of the Nyquist frequency, where the running median would be one-sided,
 are not tested by default (``f_min_hz``, ``f_max_hz``; the tested band and count M are reported).
@@ -102,6 +105,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from statistics import NormalDist
 
 import numpy as np
 
@@ -119,6 +123,7 @@ __all__ = [
     "line_policy",
     "POLICIES",
     "line_avar",
+    "line_looks",
     "lines_by_curve",
 ]
 
@@ -155,11 +160,14 @@ class Line:
     resolution_hz : float
         Bin spacing of the detection spectrum, Hz.
     dof : float or None
-        Equivalent degrees of freedom of the power estimate, dimensionless: 2 per averaged segment and per
-        resolution cell the line spans, :math:`2 K \max(1, \Gamma / df)` (a line narrower than a bin is one
-        complex Fourier coefficient per segment, its power a scaled chi-squared with 2 K degrees of freedom); the
-        identification's envelope takes the line at its upper confidence limit from it. None: not recorded (a lines
-        file written before it was).
+        Equivalent degrees of freedom of the power estimate, dimensionless: 2 per independent segment and per
+        resolution cell the line spans, :math:`2 K_\ell \max(1, \Gamma / df)` (a line narrower than a bin is one
+        complex Fourier coefficient per segment, its power a scaled chi-squared with 2 degrees of freedom per
+        independent segment), :math:`K_\ell` = ``independent_segments``; the identification's envelope takes the
+        line at its upper confidence limit from it. None: not recorded (a lines file written before it was).
+    independent_segments : float or None
+        :math:`K_\ell \le K`, the segments' count of independent looks at the line's power (:func:`line_looks`:
+        fewer than K where the line's amplitude wanders over several segments), dimensionless. None: not recorded.
     """
 
     frequency_hz: float
@@ -173,6 +181,7 @@ class Line:
     f_hi_hz: float
     resolution_hz: float
     dof: float | None = None
+    independent_segments: float | None = None
 
     @property
     def narrowband(self) -> tuple:
@@ -180,15 +189,16 @@ class Line:
         return (self.sigma, self.frequency_hz, self.zeta)
 
 
-def _line(f0, power, width_hz, peak_ratio, f_lo_hz, f_hi_hz, resolution_hz, dof=None) -> Line:
+def _line(f0, power, width_hz, peak_ratio, f_lo_hz, f_hi_hz, resolution_hz, dof=None, looks=None) -> Line:
     """A :class:`Line` from its centre f0 (Hz), power P1 (u^2) and half-power width Gamma (Hz): amplitude
     sqrt(2 P1) (u), sigma sqrt(P1) (u), damping ratio zeta = min(Gamma / (2 f0), 1/2); the other fields as given
-    (peak ratio dimensionless, interval and resolution Hz, degrees of freedom)."""
+    (peak ratio dimensionless, interval and resolution Hz, degrees of freedom, independent segments `looks`)."""
     power = float(power)
     return Line(frequency_hz=float(f0), power=power, amplitude=math.sqrt(2.0 * power), sigma=math.sqrt(power),
                 width_hz=float(width_hz), zeta=float(min(width_hz / (2.0 * f0), 0.5)), peak_ratio=float(peak_ratio),
                 f_lo_hz=float(f_lo_hz), f_hi_hz=float(f_hi_hz), resolution_hz=float(resolution_hz),
-                dof=None if dof is None else float(dof))
+                dof=None if dof is None else float(dof),
+                independent_segments=None if looks is None else float(looks))
 
 
 _LINE_UNITS = {
@@ -203,6 +213,7 @@ _LINE_UNITS = {
     "f_hi_hz": "Hz",
     "resolution_hz": "Hz",
     "dof": "1",
+    "independent_segments": "1",
 }
 
 
@@ -385,6 +396,72 @@ def effective_segments(levels) -> float:
     return float(np.sum(c) ** 2 / np.sum(c * c)) if c.size and np.sum(c * c) > 0 else float(c.size)
 
 
+def _segment_band_powers(x: np.ndarray, nperseg: int, bands) -> np.ndarray:
+    """Per segment (the K of :func:`_spectrum`: non-overlapping, mean-removed, Hann-tapered) and per band (a, b) of
+    bin indices, the sum of the segment's squared Fourier magnitudes over bins a..b (u^2, unnormalised: only the
+    sequence's correlation is read). Shape (K, len(bands)); a batch of segments at a time, as :func:`_spectrum`."""
+    K = x.size // nperseg
+    w = np.hanning(nperseg + 1)[:-1]
+    step = max(1, SPECTRUM_BATCH // nperseg)
+    out = np.empty((K, len(bands)))
+    for k0 in range(0, K, step):
+        seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
+        seg = (seg - seg.mean(axis=1, keepdims=True)) * w
+        X = np.fft.rfft(seg, axis=1)
+        P = X.real**2 + X.imag**2
+        for j, (a, b) in enumerate(bands):
+            out[k0 : k0 + seg.shape[0], j] = P[:, a : b + 1].sum(axis=1)
+    return out
+
+
+#: Largest lag-one correlation :func:`line_looks` takes (at most 1 / (1 + 2 * 0.98 / 0.02) = 0.01 K looks, floored
+#: at 1).
+LOOKS_RHO_MAX = 0.98
+
+#: Level of :func:`line_looks`'s test of independent looks: the chance that a line of constant amplitude (whose
+#: segment powers are independent) has its looks reduced.
+LOOKS_LEVEL = 0.01
+
+
+def line_looks(powers) -> float:
+    r"""Independent looks :math:`K_\ell \in [1, K]` at a line's power in the K consecutive segments' powers `powers`
+    (any unit; :func:`find_lines`).
+
+    A narrowband term is a damped oscillator: its complex envelope is an Ornstein-Uhlenbeck process of coherence
+    time :math:`\tau_c = 1/(\zeta\omega_0)`, so the powers of consecutive segments of length L are correlated as
+    :math:`\rho^{|j|}`, :math:`\rho = e^{-2L/\tau_c}` (an AR(1) sequence), and the mean of K of them has the
+    variance of :math:`K_\ell = K (1 - \rho)/(1 + \rho)` independent ones (the large-K limit of
+    :math:`K / (1 + 2\sum_j (1 - j/K)\rho^j)`). A line whose amplitude wanders over several segments (damping
+    0.0002 at 0.3 Hz: :math:`\tau_c` 2650 s against 500 s segments) thus has fewer degrees of freedom than
+    :math:`2K`, which over-counted them (its upper limit covered the true power in 69-70 of 100 records at 0.95).
+
+    A sinusoid of constant amplitude gives independent powers (the noise alone varies): K looks. So the looks are
+    reduced only where the lag-one sample autocorrelation :math:`r` of the powers shows a correlation at the level
+    :data:`LOOKS_LEVEL`: under independence r has mean about -1/K and sd about :math:`1/\sqrt K`, and the test
+    rejects where :math:`r > -1/K + z_{1 - \alpha}/\sqrt K` (a constant sinusoid's looks were reduced in 0 of 200
+    records with K = 7 and 14). There :math:`\rho` is r corrected for its first-order bias with the mean estimated,
+    :math:`E[r] \approx \rho - (1 + 4\rho)/K` (checked by simulation in tests/test_lines.py), clipped to
+    [0, :data:`LOOKS_RHO_MAX`]. Without the test, the bias correction's noise at small K (sd of r 0.35 with K = 7)
+    cut a constant sinusoid's looks to 1.3 of 7 and held its power at 10x. The test has little power on a few
+    segments: a line that wanders over many segments of a short record (K = 14) is found in a minority of records,
+    one of a long record (K = 72) in most (docs/method.md, "Narrowband lines and outliers"). A line coherent over the
+    whole record shows one amplitude in every segment, correlated as little as a constant one: not seen here.
+
+    Reference: M. G. Kendall, "Note on bias in the estimation of autocorrelation", Biometrika 41, 1954 (the bias of
+    r)."""
+    y = np.asarray(powers, dtype=np.float64).ravel()
+    K = y.size
+    d = y - y.mean()
+    g0 = float(np.dot(d, d))
+    if K < 3 or not g0 > 0:
+        return float(K)
+    r = float(np.dot(d[:-1], d[1:])) / g0
+    if r <= -1.0 / K + NormalDist().inv_cdf(1.0 - LOOKS_LEVEL) / math.sqrt(K):
+        return float(K)
+    rho = min(max(r + (1.0 + 4.0 * r) / K, 0.0), LOOKS_RHO_MAX)
+    return float(min(K, max(1.0, K * (1.0 - rho) / (1.0 + rho))))
+
+
 def find_lines(
     x,
     rate: float,
@@ -452,23 +529,28 @@ def find_lines(
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(floor > 0, p / floor, 0.0)
     sig = np.flatnonzero(tested & (ratio > t))
-    lines = []
+    found = []
     if sig.size:
         groups = np.split(sig, np.flatnonzero(np.diff(sig) > _HANN_MAINLOBE_BINS) + 1)
         for g in groups:
             a = max(g[0] - _HANN_MAINLOBE_BINS, 1)
             b = min(g[-1] + _HANN_MAINLOBE_BINS, f.size - 1)
             e = p[a : b + 1] - floor[a : b + 1]
-            fk = f[a : b + 1]
             power = float(np.sum(e) * df)
-            if power <= 0:
-                continue
-            ep = np.clip(e, 0.0, None)
-            f0 = float(np.sum(fk * ep) / np.sum(ep))
-            enbw = power / float(ep.max())
-            gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
-            lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df,
-                               dof=2.0 * K * max(1.0, gamma_w / df)))
+            if power > 0:
+                found.append((g, a, b, e, power))
+    looks = (_segment_band_powers(x, nperseg, [(a, b) for _, a, b, _, _ in found]) if found
+             else np.empty((K_segments, 0)))
+    lines = []
+    for j, (g, a, b, e, power) in enumerate(found):
+        fk = f[a : b + 1]
+        ep = np.clip(e, 0.0, None)
+        f0 = float(np.sum(fk * ep) / np.sum(ep))
+        enbw = power / float(ep.max())
+        gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
+        k_line = min(K, line_looks(looks[:, j]))
+        lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df,
+                           dof=2.0 * k_line * max(1.0, gamma_w / df), looks=k_line))
     return LineSearch(
         lines=tuple(lines),
         rate_hz=rate,
@@ -604,9 +686,11 @@ def merge_lines(lines) -> list:
         f0 = float(np.sum(w * fr) / np.sum(w))
         width = max(max(m.width_hz for m in g), float(fr.max() - fr.min()))
         dofs = [m.dof for m in g]
+        looks = [m.independent_segments for m in g]
         out.append(_line(f0, float(w.max()), width, max(m.peak_ratio for m in g), min(m.f_lo_hz for m in g),
                          max(m.f_hi_hz for m in g), max(m.resolution_hz for m in g),
-                         dof=None if any(d is None for d in dofs) else min(dofs)))
+                         dof=None if any(d is None for d in dofs) else min(dofs),
+                         looks=None if any(k is None for k in looks) else min(looks)))
     return sorted(out, key=lambda ln: ln.frequency_hz)
 
 
