@@ -9,7 +9,8 @@ each use).
 
 Layers, bottom up: files, units and containers; estimators and the noise model; what builds on the model;
 identification and stationarity; bounding and the Kalman filter; verification and figures; the workflow's stages
-(imupipe.stages: one module per rule, calling the layers below); the one-call API and the command line.
+(imupipe.stages: one module per rule, calling the layers below); the one-call API, the recording plan (which runs
+the identification stage on its expected data) and the command line.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ LAYERS = [
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},
-    {"verify", "plot", "plan"},
+    {"verify", "plot"},
     {"stages"},
-    {"api", "cli", "__main__"},
+    {"api", "cli", "__main__", "plan"},
 ]
 LAYER_OF = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
