@@ -85,6 +85,19 @@ def test_headerless_record_gets_placeholders_and_says_so(tmp_path, capsys):
     assert "gap_policy fill" not in sheet  # no stamps: no gaps to see
 
 
+def test_a_header_unit_init_cannot_read_is_named_in_the_placeholder_note(tmp_path, capsys):
+    """An outside evaluation: `gx [degs]` gave `gyro_unit FILL_ME` with only "the unit as stored"; the note now names
+    the header's unit that was not read; the accelerometer's readable `[g]` is taken."""
+    path = tmp_path / "rec.csv"
+    x = np.random.default_rng(1).standard_normal((4000, 6)) * 0.01 + [0, 0, 0, 0, 0, 1]
+    header = "gx [degs],gy [degs],gz [degs],ax [g],ay [g],az [g]"
+    np.savetxt(path, x, fmt="%.5f", delimiter=",", header=header, comments="")
+    assert main(["init", str(path), "--spec", str(SPEC), "--rate-hz", "1", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "gyro_unit" in out and "the header's 'degs' was not read as a rate unit" in out
+    assert "accel_unit (" not in out
+
+
 def test_a_record_with_a_few_drops_runs_from_the_sheet_init_writes(tmp_path):
     # an outside evaluation: init wrote no gap_policy, so a record with a few dropped samples stopped at the ingest
     from imupipe.init import inspect_record

@@ -114,6 +114,20 @@ def guess_channels(names) -> tuple[dict[str, str], dict[str, str], str | None, s
     return channels, units, time_column, time_unit
 
 
+def _unread_units(channels, sensor: str) -> str:
+    """``"; the header's units ... not read as ..."``: the bracketed units of `sensor`'s guessed columns (the
+    ``channels`` map of :func:`guess_channels`) that gave no unit for it, or "" when its columns carry none."""
+    from imupipe.units import split_unit_suffix
+
+    cols = [channels[f"{sensor}_{a}"] for a in _AXES if f"{sensor}_{a}" in channels]
+    found = sorted({str(u) for u in (split_unit_suffix(str(c))[1] for c in cols) if u})
+    if not found:
+        return ""
+    what = "a rate unit" if sensor == "gyro" else "an acceleration unit"
+    return (f"; the header's {', '.join(repr(u) for u in found)} was not read as {what}"
+            + (" (the three axes differ)" if len(found) > 1 else ""))
+
+
 @dataclass
 class RecordInfo:
     """What :func:`inspect_record` found out about one record (rate Hz, duration s)."""
@@ -195,7 +209,7 @@ def inspect_record(path, dataset: str, rate_hz: float | None = None, time_unit: 
         row[f"{s}_unit"] = units.get(s, PLACEHOLDER)
         if s not in units:
             todo.append(f"{dataset}: {s}_unit (the unit of the {s} samples as stored, e.g. "
-                        + ("deg/s or rad/s)" if s == "gyro" else "g or m/s^2)"))
+                        + ("deg/s or rad/s" if s == "gyro" else "g or m/s^2") + _unread_units(channels, s) + ")")
         for a in _AXES:
             if fmt == "rosbag":
                 row[f"{s}_{a}"] = ""

@@ -132,7 +132,7 @@ def _quantity(sensor_block, key, quantity, sensor, where, path=None):
     if not (math.isfinite(si) and si <= limit and math.isfinite(si * si)):
         raise SpecError(
             f"{label}.value = {value:g} {item['unit']} is {si:.3g} in SI, beyond the plausible limit "
-            f"{limit:g} for a {sensor} {quantity} (a typo or a wrong unit?)"
+            f"{limit:g} for the {sensor} {quantity} (a typo or a wrong unit?)"
         )
     return si, value, item["unit"]
 

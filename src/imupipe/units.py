@@ -492,7 +492,7 @@ def _check(unit, quantity, sensor, key):
         example = _EXAMPLES.get((sensor, quantity), "s")
         msg = (
             f"{label}unit {unit!r} has dimension {format_dimension(parsed.dimension)}, "
-            f"but a {sensor} {quantity} needs {format_dimension(want)} (e.g. {example!r})"
+            f"but the {sensor} {quantity} needs {format_dimension(want)} (e.g. {example!r})"
         )
         if quantity == "random_walk" and parsed.dimension == _RATE[sensor]:
             msg += (

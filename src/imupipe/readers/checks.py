@@ -237,7 +237,7 @@ def check_values(x: np.ndarray, sensor: str, column: str, where: str, row_text=N
         unit = SI_UNITS[sensor]
         raise DataError(
             f"{where}: {column} has a sample of {float(x[peak]):.6g} {unit} at {row_text(peak)} "
-            f"({int(np.count_nonzero(a > limit))} beyond the limit in all); a {sensor} sample must satisfy "
+            f"({int(np.count_nonzero(a > limit))} beyond the limit in all); every {sensor} sample must satisfy "
             f"|x| <= {limit:g} {unit}: wrong unit, wrong column or a corrupt value?"
         )
     if 0.0 < a[peak] < SQUARE_SAFE_MIN:
