@@ -46,8 +46,8 @@ extended by 2 bins on each side (the Hann main lobe: > 99.9 % of a sinusoid's po
 - the narrowband term (sigma, f0, zeta) of :class:`imupipe.models.NoiseModel` with :math:`\zeta = \Gamma/(2 f_0)`
   (half-power width of the oscillator :math:`2\zeta f_0` for small zeta), whose PSD integrates to the measured power;
 - the power's degrees of freedom :math:`2 K_\ell \max(1, \Gamma/df)`, :math:`K_\ell \le K` the independent looks
-  at it in the K segments (:func:`line_looks`: from the correlation of the line's power between consecutive
-  segments; fewer than K where its amplitude wanders over several segments).
+  at it in the K segments (:func:`line_looks`: K for a line of constant amplitude, fewer where the line's complex
+  amplitude varies across the segments beyond the noise: a line that wanders).
 
 Bins within half a floor window of 0 and of the Nyquist frequency, where the running median would be one-sided,
 are not tested by default (``f_min_hz``, ``f_max_hz``; the tested band and count M are reported).
@@ -105,7 +105,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from statistics import NormalDist
 
 import numpy as np
 
@@ -167,7 +166,7 @@ class Line:
         line at its upper confidence limit from it. None: not recorded (a lines file written before it was).
     independent_segments : float or None
         :math:`K_\ell \le K`, the segments' count of independent looks at the line's power (:func:`line_looks`:
-        fewer than K where the line's amplitude wanders over several segments), dimensionless. None: not recorded.
+        fewer than K where the line's amplitude wanders across the segments), dimensionless. None: not recorded.
     """
 
     frequency_hz: float
@@ -396,70 +395,95 @@ def effective_segments(levels) -> float:
     return float(np.sum(c) ** 2 / np.sum(c * c)) if c.size and np.sum(c * c) > 0 else float(c.size)
 
 
-def _segment_band_powers(x: np.ndarray, nperseg: int, bands) -> np.ndarray:
-    """Per segment (the K of :func:`_spectrum`: non-overlapping, mean-removed, Hann-tapered) and per band (a, b) of
-    bin indices, the sum of the segment's squared Fourier magnitudes over bins a..b (u^2, unnormalised: only the
-    sequence's correlation is read). Shape (K, len(bands)); a batch of segments at a time, as :func:`_spectrum`."""
+def _segment_band_coefficients(x: np.ndarray, nperseg: int, bands) -> tuple[list, float]:
+    """Per band (a, b) of bin indices, the complex Fourier coefficients of every segment (the K of :func:`_spectrum`:
+    non-overlapping, mean-removed, Hann-tapered) at bins a..b, shape (K, b - a + 1) (u, unnormalised), and the
+    window's sum of squares: the periodogram of a segment at a bin is |X|^2 2/(rate sum w^2) (one-sided density).
+    A batch of segments at a time, as :func:`_spectrum`."""
     K = x.size // nperseg
     w = np.hanning(nperseg + 1)[:-1]
     step = max(1, SPECTRUM_BATCH // nperseg)
-    out = np.empty((K, len(bands)))
+    out = [np.empty((K, b - a + 1), dtype=np.complex128) for a, b in bands]
     for k0 in range(0, K, step):
         seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
         seg = (seg - seg.mean(axis=1, keepdims=True)) * w
         X = np.fft.rfft(seg, axis=1)
-        P = X.real**2 + X.imag**2
         for j, (a, b) in enumerate(bands):
-            out[k0 : k0 + seg.shape[0], j] = P[:, a : b + 1].sum(axis=1)
-    return out
+            out[j][k0 : k0 + seg.shape[0]] = X[:, a : b + 1]
+    return out, float(np.sum(w * w))
 
 
-#: Largest lag-one correlation :func:`line_looks` takes (at most 1 / (1 + 2 * 0.98 / 0.02) = 0.01 K looks, floored
-#: at 1).
-LOOKS_RHO_MAX = 0.98
-
-#: Level of :func:`line_looks`'s test of independent looks: the chance that a line of constant amplitude (whose
-#: segment powers are independent) has its looks reduced.
+#: Level of :func:`line_looks`'s test of a constant amplitude: the chance that a sinusoid of constant amplitude has
+#: its looks reduced.
 LOOKS_LEVEL = 0.01
 
+#: Phase-advance offsets :func:`line_looks` tries per segment count (zero-padding factor of the FFT over segments).
+LOOKS_OFFSETS_PER_SEGMENT = 32
 
-def line_looks(powers) -> float:
-    r"""Independent looks :math:`K_\ell \in [1, K]` at a line's power in the K consecutive segments' powers `powers`
-    (any unit; :func:`find_lines`).
+
+def _coherent_fraction(r: float, K: int) -> float:
+    """E|sum_k a_k|^2 / (K sum_k E|a_k|^2) for K amplitudes of lag-m correlation r^m: (1 + 2 sum (1 - m/K) r^m)/K."""
+    m = np.arange(1, K)
+    return float((1.0 + 2.0 * np.sum((1.0 - m / K) * r**m)) / K)
+
+
+def line_looks(X, noise) -> float:
+    r"""Independent looks :math:`K_\ell \in [1, K]` at a line's power in K consecutive segments: `X` the segments'
+    complex Fourier coefficients at the line's bins (K x bins, u; :func:`_segment_band_coefficients`), `noise` the
+    expected noise :math:`E|X|^2` of each bin (the floor; same unit squared).
 
     A narrowband term is a damped oscillator: its complex envelope is an Ornstein-Uhlenbeck process of coherence
-    time :math:`\tau_c = 1/(\zeta\omega_0)`, so the powers of consecutive segments of length L are correlated as
-    :math:`\rho^{|j|}`, :math:`\rho = e^{-2L/\tau_c}` (an AR(1) sequence), and the mean of K of them has the
-    variance of :math:`K_\ell = K (1 - \rho)/(1 + \rho)` independent ones (the large-K limit of
-    :math:`K / (1 + 2\sum_j (1 - j/K)\rho^j)`). A line whose amplitude wanders over several segments (damping
-    0.0002 at 0.3 Hz: :math:`\tau_c` 2650 s against 500 s segments) thus has fewer degrees of freedom than
-    :math:`2K`, which over-counted them (its upper limit covered the true power in 69-70 of 100 records at 0.95).
+    time :math:`\tau_c = 1/(\zeta\omega_0)`, so consecutive segments' complex amplitudes are correlated as
+    :math:`r^{|m|}` and their powers as :math:`r^{2|m|}`; the mean of the K powers has the variance of
+    :math:`K_\ell = K / (1 + 2\sum_{m=1}^{K-1} (1 - m/K) r^{2m})` independent ones. A line whose amplitude wanders
+    over several segments (damping 0.0002 at 0.3 Hz: :math:`\tau_c` 2650 s against 500 s segments) has fewer degrees
+    of freedom than 2K, which over-counted them (its upper limit covered the true power in 69-70 of 100 records at
+    0.95, and an outside evaluation's filter under-stated its error, MSE/P up to 1.12).
 
-    A sinusoid of constant amplitude gives independent powers (the noise alone varies): K looks. So the looks are
-    reduced only where the lag-one sample autocorrelation :math:`r` of the powers shows a correlation at the level
-    :data:`LOOKS_LEVEL`: under independence r has mean about -1/K and sd about :math:`1/\sqrt K`, and the test
-    rejects where :math:`r > -1/K + z_{1 - \alpha}/\sqrt K` (a constant sinusoid's looks were reduced in 0 of 200
-    records with K = 7 and 14). There :math:`\rho` is r corrected for its first-order bias with the mean estimated,
-    :math:`E[r] \approx \rho - (1 + 4\rho)/K` (checked by simulation in tests/test_lines.py), clipped to
-    [0, :data:`LOOKS_RHO_MAX`]. Without the test, the bias correction's noise at small K (sd of r 0.35 with K = 7)
-    cut a constant sinusoid's looks to 1.3 of 7 and held its power at 10x. The test has little power on a few
-    segments: a line that wanders over many segments of a short record (K = 14) is found in a minority of records,
-    one of a long record (K = 72) in most (docs/method.md, "Narrowband lines and outliers"). A line coherent over the
-    whole record shows one amplitude in every segment, correlated as little as a constant one: not seen here.
+    **Test.** A sinusoid of constant amplitude and frequency has, after its phase advance per segment
+    :math:`e^{i 2\pi\epsilon k}` is taken out (:math:`\epsilon` the maximum over a grid of
+    :data:`LOOKS_OFFSETS_PER_SEGMENT` K offsets of the coherent power :math:`\sum_j |\sum_k X_{kj}
+    e^{-i2\pi\epsilon k}|^2`), the same complex amplitude in every segment up to the noise: the scatter
+    :math:`\sum_{k,j} |Y_{kj} - \bar Y_j|^2` is the noise's, :math:`(K - 1)\sum_j N_j\,\chi^2_\nu/\nu`,
+    :math:`\nu = 2(K - 1)\max(1, n_b/1.94)` (n_b bins, Hann-correlated: 1.94 the variance factor of a sum of
+    them). The looks stay K unless the scatter exceeds that at level :data:`LOOKS_LEVEL` (constant sinusoids had their
+    looks reduced in 1 of 220 records at K = 7-43). A chance line (noise the search took for a line) scatters like
+    the noise that made it, above the floor's level: fewer looks, the conservative side. A line coherent over the
+    whole record is a constant one in this light: not seen here (docs/method.md, "What bounded rests on").
 
-    Reference: M. G. Kendall, "Note on bias in the estimation of autocorrelation", Biometrika 41, 1954 (the bias of
-    r)."""
-    y = np.asarray(powers, dtype=np.float64).ravel()
-    K = y.size
-    d = y - y.mean()
-    g0 = float(np.dot(d, d))
-    if K < 3 or not g0 > 0:
+    **Estimate.** Where it does, r solves :math:`c(r, K) = C`, :math:`c(r, K) = (1 + 2\sum_{m=1}^{K-1}(1 - m/K)
+    r^m)/K` the expected coherent fraction of K amplitudes and :math:`C = (K\sum_j|\bar Y_j|^2 - \sum_j N_j) /
+    (\sum_{k,j}|Y_{kj}|^2 - K\sum_j N_j)` the line's own, the noise's share taken out of both. The maximum over the
+    offsets biases C up where the line decorrelates within a segment (about 7 of 14 looks where 14 is right): the
+    looks err low, the power's limit high (docs/performance.md)."""
+    X = np.asarray(X, dtype=np.complex128)
+    if X.ndim == 1:
+        X = X[:, None]
+    K, nb = X.shape
+    N = np.asarray(noise, dtype=np.float64).reshape(-1)
+    if K < 3:
         return float(K)
-    r = float(np.dot(d[:-1], d[1:])) / g0
-    if r <= -1.0 / K + NormalDist().inv_cdf(1.0 - LOOKS_LEVEL) / math.sqrt(K):
+    F = np.fft.fft(X, n=LOOKS_OFFSETS_PER_SEGMENT * K, axis=0)
+    q = int(np.argmax(np.sum(F.real**2 + F.imag**2, axis=1)))
+    Y = X * np.exp(-2j * np.pi * q * np.arange(K) / (LOOKS_OFFSETS_PER_SEGMENT * K))[:, None]
+    Ybar = Y.mean(axis=0)
+    scatter = float(np.sum(np.abs(Y - Ybar) ** 2))
+    noise_scatter = float((K - 1) * np.sum(N))
+    nu = 2.0 * (K - 1) * max(1.0, nb / _HANN_CORR_FACTOR)
+    from scipy.special import gammainccinv
+
+    if not noise_scatter > 0 or scatter <= noise_scatter * 2.0 * float(gammainccinv(nu / 2.0, LOOKS_LEVEL)) / nu:
         return float(K)
-    rho = min(max(r + (1.0 + 4.0 * r) / K, 0.0), LOOKS_RHO_MAX)
-    return float(min(K, max(1.0, K * (1.0 - rho) / (1.0 + rho))))
+    line = float(np.sum(np.abs(Y) ** 2)) - K * float(np.sum(N))
+    C = (K * float(np.sum(np.abs(Ybar) ** 2)) - float(np.sum(N))) / line if line > 0 else 1.0 / K
+    C = min(max(C, 1.0 / K), 1.0)
+    lo, hi = 0.0, 1.0
+    for _ in range(60):  # c(r, K) increases with r from 1/K to 1
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _coherent_fraction(mid, K) < C else (lo, mid)
+    r2 = (0.5 * (lo + hi)) ** 2
+    m = np.arange(1, K)
+    return float(min(K, max(1.0, K / (1.0 + 2.0 * np.sum((1.0 - m / K) * r2**m)))))
 
 
 def find_lines(
@@ -539,8 +563,7 @@ def find_lines(
             power = float(np.sum(e) * df)
             if power > 0:
                 found.append((g, a, b, e, power))
-    looks = (_segment_band_powers(x, nperseg, [(a, b) for _, a, b, _, _ in found]) if found
-             else np.empty((K_segments, 0)))
+    coeffs, sum_w2 = _segment_band_coefficients(x, nperseg, [(a, b) for _, a, b, _, _ in found]) if found else ([], 1.0)
     lines = []
     for j, (g, a, b, e, power) in enumerate(found):
         fk = f[a : b + 1]
@@ -548,7 +571,7 @@ def find_lines(
         f0 = float(np.sum(fk * ep) / np.sum(ep))
         enbw = power / float(ep.max())
         gamma_w = max((2.0 / math.pi) * max(enbw - _HANN_ENBW_BINS * df, 0.0), df)
-        k_line = min(K, line_looks(looks[:, j]))
+        k_line = min(K, line_looks(coeffs[j], floor[a : b + 1] * rate * sum_w2 / 2.0))  # floor as E|X|^2
         lines.append(_line(f0, power, gamma_w, ratio[g].max(), f[a], f[b], df,
                            dof=2.0 * k_line * max(1.0, gamma_w / df), looks=k_line))
     return LineSearch(
