@@ -325,12 +325,14 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
 
     one = {}
     mod._merge_checks(one, lines_file("z", 0.5669195, 0.0069233, 78.573))
-    assert ("- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2, peak PSD 78.6x the floor"
-            in render_summary({"accel": {"bound": one}}))
+    # the amplitude is the peak, its sd (the values to paste's sigma) beside it: 0.0069233 / sqrt(2) = 0.0048955
+    assert ("- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2 (sd 0.0049), peak PSD 78.6x the "
+            "floor" in render_summary({"accel": {"bound": one}}))
     mod._merge_checks(one, lines_file("x", 0.5669000, 0.0093500, 133.0))
     flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
     assert flags == ["- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes) at 0.5669 Hz; the strongest "
-                     "[adis_imu2/accel/x]: 0.5669 Hz, amplitude 0.00935 m/s^2, peak PSD 133x the floor"], flags
+                     "[adis_imu2/accel/x]: 0.5669 Hz, amplitude 0.00935 m/s^2 (sd 0.00661), peak PSD 133x the "
+                     "floor"], flags
     # lines whose intervals do not overlap stay apart (2 <= MAX_LINE_FLAGS: one FLAG each)
     apart = {}
     mod._merge_checks(apart, lines_file("z", 0.5669, 0.0069, 78.0))

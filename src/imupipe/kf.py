@@ -375,8 +375,15 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
         "random-walk driving std per step is K*sqrt(dt) (the paper's sigma_p = K*dt holds only at dt = 1 s)",
         "GM states start at their steady-state variance sigma^2 (stationary, as the PSD bound requires)",
     ]
-    if not is_reduced:
+    if not is_reduced and model.random_walk > 0:
         notes.append("p (random walk) is not stationary: its initial variance is a stated input")
+    elif not is_reduced:  # the p state kept without a random walk (e.g. the verified reduction dropped K)
+        notes.append("p is the turn-on bias, constant here (no random walk: its Qd is 0): its initial variance P0 is "
+                     "the bias the filter starts with")
+    if "s_f" in cm.states:
+        notes.append("s_f is the scale factor (dimensionless) of the paper's model, driven by no noise: its P0 is the "
+                     "filter's own scale-factor uncertainty (0 unless given); it enters the rate row as -q_m s_f, "
+                     f"here with the nominal rate q_m = {q_m:g} {u}")
     if var_x or var_v or var_theta:
         notes.append("kinematic states (x, v or theta) start at the verified reference filter's variances (the fix "
                      "variance, 1 (m/s)^2 for v): a filter starts them at its own initial uncertainty, at least the "

@@ -23,14 +23,16 @@ MAX_LINE_FLAGS = 2
 
 def line_text(it: Mapping) -> tuple[str, str]:
     r"""Where one narrowband line is (``dataset/sensor/axis``, else its ``curve``) and what it is: its frequency
-    (Hz), its sinusoid amplitude :math:`A = \sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``; else its
-    sigma), and its peak PSD over the running-median floor (``peak_ratio``, dimensionless)."""
+    (Hz), its sinusoid amplitude :math:`A = \sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``) with its sd
+    :math:`\sqrt{P_1}` beside it (else the sd alone), and its peak PSD over the running-median floor (``peak_ratio``,
+    dimensionless)."""
     units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
     where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
     f = _frequency(it)
     parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
-    if it.get("amplitude") is not None:
-        parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}")
+    if it.get("amplitude") is not None:  # the peak; its sd beside it, the quantity the values to paste give
+        sd = f" (sd {num(it['sigma'])})" if it.get("sigma") is not None else ""
+        parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}{sd}")
     elif it.get("sigma") is not None:
         parts.append(f"sigma {num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
     if it.get("peak_ratio") is not None:
