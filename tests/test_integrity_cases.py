@@ -158,7 +158,7 @@ def test_a_random_walk_the_fit_gave_to_a_ramp_stays_in_each_axis_model():
 
 @pytest.mark.parametrize("sensor", ["accel", "gyro"])
 def test_exact_analysis_carries_a_narrowband_truth(sensor):
-    """tests/exact_kf.py's damped oscillator (the slow oscillation of benchmarks/slow_oscillation.py): its stationary
+    """tests/exact_kf.py's damped oscillator (the slow oscillation of benchmarks/line_integrity.py): its stationary
     covariance diag(sigma^2, w0^2 sigma^2) is invariant under the discrete step (Phi P0 Phi' + Qd = P0 to round-off),
     and the project's KF export of the same truth (imupipe.kf: its own oscillator discretisation) gives MSE/P = 1 to
     the accuracy of the matrix exponentials, as for a GM above."""
