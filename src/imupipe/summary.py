@@ -306,11 +306,11 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else "") + chance))
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
-        out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit",
-                        f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}: "
-                        "the model does not describe the Allan variance within its confidence (identify.n_gm: 2 or "
-                        "longer records may" + ("; auto then builds no envelope candidate on a rejected selected model)"
-                                                if str(bound.get("mode") or "").startswith("auto") else ")")))
+        fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}"
+        out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
+                        "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
+                        "line search's band, a lower lines.resolution_hz may" + ("; auto then builds no envelope candidate"
+                        " on a rejected selected model)" if str(bound.get("mode") or "").startswith("auto") else ")")))
     out += consistency_flags(sensor, identify)
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
