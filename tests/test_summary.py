@@ -824,8 +824,11 @@ def test_the_line_search_band_is_stated_with_its_lower_limit():
         mod._merge_checks(entry, {"dataset": "d", "sensor": "gyro", "axis": axis, "lines": [], "n_tested": 24950,
                                   "f_min_hz": 26 * 0.002, "f_max_hz": 49.95, "resolution_hz": 0.002, "alpha": 0.01})
     text = render_summary({"gyro": {"bound": {**_bound(), **entry}}})
-    assert ("- line search (lines stage, each full-rate record): 0.052 to 49.95 Hz at 0.002 Hz resolution, "
-            "family-wise level 0.01 per record and axis; a line below 0.052 Hz is not searched for") in text
+    # a found line's centre may lie just outside the tested bins (an outside evaluation read a 0.0500 Hz line beside
+    # "0.052 to 4.95 Hz"): the text says the band is of bins tested, and why
+    assert ("- line search (lines stage, each full-rate record): bins tested 0.052 to 49.95 Hz at 0.002 Hz "
+            "resolution (a found line's centre may lie up to 2 bins outside: its main lobe), family-wise level 0.01 "
+            "per record and axis; a line below 0.052 Hz is not searched for") in text
     assert "line search" not in render_summary({"gyro": {"bound": _bound()}})
 
 
