@@ -141,7 +141,7 @@ def search_band_text(searches: list) -> str | None:
         return lo if lo == hi else f"{lo}-{hi}"
 
     return (f"- line search (lines stage, each full-rate record): bins tested {span('f_min_hz')} to "
-            f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution (a found line's centre may lie up to 2 bins outside: its main "
-            f"lobe), family-wise level {span('alpha')} per record and axis; a line "
-            f"below {span('f_min_hz')} Hz is not searched for: it stays in the spectra as broadband power, which the "
-            "bound covers, not as a line term (a finer lines.resolution_hz lowers the limit)")
+            f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution (a found line's centre may lie up to 2 "
+            f"bins outside: its main lobe), family-wise level {span('alpha')} per record and axis; a line below "
+            f"{span('f_min_hz')} Hz is not searched for: it stays in the spectra as broadband power, which the bound "
+            "covers, not as a line term (a finer lines.resolution_hz lowers the limit)")
