@@ -441,19 +441,22 @@ def line_looks(X, noise) -> float:
     0.95, and an outside evaluation's filter under-stated its error, MSE/P up to 1.12).
 
     **Test.** A sinusoid of constant amplitude and frequency has, after its phase advance per segment
-    :math:`e^{i 2\pi\epsilon k}` is taken out (:math:`\epsilon` the maximum over a grid of
-    :data:`LOOKS_OFFSETS_PER_SEGMENT` K offsets of the coherent power :math:`\sum_j |\sum_k X_{kj}
-    e^{-i2\pi\epsilon k}|^2`), the same complex amplitude in every segment up to the noise: the scatter
+    :math:`e^{i 2\pi\epsilon k}` is taken out (:math:`\epsilon` maximising the coherent power
+    :math:`\sum_j |\sum_k X_{kj} e^{-i2\pi\epsilon k}|^2`: the best of :data:`LOOKS_OFFSETS_PER_SEGMENT` K offsets,
+    refined by golden-section search), the same complex amplitude in every segment up to the noise: the scatter
     :math:`\sum_{k,j} |Y_{kj} - \bar Y_j|^2` is the noise's, :math:`(K - 1)\sum_j N_j\,\chi^2_\nu/\nu`,
     :math:`\nu = 2(K - 1)\max(1, n_b/1.94)` (n_b bins, Hann-correlated: 1.94 the variance factor of a sum of
-    them). The looks stay K unless the scatter exceeds that at level :data:`LOOKS_LEVEL` (constant sinusoids had their
-    looks reduced in 1 of 220 records at K = 7-43). A chance line (noise the search took for a line) scatters like
-    the noise that made it, above the floor's level: fewer looks, the conservative side. A line coherent over the
-    whole record is a constant one in this light: not seen here (docs/method.md, "What bounded rests on").
+    them). The looks stay K unless the scatter exceeds that at level :data:`LOOKS_LEVEL`. A chance line (noise the
+    search took for a line) scatters like the noise that made it, above the floor's level: fewer looks, the
+    conservative side.
 
     **Estimate.** Where it does, r solves :math:`c(r, K) = C`, :math:`c(r, K) = (1 + 2\sum_{m=1}^{K-1}(1 - m/K)
     r^m)/K` the expected coherent fraction of K amplitudes and :math:`C = (K\sum_j|\bar Y_j|^2 - \sum_j N_j) /
-    (\sum_{k,j}|Y_{kj}|^2 - K\sum_j N_j)` the line's own, the noise's share taken out of both. The maximum over the
+    (\sum_{k,j}|Y_{kj}|^2 - K\sum_j N_j)` the line's own, the noise's share taken out of both. An r whose coherence
+    time :math:`-L/\ln r` is at least the record (:math:`r \ge e^{-1/K}`) is a line the record cannot tell from a
+    constant one (its amplitude one draw, or fixed): K looks, the assumption docs/method.md states ("What bounded rests
+    on"); without this rule a strong constant sinusoid whose floor was estimated a little low fell to one look (an
+    outside evaluation: 29 of 220 records, off-bin ones most, before the refined offset too). The maximum over the
     offsets biases C up where the line decorrelates within a segment (about 7 of 14 looks where 14 is right): the
     looks err low, the power's limit high (docs/performance.md)."""
     X = np.asarray(X, dtype=np.complex128)
@@ -463,9 +466,19 @@ def line_looks(X, noise) -> float:
     N = np.asarray(noise, dtype=np.float64).reshape(-1)
     if K < 3:
         return float(K)
-    F = np.fft.fft(X, n=LOOKS_OFFSETS_PER_SEGMENT * K, axis=0)
-    q = int(np.argmax(np.sum(F.real**2 + F.imag**2, axis=1)))
-    Y = X * np.exp(-2j * np.pi * q * np.arange(K) / (LOOKS_OFFSETS_PER_SEGMENT * K))[:, None]
+    M = LOOKS_OFFSETS_PER_SEGMENT * K
+    F = np.fft.fft(X, n=M, axis=0)
+    k = np.arange(K)
+
+    def coherent(eps):  # the coherent power at a phase advance of eps cycles per segment
+        return float(np.sum(np.abs(np.exp(-2j * np.pi * eps * k) @ X) ** 2))
+
+    a, b = (int(np.argmax(np.sum(F.real**2 + F.imag**2, axis=1))) + np.array([-1.0, 1.0])) / M
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    for _ in range(40):  # golden section within the grid's neighbours: a constant sinusoid's advance to ~1e-9
+        c, d = b - g * (b - a), a + g * (b - a)
+        a, b = (a, d) if coherent(c) > coherent(d) else (c, b)
+    Y = X * np.exp(-2j * np.pi * 0.5 * (a + b) * k)[:, None]
     Ybar = Y.mean(axis=0)
     scatter = float(np.sum(np.abs(Y - Ybar) ** 2))
     noise_scatter = float((K - 1) * np.sum(N))
@@ -481,9 +494,11 @@ def line_looks(X, noise) -> float:
     for _ in range(60):  # c(r, K) increases with r from 1/K to 1
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if _coherent_fraction(mid, K) < C else (lo, mid)
-    r2 = (0.5 * (lo + hi)) ** 2
+    r = 0.5 * (lo + hi)
+    if r >= math.exp(-1.0 / K):  # coherence time -L / ln r at least the record: not told from a constant line
+        return float(K)
     m = np.arange(1, K)
-    return float(min(K, max(1.0, K / (1.0 + 2.0 * np.sum((1.0 - m / K) * r2**m)))))
+    return float(min(K, max(1.0, K / (1.0 + 2.0 * np.sum((1.0 - m / K) * (r * r) ** m)))))
 
 
 def find_lines(
