@@ -116,6 +116,10 @@ class TestConfidenceStatement:
         assert "decorrelates within the records" in st["statement"] and "slow narrow oscillation" in st["statement"]
         marginal = confidence_statement({"identification_intervals": {"confidence": 0.95}})
         assert marginal["envelope"] == "marginal" and "each at 0.95" in marginal["statement"]
+        # components at 0.95 each hold together at 1 - k 0.05 at least (an outside evaluation): the statement says so
+        # and that the 0.95 it states for the envelope is the measured coverage
+        assert "at least 1 - k (1 - 0.95) for k components by Bonferroni" in marginal["statement"]
+        assert "97 of 100" in marginal["statement"]
         assert confidence_statement({}) is None
 
     def test_per_axis_models_state_their_own_level(self):
