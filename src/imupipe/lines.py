@@ -359,25 +359,39 @@ def detection_threshold(alpha: float, n_tested: int, n_segments: int = 1, floor_
 SPECTRUM_BATCH = 1 << 18
 
 
+def _segment_ffts(x: np.ndarray, nperseg: int):
+    """The K = len(x) // nperseg non-overlapping segments of `x`, a batch of whole segments at a time
+    (:data:`SPECTRUM_BATCH` samples, at least one segment): yields (index of the batch's first segment, the batch as
+    rows, the rfft of each row mean-removed and Hann-tapered (periodic Hann: exact main-lobe/ENBW figures))."""
+    K = x.size // nperseg
+    w = np.hanning(nperseg + 1)[:-1]
+    step = max(1, SPECTRUM_BATCH // nperseg)
+    for k0 in range(0, K, step):
+        seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
+        tapered = seg - seg.mean(axis=1, keepdims=True)
+        tapered *= w
+        yield k0, seg, np.fft.rfft(tapered, axis=1)
+
+
+def _hann_power(nperseg: int) -> float:
+    """Sum of squares of the periodic Hann window of `nperseg` samples (the periodogram's normalisation)."""
+    w = np.hanning(nperseg + 1)[:-1]
+    return float(np.sum(w * w))
+
+
 def _spectrum(x: np.ndarray, rate: float, nperseg: int):
     """One-sided density (u^2/Hz) averaged over non-overlapping mean-removed Hann segments, K, and each segment's
     level (its mean squared first difference, u^2: the white noise it holds; module docstring).
 
-    The K periodograms are summed a batch of segments at a time (:data:`SPECTRUM_BATCH` samples), then divided
-    by K: the same average as transforming all segments at once, without K segments' worth of copies."""
+    The K periodograms are summed a batch of segments at a time (:func:`_segment_ffts`), then divided by K: the same
+    average as transforming all segments at once, without K segments' worth of copies."""
     K = x.size // nperseg
-    w = np.hanning(nperseg + 1)[:-1]  # periodic Hann (exact main-lobe/ENBW figures)
-    step = max(1, SPECTRUM_BATCH // nperseg)
     total = np.zeros(nperseg // 2 + 1)
     levels = np.empty(K)
-    for k0 in range(0, K, step):
-        seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
+    for k0, seg, X in _segment_ffts(x, nperseg):
         levels[k0 : k0 + seg.shape[0]] = np.mean(np.diff(seg, axis=1) ** 2, axis=1)
-        seg = seg - seg.mean(axis=1, keepdims=True)
-        seg *= w
-        X = np.fft.rfft(seg, axis=1)
         total += (X.real**2 + X.imag**2).sum(axis=0)
-    p = total * (2.0 / (K * rate * np.sum(w * w)))
+    p = total * (2.0 / (K * rate * _hann_power(nperseg)))
     p[0] /= 2.0
     if nperseg % 2 == 0:
         p[-1] /= 2.0
@@ -396,21 +410,15 @@ def effective_segments(levels) -> float:
 
 
 def _segment_band_coefficients(x: np.ndarray, nperseg: int, bands) -> tuple[list, float]:
-    """Per band (a, b) of bin indices, the complex Fourier coefficients of every segment (the K of :func:`_spectrum`:
-    non-overlapping, mean-removed, Hann-tapered) at bins a..b, shape (K, b - a + 1) (u, unnormalised), and the
-    window's sum of squares: the periodogram of a segment at a bin is |X|^2 2/(rate sum w^2) (one-sided density).
-    A batch of segments at a time, as :func:`_spectrum`."""
+    """Per band (a, b) of bin indices, the complex Fourier coefficients of every segment (:func:`_segment_ffts`, the
+    segments of :func:`_spectrum`) at bins a..b, shape (K, b - a + 1) (u, unnormalised), and the window's sum of
+    squares: the periodogram of a segment at a bin is |X|^2 2/(rate sum w^2) (one-sided density)."""
     K = x.size // nperseg
-    w = np.hanning(nperseg + 1)[:-1]
-    step = max(1, SPECTRUM_BATCH // nperseg)
     out = [np.empty((K, b - a + 1), dtype=np.complex128) for a, b in bands]
-    for k0 in range(0, K, step):
-        seg = x[k0 * nperseg : min(K, k0 + step) * nperseg].reshape(-1, nperseg)
-        seg = (seg - seg.mean(axis=1, keepdims=True)) * w
-        X = np.fft.rfft(seg, axis=1)
+    for k0, seg, X in _segment_ffts(x, nperseg):
         for j, (a, b) in enumerate(bands):
             out[j][k0 : k0 + seg.shape[0]] = X[:, a : b + 1]
-    return out, float(np.sum(w * w))
+    return out, _hann_power(nperseg)
 
 
 #: Level of :func:`line_looks`'s test of a constant amplitude: the chance that a sinusoid of constant amplitude has
