@@ -555,3 +555,8 @@ def test_tables_stage_of_the_spec_sheet_itself_gives_ratio_one():
     assert len(rows) == 8 and all(abs(float(r["ratio"]) - 1.0) < 1e-12 for r in rows)  # N, GM sigma, T, K of each
     assert out["markdown"].startswith(f"# {spec.name}: spec sheet vs bound (raw mode)")
     assert "<table" in out["html"] and "gyro 1.25" in out["markdown"]
+    # the sensors' bounds from different modes: the title says whose is which (an outside evaluation read "auto
+    # (smoothed), auto (envelope) mode")
+    bounds["accel"] = {**bounds["accel"], "mode": "smoothed"}
+    assert tables_stage(spec, bounds)["markdown"].startswith(
+        f"# {spec.name}: spec sheet vs bound (mode: gyro raw, accel smoothed)")

@@ -45,9 +45,8 @@ def tables_stage(spec, bounds: dict, contracts: dict | None = None) -> dict:
     def fmt(v):
         return "-" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
 
-    per = dict.fromkeys(f"{r['sensor']} {r['mode']}" for r in rows)  # the mode each sensor's bound came from
-    modes = (f"{next(iter(per)).split(' ', 1)[1]} mode" if len({r["mode"] for r in rows}) == 1
-             else "mode: " + ", ".join(per))
+    modes = (f"{rows[0]['mode']} mode" if len({r["mode"] for r in rows}) == 1  # else the mode of each sensor's bound
+             else "mode: " + ", ".join(dict.fromkeys(f"{r['sensor']} {r['mode']}" for r in rows)))
     md = [f"# {spec.name}: spec sheet vs bound ({modes})", "",
           "| sensor | parameter | unit | spec | bound | bound/spec |", "|---|---|---|---|---|---|"]
     md += [f"| {r['sensor']} | {r['parameter']} | {r['unit']} | {fmt(r['spec'])} | {fmt(r['bound'])} | "
