@@ -122,7 +122,7 @@ def test_tables_csv_and_figure(bench, tiny, tmp_path):
 def test_command_lines_have_help():
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
     for script, flag in (("run.py", "--quick"), ("dag.py", "--cores"), ("line_integrity.py", "--broadband"),
-                         ("line_looks.py", "--set"), ("plan_auto.py", "--records")):
+                         ("line_looks.py", "--set"), ("plan_auto.py", "--records"), ("line_resolution.py", "seeds")):
         r = subprocess.run([sys.executable, str(BENCH / script), "--help"], cwd=PROJECT_ROOT, env=env,
                            capture_output=True, text=True, timeout=60, check=False)
         assert r.returncode == 0 and flag in r.stdout, r.stderr[-2000:]
