@@ -12,6 +12,8 @@ wandering 0.3 Hz line).
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --seeds $(seq 9100 9129) --f0 3e-4 --records 1
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband line --f0 0.3 --sd 5e-3 --zeta 2e-4 \
         --hours 2 --rate 20 --seeds $(seq 1 40)
+    OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband line --f0 7.3 --sd 3e-4 --zeta 2e-4 \
+        --hours 4 --rate 20 --seeds $(seq 71 84)
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
     """Simulate `records` records of `truth` (:class:`NoiseModel`, SI) from `seed`, run the one-call pipeline (auto,
     joint envelope, lines modelled at `lines_resolution_hz` Hz) with the spec sheet = the broadband part `base`
     (:data:`BROADBAND`) halved, and analyse the exported KF file against `truth` (tests/exact_kf.py): bounded, worst
-    MSE/P over fixes + outage, mean P/MSE over the outage, the exported candidate and its narrowband terms."""
+    MSE/P over fixes + outage, mean P/MSE over the outage, the exported candidate and its narrowband terms, the
+    identification's full and selected fits' chi2/dof."""
     from imupipe.api import noise_model
     from imupipe.simulate import simulate
 
@@ -55,7 +58,8 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
     ex = kf_against_truth(res.kf, truth, sensor, FIX_S, OUTAGE_S)
     sel = (res.verification or {}).get("auto_selection")
     return {"bounded": bool(res.bounded), "worst": ex["worst"], "mean_p_over_mse": ex["mean_p_over_mse_outage"],
-            "exported": sel["winner"] if sel else None, "narrowband_terms": len(res.bound.model.narrowband)}
+            "exported": sel["winner"] if sel else None, "narrowband_terms": len(res.bound.model.narrowband),
+            "chi2_dof_full": res.fit.chi2 / res.fit.dof, "chi2_dof_selected": res.selected.chi2 / res.selected.dof}
 
 
 def run_case(seed: int, f0_hz: float, sd: float, zeta: float, hours: float, records: int, sensor: str,
@@ -65,7 +69,8 @@ def run_case(seed: int, f0_hz: float, sd: float, zeta: float, hours: float, reco
     truth = NoiseModel(**BROADBAND[broadband], narrowband=((sd, f0_hz, zeta),))
     out = exported_against_truth(truth, broadband, seed, hours, records, sensor, rate_hz)
     return {"seed": seed, "f0_hz": f0_hz, "sd": sd, "zeta": zeta, "hours": hours, "records": records,
-            **{k: out[k] for k in ("bounded", "worst", "mean_p_over_mse", "exported")}}
+            **{k: out[k] for k in ("bounded", "worst", "mean_p_over_mse", "exported", "chi2_dof_full",
+                                   "chi2_dof_selected")}}
 
 
 def main(argv=None) -> int:

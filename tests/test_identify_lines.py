@@ -60,6 +60,29 @@ def test_line_avar_is_a_sinusoids_measured_allan_variance(f0):
         assert model == pytest.approx(closed, rel=1e-2)
 
 
+def test_line_avar_of_a_line_near_nyquist_is_its_samples_allan_variance():
+    # Samples of a sinusoid (power P = Am^2/2) every delta: the mean of m of them has the gain
+    # sin(pi f0 m delta) / (m sin(pi f0 delta)), so AVAR(m delta) = 2 P sin^4(pi f0 m delta) / (m sin(pi f0 delta))^2,
+    # 1 / sinc^2(f0 delta) times the continuous formula (1.58x at 7.3 Hz in 20 Hz samples). The Line's model term
+    # (sigma / block_gain) gives it; without the rate (gain 1) the line's AV is 0.63x its samples'. 1 %: the measured
+    # AV's end effects (one period over 4e5 samples) and the oscillator's O(zeta w0 tau) at zeta = 1e-6.
+    rate, n, am, f0 = 20.0, 400_000, 1e-3, 7.3
+    x = am * np.sin(2 * np.pi * f0 * np.arange(n) / rate + 0.3)
+    power = am**2 / 2.0
+    kw = dict(frequency_hz=f0, power=power, amplitude=am, sigma=math.sqrt(power), width_hz=2e-5, zeta=1e-6,
+              peak_ratio=1e3, f_lo_hz=7.29, f_hi_hz=7.31, resolution_hz=0.002)
+    line, bare = Line(**kw, rate_hz=rate), Line(**kw)
+    assert line.block_gain == pytest.approx(abs(math.sin(math.pi * f0 / rate) / (math.pi * f0 / rate)), rel=1e-12)
+    for m in (1, 2, 3, 5, 7, 11):
+        s4 = math.sin(math.pi * f0 * m / rate) ** 4
+        if s4 < 0.05:
+            continue
+        closed = 2.0 * power * s4 / (m * math.sin(math.pi * f0 / rate)) ** 2
+        assert overlapping_avar(x, rate, m) == pytest.approx(closed, rel=1e-2)
+        assert line_avar([m / rate], [line])[0] == pytest.approx(closed, rel=1e-2)
+        assert line_avar([m / rate], [bare])[0] == pytest.approx(closed * line.block_gain**2, rel=1e-2)
+
+
 def test_line_avar_of_lines_adds_and_accepts_line_objects():
     tau = np.array([0.3, 1.0, 3.0])
     a = (1e-3, 0.5, 0.01)

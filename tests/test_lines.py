@@ -278,6 +278,25 @@ class TestAliasing:
         model_power = 2 * np.trapezoid(m.psd_sampled(f, 1.0), f)
         assert model_power == pytest.approx(ln.power, rel=0.2)
 
+    def test_power_factor_of_a_line_near_the_record_nyquist(self):
+        # a 7.3 Hz sinusoid in 20 Hz samples, block-averaged to 1 Hz: the mean of 20 samples has the gain
+        # sin(pi f0 dt) / (20 sin(pi f0 / 20)) (closed form), not sinc(f0 dt), which is the continuous mean's
+        # (1.58x smaller in power here); the decimated record's power is the closed form's up to end effects
+        from imupipe.spectra import decimate
+
+        rate, f0, am = 20.0, 7.3, 1e-3
+        x = am * np.sin(2 * np.pi * f0 * np.arange(200_000) / rate + 0.4)
+        closed = (math.sin(math.pi * f0) / (20 * math.sin(math.pi * f0 / rate))) ** 2
+        kw = dict(frequency_hz=f0, power=am**2 / 2, amplitude=am, sigma=am / math.sqrt(2), width_hz=1e-4,
+                  zeta=1e-4 / (2 * f0), peak_ratio=1e3, f_lo_hz=7.29, f_hi_hz=7.31, resolution_hz=0.002)
+        assert decimated_line(Line(**kw, rate_hz=rate), 1.0)["power_factor"] == pytest.approx(closed, rel=1e-12)
+        assert decimated_line(Line(**kw), 1.0)["power_factor"] == pytest.approx(np.sinc(f0) ** 2, rel=1e-12)
+        xd, _ = decimate(x, rate, 1.0)
+        assert np.var(xd) == pytest.approx(closed * am**2 / 2, rel=1e-2)
+        # merged lines take the lowest rate (the smallest gain: the larger model term)
+        (m,) = merge_lines([Line(**kw, rate_hz=rate), Line(**{**kw, "frequency_hz": 7.3001}, rate_hz=100.0)])
+        assert m.rate_hz == rate and merge_lines([Line(**kw, rate_hz=rate), Line(**kw)])[0].rate_hz is None
+
 
 def _line(f0, f_lo=None, f_hi=None, power=1e-6, width=0.01):
     return Line(f0, power, math.sqrt(2 * power), math.sqrt(power), width, width / (2 * f0), 50.0,

@@ -648,8 +648,9 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
     the bound's line policy merges them (:func:`imupipe.lines.merge_lines`: one term per group of overlapping lines,
     its power the largest member's, its width covering every member), each at the upper confidence limit of its power
     at `confidence`, :math:`P_1\,\nu / \chi^2_\nu(1 - c)` with the line's degrees of freedom :math:`\nu`
-    (:attr:`imupipe.lines.Line.dof`; its point estimate where the lines file records none); sigma = sqrt(power) u,
-    f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not exclude: an outside
+    (:attr:`imupipe.lines.Line.dof`; its point estimate where the lines file records none); sigma = sqrt(power) /
+    g u (g the sample interval's gain at the line, :attr:`imupipe.lines.Line.block_gain`: the model's continuous
+    oscillator), f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not exclude: an outside
     evaluation's 150 deg/h line (two 2 h records) was estimated at 141 deg/h, and a filter on the bound that carried
     the estimate under-stated its error in the first step (MSE/P 1.003)."""
     from scipy.special import gammaincinv  # chi2.ppf(q, nu) = 2 P^{-1}(nu/2, q), without scipy.stats's import
@@ -668,13 +669,14 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
         nu = float(ln.dof)
         return float(ln.power) * nu / (2.0 * float(gammaincinv(nu / 2.0, 1.0 - float(confidence))))
 
-    return {**env, "narrowband": [{"sigma": math.sqrt(upper(ln)), "f0_hz": float(ln.frequency_hz),
+    return {**env, "narrowband": [{"sigma": math.sqrt(upper(ln)) / ln.block_gain, "f0_hz": float(ln.frequency_hz),
                                    "zeta": float(ln.zeta)} for ln in merged]}
 
 
 def _lines_record(curves, lines, known) -> dict:
-    """Per curve: the lines known to the fit (f0 Hz, amplitude and sigma u, zeta 1) and the largest share of the
-    curve's Allan variance they carry (1)."""
+    """Per curve: the lines known to the fit (f0 Hz, amplitude and sigma u of the model's continuous oscillator,
+    :attr:`imupipe.lines.Line.narrowband`, zeta 1) and the largest share of the curve's Allan variance they carry
+    (1)."""
     from imupipe.lines import Line
 
     out = {}

@@ -57,8 +57,9 @@ def null_line_sets(lines, rate: float, duration_s: float) -> list[tuple]:
     (:class:`imupipe.lines.Line`) make in its record of `duration_s` (s) block-averaged to `rate` (Hz), as the
     sets of terms the calibrated null tries (the first: each line as measured).
 
-    Each line lies at its alias :math:`f_a` (:func:`imupipe.lines.alias_frequency`) with its power times
-    :math:`\mathrm{sinc}^2(f_0/\mathrm{rate})` (the block average's gain) and its half-power width
+    Each line lies at its alias :math:`f_a` (:func:`imupipe.lines.alias_frequency`) with its model term's power
+    (:attr:`imupipe.lines.Line.narrowband`) times :math:`\mathrm{sinc}^2(f_0/\mathrm{rate})` (the block average's
+    gain) and its half-power width
     :math:`\Gamma` kept: :math:`\zeta = \min(\Gamma / (2 f_a), 1/2)`. A line folded onto 0 Hz (a multiple of the
     rate) is left out: the block average removes it. A line no wider than its search's resolution is unresolved:
     its width is an upper limit, and its amplitude may wander over any coherence time
@@ -73,7 +74,7 @@ def null_line_sets(lines, rate: float, duration_s: float) -> list[tuple]:
             fa, gain = folded
             if not _resolved(line):
                 unresolved.append(len(base))
-            base.append((line.sigma * gain, fa, min(line.width_hz / (2.0 * fa), 0.5)))
+            base.append((line.narrowband[0] * gain, fa, min(line.width_hz / (2.0 * fa), 0.5)))
     sets = [tuple(base)] if base else []
     for c in NULL_COHERENCE_RECORDS if unresolved else ():
         terms = list(base)
