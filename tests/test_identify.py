@@ -802,3 +802,44 @@ def test_gm_sigma_profile_is_not_used_when_T_sits_on_a_search_end():
             assert lo <= prof["percentile_lower"] and hi >= prof["percentile_upper"]
         else:
             assert (lo, hi) == (prof["lower"], prof["upper"])
+
+
+def test_components_dropped_one_at_a_time_are_tested_together():
+    """A held-out case (white 0.3 deg/sqrt(h), GM 3 deg/h at 600 s, random walk 0.04 (deg/h)/sqrt(s) and a 7.3 Hz
+    line, one 4 h record at 20 Hz, seed 73): the full fit spends its GM at 0.05 s and splits the long end between a
+    random walk and a flicker; each of GM, random walk and flicker passes its own test (the others stand in for it)
+    and the three were dropped together, the selected refit keeping the white noise alone (chi2/dof 261). Tested
+    together they are rejected, and the one whose return lowers the refit's chi2 most is kept until the set the data
+    show is no longer rejected against the full fit, chi2_d(1 - alpha) at the d parameters still dropped."""
+    import math
+
+    from scipy.stats import chi2
+
+    from imupipe.lines import find_lines, line_avar
+
+    d = math.pi / 180
+    truth = NoiseModel(white=0.3 / 60 * d, gauss_markov=((3 / 3600 * d, 600.0),), random_walk=0.04 / 3600 * d,
+                       narrowband=((3e-4, 7.3, 2e-4),))
+    x = simulate(truth, 4 * 3600 * 20, 20.0, rng=np.random.default_rng(73))
+    av = allan_variance(x, 20.0)
+    ok = np.isfinite(av.avar.values) & np.isfinite(av.edf.values)
+    tau, y, e = av.tau.values[ok], av.avar.values[ok], av.edf.values[ok]
+    known = line_avar(tau, find_lines(x, 20.0, resolution_hz=0.002).lines)
+    fit = fit_allan(tau, y, e, n_boot=0, dt=0.05, known_avar=known)
+    sel = select_components(fit, tau, y, e, filter_rate_hz=1.0, outage_s=3600.0)
+    det = sel["details"]
+    alone = [c for c in ("gauss_markov", "random_walk", "flicker")
+             if not (det[c]["shown_by_z"] or det[c]["shown_by_chi2"])]
+    assert len(alone) == 3  # the case: none of the three shown on its own test
+    back = [c for c in alone if det[c].get("jointly_needed")]
+    assert back and set(back) <= set(sel["kept"])
+    assert all(sel["reasons"][c].startswith("kept: not needed alone, but the data reject dropping") for c in back)
+    # the criterion, recomputed: the components the data show (kept, or shown and dropped for the band) refitted
+    shown = [c for c in fit.components if c in sel["kept"] or det[c].get("shown_by_z") or det[c].get("shown_by_chi2")]
+    refit = fit_allan(tau, y, e, components=shown, n_boot=0, dt=0.05, known_avar=known)
+    still = [c for c in alone if c not in back]
+    n = sum(2 if c == "gauss_markov" else 1 for c in still)
+    if n:
+        assert refit.chi2 - fit.chi2 <= chi2.isf(0.05, n)
+    without = fit_allan(tau, y, e, components=[c for c in shown if c not in back], n_boot=0, dt=0.05, known_avar=known)
+    assert without.chi2 - fit.chi2 > chi2.isf(0.05, n + sum(2 if c == "gauss_markov" else 1 for c in back))

@@ -138,7 +138,9 @@ def select_components(
 
     Decision: keep = data test and band test, except the random walk, which is kept whenever the data
     show it: the paper's reduced model without the random-walk state (Gallon et al. 2021, eq. 19) is
-    allowed only when the AV shows no random walk.
+    allowed only when the AV shows no random walk. With `lr_test`, the components the data tests dropped are then
+    tested together (:func:`_jointly_needed`): while the data reject dropping them all, the one whose return lowers
+    the refit's chi-squared most is kept.
 
     Parameters
     ----------
@@ -222,6 +224,8 @@ def select_components(
         keep, reason = _decision(c, data, relevant, relevance)
         (kept if keep else dropped).append(c)
         reasons[c] = f"{reason}; {why}"
+    if lr_test:
+        _keep_jointly_needed(fit, t, y, e, (kept, dropped, reasons, details), significance, known)
     if "flicker" in kept:
         reasons["flicker"] += " (not a Kalman-filter state: represented by a GM in the bound)"
     return {
@@ -234,6 +238,61 @@ def select_components(
         "significance": float(significance),
         "relevance": float(relevance),
     }
+
+
+def _n_params(fit: AllanFit, comps) -> int:
+    """Parameters of the components `comps` in `fit` (a GM term two: sigma and T)."""
+    return sum(2 * fit.n_gm if c == "gauss_markov" else 1 for c in comps if c in fit.components)
+
+
+def _keep_jointly_needed(fit: AllanFit, t, y, e, decided, significance: float, known=None) -> None:
+    """Move the components :func:`_jointly_needed` returns from dropped to kept in `decided` = (kept, dropped,
+    reasons, details) of :func:`select_components`, in place: their reason and ``jointly_needed`` detail say why."""
+    kept, dropped, reasons, details = decided
+    for c, why in _jointly_needed(fit, t, y, e, kept, details, significance, known):
+        dropped.remove(c)
+        kept.append(c)
+        details[c]["jointly_needed"] = True
+        reasons[c] = why + "; " + reasons[c].split("; ", 1)[1]
+    kept.sort(key=COMPONENTS.index)
+
+
+def _jointly_needed(fit: AllanFit, t, y, e, kept, details, significance: float, known=None) -> list:
+    r"""The components the data tests dropped one at a time that the data need together (helper of
+    :func:`select_components`): ``[(component, reason), ...]`` to keep.
+
+    Each component's test refits without it alone, so components that stand in for each other (a random walk, a
+    flicker and a GM of T near the record each raise the long end) pass it one by one and are dropped together. A
+    held-out 4 h record with a 600 s GM kept the white noise alone that way (chi2/dof 261 against the full fit's
+    2.5). The set is tested at once: the refit with the components the data show (kept, or shown and dropped for
+    the band) against the full fit, :math:`\Delta\chi^2 > \chi^2_d(1-lpha)` (d the parameters dropped for the
+    data); while it is rejected, the dropped component whose return lowers the refit's :math:`\chi^2` most is kept.
+    """
+    from scipy.special import chdtri
+
+    shown = [c for c in fit.components if c in details and details[c].get("delta_chi2") is not None
+             and (c in kept or details[c]["shown_by_z"] or details[c]["shown_by_chi2"])]
+    candidates = [c for c in fit.components if c in details and "z_crit" in details[c] and c not in shown]
+    grid = fit.T_grid if fit.T_grid.size else _default_T_grid(t)
+
+    def chi2_of(comps):
+        comps = tuple(c for c in fit.components if c in comps)
+        return float(_profile(t, y, e, comps, fit.n_gm, grid, offset=known)[0].chi2) if comps else math.inf
+
+    out = []
+    while candidates and shown:
+        d_chi2 = chi2_of(shown) - float(fit.chi2)
+        n = _n_params(fit, candidates)
+        crit = float(chdtri(n, significance))
+        if not d_chi2 > crit:
+            break
+        best = min(candidates, key=lambda c: chi2_of(shown + [c]))
+        out.append((best, f"kept: not needed alone, but the data reject dropping {', '.join(candidates)} together "
+                          f"(refit without them: delta chi2 = {d_chi2:.3g}, critical {crit:.3g} at {n} parameters); "
+                          "of them it lowers that refit's chi2 most"))
+        shown.append(best)
+        candidates.remove(best)
+    return out
 
 
 def _band_of(band_hz, filter_rate_hz, outage_s, t):
