@@ -543,6 +543,15 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
            "above are the global model, verified on every axis's envelope too" in per_head
     assert "| gyro | x | own model |" in per_head and "| gyro | y | global model |" in per_head
     assert "the axes differ" not in head.lower()
+    # the bias state's initial sd: sqrt(P0 of p) = 7.62e-5 rad/s = 7.62e-5 * 180/pi * 3600 = 15.72 deg/h, after the
+    # model's terms and before Kalibr's
+    biased = {**contract, "bias_initialisation": {"p0_random_walk": 7.62e-5 ** 2}}
+    rows = paste_rows("gyro", biased, kalibr)
+    assert rows[3][:2] == ("KF", "initial bias sd (p state, sqrt P0)") and rows[4][0] == "Kalibr"
+    assert rows[3][2] == pytest.approx(15.717, rel=1e-4) and rows[3][3] == "deg/h"
+    assert rows[3][4:] == (pytest.approx(7.62e-5, rel=1e-12), "rad/s")
+    assert "| gyro | KF | initial bias sd (p state, sqrt P0) | 15.72 | deg/h |" in first_screen(
+        render_summary({"gyro": {"bound": biased}}, kalibr=kalibr))
 
 
 def test_a_component_absent_at_zero_is_not_flagged_on_its_boundary():

@@ -21,7 +21,8 @@ from typing import Any
 
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
-from imupipe.shown import KALIBR_SI, SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
+from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
+from imupipe.shown import SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
 from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, confidence_lines, nonstationary_qualifier,
                              stretch_note, taken_in_why, unstated_t_max, within_tolerance)
 
@@ -921,58 +922,6 @@ def _inflation_rows(bound: Mapping) -> list[tuple]:
     return out
 
 
-#: Kalibr's noise fields per sensor (white, random walk).
-_KALIBR_FIELDS = {"gyro": ("gyroscope_noise_density", "gyroscope_random_walk"),
-                  "accel": ("accelerometer_noise_density", "accelerometer_random_walk")}
-
-
-def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> list[tuple]:
-    """The values a user pastes into a filter, each in the spec sheet's unit and in SI.
-
-    Rows ``(file, parameter, value_spec, unit_spec, value_si, unit_si)``: from the contract (`bound`: ``model`` in
-    SI, ``model_spec_units``) the exported filter model's white noise N (u/sqrt(Hz)), each GM's sigma (u) and T (s),
-    random walk K (u/sqrt(s)) and narrowband lines' sigma (u); from the Kalibr file (`kalibr`, its fields as read)
-    the sensor's noise density (u/sqrt(Hz)) and random walk (u/s/sqrt(Hz), which is u/sqrt(s)), converted to the
-    spec sheet's N and K units. u = rad/s (gyro) or m/s^2 (accel). A term the model lacks (0) has no row; a
-    spec-sheet unit the contract does not state gives the SI value in both columns."""
-    rows = []
-    m, mu = bound.get("model"), bound.get("model_spec_units")
-    if isinstance(m, Mapping):
-        mu = mu if isinstance(mu, Mapping) else {}
-
-        def row(name, key, v_si, shown=None):
-            if shown and isinstance(shown, Mapping) and shown.get("value") is not None and shown.get("unit"):
-                vs, us = float(shown["value"]), str(shown["unit"])
-            else:
-                vs, us = in_spec_units({**bound, "sensor": sensor}, key, v_si)
-            rows.append(("KF", name, vs, us, float(v_si), SI_SPELLING.get((sensor, key), "SI")))
-
-        if m.get("white"):
-            row("white noise N", "white", m["white"], mu.get("white"))
-        gms = m.get("gauss_markov") or []
-        gmu = mu.get("gauss_markov") or []
-        for i, term in enumerate(gms):
-            if not isinstance(term, Mapping) or not term.get("sigma"):
-                continue
-            tag = f" {i + 1}" if len(gms) > 1 else ""
-            su = gmu[i] if i < len(gmu) and isinstance(gmu[i], Mapping) else {}
-            row(f"GM sigma{tag}", "gm_sigma", term["sigma"], su.get("sigma"))
-            rows.append(("KF", f"GM T{tag}", float(term.get("T")), "s", float(term.get("T")), "s"))
-        if m.get("random_walk"):
-            row("random walk K", "random_walk", m["random_walk"], mu.get("random_walk"))
-        for t in m.get("narrowband") or []:
-            if isinstance(t, Mapping) and t.get("sigma"):
-                row(f"line at {num(t.get('f0_hz'))} Hz, sigma", "gm_sigma", t["sigma"])
-    if isinstance(kalibr, Mapping) and not kalibr.get("refused") and sensor in _KALIBR_FIELDS:
-        for field, key in zip(_KALIBR_FIELDS[sensor], ("white", "random_walk")):
-            v = kalibr.get(field)
-            if v is None:
-                continue
-            vs, us = in_spec_units({**bound, "sensor": sensor}, key, float(v))
-            rows.append(("Kalibr", field, vs, us, float(v), KALIBR_SI[(sensor, key)]))
-    return rows
-
-
 #: The heading that ends a summary's first screen (verdicts, values to paste, checks); the details follow it.
 DETAILS_HEADING = "# Details"
 
@@ -1142,8 +1091,11 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
         head += ["## Values to paste, in the spec sheet's units", "",
                  "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
                  "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
-                 "again, with the KF file's states and its initial bias variance P0: a filter that takes the bias "
-                 "as known at the start under-states its error.", "",
+                 "again, with the KF file's states and the bias state's initial sd (p, the square root of its P0): a "
+                 "filter that takes the bias as known at the start under-states its error. Kalibr has white noise "
+                 "and a bias random walk only: its pair is chosen to bound the exported model in the application "
+                 "band on its own, so it differs from the KF file's N and K where that model has a GM or lines "
+                 "(docs/method.md, \"Kalibr's pair and the in-band inflation\").", "",
                  "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
         head += _reduced_lines(runs)
