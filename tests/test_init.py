@@ -83,6 +83,12 @@ def test_headerless_record_gets_placeholders_and_says_so(tmp_path, capsys):
     sheet = (tmp_path / "o" / "datasets.tsv").read_text()
     assert "# replace every FILL_ME" in sheet and sheet.count(PLACEHOLDER) >= 8
     assert "gap_policy fill" not in sheet  # no stamps: no gaps to see
+    # an outside evaluation: `imupipe check` said "ok" on a sheet still holding placeholders; it now refuses it
+    # naming the sheet, the line and the cells (and so does `imupipe run`, whose start-up check it is)
+    assert main(["check", str(tmp_path / "o" / "config.yaml")]) == 1
+    err = capsys.readouterr().err
+    assert "datasets.tsv, line 2 (dataset 'raw'): column(s) gyro_unit, accel_unit, gyro_x" in err
+    assert "still hold the placeholder FILL_ME that 'imupipe init' wrote" in err
 
 
 def test_a_header_unit_init_cannot_read_is_named_in_the_placeholder_note(tmp_path, capsys):

@@ -97,6 +97,7 @@ def check_config(config: str | Path) -> list[str]:
 
     import yaml
 
+    from imupipe.init import PLACEHOLDER
     from imupipe.readers import FROM_FILE
     from imupipe.units import UnitError, rate_factor
 
@@ -122,13 +123,18 @@ def check_config(config: str | Path) -> list[str]:
             raise ValueError(f"{config}: datasets = {cfg['datasets']!r} but {sheet_path} does not exist")
         rows = rc.read_sheet(sheet_path, root / rc.SCHEMAS / "datasets.schema.yaml")
         for i, row in enumerate(rows.values(), start=2):
+            todo = [k for k, v in row.items() if str(v).strip() == PLACEHOLDER]
+            if todo:  # 'imupipe init' could not guess these cells; the sheet's comment lines say what each needs
+                raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): column(s) "
+                                 f"{', '.join(todo)} still hold the placeholder {PLACEHOLDER} that 'imupipe init' wrote: fill them in "
+                                 "(the sheet's comment lines say with what)")
             try:
                 check_file(sheet_row_to_kwargs(row, base_dir=root)["path"])  # a symlink loop, a Windows path
             except ValueError as exc:
                 raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): {exc}") from None
             for sensor in ("gyro", "accel"):  # the stored unit, as the ingest job reads it (imupipe.units)
                 unit = row.get(f"{sensor}_unit")
-                if unit and unit not in ("FILL_ME", FROM_FILE):  # from_file: the file's own unit, read by ingest
+                if unit and unit != FROM_FILE:  # from_file: the file's own unit, read by ingest
                     try:
                         rate_factor(unit, sensor)
                     except UnitError as exc:

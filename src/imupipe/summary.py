@@ -1100,8 +1100,10 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
         head += [f"| {se} | {fi} | {pa} | {num(vs, '{:.4g}')} | {us} |" for se, fi, pa, vs, us, _, _ in paste]
         head += _reduced_lines(runs)
         head += per_axis_export_lines(runs)
-        head += ["", "## The same values in SI", "", "| sensor | file | parameter | value | unit |",
-                 "|---|---|---|---|---|"]
+        head += ["", "## The same values in SI", "",
+                 "(Kalibr's random-walk units as Kalibr writes them, rad/s^2/sqrt(Hz) and m/s^3/sqrt(Hz), are the KF "
+                 "file's rad/s/sqrt(s) and m/s^2/sqrt(s).)", "",
+                 "| sensor | file | parameter | value | unit |", "|---|---|---|---|---|"]
         head += [f"| {se} | {fi} | {pa} | {num(vi, '{:.4g}')} | {ui} |" for se, fi, pa, _, _, vi, ui in paste]
         head.append("")
     return head
