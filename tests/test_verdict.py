@@ -139,6 +139,25 @@ class TestConfidenceStatement:
         lines = confidence_lines({"gyro": {"confidence": st}, "accel": {"confidence": st}, "mag": {}})
         assert lines == ["What BOUNDED rests on (gyro, accel): the envelope X", ""]
         assert confidence_lines({"gyro": None}) == []
+        # the first screen's sentence where the contract has one, the paragraph where it has none
+        both = {"gyro": {"confidence": {**st, "short": "X in short"}}, "accel": {"confidence": st}}
+        assert confidence_lines(both, "short") == ["What BOUNDED rests on (gyro): X in short", "",
+                                                   "What BOUNDED rests on (accel): the envelope X", ""]
+
+    def test_the_first_screen_states_it_in_one_sentence_and_the_details_in_full(self):
+        from imupipe.summary import DETAILS_HEADING, render_summary
+        from imupipe.verdict import confidence_statement
+
+        st = confidence_statement({"identification_intervals": {"confidence": 0.95, "model_adequate": False},
+                                   "upper_envelope_kind": "joint"})
+        assert st["short"].startswith("the identified upper envelope at confidence 0.95 (joint) is the one "
+                                      "statistical statement: in the other 0.05 of runs a filter on the exported "
+                                      "model can under-state its error; it assumes noise that decorrelates")
+        assert "a model the data reject" in st["short"] and len(st["short"]) < len(st["statement"]) / 2
+        text = render_summary({"gyro": {"bound": {"sensor": "gyro", "bounded": True, "confidence": st}}})
+        head, details = text.split(DETAILS_HEADING)
+        assert f"What BOUNDED rests on (gyro): {st['short']}" in head and st["statement"] not in head
+        assert "## What BOUNDED rests on" in details and f"What BOUNDED rests on (gyro): {st['statement']}" in details
 
 
 class TestAxisLevel:

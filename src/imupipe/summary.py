@@ -1235,11 +1235,14 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         lines.append("")
         lines.append("Checks: " + ("on the first screen (above)." if flags else "none failed or flagged."))
         lines.append("")
+    contracts = {k: f.get("bound") for k, f in runs.items()}
+    lines = [*(["## What BOUNDED rests on", ""] if confidence_lines(contracts) else []), *confidence_lines(contracts),
+             *lines]
     n_fail = sum(f.severity == "fail" for f in all_flags)
     n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
     head += ["| sensor | verdict | PSD margin (min S_model/target; raw mode: the sample PSDs) | verification | KF file |",
-             "|---|---|---|---|---|", *table, "", *confidence_lines({k: f.get("bound") for k, f in runs.items()})]
+             "|---|---|---|---|---|", *table, "", *confidence_lines(contracts, "short")]
     head += _paste_section(runs, paste)
     if isinstance(kalibr, Mapping):
         where = f" [{kalibr_path}]" if kalibr_path else ""

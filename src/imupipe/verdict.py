@@ -188,8 +188,9 @@ def confidence_statement(bound: Mapping) -> dict | None:
     behind ``bounded`` is exact given the identified upper envelope (the model covers it in the reference filter,
     and every sample PSD or its confidence limits in band); the envelope is the one statistical statement: the
     noise the records allow at level c (docs/method.md, "What bounded rests on"). Returns ``level`` (c),
-    ``envelope``, ``per_axis_level`` (None where no axis has its own model) and ``statement`` (one paragraph), or
-    None where the bound records no identification level."""
+    ``envelope``, ``per_axis_level`` (None where no axis has its own model), ``statement`` (one paragraph) and
+    ``short`` (its first sentence, for the summary's first screen), or None where the bound records no
+    identification level."""
     ident = bound.get("identification_intervals")
     if not isinstance(ident, Mapping) or ident.get("confidence") is None:
         return None
@@ -208,8 +209,12 @@ def confidence_statement(bound: Mapping) -> dict | None:
             f"within the records (the fit's white, GM, random-walk and flicker terms): a process coherent over a "
             f"whole record, e.g. a slow narrow oscillation, shows one random amplitude per record and is not covered "
             f"at it (docs/method.md, \"What bounded rests on\").")
+    short = (f"the identified upper envelope at confidence {c:g} ({kind}) is the one statistical statement: in the "
+             f"other {1.0 - c:.2g} of runs a filter on the exported model can under-state its error; it assumes noise "
+             f"that decorrelates within the records")
     axes = {str(lab).rsplit("/", 1)[-1] for lab in bound.get("curves") or () if "/" in str(lab)}
     if ident.get("model_adequate") is False:
+        short += ", and here a model the data reject (FLAG below: the replay is the model-free check)"
         text += (" The selected model does not describe the records' Allan variances (the adequacy test: FLAG below):"
                  " the envelope is then that of a model the data reject, and its level holds only as far as the model"
                  " does; the verification's replay of the records is the model-free check.")
@@ -227,17 +232,19 @@ def confidence_statement(bound: Mapping) -> dict | None:
     if per:
         text += (f" Each axis's own model (the KF file's per_axis) rests on its axis's envelope at {c_a:.4g}"
                  + (f" ({level['rule']})." if level and level.get("family_confidence") else "."))
-    return {"level": c, "envelope": kind, "per_axis_level": c_a if per else None, "statement": text}
+    return {"level": c, "envelope": kind, "per_axis_level": c_a if per else None, "statement": text,
+            "short": short + " (in full: the details, \"What BOUNDED rests on\")."}
 
 
-def confidence_lines(contracts: Mapping) -> list[str]:
-    """The run summary's lines under the verdict table: per distinct statement of the contracts' ``confidence``
+def confidence_lines(contracts: Mapping, key: str = "statement") -> list[str]:
+    """The run summary's lines of what BOUNDED rests on: per distinct statement of the contracts' ``confidence``
     (`contracts`: sensor -> contract dict, :func:`confidence_statement`), the sensors it holds for and the
-    statement; a blank line after. Empty where no contract states one."""
+    statement (`key`: ``"statement"``, the paragraph of the details, or ``"short"``, the first screen's sentence,
+    the paragraph where a contract has none); a blank line after. Empty where no contract states one."""
     by: dict = {}
     for sensor, contract in contracts.items():
         st = (contract or {}).get("confidence") if isinstance(contract, Mapping) else None
         if isinstance(st, Mapping) and st.get("statement"):
-            by.setdefault(str(st["statement"]), []).append(str(sensor))
+            by.setdefault(str(st.get(key) or st["statement"]), []).append(str(sensor))
     return [line for text, sensors in by.items() for line in (f"What BOUNDED rests on ({', '.join(sensors)}): {text}",
                                                                 "")]
