@@ -87,8 +87,10 @@ def test_headerless_record_gets_placeholders_and_says_so(tmp_path, capsys):
     # naming the sheet, the line and the cells (and so does `imupipe run`, whose start-up check it is)
     assert main(["check", str(tmp_path / "o" / "config.yaml")]) == 1
     err = capsys.readouterr().err
-    assert "datasets.tsv, line 2 (dataset 'raw'): column(s) gyro_unit, accel_unit, gyro_x" in err
-    assert "still hold the placeholder FILL_ME that 'imupipe init' wrote" in err
+    # the line as an editor shows it: after init's comment lines and the header
+    line = 1 + next(i for i, ln in enumerate(sheet.splitlines()) if ln.startswith("raw\t"))
+    assert f"datasets.tsv, line {line} (dataset 'raw'): column(s) gyro_unit, accel_unit, gyro_x" in err
+    assert line > 2 and "still hold the placeholder FILL_ME: fill them in" in err
 
 
 def test_a_header_unit_init_cannot_read_is_named_in_the_placeholder_note(tmp_path, capsys):

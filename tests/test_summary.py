@@ -547,10 +547,17 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
     # model's terms and before Kalibr's
     biased = {**contract, "bias_initialisation": {"p0_random_walk": 7.62e-5 ** 2}}
     rows = paste_rows("gyro", biased, kalibr)
-    assert rows[3][:2] == ("KF", "initial bias sd (p state, sqrt P0)") and rows[4][0] == "Kalibr"
+    assert rows[3][:2] == ("KF", "initial sd of the random-walk bias state p (sqrt P0)") and rows[4][0] == "Kalibr"
     assert rows[3][2] == pytest.approx(15.717, rel=1e-4) and rows[3][3] == "deg/h"
     assert rows[3][4:] == (pytest.approx(7.62e-5, rel=1e-12), "rad/s")
-    assert "| gyro | KF | initial bias sd (p state, sqrt P0) | 15.72 | deg/h |" in first_screen(
+    # the verified scenario, once for the sensors that share it
+    scen = {"horizon_s": 1800.0, "fix_s": 600.0, "verified_filter_rate_hz": 1.0, "verified_fix_rate_hz": 1.0,
+            "verified_sigma_fix": 0.001745, "verified_sigma_fix_unit": "rad"}
+    shown = first_screen(render_summary({"gyro": {"bound": {**contract, "export": scen}},
+                                         "accel": {"bound": {**contract, "sensor": "accel", "export": scen}}}))
+    assert ("Verified in (gyro, accel): the reference filter at 1 Hz, 600 s of fixes every 1 s (sd 0.00175 rad), "
+            "then an outage of 1800 s; a filter used otherwise") in shown
+    assert "| gyro | KF | initial sd of the random-walk bias state p (sqrt P0) | 15.72 | deg/h |" in first_screen(
         render_summary({"gyro": {"bound": biased}}, kalibr=kalibr))
 
 

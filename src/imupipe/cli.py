@@ -122,12 +122,13 @@ def check_config(config: str | Path) -> list[str]:
         if not sheet_path.is_file():
             raise ValueError(f"{config}: datasets = {cfg['datasets']!r} but {sheet_path} does not exist")
         rows = rc.read_sheet(sheet_path, root / rc.SCHEMAS / "datasets.schema.yaml")
-        for i, row in enumerate(rows.values(), start=2):
+        for i, row in zip(rc.sheet_lines(sheet_path), rows.values()):
             todo = [k for k, v in row.items() if str(v).strip() == PLACEHOLDER]
-            if todo:  # 'imupipe init' could not guess these cells; the sheet's comment lines say what each needs
+            if todo:  # cells 'imupipe init' could not guess (its comment lines list them) or a user left
                 raise ValueError(f"{sheet_path}, line {i} (dataset {row.get('dataset')!r}): column(s) "
-                                 f"{', '.join(todo)} still hold the placeholder {PLACEHOLDER} that 'imupipe init' wrote: fill them in "
-                                 "(the sheet's comment lines say with what)")
+                                 f"{', '.join(todo)} still hold the placeholder {PLACEHOLDER}: fill them in (the "
+                                 "file's column name, or its unit; 'imupipe init' lists what each needs when it "
+                                 "writes one)")
             try:
                 check_file(sheet_row_to_kwargs(row, base_dir=root)["path"])  # a symlink loop, a Windows path
             except ValueError as exc:

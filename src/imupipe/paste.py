@@ -24,9 +24,9 @@ def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> li
     SI, ``model_spec_units``) the exported filter model's white noise N (u/sqrt(Hz)), each GM's sigma (u) and T (s),
     random walk K (u/sqrt(s)), narrowband lines' sigma (u) and the initial standard deviation of the bias state p
     (u: the square root of its P0, ``bias_initialisation.p0_random_walk``, the variance the verification ran the
-    filter with; a filter that starts p at less under-states its error); from the Kalibr file (`kalibr`, its fields as read)
-    the sensor's noise density (u/sqrt(Hz)) and random walk (u/s/sqrt(Hz), which is u/sqrt(s)), converted to the
-    spec sheet's N and K units. u = rad/s (gyro) or m/s^2 (accel). A term the model lacks (0) has no row; a
+    filter with; a filter that starts p at less under-states its error); from the Kalibr file (`kalibr`, its fields
+    as read) the sensor's noise density (u/sqrt(Hz)) and random walk (u/s/sqrt(Hz), which is u/sqrt(s)), converted
+    to the spec sheet's N and K units. u = rad/s (gyro) or m/s^2 (accel). A term the model lacks (0) has no row; a
     spec-sheet unit the contract does not state gives the SI value in both columns."""
     rows = []
     m, mu = bound.get("model"), bound.get("model_spec_units")
@@ -59,7 +59,7 @@ def paste_rows(sensor: str, bound: Mapping, kalibr: Mapping | None = None) -> li
         bi = bound.get("bias_initialisation")
         p0 = bi.get("p0_random_walk") if isinstance(bi, Mapping) else None
         if p0 is not None and float(p0) > 0:
-            row("initial bias sd (p state, sqrt P0)", "gm_sigma", math.sqrt(float(p0)))
+            row("initial sd of the random-walk bias state p (sqrt P0)", "gm_sigma", math.sqrt(float(p0)))
     if isinstance(kalibr, Mapping) and not kalibr.get("refused") and sensor in _KALIBR_FIELDS:
         for field, key in zip(_KALIBR_FIELDS[sensor], ("white", "random_walk")):
             v = kalibr.get(field)

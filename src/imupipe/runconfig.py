@@ -24,7 +24,7 @@ from pathlib import Path
 
 __all__ = ["AXES", "RENAMED_KEYS", "axes_of", "check_cross_keys", "check_records", "check_specs", "datasets_of",
            "divides", "ingest_rule_groups", "lines_params", "load_config", "merged_config", "read_sheet",
-           "refuse_renamed_keys",
+           "refuse_renamed_keys", "sheet_lines",
            "remove_stale", "replay_from_decimated", "repo_path", "sheet_column", "simulated_datasets",
            "simulation_seeds", "span_s", "spec_path", "validate_schema"]
 
@@ -137,6 +137,14 @@ _CASTS = (("rate_hz", float, "a number (Hz)"), ("fill_max_samples", int, "an int
           ("fill_max_s", float, "a number (s)"), ("fill_max_fraction", float, "a number (fraction of the record)"))
 
 
+def sheet_lines(path) -> list[int]:
+    """The line numbers (1-based, as an editor shows them) of the data rows of the dataset sheet at `path`: every
+    line after the header that is neither a ``#`` comment nor blank (what :func:`read_sheet` reads as rows)."""
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        body = [i for i, ln in enumerate(fh, start=1) if ln.strip() and not ln.lstrip().startswith("#")]
+    return body[1:]
+
+
 def read_sheet(path, schema_path) -> dict:
     """{dataset: its non-empty cells} of the dataset sheet (TSV, ``#`` lines comments), checked one by one: the
     header (:func:`imupipe.readers.check_sheet_header`), each dataset name (it names folders), the numeric cells
@@ -156,7 +164,7 @@ def read_sheet(path, schema_path) -> dict:
     if not rows:
         raise ValueError(f"dataset sheet {str(path)!r} has no rows")
     out = {}
-    for i, row in enumerate(rows, start=2):
+    for i, row in zip(sheet_lines(path), rows):
         if None in row:
             raise ValueError(f"{path}, line {i}: {len(row[None])} more cell(s) than the header has columns"
                              f" ({len(row) - 1}); expected one cell per header column")

@@ -1085,6 +1085,25 @@ def _reduced_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
     return ["", *out] if out else []
 
 
+def _scenario_lines(runs: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The first screen's line of the scenario the exported filters were verified in (the contracts' ``export``:
+    filter rate, fix period and its sd, outage), one per distinct scenario with its sensors; a blank line after."""
+    by: dict = {}
+    for sensor, files in runs.items():
+        exp = (files.get("bound") or {}).get("export")
+        if isinstance(exp, Mapping) and exp.get("horizon_s") is not None:
+            g = "{:g}"
+            text = (f"the reference filter at {num(exp.get('verified_filter_rate_hz'), g)} Hz, "
+                    f"{num(exp.get('fix_s'), g)} s of fixes every "
+                    f"{num(1.0 / float(exp.get('verified_fix_rate_hz') or 1.0), g)} s (sd "
+                    f"{num(exp.get('verified_sigma_fix'))} {exp.get('verified_sigma_fix_unit', '')}), then an outage "
+                    f"of {num(exp.get('horizon_s'), g)} s")
+            by.setdefault(text, []).append(str(sensor))
+    return [line for text, sensors in by.items() for line in (
+        f"Verified in ({', '.join(sensors)}): {text}; a filter used otherwise (a longer outage, another rate, "
+        "rarer or more accurate fixes) is outside what was verified (application.* and verify.* in the config).", "")]
+
+
 def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[str]:
     """The first screen's values to paste: one table in the spec sheet's units, one in SI (rows of
     :func:`paste_rows` with the sensor in front); empty when there is nothing to paste."""
@@ -1093,8 +1112,9 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
         head += ["## Values to paste, in the spec sheet's units", "",
                  "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
                  "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
-                 "again, with the KF file's states and the bias state's initial sd (p, the square root of its P0): a "
-                 "filter that takes the bias as known at the start under-states its error. Kalibr has white noise "
+                 "again, with the KF file's states and their initial variances P0 (the random-walk bias state p's "
+                 "initial sd is in the table; a GM state starts at its sigma): a filter that takes the bias as known "
+                 "at the start under-states its error. Kalibr has white noise "
                  "and a bias random walk only: its pair is chosen to bound the exported model in the application "
                  "band on its own, so it differs from the KF file's N and K where that model has a GM or lines "
                  "(docs/method.md, \"Kalibr's pair and the in-band inflation\").", "",
@@ -1241,8 +1261,9 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
     n_fail = sum(f.severity == "fail" for f in all_flags)
     n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]
-    head += ["| sensor | verdict | PSD margin (min S_model/target; raw mode: the sample PSDs) | verification | KF file |",
-             "|---|---|---|---|---|", *table, "", *confidence_lines(contracts, "short")]
+    head += ["| sensor | verdict | PSD margin (min S_model / target: the exported mode's, e.g. the sample PSDs in raw "
+             "mode, the upper envelope for the envelope candidate; details: its curve) | verification | KF file |",
+             "|---|---|---|---|---|", *table, "", *_scenario_lines(runs), *confidence_lines(contracts, "short")]
     head += _paste_section(runs, paste)
     if isinstance(kalibr, Mapping):
         where = f" [{kalibr_path}]" if kalibr_path else ""

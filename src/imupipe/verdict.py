@@ -220,6 +220,8 @@ def confidence_statement(bound: Mapping) -> dict | None:
                  " does; the verification's replay of the records is the model-free check.")
     k = len(bound.get("axis_upper_envelopes") or {})
     if k:
+        short += (f"; the model is also checked on each axis's own envelope, all {k} together at least "
+                  f"{max(0.0, 1.0 - k * (1.0 - c)):.2g}")
         text += (f" The axes are pooled (the pooling test accepts one model for them), and the model is also verified "
                  f"against each axis's own envelope (each at {c:g}, all {k} together at least "
                  f"{max(0.0, 1.0 - k * (1.0 - c)):.2g}): a difference between axes the test does not detect.")
