@@ -74,7 +74,11 @@ def test_summary_flags_a_record_mostly_unused():
     assert "1800 of 7200 samples" in flags[0].detail and "75 %" in flags[0].detail and "5400 s" in flags[0].detail
     assert "psd.step_s: 900" in flags[0].detail
     text = render_summary({"gyro": {"bound": {"bounded": True, "margin": 1.2, "psd_usage": usage}}})
-    assert "FLAG record partly unused [mine/gyro]" in text
+    assert "FLAG record partly unused [mine/gyro]" in text and "the paper's setting" not in text
+    # the default run's one 7 h window of a 10 h record (the paper's setting): said so
+    paper = psd_usage_flags("gyro", [{"dataset": "sim01", "n_samples": 36000, "n_samples_used": 25200,
+                                      "window_s": 25200.0, "step_s": 36000.0, "rate_hz": 1.0}])
+    assert len(paper) == 1 and "one 7 h window is the paper's setting (Gallon et al. 2021)" in paper[0].detail
     # the rule's own setting leaves 0 % of a 2 h record: no flag; 10 % exactly is not "more than 10 %"
     assert psd_usage_flags("gyro", [{"n_samples": 7200, "n_samples_used": 7200}]) == []
     assert psd_usage_flags("gyro", [{"n_samples": 1000, "n_samples_used": 900}]) == []

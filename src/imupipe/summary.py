@@ -613,7 +613,7 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
     samples), optionally ``dataset``, ``axis``, ``rate_hz`` (Hz), ``window_s``, ``step_s`` (s). One FLAG per
     dataset (its axes share the numbers), naming the samples used, the seconds left out and the settings.
     """
-    from imupipe.defaults import psd_window_step, unused_fraction
+    from imupipe.defaults import PSD_MAX_WINDOW_S, psd_window_step, unused_fraction
 
     out, groups = [], {}
     for u in usage or []:
@@ -636,6 +636,9 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
         except ValueError:
             pass
         where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
+        if window_s is not None and float(window_s) == PSD_MAX_WINDOW_S and step_s is not None and used == round(
+                float(window_s) * rate):  # one 7 h window: the paper's setting, which the default run reproduces
+            hint += "; one 7 h window is the paper's setting (Gallon et al. 2021), kept by the default run to reproduce it"
         out.append(Flag(sensor, "record partly unused", where,
                         f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
                         f"record left out) with psd.window_s = {num(window_s, '{:g}')} s, psd.step_s = "
