@@ -48,13 +48,17 @@ def test_the_details_separate_the_identified_components_from_the_exported_states
 def test_a_reassigned_gm_flag_says_what_the_kf_file_exports():
     (f,) = [f for f in flags_of("accel", CONTRACT, IDENTIFY) if f.check == "GM re-assigned"]
     assert "bounded as the random walk" not in f.detail
-    assert "the identification reports it as the random walk K 7.74e-05 m/s^2/sqrt(s) it acts as" in f.detail
-    assert ("the exported filter model (KF file) has random walk K 0.0001 m/s^2/sqrt(s) and a GM of sigma 0.203 mg "
-            "(0.00199 m/s^2), T 44.9 s: the bound's own GM term") in f.detail and f.detail.endswith("not this GM")
+    # three short sentences (an outside evaluation: one of 120 words, no action): what, where it went, what to do
+    assert f.detail.startswith("the identified GM (sigma 0.11 mg (0.00108 m/s^2), T 388 s) is not resolved by the "
+                               "records (")
+    assert "Reported as the random walk K 7.74e-05 m/s^2/sqrt(s) it acts as" in f.detail
+    assert ("In the KF file: the exported filter model (KF file) has random walk K 0.0001 m/s^2/sqrt(s) and a GM of "
+            "sigma 0.203 mg (0.00199 m/s^2), T 44.9 s: the bound's own GM term") in f.detail
+    assert "not this GM. To resolve it: longer records" in f.detail
     # an exported model without a GM says so
     no_gm = {**CONTRACT, "model": {**CONTRACT["model"], "gauss_markov": []}}
     (f,) = [f for f in flags_of("accel", no_gm, IDENTIFY) if f.check == "GM re-assigned"]
-    assert f.detail.endswith("and no GM state")
+    assert "and no GM state. To resolve it" in f.detail
 
 
 def test_a_parameter_on_its_boundary_names_its_value_unit_and_the_range_searched():

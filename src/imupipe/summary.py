@@ -418,13 +418,16 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> st
     as_key = "white" if white else "random_walk"
     acts = f"{'white noise N' if white else 'random walk K'}"
     value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
-    text = (f"sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {num(r.get('T_s'))} s: "
-            f"{r.get('why')}; the identification reports it as the {acts}{value} it acts as (identify file, "
-            "gm_reassigned)" + ("" if white else
-                                " at taus well below T (beyond T the GM's Allan variance falls below that random "
-                                "walk's, so a model under it there can still hold the records)"))
+    text = (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
+            f"{num(r.get('T_s'))} s) is not resolved by the records ({r.get('why')}). Reported as the {acts}{value} "
+            "it acts as (identify file, gm_reassigned)" + ("." if white else
+                                " at taus well below T (beyond T its Allan variance falls below that random "
+                                "walk's, so a model under it there can still hold the records)."))
     instead = exported_instead(sensor, bound, as_key)
-    return text + (f"; {instead}" if instead else "")
+    action = (" To resolve it: a higher sample rate (at the filter's rate it is white noise)." if white else
+              " To resolve it: longer records (the longest T resolved is about 0.23 of the longest tau; identify "
+              "file, fit.T_search_s).")
+    return text + (f" In the KF file: {instead}." if instead else "") + action
 
 
 def exported_instead(sensor: str, bound: Mapping | None, as_key: str) -> str:
