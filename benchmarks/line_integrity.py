@@ -14,6 +14,8 @@ wandering 0.3 Hz line).
         --hours 2 --rate 20 --seeds $(seq 1 40)
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband line --f0 7.3 --sd 3e-4 --zeta 2e-4 \
         --hours 4 --rate 20 --seeds $(seq 71 84)
+    OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband line --f0 7.3 --sd 3e-4 --zeta 2e-3 \
+        --hours 4 --rate 20 --seeds 201 202 203 204 --scales 1 8 64
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ BROADBAND = {"slow": dict(white=2e-4, gauss_markov=((3e-5, 30.0),), random_walk=
 
 
 def exported_against_truth(truth, base: str, seed: int, hours: float, records: int, sensor: str, rate_hz: float,
-                           lines_resolution_hz: float = 0.002) -> dict:
+                           lines_resolution_hz: float = 0.002, lines_scales=(1,)) -> dict:
     """Simulate `records` records of `truth` (:class:`NoiseModel`, SI) from `seed`, run the one-call pipeline (auto,
     joint envelope, lines modelled at `lines_resolution_hz` Hz) with the spec sheet = the broadband part `base`
     (:data:`BROADBAND`) halved, and analyse the exported KF file against `truth` (tests/exact_kf.py): bounded, worst
@@ -54,7 +56,7 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
     curves = {f"d{i}/x": X[i] for i in range(records)}
     res = noise_model(curves, rate_hz, sensor, halved_spec(NoiseModel(**BROADBAND[base]), sensor), outage_s=OUTAGE_S,
                       fix_s=FIX_S, n_gm=1, mode="auto", envelope="joint", lines_policy="model",
-                      lines_resolution_hz=lines_resolution_hz)
+                      lines_resolution_hz=lines_resolution_hz, lines_scales=tuple(lines_scales))
     ex = kf_against_truth(res.kf, truth, sensor, FIX_S, OUTAGE_S)
     sel = (res.verification or {}).get("auto_selection")
     return {"bounded": bool(res.bounded), "worst": ex["worst"], "mean_p_over_mse": ex["mean_p_over_mse_outage"],
@@ -63,11 +65,11 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
 
 
 def run_case(seed: int, f0_hz: float, sd: float, zeta: float, hours: float, records: int, sensor: str,
-             rate_hz: float = 10.0, broadband: str = "slow") -> dict:
+             rate_hz: float = 10.0, broadband: str = "slow", scales=(1,)) -> dict:
     """One seed of the broadband part `broadband` plus the oscillator (sd, f0_hz, zeta):
     :func:`exported_against_truth` with the case beside it."""
     truth = NoiseModel(**BROADBAND[broadband], narrowband=((sd, f0_hz, zeta),))
-    out = exported_against_truth(truth, broadband, seed, hours, records, sensor, rate_hz)
+    out = exported_against_truth(truth, broadband, seed, hours, records, sensor, rate_hz, lines_scales=scales)
     return {"seed": seed, "f0_hz": f0_hz, "sd": sd, "zeta": zeta, "hours": hours, "records": records,
             **{k: out[k] for k in ("bounded", "worst", "mean_p_over_mse", "exported", "chi2_dof_full",
                                    "chi2_dof_selected")}}
@@ -84,10 +86,11 @@ def main(argv=None) -> int:
     ap.add_argument("--sensor", choices=["gyro", "accel"], default="gyro")
     ap.add_argument("--rate", type=float, default=10.0, help="record rate, Hz")
     ap.add_argument("--broadband", choices=sorted(BROADBAND), default="slow")
+    ap.add_argument("--scales", type=int, nargs="+", default=[1], help="lines.scales of the line search")
     a = ap.parse_args(argv)
     above, pm = 0, []
     for s in a.seeds:
-        r = run_case(s, a.f0, a.sd, a.zeta, a.hours, a.records, a.sensor, a.rate, a.broadband)
+        r = run_case(s, a.f0, a.sd, a.zeta, a.hours, a.records, a.sensor, a.rate, a.broadband, tuple(a.scales))
         above += r["bounded"] and r["worst"] > 1 + 1e-6
         pm.append(r["mean_p_over_mse"])
         print(json.dumps(r), flush=True)

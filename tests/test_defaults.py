@@ -20,7 +20,8 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "lines.floor_window_bins": "lines_floor_window_bins", "identify.envelope": "envelope",
            "application.filter_rate_hz": "filter_rate_hz", "application.outage_s": "outage_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
-           "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s"}
+           "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s",
+           "lines.scales": "lines_scales"}
 
 
 def test_config_yaml_ships_the_table():

@@ -378,3 +378,43 @@ def test_adis16405_accelerometer_line(shared_data, rec):
         assert ln.peak_ratio > 10 * res.threshold
         assert 3e-4 < ln.amplitude < 3e-3
         assert decimated_line(ln, 1.0)["alias_hz"] == pytest.approx(0.435, abs=0.01)
+
+
+class TestScales:
+    """find_lines(scales=...): a resonance wider than about a tenth of the floor window lifts its own running median
+    at the finest resolution; a search at a coarser one finds it (an outside evaluation's case)."""
+
+    def test_a_wide_resonance_is_found_at_a_coarser_resolution(self):
+        # 2 h at 100 Hz: a 40 Hz oscillator of damping 0.003 (half-power width 0.24 Hz, 120 bins at 0.002 Hz: the
+        # 51-bin floor sits on it) and sd 6x the white noise's per-sample sd, over white noise and a GM. At 64 x 0.002
+        # Hz (0.128 Hz bins, 921 segments) it is about two bins wide. Its power is summed over the significant bins
+        # and 2 more each side, at least 3 half-widths: the Lorentzian's tails beyond lose up to 1 - (2/pi) atan(3) =
+        # 20 % of the power, the averaged bins' scatter (921 segments) a few percent: sigma in [0.8, 1.05] x truth.
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+
+        d = math.pi / 180
+        white = 0.3 / 60 * d
+        sd = 6 * white * math.sqrt(100.0)
+        m = NoiseModel(white=white, gauss_markov=((2 / 3600 * d, 300.0),), narrowband=((sd, 40.0, 0.003),))
+        x = simulate(m, 720_000, 100.0, rng=np.random.default_rng(11))
+        assert find_lines(x, 100.0, resolution_hz=0.002).lines == ()  # the case: the floor follows the resonance
+        res = find_lines(x, 100.0, resolution_hz=0.002, scales=(1, 8, 64))
+        (ln,) = res.lines
+        assert abs(ln.frequency_hz - 40.0) < 2 * ln.resolution_hz and ln.resolution_hz == pytest.approx(100 / 781)
+        assert 0.8 * sd <= ln.sigma <= 1.05 * sd
+        assert [s["scale"] for s in res.scales] == [1, 8, 64] and res.alpha == 0.01
+        assert all(s["alpha"] == pytest.approx(0.01 / 3) for s in res.scales)
+        assert res.to_dict()["scales"][2]["n_lines"] == 1 and res.resolution_hz == pytest.approx(0.002)
+
+    def test_a_narrow_line_keeps_its_finest_estimate(self, rng):
+        # a sinusoid: every scale finds it with about the same power, so the finest search's line (narrowest width,
+        # the best frequency) stays
+        x = _record(rng, 400_000, [(12.345, 3 * AMP)])
+        one = find_lines(x, RATE, resolution_hz=0.01)
+        many = find_lines(x, RATE, resolution_hz=0.01, scales=(1, 8))
+        (a,), (b,) = one.lines, many.lines
+        assert b.resolution_hz == a.resolution_hz and b.frequency_hz == pytest.approx(a.frequency_hz, abs=1e-3)
+        assert b.power == pytest.approx(a.power, rel=0.1)  # the level alpha/2 moves the threshold, not the line
+        with pytest.raises(ValueError, match="increasing integers"):
+            find_lines(x, RATE, resolution_hz=0.01, scales=(8, 1))

@@ -458,6 +458,19 @@ class TestNullWithLines:
             assert v["stationary"] and null["white"] > 0, null
             assert [g for g in null["gauss_markov"] if 30.0 <= g["T"] <= 3000.0], null
 
+    def test_a_line_broadband_in_the_record_is_not_notched(self):
+        # an outside evaluation's resonance: 40 Hz, 0.24 Hz wide (damping 0.003), block-averaged to 1 Hz folds onto
+        # 0 Hz; its notch (10 half-power widths each side) would take the whole 0-0.5 Hz band, leaving the test no
+        # record to read: it is not notched (the null carries it). A line at 0.3 Hz, 0.004 Hz wide, is.
+        from imupipe.lines import _line
+        from imupipe.stages.stationarity import NOTCH_MAX_SHARE, notch_bands
+
+        wide = _line(40.2, 1e-4, 0.24, peak_ratio=50.0, f_lo_hz=39.9, f_hi_hz=40.5, resolution_hz=0.128)
+        narrow = self.line(0.3, 1e-6, 0.004)
+        bands = notch_bands([wide, narrow], 1.0, 7200)
+        assert len(bands) == 1 and bands[0][0] < 0.3 < bands[0][1]
+        assert bands[0][1] - bands[0][0] <= NOTCH_MAX_SHARE * 0.5
+
     def test_notch_removes_the_band_only(self):
         from imupipe.stationarity import notch
 

@@ -48,6 +48,7 @@ DEFAULTS: dict[str, object] = {
     "lines.resolution_hz": 0.002,
     "lines.alpha": 0.01,
     "lines.floor_window_bins": 51,
+    "lines.scales": [1],
     "verify.fix_s": 600.0,
     "verify.reduce": True,
     "verify.replay_z": 2.0,

@@ -18,6 +18,7 @@ rule lines:
         resolution_hz=config["lines"]["resolution_hz"],
         alpha=config["lines"]["alpha"],
         floor_window_bins=config["lines"]["floor_window_bins"],
+        scales=config["lines"].get("scales", [1]),
     group:
         "per_axis"
     threads: 1

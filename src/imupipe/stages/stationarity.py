@@ -89,6 +89,8 @@ def null_line_sets(lines, rate: float, duration_s: float) -> list[tuple]:
 #: Half-width of a line's notch beyond its interval (:func:`notch_bands`): bins of the record's spectrum, and
 #: multiples of the line's half-power width.
 NOTCH_BINS, NOTCH_WIDTHS = 25, 10.0
+#: Largest share of the record's band one line's notch may take (:func:`notch_bands`).
+NOTCH_MAX_SHARE = 0.5
 
 
 def notch_bands(lines, rate: float, n: int) -> list[tuple[float, float]]:
@@ -99,7 +101,10 @@ def notch_bands(lines, rate: float, n: int) -> list[tuple[float, float]]:
     (rate / n Hz each) and, for a resolved line (wider than its search's resolution), :data:`NOTCH_WIDTHS`
     half-power widths :math:`\Gamma`. What a notch leaves of a line
     leaks from beyond it: about :math:`2/(\pi^2 w)` of a sinusoid's power beyond w bins (0.8 % at 25) and
-    :math:`\Gamma/(\pi \Delta)` of a Lorentzian's beyond :math:`\Delta` Hz (3 % at 10 widths)."""
+    :math:`\Gamma/(\pi \Delta)` of a Lorentzian's beyond :math:`\Delta` Hz (3 % at 10 widths). A line whose notch
+    would take more than :data:`NOTCH_MAX_SHARE` of the band [0, rate/2] is broadband in the record (a resonance
+    wider than the band it folds into: 40 Hz in 100 Hz records at damping 0.003, 0.24 Hz wide, block-averaged to 1
+    Hz, had its notch take the whole band): it is not notched, the null carries it (:func:`null_line_sets`)."""
     from imupipe.lines import decimated_line
 
     out = []
@@ -107,7 +112,9 @@ def notch_bands(lines, rate: float, n: int) -> list[tuple[float, float]]:
         if _in_record(line, rate) is not None:
             d = decimated_line(line, 1.0 / float(rate))
             margin = max(NOTCH_BINS * float(rate) / n, NOTCH_WIDTHS * line.width_hz if _resolved(line) else 0.0)
-            out.append((max(0.0, d["f_lo_hz"] - margin), d["f_hi_hz"] + margin))
+            lo, hi = max(0.0, d["f_lo_hz"] - margin), d["f_hi_hz"] + margin
+            if min(hi, 0.5 * float(rate)) - lo <= NOTCH_MAX_SHARE * 0.5 * float(rate):
+                out.append((lo, hi))
     return out
 
 
