@@ -418,3 +418,11 @@ class TestScales:
         assert b.power == pytest.approx(a.power, rel=0.1)  # the level alpha/2 moves the threshold, not the line
         with pytest.raises(ValueError, match="increasing integers"):
             find_lines(x, RATE, resolution_hz=0.01, scales=(8, 1))
+
+    def test_a_scale_whose_band_is_empty_is_skipped(self, rng):
+        # at 10 Hz the 64 x 0.002 Hz search's 51-bin floor window (6.5 Hz) leaves no bin between half a window above 0
+        # and half a window below 5 Hz: it is skipped (and the level is split over the scales searched)
+        x = _record(rng, 72_000, [(2.345, 3 * AMP)], rate=10.0)
+        res = find_lines(x, 10.0, resolution_hz=0.002, scales=(1, 8, 64))
+        assert [s["scale"] for s in res.scales] == [1, 8] and res.scales[0]["alpha"] == pytest.approx(0.005)
+        assert len(res.lines) == 1 and abs(res.lines[0].frequency_hz - 2.345) < 0.01

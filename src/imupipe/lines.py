@@ -672,7 +672,8 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     s times more hertz. A coarser search's line is kept where no finer line lies in its interval, and replaces the
     finer lines inside it where its power exceeds theirs by :data:`WIDER_LINE_POWER_RATIO` (the finer search saw
     part of it); else the finer lines stay (a narrow line is measured best at the finest resolution). A scale whose
-    segments would be shorter than 16 samples or longer than the series is skipped. Returns the finest search's
+    segments would be shorter than 16 samples or longer than the series, or whose tested band holds no bin (a floor
+    window wider than the band: 64 x 0.002 Hz at 10 Hz), is skipped. Returns the finest search's
     :class:`LineSearch` with the combined lines, the level alpha and ``scales`` (each searched scale's resolution,
     segments, tested bins, threshold, level and lines found)."""
     from dataclasses import replace
@@ -680,7 +681,14 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     x = np.asarray(x, dtype=np.float64).ravel()
     if not scales or any(v < 1 for v in scales) or list(scales) != sorted(set(scales)):
         raise ValueError(f"scales must be increasing integers >= 1, got {scales!r}")
-    usable = [v for v in scales if 16 <= round(float(rate) / (float(resolution_hz) * v)) <= x.size]
+    def usable_scale(v):
+        nper = round(float(rate) / (float(resolution_hz) * v))
+        df, half = float(rate) / max(nper, 1), (int(kw.get("floor_window_bins", 51)) | 1) // 2
+        lo = (half + 1) * df if kw.get("f_min_hz") is None else float(kw["f_min_hz"])
+        hi = 0.5 * float(rate) - half * df if kw.get("f_max_hz") is None else float(kw["f_max_hz"])
+        return 16 <= nper <= x.size and hi - lo >= df
+
+    usable = [v for v in scales if usable_scale(v)]
     if not usable or usable[0] != scales[0]:  # the finest must run: its own error names what is wrong
         return find_lines(x, rate, resolution_hz=resolution_hz * scales[0], alpha=alpha, **kw)
     searches = [find_lines(x, rate, resolution_hz=resolution_hz * v, alpha=alpha / len(usable), **kw) for v in usable]
