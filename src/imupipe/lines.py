@@ -668,14 +668,16 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
 
     A resonance wider than about a tenth of the floor window lifts its own running median: at the finest resolution
     it is found too weak or not at all (40 Hz in 100 Hz records at damping 0.001-0.01, 1000x its floor: no line at
-    0.002 Hz; a 7.3 Hz line 15 bins wide: 0.3x its power). At a resolution s times coarser the floor window spans
-    s times more hertz. A coarser search's line is kept where no finer line lies in its interval, and replaces the
-    finer lines inside it where its power exceeds theirs by :data:`WIDER_LINE_POWER_RATIO` (the finer search saw
-    part of it); else the finer lines stay (a narrow line is measured best at the finest resolution). A scale whose
-    segments would be shorter than 16 samples or longer than the series, or whose tested band holds no bin (a floor
-    window wider than the band: 64 x 0.002 Hz at 10 Hz), is skipped. Returns the finest search's
-    :class:`LineSearch` with the combined lines, the level alpha and ``scales`` (each searched scale's resolution,
-    segments, tested bins, threshold, level and lines found)."""
+    0.002 Hz; a 7.3 Hz line 15 bins wide: 0.3x its power). At a resolution s times coarser the floor window spans s
+    times more hertz. A coarser search's line is kept where no finer line lies in its interval, and replaces the
+    finer line inside it where its power exceeds that line's by :data:`WIDER_LINE_POWER_RATIO` (the finer search saw
+    part of it); where several finer lines lie inside (resonances the coarse bins merge, e.g. 30 and 31 Hz at 0.128
+    Hz bins: one line at 30.5 Hz, in the trough between them), they stay at their frequencies with their powers
+    scaled to the coarse line's; else the finer lines stay (a narrow line is measured best at the finest
+    resolution). A scale whose segments would be shorter than 16 samples or longer than the series, or whose tested
+    band holds no bin (a floor window wider than the band: 64 x 0.002 Hz at 10 Hz), is skipped. Returns the finest
+    search's :class:`LineSearch` with the combined lines, the level alpha and ``scales`` (each searched scale's
+    resolution, segments, tested bins, threshold, level and lines found)."""
     from dataclasses import replace
 
     x = np.asarray(x, dtype=np.float64).ravel()
@@ -697,10 +699,15 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
         for ln in search.lines:
             inside = [k for k in kept if ln.f_lo_hz <= k.frequency_hz <= ln.f_hi_hz
                       or k.f_lo_hz <= ln.frequency_hz <= k.f_hi_hz]
+            total = sum(k.power for k in inside)
             if not inside:
                 kept.append(ln)
-            elif ln.power > WIDER_LINE_POWER_RATIO * sum(k.power for k in inside):
+            elif ln.power > WIDER_LINE_POWER_RATIO * total and len(inside) == 1:
                 kept = [k for k in kept if k not in inside] + [ln]
+            elif ln.power > WIDER_LINE_POWER_RATIO * total:  # several lines the coarse bins merge: theirs, scaled
+                scaled = [replace(k, power=k.power * ln.power / total, amplitude=k.amplitude * math.sqrt(
+                    ln.power / total), sigma=k.sigma * math.sqrt(ln.power / total)) for k in inside]
+                kept = [k for k in kept if k not in inside] + scaled
     summary = tuple({"scale": int(v), "resolution_hz": float(sr.resolution_hz), "n_segments": int(sr.n_segments),
                      "n_tested": int(sr.n_tested), "threshold": float(sr.threshold), "alpha": float(sr.alpha),
                      "n_lines": len(sr.lines)} for v, sr in zip(usable, searches))

@@ -211,8 +211,11 @@ def _sigma_deltas_at_k(t, y, e, comps, rest, no_gm, n_gm, grid, bgrid, k, n_boot
     out = np.full(int(n_boot), np.nan)
     for b, ystar in enumerate(_replicates(bootstrap, model_k, mean, e, cid, ms, lengths, rates, n_boot, rng,
                                           known=known)):
-        sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid, offset=known)
-        local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
-        held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m, known=known)
+        try:  # a replicate AV many decades below its mean (a held K far above the data's) overflows the weights
+            sol, _ = _profile(t, ystar, e, comps, n_gm, bgrid, offset=known)
+            local = _near_grid(bgrid, sol.T[0]) if sol.T and np.isfinite(sol.T[0]) else bgrid
+            held_s = _gm_sigma_held(t, ystar, e, no_gm, s2, local, m0=sol.m, known=known)
+        except ValueError:  # the NumPy path's NNLS refuses the overflowed weights: the replicate's fit failed
+            continue
         out[b] = max(held_s.chi2 - sol.chi2, 0.0)
     return out
