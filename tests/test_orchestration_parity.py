@@ -98,7 +98,7 @@ def both(request):
         mode=b["mode"], bound_confidence=b["confidence"], bands_per_decade=b["bands_per_decade"],
         lines_policy=cfg["lines"]["policy"][sensor], lines_resolution_hz=cfg["lines"]["resolution_hz"],
         lines_alpha=cfg["lines"]["alpha"], lines_floor_window_bins=cfg["lines"]["floor_window_bins"],
-        fix_s=ver["fix_s"], fix_rate_hz=ver.get("fix_rate_hz"),
+        lines_scales=tuple(cfg["lines"].get("scales", [1])), fix_s=ver["fix_s"], fix_rate_hz=ver.get("fix_rate_hz"),
         sigma_fix=ver["sigma_fix_m"] if sensor == "accel" else ver["sigma_fix_rad"], reduce=ver["reduce"],
         replay_z=ver["replay_z"], truth=work / cfg["simulation"]["truth"] if cfg.get("simulation") else None,
         stationarity={k: cfg["stationarity"][k] for k in ("n_segments", "alpha", "test", "n_sim", "n_sim_max",
