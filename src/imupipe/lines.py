@@ -606,8 +606,7 @@ def find_lines(
     # running median over W bins (edges mirrored), normalised to the mean level
     win = np.lib.stride_tricks.sliding_window_view(np.pad(p, W // 2, mode="symmetric"), W)
     floor = np.median(win, axis=1) / _gamma_median(K)
-    lo = (W // 2 + 1) * df if f_min_hz is None else float(f_min_hz)
-    hi = f[-1] - (W // 2) * df if f_max_hz is None else float(f_max_hz)
+    lo, hi = _tested_band(df, f[-1], W, f_min_hz, f_max_hz)
     tested = (f >= lo) & (f <= hi) & (floor > 0)
     M = int(tested.sum())
     if M == 0:
@@ -657,6 +656,15 @@ def find_lines(
     )
 
 
+def _tested_band(df: float, f_top: float, W: int, f_min_hz=None, f_max_hz=None) -> tuple[float, float]:
+    """(lo, hi), Hz, of the bins a search of bin spacing `df` and top bin `f_top` (Hz) tests with a floor window of
+    `W` bins (odd): `f_min_hz` / `f_max_hz` where given, else half a window above 0 and below the top bin, where the
+    running median is two-sided (:func:`find_lines`)."""
+    lo = (W // 2 + 1) * df if f_min_hz is None else float(f_min_hz)
+    hi = f_top - (W // 2) * df if f_max_hz is None else float(f_max_hz)
+    return lo, hi
+
+
 #: How much more power a coarser search's line must carry than the finer lines inside its interval to replace them
 #: (a resonance the finer search saw only in part, its floor lifted by the resonance itself).
 WIDER_LINE_POWER_RATIO = 1.5
@@ -685,9 +693,9 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
         raise ValueError(f"scales must be increasing integers >= 1, got {scales!r}")
     def usable_scale(v):
         nper = round(float(rate) / (float(resolution_hz) * v))
-        df, half = float(rate) / max(nper, 1), (int(kw.get("floor_window_bins", 51)) | 1) // 2
-        lo = (half + 1) * df if kw.get("f_min_hz") is None else float(kw["f_min_hz"])
-        hi = 0.5 * float(rate) - half * df if kw.get("f_max_hz") is None else float(kw["f_max_hz"])
+        df = float(rate) / max(nper, 1)
+        lo, hi = _tested_band(df, (nper // 2) * df, int(kw.get("floor_window_bins", 51)) | 1, kw.get("f_min_hz"),
+                              kw.get("f_max_hz"))
         return 16 <= nper <= x.size and hi - lo >= df
 
     usable = [v for v in scales if usable_scale(v)]

@@ -641,7 +641,8 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
         where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
         if window_s is not None and float(window_s) == PSD_MAX_WINDOW_S and step_s is not None and used == round(
                 float(window_s) * rate):  # one 7 h window: the paper's setting, which the default run reproduces
-            hint += "; one 7 h window is the paper's setting (Gallon et al. 2021), kept by the default run to reproduce it"
+            hint += ("; one 7 h window is the paper's setting (Gallon et al. 2021), kept by the default run to "
+                     "reproduce it")
         out.append(Flag(sensor, "record partly unused", where,
                         f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
                         f"record left out) with psd.window_s = {num(window_s, '{:g}')} s, psd.step_s = "
@@ -1262,8 +1263,8 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         lines.append("Checks: " + ("on the first screen (above)." if flags else "none failed or flagged."))
         lines.append("")
     contracts = {k: f.get("bound") for k, f in runs.items()}
-    lines = [*(["## What BOUNDED rests on", ""] if confidence_lines(contracts) else []), *confidence_lines(contracts),
-             *lines]
+    rests_on = confidence_lines(contracts)
+    lines = [*(["## What BOUNDED rests on", ""] if rests_on else []), *rests_on, *lines]
     n_fail = sum(f.severity == "fail" for f in all_flags)
     n_flag = len(all_flags) - n_fail + bool(isinstance(kalibr, Mapping) and kalibr.get("refused"))
     head = [f"# {title}", "", f"**Verdict:** {'; '.join(verdicts)}. {n_fail} failed, {n_flag} flagged check(s).", ""]

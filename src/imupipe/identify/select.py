@@ -265,7 +265,7 @@ def _jointly_needed(fit: AllanFit, t, y, e, kept, details, significance: float, 
     flicker and a GM of T near the record each raise the long end) pass it one by one and are dropped together. A
     held-out 4 h record with a 600 s GM kept the white noise alone that way (chi2/dof 261 against the full fit's
     2.5). The set is tested at once: the refit with the components the data show (kept, or shown and dropped for
-    the band) against the full fit, :math:`\Delta\chi^2 > \chi^2_d(1-lpha)` (d the parameters dropped for the
+    the band) against the full fit, :math:`\Delta\chi^2 > \chi^2_d(1-\alpha)` (d the parameters dropped for the
     data); while it is rejected, the dropped component whose return lowers the refit's :math:`\chi^2` most is kept.
     """
     from scipy.special import chdtri

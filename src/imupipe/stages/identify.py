@@ -650,9 +650,9 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
     at `confidence`, :math:`P_1\,\nu / \chi^2_\nu(1 - c)` with the line's degrees of freedom :math:`\nu`
     (:attr:`imupipe.lines.Line.dof`; its point estimate where the lines file records none); sigma = sqrt(power) /
     g u (g the sample interval's gain at the line, :attr:`imupipe.lines.Line.block_gain`: the model's continuous
-    oscillator), f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not exclude: an outside
-    evaluation's 150 deg/h line (two 2 h records) was estimated at 141 deg/h, and a filter on the bound that carried
-    the estimate under-stated its error in the first step (MSE/P 1.003)."""
+    oscillator), f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not
+    exclude: an outside evaluation's 150 deg/h line (two 2 h records) was estimated at 141 deg/h, and a filter on the
+    bound that carried the estimate under-stated its error in the first step (MSE/P 1.003)."""
     from scipy.special import gammaincinv  # chi2.ppf(q, nu) = 2 P^{-1}(nu/2, q), without scipy.stats's import
 
     from imupipe.lines import Line, merge_lines
