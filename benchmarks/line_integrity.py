@@ -42,9 +42,11 @@ BROADBAND = {"slow": dict(white=2e-4, gauss_markov=((3e-5, 30.0),), random_walk=
 
 
 def exported_against_truth(truth, base: str, seed: int, hours: float, records: int, sensor: str, rate_hz: float,
-                           lines_resolution_hz: float = 0.002, lines_scales=(1,)) -> dict:
+                           lines_resolution_hz: float = 0.002, lines_scales=(1,),
+                           lines_low_band_resolution_hz: float | None = None) -> dict:
     """Simulate `records` records of `truth` (:class:`NoiseModel`, SI) from `seed`, run the one-call pipeline (auto,
-    joint envelope, lines modelled at `lines_resolution_hz` Hz) with the spec sheet = the broadband part `base`
+    joint envelope, lines modelled at `lines_resolution_hz` Hz, `lines_scales`, `lines_low_band_resolution_hz`) with
+    the spec sheet = the broadband part `base`
     (:data:`BROADBAND`) halved, and analyse the exported KF file against `truth` (tests/exact_kf.py): bounded, worst
     MSE/P over fixes + outage, mean P/MSE over the outage, the exported candidate and its narrowband terms, the
     identification's full and selected fits' chi2/dof."""
@@ -56,7 +58,8 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
     curves = {f"d{i}/x": X[i] for i in range(records)}
     res = noise_model(curves, rate_hz, sensor, halved_spec(NoiseModel(**BROADBAND[base]), sensor), outage_s=OUTAGE_S,
                       fix_s=FIX_S, n_gm=1, mode="auto", envelope="joint", lines_policy="model",
-                      lines_resolution_hz=lines_resolution_hz, lines_scales=tuple(lines_scales))
+                      lines_resolution_hz=lines_resolution_hz, lines_scales=tuple(lines_scales),
+                      lines_low_band_resolution_hz=lines_low_band_resolution_hz)
     ex = kf_against_truth(res.kf, truth, sensor, FIX_S, OUTAGE_S)
     sel = (res.verification or {}).get("auto_selection")
     return {"bounded": bool(res.bounded), "worst": ex["worst"], "mean_p_over_mse": ex["mean_p_over_mse_outage"],

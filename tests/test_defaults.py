@@ -21,7 +21,7 @@ API_ARG = {"decimate.rate_hz": "decimate_hz", "psd.taper": "taper", "psd.detrend
            "application.filter_rate_hz": "filter_rate_hz", "application.outage_s": "outage_s",
            "bound.mode": "mode", "bound.confidence": "bound_confidence", "bound.bands_per_decade": "bands_per_decade",
            "lines.resolution_hz": "lines_resolution_hz", "lines.alpha": "lines_alpha", "verify.fix_s": "fix_s",
-           "lines.scales": "lines_scales"}
+           "lines.scales": "lines_scales", "lines.low_band_resolution_hz": "lines_low_band_resolution_hz"}
 
 
 def test_config_yaml_ships_the_table():

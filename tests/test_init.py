@@ -57,7 +57,7 @@ def test_init_writes_a_sheet_and_a_config_that_validate(record, tmp_path, capsys
     # the rule: 2 h at 1 Hz -> W = 1800 s, S = 900 s, outage = min(3600, W, T - fix_s) = 1800 s
     assert (c["decimate"]["rate_hz"], c["psd"]["window_s"], c["psd"]["step_s"]) == (1.0, 1800.0, 900.0)
     assert c["application"] == {"filter_rate_hz": 1.0, "outage_s": 1800.0} and "verify" not in c
-    assert c["lines"] == {"scales": [1, 8, 64]}
+    assert c["lines"] == {"scales": [1, 8, 64], "low_band_resolution_hz": 1 / 1800.0}  # 1 / psd.window_s
     n = int(HOURS * 3600 * c["decimate"]["rate_hz"])
     assert welch_unused(n, 1800, 900) <= MAX_UNUSED_FRACTION * n
     for key in ("window_s", "step_s", "scales"):  # every derived value carries its rule as a comment

@@ -443,3 +443,55 @@ class TestScales:
         # times each); the floor the coarse search reads is lifted a little by their tails: [0.8, 1.05] x the truth
         total = sum(ln.power for ln in res.lines)
         assert 0.8 * 2 * 8e-3**2 <= total <= 1.05 * 2 * 8e-3**2
+
+
+class TestLowBand:
+    """find_lines(low_band_resolution_hz=...): the band below the first search's lowest tested bin (half a floor
+    window of resolution_hz: 0.052 Hz at 0.002 Hz and 51 bins) searched at a finer bin spacing (an outside
+    evaluation's 0.03 Hz line, covered by broadband terms at mean P/MSE in the thousands)."""
+
+    RATE = 20.0
+    N = 288_000  # 4 h at 20 Hz: four segments of 3600 s at 1/3600 Hz
+
+    def test_a_line_below_the_band_is_found_at_the_finer_resolution(self, rng):
+        # a sinusoid of amplitude AMP at 0.0313 Hz (112.7 bins of 1/3600 Hz) over white noise: peak density ~ (A^2/2)
+        # (2/3)/df = 3.5e-3 u^2/Hz, 1700x the floor 2 N^2. Its power is the excess summed over the main lobe and 2
+        # bins each side: the Hann lobe leaves < 0.1 % outside, the floor's share of the 9 bins is 9 x 2e-6 x df =
+        # 5e-9 u^2 of the line's 1.4e-6 with a scatter of half that (K = 4): power within 2 % of A^2/2
+        x = _record(rng, self.N, [(0.0313, AMP)], rate=self.RATE)
+        plain = find_lines(x, self.RATE, resolution_hz=0.002)
+        assert plain.lines == () and plain.f_min_hz == pytest.approx(26 * 0.002)
+        res = find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=1 / 3600)
+        (ln,) = res.lines
+        assert abs(ln.frequency_hz - 0.0313) < 2 / 3600 and ln.resolution_hz == pytest.approx(1 / 3600)
+        assert ln.power == pytest.approx(AMP**2 / 2, rel=0.02)
+        low = res.low_band
+        assert low["alpha"] == pytest.approx(0.005) and res.alpha == 0.01 and res.scales == ()
+        # the low band ends one of its bins below the first search's lowest tested bin and starts half its own floor
+        # window above 0; the first search's own statement (resolution, segments, threshold) is kept
+        assert low["f_max_hz"] == pytest.approx(26 * 0.002 - 1 / 3600) and low["f_min_hz"] == pytest.approx(26 / 3600)
+        assert res.f_min_hz == low["f_min_hz"] and res.resolution_hz == pytest.approx(0.002)
+        assert low["n_segments"] == 4 and res.n_segments == plain.n_segments
+        assert res.to_dict()["low_band"]["n_lines"] == 1
+        assert res.to_dataset().attrs["low_band_resolution_hz"] == pytest.approx(1 / 3600)
+
+    def test_a_line_both_searches_see_is_kept_once_at_the_finer_estimate(self, rng):
+        # 0.051 Hz: below the first search's lowest tested bin (0.052 Hz), its main lobe inside; both find it, the
+        # finer search's line stays (about the same power: the coarser one does not replace it)
+        x = _record(rng, self.N, [(0.051, 3 * AMP)], rate=self.RATE)
+        res = find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=1 / 3600, scales=(1, 8))
+        (ln,) = res.lines
+        assert ln.resolution_hz == pytest.approx(1 / 3600) and abs(ln.frequency_hz - 0.051) < 2 / 3600
+        assert [s["alpha"] for s in res.scales] == pytest.approx([0.01 / 3] * 2)
+        assert res.low_band["alpha"] == pytest.approx(0.01 / 3)
+
+    def test_a_record_shorter_than_one_low_band_segment_searches_as_before(self, rng):
+        x = _record(rng, self.N, [(3.21, AMP)], rate=self.RATE)
+        plain = find_lines(x, self.RATE, resolution_hz=0.002)
+        res = find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=1e-5)  # 100 000 s segments
+        assert res.low_band is None and res.lines == plain.lines and res.threshold == plain.threshold
+        # where the caller sets the tested band's bottom, there is no band below it to search
+        given = find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=1 / 3600, f_min_hz=0.1)
+        assert given.low_band is None and given.f_min_hz == 0.1
+        with pytest.raises(ValueError, match="low_band_resolution_hz must lie in"):
+            find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=0.004)

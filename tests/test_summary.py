@@ -799,7 +799,7 @@ def test_the_fit_adequacy_flag_names_auto_only_under_auto():
     assert "identify.n_gm: 2, longer records or" in raw.detail and "auto" not in raw.detail
     # a line below the line search's band is one cause it names (an outside evaluation: chi2/dof 1.2e4 from a 0.03 Hz
     # line, the band starting at 0.052 Hz, and the FLAG advising n_gm only)
-    assert "for a line below the line search's band, a lower lines.resolution_hz" in raw.detail
+    assert "for a line below the line search's band, lines.low_band_resolution_hz" in raw.detail
     assert "a resonance wider than about a tenth of the search's floor window lifts its own floor" in raw.detail
     assert "auto then builds no envelope candidate" in auto.detail
 

@@ -251,8 +251,9 @@ def noise_model(
     seed: int = 20211, lines_policy: str | None = None, lines_resolution_hz: float = _D["lines.resolution_hz"],
     lines_alpha: float = _D["lines.alpha"], lines_floor_window_bins: int = _D["lines.floor_window_bins"],
     lines_scales=tuple(_D["lines.scales"]),
-    fix_s: float = _D["verify.fix_s"], verify: bool = True, sigma_fix: float | None = None,
-    fix_rate_hz: float | None = None, reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"],
+    lines_low_band_resolution_hz: float | None = _D["lines.low_band_resolution_hz"], fix_s: float = _D["verify.fix_s"],
+    verify: bool = True, sigma_fix: float | None = None, fix_rate_hz: float | None = None,
+    reduce: bool = _D["verify.reduce"], replay_z: float = _D["verify.replay_z"],
     truth=None, events: bool | Mapping = True, envelope: str = _D["identify.envelope"],
     stationarity: bool | Mapping = True,
 ) -> NoiseModelResult:
@@ -292,9 +293,8 @@ def noise_model(
     seed : int, optional
         Seed of the fit's bootstrap (default 20211, :data:`imupipe.stages.identify.SEED_FIT`, the workflow's).
     lines_policy : {None, "model", "exclude", "keep"}, optional
-        Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with
-        `lines_resolution_hz`, Hz, `lines_alpha`, `lines_floor_window_bins`, `lines_scales`) and apply the policy
-        (:func:`imupipe.lines.line_policy_from_files`) over the decimated band (None: no search; workflow: ``model``).
+        Search every full-rate curve for narrowband lines (:func:`imupipe.lines.find_lines` with the ``lines_*``
+        arguments, the ``lines`` section's keys) and apply the policy over the decimated band (None: no search).
     fix_s : float, optional
         Time with position/angle fixes before the outage of the reference scenario, s (default 600): the bound's
         all-frequency span is ``fix_s + outage_s``.
@@ -348,7 +348,7 @@ def noise_model(
     # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
     true_model = _truth_of(truth, sensor)
     lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
-                                                      lines_floor_window_bins, lines_scales)
+                                                      lines_floor_window_bins, lines_scales, lines_low_band_resolution_hz)
     ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
                             n_gm=n_gm, n_boot=n_boot, confidence=fit_confidence, significance=significance,
                             relevance=relevance, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
@@ -549,14 +549,15 @@ def _events_of(curves, rate: float, sensor: str, events) -> list:
     return out
 
 
-def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_window_bins, scales=(1,)) -> dict:
+def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_window_bins, scales=(1,),
+              low_band_resolution_hz=None) -> dict:
     """The lines file of every full-rate curve (rule lines: :func:`imupipe.lines.find_lines`), by label."""
     from imupipe.lines import find_lines
     from imupipe.units import SI_UNITS
 
     return {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=resolution_hz, alpha=alpha,
                               floor_window_bins=floor_window_bins, units=SI_UNITS[sensor], label=label,
-                              scales=scales).to_dict()
+                              scales=scales, low_band_resolution_hz=low_band_resolution_hz).to_dict()
             for label, x in curves.items()}
 
 

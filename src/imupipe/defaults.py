@@ -49,6 +49,7 @@ DEFAULTS: dict[str, object] = {
     "lines.alpha": 0.01,
     "lines.floor_window_bins": 51,
     "lines.scales": [1],
+    "lines.low_band_resolution_hz": None,
     "verify.fix_s": 600.0,
     "verify.reduce": True,
     "verify.replay_z": 2.0,

@@ -22,8 +22,11 @@ derived, each by a stated rule (:func:`derive_settings`):
   ``verify.fix_s``), down to a whole decimated sample: the band bottom ``1/H`` is not below the lowest PSD
   frequency ``1/W`` the records measure, and one fix period plus one outage fits in the shortest record (the
   replay of :func:`imupipe.verify` needs records of at least ``fix_s + outage_s``).
-- ``lines.scales`` = [1, 8, 64]: the line search also at 8 and 64 times its resolution (each at alpha / 3), so that
-  a resonance wider than the running-median floor resolves is found (the default run keeps [1], the paper's).
+- ``lines.scales`` = [1, 8, 64]: the line search also at 8 and 64 times its resolution, so that a resonance wider
+  than the running-median floor resolves is found (the default run keeps [1], the paper's).
+- ``lines.low_band_resolution_hz`` = :math:`1/W`: the band below the search's lowest tested bin (0.052 Hz at the
+  default 0.002 Hz) is searched too, at the PSD window's bin spacing (the default run searches none, the paper's).
+  Each of the four searches runs at alpha / 4.
 
 A record with timestamps (a time column, or a ROS bag's message headers) gets ``gap_policy: fill``: a few dropped
 samples, common in logged records, are filled and counted instead of stopping the ingest; a longer gap still stops
@@ -358,9 +361,12 @@ application:
   # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
   outage_s: {s.outage_s!r}
 lines:
-  # the line search at resolution_hz and 8 and 64 times coarser, each at alpha / 3: a resonance wider than about a
-  # tenth of the floor window is found at a coarser one (imupipe.lines.find_lines, scales)
+  # the line search at resolution_hz and 8 and 64 times coarser: a resonance wider than about a tenth of the floor
+  # window is found at a coarser one (imupipe.lines.find_lines, scales)
   scales: [1, 8, 64]
+  # 1 / psd.window_s: the band below the first search's (0.052 Hz) searched at the PSD window's bin spacing; each of
+  # the four searches at alpha / 4
+  low_band_resolution_hz: {1.0 / s.window_s!r}
 bound:
   # auto: every mode's bound (raw, smoothed, confidence, pooled, and with the joint envelope the envelope
   # candidate) verified, the tightest that passes every check exported (imupipe.bound.auto; the paper's default

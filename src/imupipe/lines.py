@@ -270,6 +270,7 @@ class LineSearch:
     label: str | None = None
     effective_segments: float | None = None
     scales: tuple = ()
+    low_band: dict | None = None
     frequency: np.ndarray = field(default=None, repr=False, compare=False)
     psd: np.ndarray = field(default=None, repr=False, compare=False)
     floor: np.ndarray = field(default=None, repr=False, compare=False)
@@ -297,6 +298,7 @@ class LineSearch:
             "f_max_hz": float(self.f_max_hz),
             "n_lines": len(self.lines),
             **({"scales": [dict(sc) for sc in self.scales]} if self.scales else {}),
+            **({"low_band": dict(self.low_band)} if self.low_band else {}),
             "lines": [{k: float(v) for k, v in asdict(line).items()} for line in self.lines],
             "units": {k: _unit(v, u) for k, v in _LINE_UNITS.items()},
         }
@@ -311,9 +313,12 @@ class LineSearch:
             vals = np.array([getattr(line, name) for line in self.lines], dtype=np.float64)
             unit = _unit(_LINE_UNITS[name], self.units)
             data[name] = xr.Variable(("line",), vals, attrs={"units": unit, "long_name": name.replace("_", " ")})
-        attrs = {k: v for k, v in self.to_dict().items() if k not in ("lines", "units", "label", "method", "scales")}
+        attrs = {k: v for k, v in self.to_dict().items()
+                 if k not in ("lines", "units", "label", "method", "scales", "low_band")}
         if self.scales:  # netCDF attributes hold flat lists, not the scales' mappings
             attrs.update({f"scales_{k}": [sc[k] for sc in self.scales] for k in self.scales[0]})
+        if self.low_band:
+            attrs.update({f"low_band_{k}": v for k, v in self.low_band.items()})
         attrs["method"] = self.to_dict()["method"]
         if self.label is not None:
             attrs["label"] = self.label
@@ -552,6 +557,7 @@ def find_lines(
     units: str = "u",
     label: str | None = None,
     scales=(1,),
+    low_band_resolution_hz: float | None = None,
 ) -> LineSearch:
     """Detect narrowband lines in one full-rate series (module docstring: spectrum, threshold, estimators).
 
@@ -576,13 +582,17 @@ def find_lines(
         Name of the series (e.g. ``imu1/accel/x``), carried into the outputs.
     scales : sequence of int, optional
         Resolutions searched, as multiples of `resolution_hz` (default ``(1,)``: one search). Several:
-        :func:`_search_scales`, each at level alpha / (number of scales searched).
+        :func:`_search_scales`, each at level alpha / (number of searches).
+    low_band_resolution_hz : float, optional
+        Bin spacing (Hz, finer than `resolution_hz`) of one more search, of the band below the first search's lowest
+        tested bin only (half a floor window of `resolution_hz`: 0.052 Hz at 0.002 Hz and 51 bins), where a line
+        is otherwise not searched for (:func:`_search_scales`). None: no such search.
     """
     scales = tuple(int(v) for v in scales)
-    if scales != (1,):
+    if scales != (1,) or low_band_resolution_hz is not None:
         return _search_scales(x, rate, scales, resolution_hz=resolution_hz, alpha=alpha,
                               floor_window_bins=floor_window_bins, f_min_hz=f_min_hz, f_max_hz=f_max_hz, units=units,
-                              label=label)
+                              label=label, low_band_resolution_hz=low_band_resolution_hz)
     x = np.asarray(x, dtype=np.float64).ravel()
     if not np.all(np.isfinite(x)):
         raise ValueError(f"find_lines{'(' + label + ')' if label else ''}: the series has non-finite samples")
@@ -670,9 +680,11 @@ def _tested_band(df: float, f_top: float, W: int, f_min_hz=None, f_max_hz=None) 
 WIDER_LINE_POWER_RATIO = 1.5
 
 
-def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float, **kw) -> LineSearch:
-    r"""The line search at several resolutions (`scales` x `resolution_hz`, finest first), each at level
-    :math:`\alpha / S` (Bonferroni over the S scales searched: the family-wise level stays alpha).
+def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float, low_band_resolution_hz=None,
+                   **kw) -> LineSearch:
+    r"""The line search at several resolutions (`scales` x `resolution_hz`, finest first, and the low band at
+    `low_band_resolution_hz`), each at level :math:`\alpha / S` (Bonferroni over the S searches run: the family-wise
+    level stays alpha).
 
     A resonance wider than about a tenth of the floor window lifts its own running median: at the finest resolution
     it is found too weak or not at all (40 Hz in 100 Hz records at damping 0.001-0.01, 1000x its floor: no line at
@@ -683,27 +695,54 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     Hz bins: one line at 30.5 Hz, in the trough between them), they stay at their frequencies with their powers
     scaled to the coarse line's; else the finer lines stay (a narrow line is measured best at the finest
     resolution). A scale whose segments would be shorter than 16 samples or longer than the series, or whose tested
-    band holds no bin (a floor window wider than the band: 64 x 0.002 Hz at 10 Hz), is skipped. Returns the finest
-    search's :class:`LineSearch` with the combined lines, the level alpha and ``scales`` (each searched scale's
-    resolution, segments, tested bins, threshold, level and lines found)."""
+    band holds no bin (a floor window wider than the band: 64 x 0.002 Hz at 10 Hz), is skipped.
+
+    The low band: the first scale tests nothing below half its floor window (0.052 Hz at 0.002 Hz and 51 bins); a
+    line there (a 0.03 Hz oscillation of 1e-3 rad/s in 4 h records) was covered by inflated broadband terms, mean
+    P/MSE 6 000-27 000 over the outage. At a finer `low_band_resolution_hz` (e.g. the PSD window's bin spacing) the
+    band below that edge is searched as the finest scale, from half its own floor window up to one of its bins
+    below the first scale's lowest tested bin; skipped like a scale (too few samples, no bin), and not run where
+    ``f_min_hz`` is given. Returns the first scale's :class:`LineSearch` with the combined lines, the level alpha,
+    ``scales`` (each searched scale's resolution, segments, tested bins, threshold, level and lines found, where
+    more than one scale is given), ``low_band`` (the same of the low band's search, where it ran) and ``f_min_hz``
+    the lowest bin tested."""
     from dataclasses import replace
 
     x = np.asarray(x, dtype=np.float64).ravel()
     if not scales or any(v < 1 for v in scales) or list(scales) != sorted(set(scales)):
         raise ValueError(f"scales must be increasing integers >= 1, got {scales!r}")
-    def usable_scale(v):
-        nper = round(float(rate) / (float(resolution_hz) * v))
+    W = int(kw.get("floor_window_bins", 51)) | 1
+
+    def band(res, f_max_hz=None):  # (nperseg, bin spacing, lo, hi) of a search at resolution `res`
+        nper = round(float(rate) / float(res))
         df = float(rate) / max(nper, 1)
-        lo, hi = _tested_band(df, (nper // 2) * df, int(kw.get("floor_window_bins", 51)) | 1, kw.get("f_min_hz"),
-                              kw.get("f_max_hz"))
+        lo, hi = _tested_band(df, (nper // 2) * df, W, kw.get("f_min_hz"), kw.get("f_max_hz") if f_max_hz is None
+                              else f_max_hz)
+        return nper, df, lo, hi
+
+    def usable(res, f_max_hz=None):
+        nper, df, lo, hi = band(res, f_max_hz)
         return 16 <= nper <= x.size and hi - lo >= df
 
-    usable = [v for v in scales if usable_scale(v)]
-    if not usable or usable[0] != scales[0]:  # the finest must run: its own error names what is wrong
+    found = [v for v in scales if usable(resolution_hz * v)]
+    if not found or found[0] != scales[0]:  # the finest must run: its own error names what is wrong
         return find_lines(x, rate, resolution_hz=resolution_hz * scales[0], alpha=alpha, **kw)
-    searches = [find_lines(x, rate, resolution_hz=resolution_hz * v, alpha=alpha / len(usable), **kw) for v in usable]
+    low = None
+    if low_band_resolution_hz is not None and kw.get("f_min_hz") is None:
+        if not 0 < float(low_band_resolution_hz) < float(resolution_hz):
+            raise ValueError(f"low_band_resolution_hz must lie in (0, resolution_hz = {resolution_hz!r}) Hz, got "
+                             f"{low_band_resolution_hz!r}")
+        edge = band(resolution_hz * scales[0])[2]
+        df_low = band(low_band_resolution_hz)[1]
+        if usable(low_band_resolution_hz, edge - df_low):
+            low = (float(low_band_resolution_hz), edge - df_low)
+    n = len(found) + (low is not None)
+    searches = [find_lines(x, rate, resolution_hz=resolution_hz * v, alpha=alpha / n, **kw) for v in found]
+    low_search = None
+    if low is not None:
+        low_search = find_lines(x, rate, resolution_hz=low[0], alpha=alpha / n, **{**kw, "f_max_hz": low[1]})
     kept: list = []
-    for search in searches:
+    for search in ([low_search] if low_search else []) + searches:
         for ln in search.lines:
             inside = [k for k in kept if ln.f_lo_hz <= k.frequency_hz <= ln.f_hi_hz
                       or k.f_lo_hz <= ln.frequency_hz <= k.f_hi_hz]
@@ -716,11 +755,18 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
                 scaled = [replace(k, power=k.power * ln.power / total, amplitude=k.amplitude * math.sqrt(
                     ln.power / total), sigma=k.sigma * math.sqrt(ln.power / total)) for k in inside]
                 kept = [k for k in kept if k not in inside] + scaled
-    summary = tuple({"scale": int(v), "resolution_hz": float(sr.resolution_hz), "n_segments": int(sr.n_segments),
-                     "n_tested": int(sr.n_tested), "threshold": float(sr.threshold), "alpha": float(sr.alpha),
-                     "n_lines": len(sr.lines)} for v, sr in zip(usable, searches))
+
+    def described(sr):
+        return {"resolution_hz": float(sr.resolution_hz), "n_segments": int(sr.n_segments),
+                "n_tested": int(sr.n_tested), "threshold": float(sr.threshold), "alpha": float(sr.alpha),
+                "n_lines": len(sr.lines)}
+
+    summary = tuple({"scale": int(v), **described(sr)} for v, sr in zip(found, searches)) if scales != (1,) else ()
+    low_band = None if low_search is None else {
+        **described(low_search), "f_min_hz": float(low_search.f_min_hz), "f_max_hz": float(low_search.f_max_hz)}
     return replace(searches[0], lines=tuple(sorted(kept, key=lambda ln: ln.frequency_hz)), alpha=float(alpha),
-                   scales=summary)
+                   scales=summary, low_band=low_band,
+                   f_min_hz=float(low_search.f_min_hz if low_search else searches[0].f_min_hz))
 
 
 def alias_frequency(f0_hz, dt: float):

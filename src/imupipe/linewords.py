@@ -124,24 +124,31 @@ def _places(texts: list, g: list) -> str:
 
 def search_band_text(searches: list) -> str | None:
     """The band the line search covered on the sensor's full-rate records, from the lines files' ``f_min_hz``,
-    ``f_max_hz`` (Hz), ``resolution_hz`` (Hz) and ``alpha`` (each a list over the files; None: no lines file).
+    ``f_max_hz`` (Hz), ``resolution_hz`` (Hz), ``alpha`` and, where it ran, ``low_band`` (the search below the
+    first one's band: its ``f_max_hz`` and ``resolution_hz``) (each a list over the files; None: no lines file).
 
     The lowest searched frequency is half a running-median window above 0 (:func:`imupipe.lines.find_lines`:
-    ``(floor_window_bins // 2 + 1) * resolution_hz``), where the floor is two-sided. A line below it is not
-    searched: it stays in the sample spectra as broadband power, which every bound covers (the data check holds
-    each candidate above the spectra's lower limits), not as a narrowband term."""
+    ``(floor_window_bins // 2 + 1) * resolution_hz``, of the low band's resolution where it ran), where the floor
+    is two-sided. A line below it is not searched: it stays in the sample spectra as broadband power, which every
+    bound covers (the data check holds each candidate above the spectra's lower limits), not as a narrowband
+    term."""
     if not searches:
         return None
+    lows = [s["low_band"] for s in searches if isinstance(s.get("low_band"), Mapping)]
 
-    def span(key, fmt="{:.4g}"):
-        vals = sorted({float(s[key]) for s in searches if s.get(key) is not None})
+    def span(key, fmt="{:.4g}", rows=searches):
+        vals = sorted({float(s[key]) for s in rows if s.get(key) is not None})
         if not vals:
             return "-"
         lo, hi = num(vals[0], fmt), num(vals[-1], fmt)
         return lo if lo == hi else f"{lo}-{hi}"
 
+    part = f"in {len(lows)} of {len(searches)} records, " if len(lows) < len(searches) else ""
+    low = (f" ({part}below {span('f_max_hz', rows=lows)} Hz at {span('resolution_hz', rows=lows)} Hz: "
+           "lines.low_band_resolution_hz)") if lows else ""
     return (f"- line search (lines stage, each full-rate record): bins tested {span('f_min_hz')} to "
-            f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution (a found line's centre may lie up to 2 "
-            f"bins outside: its main lobe), family-wise level {span('alpha')} per record and axis; a line below "
+            f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution{low} (a found line's centre may lie up "
+            f"to 2 bins outside: its main lobe), family-wise level {span('alpha')} per record and axis; a line below "
             f"{span('f_min_hz')} Hz is not searched for: it stays in the spectra as broadband power, which the bound "
-            "covers, not as a line term (a finer lines.resolution_hz lowers the limit)")
+            "covers, not as a line term (" + ("a finer lines.low_band_resolution_hz lowers the limit)" if lows else
+                                              "lines.low_band_resolution_hz, e.g. 1 / psd.window_s, lowers the limit)"))

@@ -399,20 +399,20 @@ def pooled_allan(x, rate: float, seg: Segments, *, taus="octave", confidence: fl
 
 
 def segment_lines(x, rate: float, seg: Segments, *, resolution_hz: float, alpha: float, floor_window_bins: int,
-                  units: str = "u", label: str | None = None, scales=(1,)):
+                  units: str = "u", label: str | None = None, scales=(1,), low_band_resolution_hz=None):
     """Spectral lines of the segments of `x` (u at `rate` Hz): :func:`imupipe.lines.find_lines` on each segment
     that holds one detection segment (1/`resolution_hz` s) at level alpha/K (Bonferroni over the K searched
     segments, so the family-wise level stays `alpha`), the lines merged (:func:`imupipe.lines.merge_lines`: a
     line found on any segment is kept, with the largest power). Returns the
     :class:`imupipe.lines.LineSearch` of the longest searched segment with the merged lines and the level
-    `alpha`; the whole record: exactly ``find_lines(x, rate, ...)``. `scales`: the resolutions searched
-    (:func:`imupipe.lines.find_lines`)."""
+    `alpha`; the whole record: exactly ``find_lines(x, rate, ...)``. `scales`, `low_band_resolution_hz`: the
+    resolutions searched (:func:`imupipe.lines.find_lines`)."""
     from dataclasses import replace
 
     from imupipe.lines import find_lines, merge_lines
 
     kw = dict(resolution_hz=resolution_hz, floor_window_bins=floor_window_bins, units=units, label=label,
-              scales=tuple(scales))
+              scales=tuple(scales), low_band_resolution_hz=low_band_resolution_hz)
     if seg.is_whole:
         return find_lines(x, rate, alpha=alpha, **kw)
     need = int(round(rate / float(resolution_hz)))

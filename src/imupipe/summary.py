@@ -310,7 +310,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
         fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}"
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
                         "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
-                        "line search's band, a lower lines.resolution_hz may; a resonance wider than about a tenth of "
+                        "line search's band, lines.low_band_resolution_hz may; a resonance wider than about a tenth of "
                         "the search's floor window lifts its own floor and is found too weak or not at all: a bump of "
                         "the Allan deviation near tau = 1/(2 f) shows it" + ("; auto then builds no envelope candidate"
                         " on a rejected selected model)" if str(bound.get("mode") or "").startswith("auto") else ")")))

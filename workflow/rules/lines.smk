@@ -1,6 +1,7 @@
 # Spectral lines of one full-rate axis (before decimation, on the cleaned series when outliers.policy is
-# `remove`): imupipe.lines.find_lines at lines.resolution_hz, family-wise level lines.alpha. The bound reads these
-# files with lines.policy (per sensor) and lines.application_band_hz.
+# `remove`): imupipe.lines.find_lines at lines.resolution_hz (and lines.scales, lines.low_band_resolution_hz),
+# family-wise level lines.alpha. The bound reads these files with lines.policy (per sensor) and
+# lines.application_band_hz.
 
 
 # memory: the axis and one batch of its segments' spectra (imupipe.lines.SPECTRUM_BATCH); measured at 125 Hz:
@@ -19,6 +20,7 @@ rule lines:
         alpha=config["lines"]["alpha"],
         floor_window_bins=config["lines"]["floor_window_bins"],
         scales=config["lines"].get("scales", [1]),
+        low_band_resolution_hz=config["lines"].get("low_band_resolution_hz"),
     group:
         "per_axis"
     threads: 1
