@@ -31,7 +31,7 @@ SHARED_PRIVATE = {"_kernels"}
 LAYERS = [
     {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults", "markdown"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
-     "events", "segments", "stretches", "summary", "shown", "verdict", "linewords", "paste"},
+     "events", "segments", "stretches", "summary", "shown", "verdict", "linewords", "paste", "flagtext"},
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},

@@ -296,6 +296,7 @@ class TestEventsInTheWorkflow:
 
         from imupipe.stages.outliers import outliers_stage
         from imupipe.stages.summary import summary_text
+        from imupipe.summary import first_screen
 
         x = TestEventsInTheStage._record()
         paths = []
@@ -304,7 +305,7 @@ class TestEventsInTheWorkflow:
             paths.append(tmp_path / f"{axis}.yaml")
             paths[-1].write_text(yaml.safe_dump(out))
         text = summary_text({"outliers": [str(p) for p in paths]}, ["gyro", "accel"], ["spec"], "run")
-        flags = [line for line in text.splitlines() if line.startswith("- FLAG event")]
+        flags = [line for line in first_screen(text).splitlines() if line.startswith("- FLAG event")]
         assert [f.split("]")[0] for f in flags] == ["- FLAG event [rec/accel/x", "- FLAG event [rec/accel/y"]
         assert all("mean step 0.033" in f and " mg) at 123" in f for f in flags), flags
 

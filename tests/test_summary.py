@@ -942,3 +942,42 @@ def test_a_curve_whose_level_changes_though_it_passes_the_stationarity_test_is_f
             "n_non_stationary": 1, "n_curves": 2, "chance": "1 of 2 axes failed ...: consistent with chance"}
     text = render_summary({"gyro": {"bound": _bound(), "identify": IDENTIFY, "stationarity": stat}})
     assert "(taken in: its own p-value is below alpha / 2 = 0.025)" in text
+
+
+def test_first_screen_gives_a_flag_s_finding_and_its_details_give_it_in_full():
+    """A lines FLAG with its chance text: the first screen gives the line and the chance verdict (the numbers behind
+    the verdict in the details, whose sensor section lists the FLAG in full); the line search's statement names the
+    low band where the lines file has one."""
+    from imupipe.stages import summary as mod
+    from imupipe.summary import first_screen
+
+    entry = {}
+    mod._merge_checks(entry, {
+        "dataset": "d", "sensor": "gyro", "axis": "x", "n_tested": 25_000, "f_min_hz": 0.0072, "f_max_hz": 9.95,
+        "resolution_hz": 0.002, "alpha": 0.01,
+        "low_band": {"resolution_hz": 1 / 3600, "f_max_hz": 0.0517, "n_segments": 4, "alpha": 0.005},
+        "lines": [{"frequency_hz": 0.03, "power": 5e-7, "amplitude": 1e-3, "sigma": 7.07e-4, "peak_ratio": 900.0,
+                   "f_lo_hz": 0.029, "f_hi_hz": 0.031}],
+        "units": {"frequency_hz": "Hz", "amplitude": "rad/s", "sigma": "rad/s", "peak_ratio": "1"}})
+    text = render_summary({"gyro": {"bound": entry}})
+    head, details = first_screen(text), text[len(first_screen(text)):]
+    (short,) = [ln for ln in head.splitlines() if ln.startswith("- FLAG lines")]
+    assert short == ("- FLAG lines [d/gyro/x]: 0.03 Hz, amplitude 0.001 rad/s (sd 0.000707), peak PSD 900x the floor; "
+                     "consistent with chance (in full: the details, gyro)"), short
+    (full,) = [ln for ln in details.splitlines() if ln.startswith("- FLAG lines")]
+    assert full.startswith(short.partition("; ")[0] + "; 1 of 1 axes show a line at level 0.01 each")
+    assert "P(>= 1)" in full
+    assert "Checks: on the first screen (above); in full:" in details
+    assert ("bins tested 0.0072 to 9.95 Hz at 0.002 Hz resolution (below 0.0517 Hz at 0.0002778 Hz: "
+            "lines.low_band_resolution_hz)") in details
+
+
+def test_a_flag_s_clauses_split_outside_parentheses_only():
+    from imupipe.flagtext import clauses, short_form
+
+    text = "std 8.6 deg/h (assumption: 10 x; the record cannot check it): state T; e.g. 3 [a; b]"
+    assert clauses(text) == ["std 8.6 deg/h (assumption: 10 x; the record cannot check it): state T", "e.g. 3 [a; b]"]
+    # the finding and the second clause up to its ':'; with the chance text's verdict; none where nothing is cut
+    assert short_form("a step at 3 s; kept (warn): it inflates K", "; 1 of 2 axes ...: consistent with chance",
+                      keep=2) == "a step at 3 s; kept (warn); consistent with chance"
+    assert short_form("a line at 2 Hz") == ""

@@ -15,10 +15,10 @@ Nothing here prints: :func:`render_summary` returns the text.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from imupipe.flagtext import Flag, flag_line, short_form
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
@@ -49,31 +49,6 @@ FAR_BELOW_SPEC_MARGIN = 25.0
 #: at least the data's N, so at least 9.81x the spec's). The same bound/spec limit picks the datasets named.
 ABOVE_SPEC_RATIO_DATA = (2.0 * 1.47 * 9.80665) ** 0.5
 ABOVE_SPEC_RATIO_BOUND = (2.0 * 4.31 * 9.80665) ** 0.5
-
-
-@dataclass(frozen=True)
-class Flag:
-    """One failed or flagged check.
-
-    Attributes
-    ----------
-    sensor : str
-    check : str
-        ``bound``, ``stationarity``, ``fit adequacy``, ``allan check``, ``lines``, ``outliers``, ``gaps``,
-        ``stuck channel``, ``verification``, ``per-axis bound``, ``parameter on boundary``, ``GM re-assigned``.
-    where : str
-        Curve (dataset/axis), frequency or component.
-    detail : str
-        What was found.
-    severity : str
-        ``fail`` (the integrity claim does not hold as stated) or ``flag`` (look at it).
-    """
-
-    sensor: str
-    check: str
-    where: str
-    detail: str
-    severity: str = "flag"
 
 
 def _g(d: Any, *keys, default=None):
@@ -208,6 +183,26 @@ def _level_flags(sensor: str, c, stationarity: Mapping) -> list:
                  f"{num(c.get('p_value'))}); kept in the bound" + stretch_note(c["noisiest_stretch"]))]
 
 
+def _stationarity_flags(sensor: str, stationarity: Mapping, stuck_where, line_where) -> list[Flag]:
+    """The FLAGs of the stationarity summary's curves: a noise level that changes (:func:`_level_flags`) and each
+    non-stationary axis with what was done with it, its stretch, a stuck span or a line on it (`stuck_where`,
+    `line_where`: the places of those FLAGs) and the run's count against chance."""
+    out = []
+    chance = f"; {stationarity['chance']}" if stationarity.get("chance") else ""  # against chance: verdict.py
+    for c in stationarity.get("curves") or []:
+        out += _level_flags(sensor, c, stationarity)
+        if isinstance(c, Mapping) and c.get("stationary") is False:
+            where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
+            text = (f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
+                    + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
+                    + stretch_note(c.get("noisiest_stretch")) + taken_in_why(c, stationarity)
+                    + (STUCK_NOTE if where in stuck_where else "")
+                    + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else ""))
+            out.append(Flag(sensor, "stationarity", where, text + chance,
+                            short="" if where in stuck_where else short_form(text, chance, keep=2)))
+    return out
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -234,7 +229,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += stuck
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
-    out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity))
+    out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity),
+                 short=short_form(d, event_chance(bound), keep=2))
             for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
     if bound and bound.get("bounded") is False:
         if bound.get("margin") is None or float(bound["margin"]) < 1.0 - BOUNDED_TOLERANCE:
@@ -292,19 +288,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                             f"not bounded alone (margin {num(ax.get('margin'))})"))
     for ex in _items(bound.get("excluded")):
         out.append(Flag(sensor, "excluded bins", _where_of(ex), _detail_of(ex) or "left out of the sample constraints"))
-    chance = f"; {stationarity['chance']}" if stationarity.get("chance") else ""  # against chance: verdict.py
     line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
                   for it in _items(src.get(key)) if isinstance(it, Mapping)]
-    line_where = {line_text(it)[0] for it in line_items}
-    for c in stationarity.get("curves") or []:
-        out += _level_flags(sensor, c, stationarity)
-        if isinstance(c, Mapping) and c.get("stationary") is False:
-            where, inc = f"{c.get('dataset', '-')}/{sensor}/{c.get('axis', '-')}", c.get("included")
-            out.append(Flag(sensor, "stationarity", where,
-                            f"non-stationary (p = {num(c.get('p_value'))}, {c.get('test', 'test')})"
-                            + ("; excluded from the bound" if inc is False else "; kept in the bound" if inc else "")
-                            + stretch_note(c.get("noisiest_stretch")) + taken_in_why(c, stationarity) + (STUCK_NOTE if where in stuck_where else "")
-                            + (LINE_NOTE.get(str(c.get("test")), "") if where in line_where else "") + chance))
+    out += _stationarity_flags(sensor, stationarity, stuck_where, {line_text(it)[0] for it in line_items})
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}"
@@ -639,14 +625,16 @@ def psd_usage_flags(sensor: str, usage) -> list[Flag]:
         except ValueError:
             pass
         where = f"{ds[0]}/{sensor}" if len(ds) == 1 else f"{len(ds)} records ({', '.join(map(str, ds))})/{sensor}"
+        paper = ""
         if window_s is not None and float(window_s) == PSD_MAX_WINDOW_S and step_s is not None and used == round(
                 float(window_s) * rate):  # one 7 h window: the paper's setting, which the default run reproduces
-            hint += ("; one 7 h window is the paper's setting (Gallon et al. 2021), kept by the default run to "
+            paper = ("; one 7 h window is the paper's setting (Gallon et al. 2021), kept by the default run to "
                      "reproduce it")
-        out.append(Flag(sensor, "record partly unused", where,
-                        f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the "
-                        f"record left out) with psd.window_s = {num(window_s, '{:g}')} s, psd.step_s = "
-                        f"{num(step_s, '{:g}')} s: set a step that tiles the record{hint}"))
+        text = (f"the PSD uses {used} of {n} samples ({100 * frac:.0f} % = {(n - used) / rate:g} s of the record left "
+                f"out) with psd.window_s = {num(window_s, '{:g}')} s, psd.step_s = {num(step_s, '{:g}')} s: set a step "
+                "that tiles the record")
+        out.append(Flag(sensor, "record partly unused", where, text + hint + paper,
+                        short=text + paper if hint else ""))
     return out
 
 
@@ -825,8 +813,12 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
 def _line_flags(sensor: str, items: list, stuck_where=frozenset(), chance: str = "") -> list[Flag]:
     """The FLAGs of narrowband lines (:func:`imupipe.linewords.line_reports`), with :data:`STUCK_NOTE` where a
     line's record holds a stuck span (`stuck_where`: the stuck FLAGs' places) and `chance` (:func:`line_chance`)."""
-    return [Flag(sensor, "lines", where, detail + chance + (STUCK_NOTE if stuck_where & set(places) else ""))
-            for where, detail, places in line_reports(items)]
+    out = []
+    for where, detail, places in line_reports(items):
+        note = STUCK_NOTE if stuck_where & set(places) else ""
+        short = short_form(detail, chance, keep=None)  # the line itself, the chance verdict without its numbers
+        out.append(Flag(sensor, "lines", where, detail + chance + note, short=short + note if short else ""))
+    return out
 
 
 #: Spec sheet's white noise over the data's (the identification's upper envelope) from which the summary says that
@@ -1192,8 +1184,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         n_fail = sum(f.severity == "fail" for f in flags)
         checks.append(f"{sensor}: " + (f"{n_fail} failed, {len(flags) - n_fail} flagged" if flags else
                                        "none failed or flagged."))
-        checks += [f"- {'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: "
-                   f"{f.detail}" for f in flags]
+        checks += [flag_line(f, short=True) for f in flags]
         checks.append("")
         lines.append(f"## {sensor}: {verdict}")
         lines.append("")
@@ -1260,8 +1251,10 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         lines += _adequacy_table(identify)
         lines += _consistency_table(sensor, identify, bound)
         lines.append("")
-        lines.append("Checks: " + ("on the first screen (above)." if flags else "none failed or flagged."))
-        lines.append("")
+        shortened = [flag_line(f) for f in flags if f.short]
+        lines.append("Checks: " + ("on the first screen (above)" if flags else "none failed or flagged.")
+                     + ("; in full:" if shortened else "." if flags else ""))
+        lines += [*(["", *shortened] if shortened else []), ""]
     contracts = {k: f.get("bound") for k, f in runs.items()}
     rests_on = confidence_lines(contracts)
     lines = [*(["## What BOUNDED rests on", ""] if rests_on else []), *rests_on, *lines]
