@@ -210,6 +210,11 @@ class TestReportHelpers:
                                f"{MAX_EVENT_FLAGS + 1} mean steps, 1 bursts)"), text
         assert "the largest, on axis y: mean step" in text and "(-9 mg) at 500.0 s" in text
         assert len(event_flags(many[:MAX_EVENT_FLAGS])) == MAX_EVENT_FLAGS  # up to the limit: one line each
+        # the first screen's form: the same FLAGs in the same order, the largest's size kept, the pointer to the
+        # outliers reports and each event's effect on the model left to the full text
+        short = event_flags(many + [step("x", 7.0, 2.0, dataset="b")], short=True)
+        assert [w for w, _ in short] == ["a/accel", "b/accel/x"]
+        assert short[0][1] == text.removesuffix("; each is listed in the outliers report of its axis")
 
     def test_excursion_edges_are_two_steps_and_a_decaying_kick_a_transient(self):
         rate = 100.0

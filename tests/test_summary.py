@@ -963,7 +963,7 @@ def test_first_screen_gives_a_flag_s_finding_and_its_details_give_it_in_full():
     head, details = first_screen(text), text[len(first_screen(text)):]
     (short,) = [ln for ln in head.splitlines() if ln.startswith("- FLAG lines")]
     assert short == ("- FLAG lines [d/gyro/x]: 0.03 Hz, amplitude 0.001 rad/s (sd 0.000707), peak PSD 900x the floor; "
-                     "consistent with chance (in full: the details, gyro)"), short
+                     "1 of 1 axes show a line, consistent with chance (in full: the details, gyro)"), short
     (full,) = [ln for ln in details.splitlines() if ln.startswith("- FLAG lines")]
     assert full.startswith(short.partition("; ")[0] + "; 1 of 1 axes show a line at level 0.01 each")
     assert "P(>= 1)" in full
@@ -978,6 +978,7 @@ def test_a_flag_s_clauses_split_outside_parentheses_only():
     text = "std 8.6 deg/h (assumption: 10 x; the record cannot check it): state T; e.g. 3 [a; b]"
     assert clauses(text) == ["std 8.6 deg/h (assumption: 10 x; the record cannot check it): state T", "e.g. 3 [a; b]"]
     # the finding and the second clause up to its ':'; with the chance text's verdict; none where nothing is cut
-    assert short_form("a step at 3 s; kept (warn): it inflates K", "; 1 of 2 axes ...: consistent with chance",
-                      keep=2) == "a step at 3 s; kept (warn); consistent with chance"
+    chance = "; 1 of 2 axes failed at level 0.05 each; with every axis ... P(>= 1) = 0.098: consistent with chance"
+    assert short_form("a step at 3 s; kept (warn): it inflates K", chance,
+                      keep=2) == "a step at 3 s; kept (warn); 1 of 2 axes failed, consistent with chance"
     assert short_form("a line at 2 Hz") == ""

@@ -663,8 +663,9 @@ def _effect_text(it: Mapping) -> str:
 MAX_EVENT_FLAGS = 3
 
 
-def _event_text(it: Mapping) -> str:
-    """The FLAG text of one event (kind, size in SI with its interval and display unit, time from the start)."""
+def _event_text(it: Mapping, short: bool = False) -> str:
+    """The FLAG text of one event (kind, size in SI with its interval and display unit, time from the start, the
+    policy's action and its effect on the model); `short`: without the effect (the summary's first screen)."""
     unit = it.get("units") or "SI"
     disp = it.get("display") if isinstance(it.get("display"), Mapping) else None
 
@@ -685,11 +686,11 @@ def _event_text(it: Mapping) -> str:
         when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
     text = f"{size} {when} from the record's start"
     if it.get("action"):
-        text += f"; {it['action']}" + _effect_text(it)
+        text += f"; {it['action']}" + ("" if short else _effect_text(it))
     return text
 
 
-def _group_text(group: list) -> str:
+def _group_text(group: list, short: bool = False) -> str:
     """One FLAG text for many events of one record and sensor: counts per axis and kind, the largest step."""
     axes = sorted({str(it.get("axis", "-")) for it in group})
     per_axis = ", ".join(f"{sum(str(it.get('axis', '-')) == a for it in group)} on {a}" for a in axes)
@@ -699,13 +700,14 @@ def _group_text(group: list) -> str:
     steps = [it for it in group if it.get("kind") in ("step", "transient")]
     largest = max(steps or group, key=lambda it: abs(float((it.get("display") or it).get("size", 0.0))))
     return (f"{len(group)} events ({per_axis}; {counts}); the largest, on axis {largest.get('axis', '-')}: "
-            f"{_event_text(largest)}; each is listed in the outliers report of its axis")
+            f"{_event_text(largest, short)}" + ("" if short else "; each is listed in the outliers report of its axis"))
 
 
-def event_flags(items) -> list[tuple[str, str]]:
+def event_flags(items, short: bool = False) -> list[tuple[str, str]]:
     """(where, text) of the summary FLAGs of the events of outliers reports (``events``: dicts with ``dataset``,
     ``sensor``, ``axis``, ``kind``, ``time_s``, ``size`` and ``units``, ``display``, ``policy``, ``action``): one
-    FLAG per event, or one per record and sensor where that record has more than :data:`MAX_EVENT_FLAGS`."""
+    FLAG per event, or one per record and sensor where that record has more than :data:`MAX_EVENT_FLAGS`. `short`:
+    each text without the event's effect on the model (the summary's first screen), in the same order."""
     groups: dict = {}
     for it in items or []:
         if isinstance(it, Mapping):
@@ -714,9 +716,9 @@ def event_flags(items) -> list[tuple[str, str]]:
     for (dataset, sensor), group in groups.items():
         if len(group) > MAX_EVENT_FLAGS:
             where = "/".join(str(v) for v in (dataset, sensor) if v is not None) or "-"
-            out.append((where, _group_text(group)))
+            out.append((where, _group_text(group, short)))
             continue
         for it in group:
             where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None) or "-"
-            out.append((where, _event_text(it)))
+            out.append((where, _event_text(it, short)))
     return out

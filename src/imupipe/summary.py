@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from imupipe.flagtext import Flag, flag_line, short_form
+from imupipe.flagtext import Flag, clauses, flag_line, short_form
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
@@ -134,8 +134,9 @@ def replay_allowance_flags(sensor: str, bound: Mapping) -> list[Flag]:
     tolerance: a worst MSE/P above 1 within ``tolerance`` (the replay's 1 + replay_z sqrt(2 / n_eff): with few
     windows of short records the tolerance is wide, and the records themselves then show the filter under-stating
     its error without the check failing). Worded as :func:`imupipe.verdict.within_tolerance`."""
-    return [Flag(sensor, f"{name} within its tolerance", label, text, "flag")
-            for label, name, text in _tolerance_passes(bound)]
+    return [Flag(sensor, f"{name} within its tolerance", label, text, "flag",
+                 short=clauses(text, ": ")[0] + ": it neither confirms nor excludes an under-statement; record more or "
+                 "longer to settle it") for label, name, text in _tolerance_passes(bound)]
 
 
 def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
@@ -230,8 +231,9 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
     out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity),
-                 short=short_form(d, event_chance(bound), keep=2))
-            for src in (bound, identify, stationarity) for w, d in event_flags(src.get("events"))]
+                 short=short_form(s, event_chance(bound), keep=None) if s != d else "")
+            for src in (bound, identify, stationarity)
+            for (w, d), (_, s) in zip(event_flags(src.get("events")), event_flags(src.get("events"), short=True))]
     if bound and bound.get("bounded") is False:
         if bound.get("margin") is None or float(bound["margin"]) < 1.0 - BOUNDED_TOLERANCE:
             out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
@@ -299,12 +301,14 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                         "line search's band, lines.low_band_resolution_hz may; a resonance wider than about a tenth of "
                         "the search's floor window lifts its own floor and is found too weak or not at all: a bump of "
                         "the Allan deviation near tau = 1/(2 f) shows it" + ("; auto then builds no envelope candidate"
-                        " on a rejected selected model)" if str(bound.get("mode") or "").startswith("auto") else ")")))
+                        " on a rejected selected model)" if str(bound.get("mode") or "").startswith("auto") else ")"),
+                        short=f"{fit}: the model does not describe the Allan variance within its confidence"))
     out += consistency_flags(sensor, identify)
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
     for r in moved:
-        out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}", reassigned_text(sensor, r, bound)))
+        out.append(Flag(sensor, "GM re-assigned", f"gm_{r.get('term')}", reassigned_text(sensor, r, bound),
+                        short=reassigned_text(sensor, r, bound, short=True)))
     for ax, pa in (identify.get("per_axis") or {}).items():
         # an axis's own GM whose T interval is open above: its envelope covers the GM over that whole interval (what
         # the per-axis bound, the KF file and Kalibr then carry); the pooled fit's may not show it
@@ -394,12 +398,13 @@ def _kept_parameter(identify: Mapping, p: str) -> bool:
     return component in kept
 
 
-def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> str:
+def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short: bool = False) -> str:
     """The words of one GM the identification re-assigned (identify file ``gm_reassigned``: sigma u, T_s s, why,
     acts_as, value: the white noise N u/sqrt(Hz) or random walk K u/sqrt(s) it acts as), every value in the spec
     sheet's unit and in SI (:func:`both_units`), then what the exported filter model carries instead
     (:func:`exported_instead`): the identification reports the GM as the term it acts as; the bound covers the
-    identification's upper envelope, and its own GM terms (the KF file's) are not this GM."""
+    identification's upper envelope, and its own GM terms (the KF file's) are not this GM. `short`: the GM, the term
+    reported and what would resolve it (the summary's first screen)."""
     white = r.get("acts_as") == "white"
     as_key = "white" if white else "random_walk"
     acts = f"{'white noise N' if white else 'random walk K'}"
@@ -409,6 +414,10 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None) -> st
             "it acts as (identify file, gm_reassigned)" + ("." if white else
                                 " at taus well below T (beyond T its Allan variance falls below that random "
                                 "walk's, so a model under it there can still hold the records)."))
+    if short:
+        return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
+                f"{num(r.get('T_s'))} s) is not resolved by the records: reported as the {acts}{value} it acts as; to "
+                f"resolve it: {'a higher sample rate' if white else 'longer records'}")
     instead = exported_instead(sensor, bound, as_key)
     action = (" To resolve it: a higher sample rate (at the filter's rate it is white noise)." if white else
               " To resolve it: longer records (the longest T resolved is about 0.23 of the longest tau; identify "
