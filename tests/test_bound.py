@@ -465,7 +465,7 @@ class TestAllFrequencies:
             bound_psd(f, c, spec, dt=1.0, exclude=((0.5, 0.4, "x"),))
 
     def test_solver_prints_nothing_on_stdout(self, capfd):
-        import imupipe.bound.engine as b
+        import imupipe.bound.highs as b
 
         b._HIGHS = None  # force the solver's creation inside this test
         f, c = self.white_curves()

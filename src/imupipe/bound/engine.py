@@ -1,5 +1,6 @@
-"""The bounding linear program: inputs, constraint rows (sample PSDs, spec, all-frequency rows), HiGHS, the
-T profile, :func:`bound_psd`, :func:`margin`, :func:`looseness` (see :mod:`imupipe.bound`)."""
+"""The bounding linear program: inputs, constraint rows (sample PSDs, spec, all-frequency rows), its solve
+(:mod:`imupipe.bound.highs`), the T profile, :func:`bound_psd`, :func:`margin`, :func:`looseness` (see
+:mod:`imupipe.bound`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from imupipe.bound.highs import highs_min
 from imupipe.bound.report import (  # noqa: F401
     BoundResult,
     _inflation,
@@ -149,6 +151,7 @@ class _Problem:
     k2_req: float = 0.0  # f -> 0: K_bound^2 >= this (u^2/s)
     n2_req: float = 0.0  # f -> inf: N_bound^2 >= this (u^2/Hz)
     narrowband: tuple = ()  # fixed-shape line columns ((f0_hz, zeta), ...), variance an LP variable
+    narrowband_min: tuple = ()  # each line column's least variance, u^2 (the upper envelope's line; 0: none)
     raw_edf: np.ndarray | None = None  # edf of each sample PSD bin (C, F): the data check's limits
     data_confidence: float = 0.95  # family-wise level of the data check
     data_mask: np.ndarray | None = None  # bins the data check reads (F,): an excluded line's are left out
@@ -209,7 +212,9 @@ class _Problem:
                     T = float(Ts[int(nm[3:]) - 1])
                     cols.append(NoiseModel(gauss_markov=((1.0, T),)).psd(f))
             rows.append(np.stack(cols, axis=1) / self.lo_t[ok, None])
-        for req, nm in ((self.k2_req, "random_walk"), (self.n2_req, "white")):
+        floors = [(self.k2_req, "random_walk"), (self.n2_req, "white")]
+        floors += [(v, f"nb_{j + 1}") for j, v in enumerate(self.narrowband_min)]
+        for req, nm in floors:
             if req > 0 and nm in names:
                 r = np.zeros((1, len(names)))
                 r[0, names.index(nm)] = 1.0 / req
@@ -480,63 +485,6 @@ def _constraint_matrix(prob, Bb, Br, mono_b, mono_r, names=(), Ts=()):
 _DIRECT_LP_ROWS = 2000  # at most this many rows: no cutting planes (HiGHS solves them in one go)
 
 
-_HIGHS = None  # one solver instance per process, reused (each LP replaces the previous model)
-
-
-def _quiet_highs(highspy):
-    """A Highs instance created with file descriptor 1 redirected: the constructor prints a banner on
-    stdout before any option can be set, and a workflow script's stdout is its output."""
-    import os
-    import sys
-
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            h = highspy.Highs()
-            h.setOptionValue("output_flag", False)
-            h.setOptionValue("log_to_console", False)
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-    return h
-
-
-def _highs_min(c, A, b=None):
-    """argmin of c @ u subject to A u >= 1, u >= 0, by HiGHS (highspy; one thread, no output).
-
-    The bounding LPs have 2-4 columns and a few dozen rows after the dominance reduction: HiGHS solves
-    one in ~0.2 ms, and ``scipy.optimize.linprog`` spends ~1 ms around the same solve (input checks,
-    option validation), which summed to half of a bound job.
-    """
-    global _HIGHS
-    import highspy
-
-    if _HIGHS is None:
-        _HIGHS = _quiet_highs(highspy)
-        _HIGHS.setOptionValue("output_flag", False)
-        _HIGHS.setOptionValue("threads", 1)
-    m, n = A.shape
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, m
-    lp.col_cost_ = np.ascontiguousarray(c, dtype=np.float64)
-    lp.col_lower_ = np.zeros(n)
-    lp.col_upper_ = np.full(n, highspy.kHighsInf)
-    lp.row_lower_ = np.ones(m) if b is None else np.ascontiguousarray(b, dtype=np.float64)
-    lp.row_upper_ = np.full(m, highspy.kHighsInf)
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = np.arange(0, m * n + 1, m, dtype=np.int32)
-    lp.a_matrix_.index_ = np.tile(np.arange(m, dtype=np.int32), n)
-    lp.a_matrix_.value_ = np.ascontiguousarray(A.T, dtype=np.float64).ravel()
-    _HIGHS.passModel(lp)
-    _HIGHS.run()
-    status = _HIGHS.getModelStatus()
-    if status != highspy.HighsModelStatus.kOptimal:
-        raise RuntimeError(f"HiGHS failed on the bounding LP: {_HIGHS.modelStatusToString(status)}")
-    return np.array(_HIGHS.getSolution().col_value, dtype=np.float64)
-
-
 def _solve_lp(prob, comps, Ts):
     """Tightest squared coefficients for fixed GM time constants (cutting-plane HiGHS LP)."""
     Bb, Br, names, mono_b, mono_r = prob.basis(comps, Ts)
@@ -571,7 +519,7 @@ def _solve_lp(prob, comps, Ts):
                 active.add(int(cell[np.argmin(rs[cell])]))
     for _ in range(60):
         idx = np.fromiter(sorted(active), dtype=np.int64)
-        u = _highs_min(cs, As[idx] / rowmax[idx, None], 1.0 / rowmax[idx])
+        u = highs_min(cs, As[idx] / rowmax[idx, None], 1.0 / rowmax[idx])
         n_lp += 1
         slack = As @ u - 1.0
         viol = np.flatnonzero(slack < -1e-10)
@@ -580,7 +528,7 @@ def _solve_lp(prob, comps, Ts):
         worst = viol[np.argsort(slack[viol])[:200]]
         active.update(int(i) for i in worst)
     else:  # pragma: no cover - never seen; fall back on the full LP
-        u = _highs_min(cs, As / rowmax[:, None], 1.0 / rowmax)
+        u = highs_min(cs, As / rowmax[:, None], 1.0 / rowmax)
         n_lp += 1
     # exact feasibility: scale up by the worst residual shortfall (all terms scale the PSD linearly)
     m = float(np.min(As @ u))
@@ -1015,7 +963,7 @@ def bound_psd(
         if min_edf != "auto":
             raise ValueError(f"min_edf must be a number, None or 'auto', got {min_edf!r}")
         min_edf = DEFAULT_MIN_EDF if mode in ("confidence", "pooled") else None
-    spec_full, k_env = spec_model, None
+    spec_full, k_env, line_envelope = spec_model, None, upper_model
     if mode == "envelope":  # stationary parts by the LP, the random walk alongside (_envelope_split)
         if upper_model is None:
             raise ValueError("mode 'envelope' needs the identified upper envelope (upper_model)")
@@ -1026,6 +974,7 @@ def bound_psd(
     allf = _setup_all_frequency(prob, spec_model, upper_model, span_s, f_floor_hz, upper_band=upper_band)
     excluded = _apply_exclude(prob, exclude)
     prob.narrowband = _narrowband_of(narrowband)
+    prob.narrowband_min = _line_floors(prob.narrowband, line_envelope)
     grid = _T_grid_of(prob, T_grid)
     extra_T = [T for _, T in spec_model.gauss_markov] if spec_model is not None else []
     n_gm = int(n_gm)
@@ -1166,6 +1115,20 @@ def _dominate_densely(model, spec_model, upper_model, allf: dict, f_max_hz: floa
     factor = max(1.0, 1.0 / r) * math.exp(delta * delta / 4.0)
     return model.scaled(factor), {"per_decade": DENSE_PER_DECADE, "band_hz": [f_lo, f_hi], "worst_ratio_before": r,
                     "variance_factor": factor}
+
+
+def _line_floors(narrowband, upper_model) -> tuple:
+    r"""Each line column's least variance, u^2: the largest variance :math:`\sigma^2` of the upper envelope's
+    narrowband terms (`upper_model`, :class:`imupipe.models.NoiseModel`; the identified lines at the upper
+    confidence limit of their power, :func:`imupipe.stages.identify.identify_sensor`) whose frequency lies within
+    the column's half-power half-width :math:`\zeta f_0` of its f0 (the same merged line); 0 where none does. A
+    column the LP set from the records' peak alone carried the line at its estimate, under the envelope's upper
+    limit: with a few segments' looks (the low band's four) that limit is 3-6x the estimate, and every candidate
+    failed its verification against the envelope in the fixes (MSE/P up to 1.17) while bounding the truth (an
+    outside evaluation's 0.018-0.03 Hz lines)."""
+    terms = tuple(getattr(upper_model, "narrowband", ()) or ())
+    return tuple(max((float(s) ** 2 for s, fe, _ in terms if abs(float(fe) - f0) <= z * f0), default=0.0)
+                 for f0, z in narrowband)
 
 
 def _narrowband_of(narrowband) -> tuple:

@@ -577,6 +577,11 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
             if mine:
                 entry["upper_envelope_model"] = _with_lines(entry["upper_envelope_model"], mine,
                                                             envelope_lines_below_hz, confidence)
+        # the model above the pooled envelope and each axis's (the auto bound's target where the axes are pooled)
+        # carries the pooled envelope's lines, which hold every axis's at least (merged: the largest power)
+        if out.get("upper_envelope_model_axes") and out["upper_envelope_model"].get("narrowband"):
+            out["upper_envelope_model_axes"] = {**out["upper_envelope_model_axes"],
+                                                "narrowband": out["upper_envelope_model"]["narrowband"]}
     out["upper_envelope_ratio"] = envelope_ratio(out["upper_envelope_model"], selected.model)
     if not out["adequacy"]["pooled"].get("adequate", True):
         out["upper_envelope_note"] = (
