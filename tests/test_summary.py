@@ -1,5 +1,7 @@
 """Run summary (imupipe.summary): verdicts, inflation table in spec-sheet units, states, flagged checks."""
 
+from pathlib import Path
+
 import pytest
 
 from imupipe.summary import first_screen, flags_of, render_summary
@@ -156,7 +158,8 @@ def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
 
     md = tmp_path / "summary.md"
     text = end_of_run_text(str(tmp_path / "none"), "logs/t", md, failed=True)
-    assert text.strip().startswith("RUN FAILED: the failed job's log is under logs/t/")
+    # absolute paths: `imupipe run` runs in the checkout, not where the user typed it (an outside evaluation)
+    assert text.strip().startswith(f"RUN FAILED: the failed job's log is under {Path('logs/t').resolve()}/")
     assert end_of_run_text(str(tmp_path / "none"), "logs/t", md) == ""
     # a failed run that left a bound file: its first screen, marked partial, before the failure line
     res = tmp_path / "results" / "myrun"

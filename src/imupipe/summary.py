@@ -231,7 +231,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
     out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity),
-                 short=short_form(s, event_chance(bound), keep=None) if s != d else "")
+                 short=short_form(s, event_chance(bound), keep=None) + _level_change_note(w, stationarity)
+                 if s != d else "")
             for src in (bound, identify, stationarity)
             for (w, d), (_, s) in zip(event_flags(src.get("events")), event_flags(src.get("events"), short=True))]
     if bound and bound.get("bounded") is False:
@@ -296,12 +297,14 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
         fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}"
+        low = any(isinstance(s, Mapping) and s.get("low_band") for s in bound.get("line_search") or [])
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
                         "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
-                        "line search's band, lines.low_band_resolution_hz may; a resonance wider than about a tenth of "
-                        "the search's floor window lifts its own floor and is found too weak or not at all: a bump of "
-                        "the Allan deviation near tau = 1/(2 f) shows it" + ("; auto then builds no envelope candidate"
-                        " on a rejected selected model)" if str(bound.get("mode") or "").startswith("auto") else ")"),
+                        f"line search's band, {'a finer ' if low else ''}lines.low_band_resolution_hz may; a resonance "
+                        "wider than about a tenth of the search's floor window lifts its own floor and is found too "
+                        "weak or not at all: a bump of the Allan deviation near tau = 1/(2 f) shows it"
+                        + ("; auto then builds no envelope candidate on a rejected selected model)"
+                           if str(bound.get("mode") or "").startswith("auto") else ")"),
                         short=f"{fit}: the model does not describe the Allan variance within its confidence"))
     out += consistency_flags(sensor, identify)
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")

@@ -199,15 +199,17 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
         why = "; a job failed, so no check count below says the run passed" if failed else ""
         text = f"(partial: from the files this run has written so far{why})\n{text}" if text else ""
     parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
+    # paths absolute: `imupipe run` runs in the checkout, not where the user typed it
+    md_at, logs_at = md.resolve(), Path(logs).resolve()
     if not_bounded:
         parts.append(f"NOT BOUNDED: the integrity job failed the run on purpose (verify.on_failure: fail; warn makes "
-                     f"it a warning); the verdict and its details: {md} (another job that failed is named above)")
+                     f"it a warning); the verdict and its details: {md_at} (another job that failed is named above)")
     elif failed:  # a run starts by removing its stale outputs: a summary.md here was written by this run
-        parts.append(f"RUN FAILED: the failed job's log is under {logs}/ (the error above names it); " +
-                     (f"{md} was written before the failure and does not cover the failed job." if md.is_file()
+        parts.append(f"RUN FAILED: the failed job's log is under {logs_at}/ (the error above names it); " +
+                     (f"{md_at} was written before the failure and does not cover the failed job." if md.is_file()
                       else "summary.md is written only by a complete run."))
-    elif md.is_file():  # absolute: `imupipe run` runs in the checkout, not where the user typed it
-        parts.append(f"Summary with the details: {md.resolve()}; report: snakemake --report "
+    elif md.is_file():
+        parts.append(f"Summary with the details: {md_at}; report: snakemake --report "
                      f"{Path(results).resolve()}/report.html (make report)")
     return "".join(f"\n{p}\n" for p in parts).rstrip("\n")
 
