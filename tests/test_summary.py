@@ -985,3 +985,33 @@ def test_a_flag_s_clauses_split_outside_parentheses_only():
     assert short_form("a step at 3 s; kept (warn): it inflates K", chance,
                       keep=2) == "a step at 3 s; kept (warn); 1 of 2 axes failed, consistent with chance"
     assert short_form("a line at 2 Hz") == ""
+
+
+def test_a_line_beyond_the_level_over_every_series_is_not_called_chance():
+    """An outside evaluation: a line 805x its floor on one of three axes read "1 of 3 axes show a line, consistent
+    with chance" (the count's verdict). A line above the detection threshold of its own search at alpha / n (n the
+    series searched; imupipe.lines.detection_threshold with the search's M, K, W) is more than chance gives on its
+    own; a line below it leaves the count's verdict."""
+    from imupipe.lines import detection_threshold
+    from imupipe.stages import summary as mod
+    from imupipe.summary import first_screen
+
+    strict = detection_threshold(0.01 / 3, 25_000, 14, 51)
+
+    def run(ratio):
+        entry = {}
+        for axis in "xyz":
+            found = [{"frequency_hz": 0.3, "power": 5e-7, "amplitude": 1e-3, "sigma": 7.07e-4, "peak_ratio": ratio,
+                      "f_lo_hz": 0.29, "f_hi_hz": 0.31, "resolution_hz": 0.002}] if axis == "y" else []
+            mod._merge_checks(entry, {
+                "dataset": "d", "sensor": "gyro", "axis": axis, "n_tested": 25_000, "n_segments": 14,
+                "floor_window_bins": 51, "f_min_hz": 0.052, "f_max_hz": 9.95, "resolution_hz": 0.002, "alpha": 0.01,
+                "lines": found, "units": {"frequency_hz": "Hz", "amplitude": "rad/s", "sigma": "rad/s"}})
+        (line,) = [ln for ln in first_screen(render_summary({"gyro": {"bound": entry}})).splitlines()
+                   if ln.startswith("- FLAG lines")]
+        return line
+
+    assert "1 of 3 axes show a line, consistent with chance" in run(0.9 * strict)
+    strong = run(805.0)
+    assert (f"1 of 3 axes show a line, the strongest, 805x its floor, above the threshold at alpha / 3 "
+            f"({strict:.3g}x), more than chance gives: look at the records named") in strong, strong

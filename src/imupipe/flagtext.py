@@ -62,10 +62,12 @@ def flag_line(f: Flag, short: bool = False) -> str:
 def chance_verdict(chance: str) -> str:
     """``"; 1 of 15 axes show a line, consistent with chance"`` (or ``..., more than chance gives: ...``): the count
     and the verdict of a chance text of :func:`imupipe.verdict.chance_failures` (``"k of n axes <outcome> at level
-    a each; ... P(>= k) = p: <verdict>"``), without the arithmetic between; empty without one."""
+    a each; ... P(>= k) = p[; <a finding beyond the level on its own>]: <verdict>"``), without the arithmetic
+    between; empty without one."""
     count = chance.strip("; ").partition(" at level ")[0]
-    verdict = chance.partition("P(>= ")[2].partition(": ")[2]
-    return f"; {count}, {verdict}" if count and verdict else ""
+    head, _, verdict = chance.partition("P(>= ")[2].partition(": ")
+    why = head.partition("; ")[2]  # a finding beyond the level on its own (chance_failures's `beyond`)
+    return f"; {count}" + (f", {why}" if why else "") + f", {verdict}" if count and verdict else ""
 
 
 def short_form(detail: str, chance: str = "", keep: int | None = 1) -> str:

@@ -117,20 +117,24 @@ def beyond_chance(n_failed: int, n_tests: int, alpha) -> bool:
 
 
 def chance_failures(n_failed: int, n_tests: int, alpha: float, outcome: str = "failed", by_chance: str = "fail",
-                    null: str = "every axis stationary") -> str | None:
+                    null: str = "every axis stationary", beyond: str | None = None) -> str | None:
     r"""How `n_failed` failures among `n_tests` independent tests, each at level `alpha`, compare with chance: with
     every null true the count is Binomial(`n_tests`, `alpha`), mean `n_tests` x `alpha`, and
     :math:`P(X \ge k) = \sum_{j \ge k} \binom{n}{j}\alpha^j(1-\alpha)^{n-j}`. A tail probability of at least
     `alpha` is worded as consistent with chance, a smaller one as more than chance gives. None without failures or a
     level. Used for the stationarity tests of a sensor's axes (one per axis, each at the configured level) and for
-    the event scan (`outcome` "show an event", `by_chance` "show one", `null` "no event in any record")."""
+    the event scan (`outcome` "show an event", `by_chance` "show one", `null` "no event in any record"). The count
+    says what chance explains of how many, not how strong one is: `beyond`, a clause saying that one finding is
+    beyond the level over every test on its own (a line far above the threshold of every series searched), makes the
+    verdict "more than chance gives" whatever the count."""
     tail = failure_tail(n_failed, n_tests, alpha)
     if tail is None:
         return None
     k, n, a = int(n_failed), int(n_tests), float(alpha)
-    verdict = "consistent with chance" if tail >= a else "more than chance gives: look at the records named"
+    verdict = ("consistent with chance" if tail >= a and not beyond else
+               "more than chance gives: look at the records named")
     return (f"{k} of {n} axes {outcome} at level {a:g} each; with {null} {n * a:.2g} {by_chance} by chance on "
-            f"average and P(>= {k}) = {tail:.2g}: {verdict}")
+            f"average and P(>= {k}) = {tail:.2g}" + (f"; {beyond}" if beyond else "") + f": {verdict}")
 
 
 #: The verdict's qualifier where the bound covers the noisiest stretch of records that fail the stationarity test

@@ -38,8 +38,9 @@ def _merge_checks(target: dict, data: dict) -> None:
         target.setdefault("events_scanned", []).append(float(scan["false_alarm_rate_per_record"]))
     if data.get("n_tested") is not None and data.get("f_min_hz") is not None:  # a lines file: the band it searched
         target.setdefault("line_search", []).append(
-            {**{k: data.get(k) for k in ("f_min_hz", "f_max_hz", "resolution_hz", "alpha")},
-             **({"low_band": data["low_band"]} if isinstance(data.get("low_band"), dict) else {})})
+            {**{k: data.get(k) for k in ("dataset", "axis", "f_min_hz", "f_max_hz", "resolution_hz", "alpha",
+                                         "n_tested", "n_segments", "effective_segments", "floor_window_bins")},
+             **{k: data[k] for k in ("low_band", "scales") if isinstance(data.get(k), (dict, list))}})
     for key in CHECK_KEYS:
         if key not in data or data[key] in (None, [], {}):
             continue
