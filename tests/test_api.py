@@ -187,6 +187,12 @@ def test_lines_policy_model_carries_the_line_to_the_filter():
     assert len(r.model.narrowband) == 1 and r.bounded
     assert "nb" in r.kf["states"]
     assert r.to_dict()["lines"]["policy"] == "model"
+    # the FLAG names the records and axis where the line is, as the workflow's summary does (it named the line
+    # policy's own keys, "[decisions,narrowband]": an outside evaluation)
+    (flag,) = [f for f in r.flags if f.startswith("FLAG lines")]
+    where, _, detail = flag.removeprefix("FLAG lines [").partition("]: ")
+    assert sorted(where.split("; ")) == ["d1/gyro/x", "d2/gyro/x"], flag
+    assert detail.startswith("one line (one axis, 2 detections) at 0.3"), flag
 
 
 def test_flags_say_what_the_summary_would_a_unit_slip_included():

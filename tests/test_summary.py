@@ -327,30 +327,30 @@ def test_line_flags_name_dataset_sensor_axis_frequency_amplitude_unit_and_floor_
                 "units": {"frequency_hz": "Hz", "amplitude": "m/s^2", "sigma": "m/s^2", "peak_ratio": "1"}}
 
     one = {}
-    mod._merge_checks(one, lines_file("z", 0.5669195, 0.0069233, 78.573))
+    mod.merge_checks(one, lines_file("z", 0.5669195, 0.0069233, 78.573))
     # the amplitude is the peak, its sd (the values to paste's sigma) beside it: 0.0069233 / sqrt(2) = 0.0048955
     assert ("- FLAG lines [adis_imu2/accel/z]: 0.5669 Hz, amplitude 0.00692 m/s^2 (sd 0.0049), peak PSD 78.6x the "
             "floor" in render_summary({"accel": {"bound": one}}))
-    mod._merge_checks(one, lines_file("x", 0.5669000, 0.0093500, 133.0))
+    mod.merge_checks(one, lines_file("x", 0.5669000, 0.0093500, 133.0))
     flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
     assert flags == ["- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes) at 0.5669 Hz; the strongest "
                      "[adis_imu2/accel/x]: 0.5669 Hz, amplitude 0.00935 m/s^2 (sd 0.00661), peak PSD 133x the "
                      "floor"], flags
     # lines whose intervals do not overlap stay apart (2 <= MAX_LINE_FLAGS: one FLAG each)
     apart = {}
-    mod._merge_checks(apart, lines_file("z", 0.5669, 0.0069, 78.0))
-    mod._merge_checks(apart, lines_file("x", 0.6677, 0.0020, 9.0))
+    mod.merge_checks(apart, lines_file("z", 0.5669, 0.0069, 78.0))
+    mod.merge_checks(apart, lines_file("x", 0.6677, 0.0020, 9.0))
     flags = [ln for ln in render_summary({"accel": {"bound": apart}}).splitlines() if ln.startswith("- FLAG lines")]
     assert len(flags) == 2 and "[adis_imu2/accel/z]: 0.5669 Hz" in flags[0] and "[adis_imu2/accel/x]: 0.6677 Hz" in flags[1]
     # two detections of one line on one axis beside one on another: two axes, three detections
-    mod._merge_checks(one, lines_file("x", 0.5670, 0.0050, 60.0))
+    mod.merge_checks(one, lines_file("x", 0.5670, 0.0050, 60.0))
     flags = [ln for ln in render_summary({"accel": {"bound": one}}).splitlines() if ln.startswith("- FLAG lines")]
     assert flags[0].startswith("- FLAG lines [adis_imu2/accel/x,z]: one line (2 axes, 3 detections) at "
                                "0.5669-0.567 Hz"), flags
     # the same axis in two records is one axis (an outside evaluation read "one line (4 axes)" for 2 axes x 2 records)
     two = {}
     for ds, axis in (("r0", "x"), ("r1", "x"), ("r0", "y"), ("r1", "y")):
-        mod._merge_checks(two, {**lines_file(axis, 0.5669, 0.0069, 78.0), "dataset": ds})
+        mod.merge_checks(two, {**lines_file(axis, 0.5669, 0.0069, 78.0), "dataset": ds})
     flags = [ln for ln in render_summary({"accel": {"bound": two}}).splitlines() if ln.startswith("- FLAG lines")]
     assert "one line (2 axes, 4 detections)" in flags[0], flags
 
@@ -370,8 +370,8 @@ def test_a_sensor_with_a_line_family_gets_one_flag_naming_every_frequency_and_th
     family = [line(0.4631, 6.69), line(0.5641, 203.0), line(0.6654, 6.27), line(1.691, 8.5)]
     assert len(family) > MAX_LINE_FLAGS
     entry = {}
-    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "lines": family, "units": units})
-    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "y", "lines": [line(0.564, 143.0)],
+    mod.merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "lines": family, "units": units})
+    mod.merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "y", "lines": [line(0.564, 143.0)],
                               "units": units})
     flags = [ln for ln in render_summary({"accel": {"bound": entry}}).splitlines() if ln.startswith("- FLAG lines")]
     assert flags == ["- FLAG lines [d/accel/x,y]: 4 lines at 0.4631, 0.564-0.5641 (2 axes), 0.6654, 1.691 Hz; the "
@@ -604,11 +604,11 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
     assert rep["n_stuck_spans"] == 1 and rep["stuck_spans"][0]["start_s"] == pytest.approx(1000.0, abs=0.01)
     entry = {}
     from imupipe.stages import summary as summ
-    summ._merge_checks(entry, rep)
-    summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "x", "units": {"amplitude": "m/s^2"},
+    summ.merge_checks(entry, rep)
+    summ.merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "x", "units": {"amplitude": "m/s^2"},
                                "lines": [{"frequency_hz": 0.25, "amplitude": 1e-3, "peak_ratio": 40.0}]})
     # the same line on a clean axis: one FLAG for both, and the stuck record's note stays on it
-    summ._merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "y", "units": {"amplitude": "m/s^2"},
+    summ.merge_checks(entry, {"dataset": "trial", "sensor": "accel", "axis": "y", "units": {"amplitude": "m/s^2"},
                                "lines": [{"frequency_hz": 0.25, "amplitude": 2e-3, "peak_ratio": 50.0}]})
     stat = {"curves": [{"dataset": "trial", "axis": "x", "stationary": False, "p_value": 1e-6, "test": "calibrated",
                         "included": True}]}
@@ -626,7 +626,7 @@ def test_a_stuck_channel_is_flagged_first_with_value_span_and_share(tmp_path):
 def test_a_clean_outliers_report_adds_no_flag():
     from imupipe.stages import summary as mod
     entry = {}
-    mod._merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "n_outliers": 0, "stuck_spans": [],
+    mod.merge_checks(entry, {"dataset": "d", "sensor": "accel", "axis": "x", "n_outliers": 0, "stuck_spans": [],
                               "n_stuck_spans": 0})
     assert entry == {}
     assert render_summary({"accel": {"bound": _bound(), "stationarity": STATIONARITY}}) == \
@@ -841,7 +841,7 @@ def test_the_line_search_band_is_stated_with_its_lower_limit():
 
     entry = {}
     for axis in "xyz":
-        mod._merge_checks(entry, {"dataset": "d", "sensor": "gyro", "axis": axis, "lines": [], "n_tested": 24950,
+        mod.merge_checks(entry, {"dataset": "d", "sensor": "gyro", "axis": axis, "lines": [], "n_tested": 24950,
                                   "f_min_hz": 26 * 0.002, "f_max_hz": 49.95, "resolution_hz": 0.002, "alpha": 0.01})
     text = render_summary({"gyro": {"bound": {**_bound(), **entry}}})
     # a found line's centre may lie just outside the tested bins (an outside evaluation read a 0.0500 Hz line beside
@@ -955,7 +955,7 @@ def test_first_screen_gives_a_flag_s_finding_and_its_details_give_it_in_full():
     from imupipe.summary import first_screen
 
     entry = {}
-    mod._merge_checks(entry, {
+    mod.merge_checks(entry, {
         "dataset": "d", "sensor": "gyro", "axis": "x", "n_tested": 25_000, "f_min_hz": 0.0072, "f_max_hz": 9.95,
         "resolution_hz": 0.002, "alpha": 0.01,
         "low_band": {"resolution_hz": 1 / 3600, "f_max_hz": 0.0517, "n_segments": 4, "alpha": 0.005},
@@ -1003,7 +1003,7 @@ def test_a_line_beyond_the_level_over_every_series_is_not_called_chance():
         for axis in "xyz":
             found = [{"frequency_hz": 0.3, "power": 5e-7, "amplitude": 1e-3, "sigma": 7.07e-4, "peak_ratio": ratio,
                       "f_lo_hz": 0.29, "f_hi_hz": 0.31, "resolution_hz": 0.002}] if axis == "y" else []
-            mod._merge_checks(entry, {
+            mod.merge_checks(entry, {
                 "dataset": "d", "sensor": "gyro", "axis": axis, "n_tested": 25_000, "n_segments": 14,
                 "floor_window_bins": 51, "f_min_hz": 0.052, "f_max_hz": 9.95, "resolution_hz": 0.002, "alpha": 0.01,
                 "lines": found, "units": {"frequency_hz": "Hz", "amplitude": "rad/s", "sigma": "rad/s"}})

@@ -138,9 +138,13 @@ class NoiseModelResult:
         detail"``; :func:`imupipe.summary.flags_of` on the bound, contract, identification and stationarity records): a
         plausibility FLAG (a unit slip, data far below the sheet, an event in a record: :attr:`events`) does not
         change :attr:`bounded`, so read these too. Empty when nothing failed or was flagged."""
+        from imupipe.stages.summary import merge_checks
         from imupipe.summary import flags_of
 
         bound = {**(self.records.get("bound") or {}), **(self.contract or {}), "events": list(self.events)}
+        for label, doc in (self.records.get("lines") or {}).items():  # each curve's lines, as the workflow's summary
+            dataset, _, axis = str(label).rpartition("/")
+            merge_checks(bound, {**doc, "dataset": dataset or None, "sensor": self.sensor, "axis": axis})
         return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
                 for f in flags_of(self.sensor, bound, self.records.get("identify") or {},
                                   self.records.get("stationarity"))]
@@ -384,7 +388,7 @@ def noise_model(
                             upper=bound.upper, lines=bound.policy if lines_policy is not None else None,
                             verification=verification, contract=contract,
                             records={"identify": ident.record, "bound": bound_record, "verify": verification,
-                                     "contract": contract, "stationarity": stat}, events=found)
+                                     "contract": contract, "stationarity": stat, "lines": lines}, events=found)
 
 
 def _stationarity_of(curves, decimated, allan, rate: float, sensor: str, lines, settings):

@@ -16,7 +16,7 @@ import logging
 import re
 from pathlib import Path
 
-__all__ = ["CHECK_KEYS", "end_of_run_text", "front_page", "group_run_files", "psd_usage", "run_files",
+__all__ = ["CHECK_KEYS", "end_of_run_text", "front_page", "group_run_files", "merge_checks", "psd_usage", "run_files",
            "summarise_results", "summary_stage", "summary_text"]
 
 #: keys of a stage file that imupipe.summary.flags_of turns into FAIL / FLAG lines
@@ -32,7 +32,11 @@ def _sensor_spec(path: str, data, sensors: list, specs: list):
     return sensor, spec
 
 
-def _merge_checks(target: dict, data: dict) -> None:
+def merge_checks(target: dict, data: dict) -> None:
+    """Merge one run file's findings (`data`: a bound, identify, stationarity, outliers or lines file as read) into
+    the sensor's summary entry `target` (in place): the lines files' lines tagged with their dataset, sensor, axis
+    and units and their search's statement (``line_search``), the event scan's false-alarm rate, every key of
+    :data:`CHECK_KEYS` (lists appended, ``verified`` and-ed)."""
     scan = data.get("events_scan")
     if isinstance(scan, dict) and scan.get("false_alarm_rate_per_record") is not None:  # an outliers file: one axis
         target.setdefault("events_scanned", []).append(float(scan["false_alarm_rate_per_record"]))
@@ -119,7 +123,7 @@ def group_run_files(files: dict, sensors: list, specs: list) -> tuple[dict, dict
                 elif kind in ("identify", "stationarity"):
                     entry[kind] = data
                 else:
-                    _merge_checks(entry.setdefault("bound", {}), data)
+                    merge_checks(entry.setdefault("bound", {}), data)
     return runs, kalibr, others
 
 
