@@ -1015,3 +1015,19 @@ def test_a_line_beyond_the_level_over_every_series_is_not_called_chance():
     strong = run(805.0)
     assert (f"1 of 3 axes show a line, the strongest, 805x its floor, above the threshold at alpha / 3 "
             f"({strict:.3g}x), more than chance gives: look at the records named") in strong, strong
+
+
+def test_a_line_flag_gives_its_sd_with_the_upper_limit_the_envelope_holds():
+    """An outside evaluation read a wandering line's estimate (4.6x under its truth) where the bound held the upper
+    limit: the FLAG gives both, the limit P1 nu / chi2_nu(1 - c) of its power (here nu = 8, four looks), checked
+    against scipy.stats's quantile."""
+    from scipy.stats import chi2
+
+    from imupipe.linewords import line_text
+
+    it = {"dataset": "d", "sensor": "gyro", "axis": "y", "frequency_hz": 0.011, "power": 1.866e-9,
+          "amplitude": 6.1e-5, "sigma": 4.32e-5, "dof": 8.0, "peak_ratio": 12.0, "units": {"amplitude": "rad/s"}}
+    limit = (1.866e-9 * 8.0 / chi2.ppf(0.05, 8.0)) ** 0.5
+    where, text = line_text(it, confidence=0.95)
+    assert where == "d/gyro/y" and f"(sd 4.32e-05, at most {limit:.3g} at 0.95)" in text, text
+    assert "at most" not in line_text(it)[1] and "at most" not in line_text({**it, "dof": None}, 0.95)[1]

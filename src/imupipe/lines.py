@@ -123,6 +123,7 @@ __all__ = [
     "POLICIES",
     "line_avar",
     "line_looks",
+    "line_power_upper",
     "lines_by_curve",
 ]
 
@@ -323,6 +324,18 @@ class LineSearch:
         if self.label is not None:
             attrs["label"] = self.label
         return xr.Dataset(data, attrs=attrs)
+
+
+def line_power_upper(power: float, dof, confidence: float) -> float:
+    r"""Upper confidence limit of a line's power P1 (u^2) at `confidence` c: :math:`P_1 \nu / \chi^2_\nu(1 - c)`, with
+    :math:`\nu` its degrees of freedom (:attr:`Line.dof`); `power` itself where `dof` is None or not positive.
+    :math:`\chi^2_\nu(q) = 2 P^{-1}(\nu/2, q)` (the regularised incomplete gamma's inverse, scipy.special)."""
+    if dof is None or not float(dof) > 0:
+        return float(power)
+    from scipy.special import gammaincinv
+
+    nu = float(dof)
+    return float(power) * nu / (2.0 * float(gammaincinv(nu / 2.0, 1.0 - float(confidence))))
 
 
 def _gamma_median(K: int) -> float:

@@ -21,17 +21,19 @@ __all__ = ["MAX_LINE_FLAGS", "line_chance", "line_reports", "line_text", "search
 MAX_LINE_FLAGS = 2
 
 
-def line_text(it: Mapping) -> tuple[str, str]:
+def line_text(it: Mapping, confidence: float | None = None) -> tuple[str, str]:
     r"""Where one narrowband line is (``dataset/sensor/axis``, else its ``curve``) and what it is: its frequency
     (Hz), its sinusoid amplitude :math:`A = \sqrt{2 P_1}` in the sensor's unit (the lines file's ``units``) with its sd
-    :math:`\sqrt{P_1}` beside it (else the sd alone), and its peak PSD over the running-median floor (``peak_ratio``,
-    dimensionless)."""
+    :math:`\sqrt{P_1}` beside it (else the sd alone) and, with `confidence` and the line's ``dof``, the sd's upper
+    limit at that level (:func:`imupipe.lines.line_power_upper`: what the upper envelope holds; an estimate from a
+    few looks can lie well under a wandering line's truth), and its peak PSD over the running-median floor
+    (``peak_ratio``, dimensionless)."""
     units = it.get("units") if isinstance(it.get("units"), Mapping) else {}
     where = "/".join(str(it[k]) for k in ("dataset", "sensor", "axis") if it.get(k) is not None)
     f = _frequency(it)
     parts = [f"{num(f, '{:.4g}')} Hz" if f is not None else "frequency -"]
     if it.get("amplitude") is not None:  # the peak; its sd beside it, the quantity the values to paste give
-        sd = f" (sd {num(it['sigma'])})" if it.get("sigma") is not None else ""
+        sd = f" (sd {num(it['sigma'])}{_sd_limit(it, confidence)})" if it.get("sigma") is not None else ""
         parts.append(f"amplitude {num(it['amplitude'])} {units.get('amplitude', '(unit not stated)')}{sd}")
     elif it.get("sigma") is not None:
         parts.append(f"sigma {num(it['sigma'])} {units.get('sigma', '(unit not stated)')}")
@@ -40,17 +42,26 @@ def line_text(it: Mapping) -> tuple[str, str]:
     return where or str(it.get("curve", "-")), ", ".join(parts)
 
 
-def line_reports(items: list) -> list[tuple[str, str, list[str]]]:
+def _sd_limit(it: Mapping, confidence: float | None) -> str:
+    """``", at most X at c"``: the upper limit of a line's sd at `confidence` (its ``power`` u^2 and ``dof``), or ""."""
+    if confidence is None or it.get("dof") is None or it.get("power") is None:
+        return ""
+    from imupipe.lines import line_power_upper
+
+    return f", at most {num(line_power_upper(float(it['power']), it['dof'], confidence) ** 0.5)} at {float(confidence):g}"
+
+
+def line_reports(items: list, confidence: float | None = None) -> list[tuple[str, str, list[str]]]:
     """The FLAG texts of the lines `items` of one sensor type: (where, detail, the places of its members).
 
     One per line (:func:`line_text`); a line seen on several axes or records (each member's frequency in another's
     full-rate interval ``f_lo_hz`` to ``f_hi_hz``; an entry without them occupies its frequency alone) one text
     naming every axis and its strongest member (largest peak over the floor); more than :data:`MAX_LINE_FLAGS` lines
     (an accelerometer's line with its sidebands and harmonics) one text naming every frequency, on how many axes
-    each is seen, and the strongest line."""
+    each is seen, and the strongest line. `confidence`: each sd's upper limit at that level (:func:`line_text`)."""
     from imupipe.lines import same_line_groups
 
-    texts = [line_text(it) for it in items]
+    texts = [line_text(it, confidence) for it in items]
     placed = [j for j, it in enumerate(items) if _frequency(it) is not None]  # an entry without one: a line apart
 
     def where(it):

@@ -340,7 +340,8 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
                 continue  # a coefficient at 0: the component absent (a GM sigma too), not a fit pressed to its range
             out.append(Flag(sensor, "parameter on boundary", str(p), boundary_text(sensor, bound, identify, str(p),
                                                                                     value)))
-    out += _line_flags(sensor, line_items, stuck_where, line_chance(bound))
+    level = (bound.get("identification_intervals") or {}).get("confidence")  # the envelope's: its lines' limits
+    out += _line_flags(sensor, line_items, stuck_where, line_chance(bound), level)
     out += psd_usage_flags(sensor, bound.get("psd_usage"))
     for key in ("outliers", "gaps"):
         for src in (stationarity, identify, bound):
@@ -822,11 +823,11 @@ def _stuck_flag(sensor: str, it: Mapping) -> Flag:
                 + (f" ({num(100.0 * float(frac), '{:.3g}')} % of the record)" if frac is not None else ""))
 
 
-def _line_flags(sensor: str, items: list, stuck_where=frozenset(), chance: str = "") -> list[Flag]:
+def _line_flags(sensor: str, items: list, stuck_where=frozenset(), chance: str = "", confidence=None) -> list[Flag]:
     """The FLAGs of narrowband lines (:func:`imupipe.linewords.line_reports`), with :data:`STUCK_NOTE` where a
     line's record holds a stuck span (`stuck_where`: the stuck FLAGs' places) and `chance` (:func:`line_chance`)."""
     out = []
-    for where, detail, places in line_reports(items):
+    for where, detail, places in line_reports(items, confidence):
         note = STUCK_NOTE if stuck_where & set(places) else ""
         short = short_form(detail, chance, keep=None)  # the line itself, the chance verdict without its numbers
         out.append(Flag(sensor, "lines", where, detail + chance + note, short=short + note if short else ""))

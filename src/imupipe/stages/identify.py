@@ -658,9 +658,7 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
     oscillator), f0 Hz, zeta. Like every other term of the envelope, a line is held at what the records do not
     exclude: an outside evaluation's 150 deg/h line (two 2 h records) was estimated at 141 deg/h, and a filter on the
     bound that carried the estimate under-stated its error in the first step (MSE/P 1.003)."""
-    from scipy.special import gammaincinv  # chi2.ppf(q, nu) = 2 P^{-1}(nu/2, q), without scipy.stats's import
-
-    from imupipe.lines import Line, merge_lines
+    from imupipe.lines import Line, line_power_upper, merge_lines
 
     found = [ln for group in lines.values() for ln in group if isinstance(ln, Line)
              and (below_hz is None or ln.frequency_hz < below_hz)]
@@ -669,10 +667,7 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
         return env
 
     def upper(ln):
-        if ln.dof is None or not ln.dof > 0:
-            return float(ln.power)
-        nu = float(ln.dof)
-        return float(ln.power) * nu / (2.0 * float(gammaincinv(nu / 2.0, 1.0 - float(confidence))))
+        return line_power_upper(ln.power, ln.dof, confidence)
 
     return {**env, "narrowband": [{"sigma": math.sqrt(upper(ln)) / ln.block_gain, "f0_hz": float(ln.frequency_hz),
                                    "zeta": float(ln.zeta)} for ln in merged]}
