@@ -546,6 +546,10 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
            "above are the global model, verified on every axis's envelope too" in per_head
     assert "| gyro | x | own model |" in per_head and "| gyro | y | global model |" in per_head
     assert "the axes differ" not in head.lower()
+    # ... and says so before the tables: the global model is not what an axis with its own model takes (an outside
+    # evaluation pasted the first table, 30x looser on the axes without another's line)
+    tables = per_head.index("| sensor | file | parameter |")
+    assert per_head.index("**The axes differ (gyro):** paste each axis's own model") < tables
     # the bias state's initial sd: sqrt(P0 of p) = 7.62e-5 rad/s = 7.62e-5 * 180/pi * 3600 = 15.72 deg/h, after the
     # model's terms and before Kalibr's
     biased = {**contract, "bias_initialisation": {"p0_random_walk": 7.62e-5 ** 2}}

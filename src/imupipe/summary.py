@@ -1121,8 +1121,13 @@ def _paste_section(runs: Mapping[str, Mapping[str, Any]], paste: list) -> list[s
     :func:`paste_rows` with the sensor in front); empty when there is nothing to paste."""
     head: list[str] = []
     if paste:
-        head += ["## Values to paste, in the spec sheet's units", "",
-                 "The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
+        own = [s for s, files in runs.items() if any(e["own"] for e in per_axis_exports(s, files.get("bound") or {}))]
+        head += ["## Values to paste, in the spec sheet's units", ""]
+        if own:  # an outside evaluation pasted the global model, 30x looser on the axes without another's line
+            head += [f"**The axes differ ({', '.join(own)}):** paste each axis's own model, the per-axis table below "
+                     "the first one; the tables hold the global model, verified on every axis too but looser on an "
+                     "axis without another's line or drift.", ""]
+        head += ["The exported filter model's continuous-time values (its Phi, Qd and P0 at the filter rate are in "
                  "the KF file) and Kalibr's densities. Bounding values: use them as they are, do not inflate them "
                  "again, with the KF file's states and their initial variances P0 (the random-walk bias state p's "
                  "initial sd is in the table; a GM state starts at its sigma): a filter that takes the bias as known "
