@@ -219,6 +219,8 @@ def test_ros_bag_and_netcdf_rows(tmp_path, capsys):
         "netcdf", "2", "from_file", "wx", "t")
     c = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
     assert (c["psd"]["window_s"], c["psd"]["step_s"], c["application"]["outage_s"]) == (300.0, 150.0, 300.0)
+    # 1 / 300 s is not finer than the line search's 0.002 Hz: no low band (the start-up check would refuse it)
+    assert c["lines"]["low_band_resolution_hz"] is None
     assert check_config(tmp_path / "o" / "config.yaml")
 
 

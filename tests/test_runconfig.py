@@ -86,6 +86,18 @@ def test_fix_rate_must_divide_the_filter_rate(fix, ok):
             rc.load_config(cfg, ROOT)
 
 
+@pytest.mark.parametrize("low, ok", [(None, True), (1 / 3600, True), (0.002, False), (0.01, False)])
+def test_the_low_band_must_be_finer_than_the_line_search(low, ok):
+    # refused at start-up, before any job (the lines job would fail on every axis otherwise)
+    cfg = tiny(lines={"resolution_hz": 0.002, "low_band_resolution_hz": low})
+    if ok:
+        assert rc.load_config(cfg, ROOT)["lines"]["low_band_resolution_hz"] == low
+    else:
+        with pytest.raises(ValueError, match=r"lines.low_band_resolution_hz = .* Hz must be finer \(smaller\) than "
+                                             r"lines.resolution_hz = 0.002 Hz"):
+            rc.load_config(cfg, ROOT)
+
+
 @pytest.mark.parametrize("policy", ["warn", "exclude", "split"])
 def test_every_events_policy_is_accepted_at_start_up(policy):
     assert rc.load_config(tiny(events={"policy": policy}), ROOT)["events"]["policy"] == policy

@@ -26,7 +26,8 @@ derived, each by a stated rule (:func:`derive_settings`):
   than the running-median floor resolves is found (the default run keeps [1], the paper's).
 - ``lines.low_band_resolution_hz`` = :math:`1/W`: the band below the search's lowest tested bin (0.052 Hz at the
   default 0.002 Hz) is searched too, at the PSD window's bin spacing (the default run searches none, the paper's).
-  Each of the four searches runs at alpha / 4.
+  Each of the four searches runs at alpha / 4. Where :math:`1/W` is not finer than ``lines.resolution_hz`` (a window
+  under 500 s: records under about 33 min), null: no band below the search's is resolved finer than it.
 
 A record with timestamps (a time column, or a ROS bag's message headers) gets ``gap_policy: fill``: a few dropped
 samples, common in logged records, are filled and counted instead of stopping the ingest; a longer gap still stops
@@ -333,6 +334,13 @@ def sheet_text(records: list[RecordInfo]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _low_band(window_s: float) -> str:
+    """``lines.low_band_resolution_hz`` for a PSD window of `window_s` s, as the config's YAML value: 1 / window_s
+    (Hz) where that is finer than the default ``lines.resolution_hz``, else null (module docstring)."""
+    low = 1.0 / float(window_s)
+    return repr(low) if low < float(DEFAULTS["lines.resolution_hz"]) else "null"
+
+
 def config_text(name: str, sheet: str, spec_dir: str, spec: str, sensors: list[str], s: Settings) -> str:
     """The partial config (merged over config/config.yaml by the workflow), every derived value with its rule."""
     worst = max(s.unused.values())
@@ -365,8 +373,8 @@ lines:
   # window is found at a coarser one (imupipe.lines.find_lines, scales)
   scales: [1, 8, 64]
   # 1 / psd.window_s: the band below the first search's (0.052 Hz) searched at the PSD window's bin spacing; each of
-  # the four searches at alpha / 4
-  low_band_resolution_hz: {1.0 / s.window_s!r}
+  # the four searches at alpha / 4 (null where that spacing is not finer than the search's resolution_hz)
+  low_band_resolution_hz: {_low_band(s.window_s)}
 bound:
   # auto: every mode's bound (raw, smoothed, confidence, pooled, and with the joint envelope the envelope
   # candidate) verified, the tightest that passes every check exported (imupipe.bound.auto; the paper's default

@@ -81,7 +81,8 @@ def divides(fast_hz: float, slow_hz: float) -> bool:
 
 def check_cross_keys(cfg: dict) -> None:
     """The checks the schema cannot state: exactly one of ``datasets`` and ``simulation``; ``verify.fix_rate_hz``
-    dividing ``application.filter_rate_hz`` (a fix every whole number of filter steps)."""
+    dividing ``application.filter_rate_hz`` (a fix every whole number of filter steps); ``lines.low_band_resolution_hz``
+    finer than ``lines.resolution_hz`` (the low band is searched below the first search's band, at a finer spacing)."""
     if cfg.get("simulation") and cfg.get("datasets"):
         raise ValueError("config: give either 'datasets' (a sheet of recordings) or 'simulation', not both")
     if not cfg.get("simulation") and not cfg.get("datasets"):
@@ -91,6 +92,12 @@ def check_cross_keys(cfg: dict) -> None:
         raise ValueError(f"config: verify.fix_rate_hz = {fix} Hz must divide application.filter_rate_hz = {rate} Hz "
                          "(a fix every whole number of filter steps); e.g. fix_rate_hz 1 with filter_rate_hz 100, or "
                          "null for a fix every step")
+    lines = cfg.get("lines") or {}
+    low, res = lines.get("low_band_resolution_hz"), lines.get("resolution_hz")
+    if low is not None and res is not None and not float(low) < float(res):
+        raise ValueError(f"config: lines.low_band_resolution_hz = {low} Hz must be finer (smaller) than "
+                         f"lines.resolution_hz = {res} Hz: the band below the line search's is searched at a finer "
+                         "bin spacing (e.g. 1 / psd.window_s), or null for none")
 
 
 def merged_config(given: dict, root, where: str = "config") -> dict:

@@ -94,7 +94,8 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     std = std_text or f"{num(bias.get('required_std'))} {(bias.get('units') or {}).get('required_std', '')}".rstrip()
     what = "the records' slow drift" if bias.get("rests_on") == "records" else "the spec sheet's bias"
     rec = f"; the longest record, {num(bias.get('record_s'))} s, cannot check it" if bias.get("record_s") else ""
-    return (f"the exported initial bias (std {std}) rests on {what} extrapolated "
+    return (f"the exported initial bias (std {std}: every bias state together, the p state's initial sd and any GM's "
+            f"sigma, which the values to paste give apart) rests on {what} extrapolated "
             f"to T_max = {num(bias.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
             "(identify.max_bias_time_s, s) if it is known")
 
