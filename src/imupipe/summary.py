@@ -230,11 +230,12 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += stuck
     from imupipe.events import event_flags  # bursts and steps of the outliers files: the text built there
 
-    out += [Flag(sensor, "event", w, d + event_chance(bound) + _level_change_note(w, stationarity),
-                 short=short_form(s, event_chance(bound), keep=None) + _level_change_note(w, stationarity)
-                 if s != d else "")
-            for src in (bound, identify, stationarity)
-            for (w, d), (_, s) in zip(event_flags(src.get("events")), event_flags(src.get("events"), short=True))]
+    chance = event_chance(bound)
+    for items in (src.get("events") for src in (bound, identify, stationarity)):
+        for (w, d), (_, s) in zip(event_flags(items), event_flags(items, short=True)):
+            note = _level_change_note(w, stationarity)
+            out.append(Flag(sensor, "event", w, d + chance + note,
+                            short=short_form(s, chance, keep=None) + note if s != d else ""))
     if bound and bound.get("bounded") is False:
         if bound.get("margin") is None or float(bound["margin"]) < 1.0 - BOUNDED_TOLERANCE:
             out.append(Flag(sensor, "bound", f"{bound.get('margin_curve', '-')} at "
