@@ -138,6 +138,7 @@ class NoiseModelResult:
         detail"``; :func:`imupipe.summary.flags_of` on the bound, contract, identification and stationarity records): a
         plausibility FLAG (a unit slip, data far below the sheet, an event in a record: :attr:`events`) does not
         change :attr:`bounded`, so read these too. Empty when nothing failed or was flagged."""
+        from imupipe.flagtext import flag_line
         from imupipe.stages.summary import merge_checks
         from imupipe.summary import flags_of
 
@@ -145,9 +146,8 @@ class NoiseModelResult:
         for label, doc in (self.records.get("lines") or {}).items():  # each curve's lines, as the workflow's summary
             dataset, _, axis = str(label).rpartition("/")
             merge_checks(bound, {**doc, "dataset": dataset or None, "sensor": self.sensor, "axis": axis})
-        return [f"{'FAIL' if f.severity == 'fail' else 'FLAG'} {f.check}{f' [{f.where}]' if f.where else ''}: {f.detail}"
-                for f in flags_of(self.sensor, bound, self.records.get("identify") or {},
-                                  self.records.get("stationarity"))]
+        found = flags_of(self.sensor, bound, self.records.get("identify") or {}, self.records.get("stationarity"))
+        return [flag_line(f).removeprefix("- ") for f in found]  # the summary's words, without its list bullet
 
     @property
     def psd_bounded(self) -> bool:

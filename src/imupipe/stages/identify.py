@@ -666,11 +666,8 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
     if not merged:
         return env
 
-    def upper(ln):
-        return line_power_upper(ln.power, ln.dof, confidence)
-
-    return {**env, "narrowband": [{"sigma": math.sqrt(upper(ln)) / ln.block_gain, "f0_hz": float(ln.frequency_hz),
-                                   "zeta": float(ln.zeta)} for ln in merged]}
+    return {**env, "narrowband": [{"sigma": math.sqrt(line_power_upper(ln.power, ln.dof, confidence)) / ln.block_gain,
+                                   "f0_hz": float(ln.frequency_hz), "zeta": float(ln.zeta)} for ln in merged]}
 
 
 def _lines_record(curves, lines, known) -> dict:
