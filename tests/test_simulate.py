@@ -87,6 +87,21 @@ def test_ar1_kernel_is_lfilter(rng):
         simulate_module._kernels.ar1(np.zeros(10), 0.5, 3)
 
 
+@pytest.mark.skipif(simulate_module._kernels is None, reason="imupipe._kernels not built")
+def test_complex_ar1_kernel_is_lfilter(rng):
+    """The compiled recursion of a narrowband line's modal coordinate does lfilter's complex operations in
+    lfilter's order: bit-identical, over the poles a line takes (slow and fast, lightly and strongly damped)."""
+    from scipy.signal import lfilter
+
+    z = rng.standard_normal((3, 5000)) + 1j * rng.standard_normal((3, 5000))
+    for mu in (0.5 - 0.2j, 0.99 * np.exp(0.3j), (1.0 - 1e-9) * np.exp(2.9j)):
+        expected = lfilter([1.0], [1.0, -mu], z, axis=-1)
+        got = simulate_module._complex_ar1(z.copy(), mu)
+        assert np.array_equal(got, expected)
+    with pytest.raises(ValueError, match="whole number of rows"):
+        simulate_module._kernels.car1(np.zeros(10), 0.5, 0.1, 3)
+
+
 def _bank_terms(w, p, weights, direct, state):
     """The terms of the flicker bank's sum, |direct w| and each branch's |u_i| (the NumPy passes with one branch
     and no direct term: y = 0 w + u_i = u_i exactly), shape (J + 1,) + w.shape."""

@@ -35,6 +35,12 @@
  *     of scipy.signal.lfilter([1], [1, -phi], e, axis=-1) (same operations in the same order), for the
  *     Gauss-Markov records of imupipe.simulate.
  *
+ * car1(z, mu_re, mu_im, n)
+ *     In place, each row of n complex values (z: complex128 data as interleaved float64 pairs, 2 n doubles per
+ *     row): z[i] = mu z[i-1] + z[i], the complex product as (mu_re s_re - mu_im s_im) + i (mu_re s_im + mu_im s_re):
+ *     the first-order complex recursion of scipy.signal.lfilter([1], [1, -mu], z, axis=-1), for the modal
+ *     coordinate of imupipe.simulate's damped oscillator (narrowband lines).
+ *
  * flicker_bank(w, p, weights, direct, state, y, n)
  *     The flicker bank of imupipe.simulate in one pass over the samples, per row of n values:
  *     u_i[k] = p_i u_i[k-1] + weights_i w[k] for the J = len(p) branches (u_i[-1] = state[row, i]), and
@@ -344,6 +350,22 @@ static void ar1_impl(double *e, Py_ssize_t rows, Py_ssize_t n, double phi)
         double *x = e + r * n;
         for (Py_ssize_t i = 1; i < n; i++)
             x[i] = phi * x[i - 1] + x[i];
+    }
+}
+
+IMUPIPE_CLONES
+static void car1_impl(double *z, Py_ssize_t rows, Py_ssize_t n, double mr, double mi)
+{
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        double *x = z + 2 * r * n;
+        double sr = x[0], si = x[1];
+        for (Py_ssize_t i = 1; i < n; i++) {
+            double tr = mr * sr - mi * si, ti = mr * si + mi * sr;
+            sr = tr + x[2 * i];
+            si = ti + x[2 * i + 1];
+            x[2 * i] = sr;
+            x[2 * i + 1] = si;
+        }
     }
 }
 
@@ -999,6 +1021,35 @@ static PyObject *py_ar1(PyObject *self, PyObject *args)
     result = Py_NewRef(Py_None);
 done:
     PyBuffer_Release(&e);
+    return result;
+}
+
+static PyObject *py_car1(PyObject *self, PyObject *args)
+{
+    PyObject *z_obj;
+    double mr, mi;
+    Py_ssize_t n;
+    Py_buffer z = {0};
+    PyObject *result = NULL;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "Oddn:car1", &z_obj, &mr, &mi, &n))
+        return NULL;
+    if (PyObject_GetBuffer(z_obj, &z, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0)
+        goto done;
+    /* the complex data as float64 pairs (z.view(numpy.float64)); rows are read from n */
+    if (check_buffer_nd(&z, "z", 'f', 8, INT_MAX) < 0)
+        goto done;
+    if (n < 1 || (z.len / 16) % n != 0 || z.len % 16 != 0) {
+        PyErr_Format(PyExc_ValueError, "z has %zd float64 values, not a whole number of rows of n=%zd complex values",
+                     z.len / 8, n);
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    car1_impl((double *)z.buf, z.len / 16 / n, n, mr, mi);
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&z);
     return result;
 }
 
@@ -1688,6 +1739,10 @@ static PyMethodDef kernel_methods[] = {
      "ar1(e, phi, n)\n--\n\n"
      "In place, per row of n values: e[i] = phi * e[i-1] + e[i] for i >= 1 (scipy.signal.lfilter([1], [1, -phi],\n"
      "e, axis=-1)). e: writable C-contiguous float64 of a whole number of rows. Releases the GIL."},
+    {"car1", py_car1, METH_VARARGS,
+     "car1(z, mu_re, mu_im, n)\n--\n\n"
+     "In place, per row of n complex values: z[i] = mu z[i-1] + z[i] for i >= 1 (scipy.signal.lfilter([1], [1, -mu],\n"
+     "z, axis=-1)). z: writable C-contiguous float64 view of complex128 data (2 n values per row). Releases the GIL."},
     {"flicker_bank", py_flicker_bank, METH_VARARGS,
      "flicker_bank(w, p, weights, direct, state, y, n)\n--\n\n"
      "Per row of n values: u_i[k] = p_i u_i[k-1] + weights_i w[k] (u_i[-1] = state[row, i]), y[k] = direct w[k] +\n"

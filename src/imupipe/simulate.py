@@ -179,8 +179,6 @@ def narrowband_discrete(sigma: float, f0_hz: float, zeta: float, dt: float) -> t
 
 def _narrowband(rng, shape, sigma: float, f0_hz: float, zeta: float, dt: float) -> np.ndarray:
     """Samples of x of the damped oscillator (steady state), exact in distribution; see the module docstring."""
-    from scipy.signal import lfilter
-
     phi, Qd, P0 = narrowband_discrete(sigma, f0_hz, zeta, dt)
     mu, V = np.linalg.eig(phi)
     k = int(np.argmax(mu.imag)) if np.any(mu.imag != 0) else 0
@@ -194,8 +192,7 @@ def _narrowband(rng, shape, sigma: float, f0_hz: float, zeta: float, dt: float) 
     _modal_drive(eta[..., :-1, :], Vinv[k], drive[..., 1:])
     drive[..., 0] = x0 @ Vinv[k]
     if np.iscomplexobj(mu) and abs(mu[k].imag) > 0:
-        s = lfilter([1.0], [1.0, -mu[k]], drive, axis=-1)
-        return 2.0 * np.real(V[0, k] * s)
+        return 2.0 * np.real(V[0, k] * _complex_ar1(drive, complex(mu[k])))
     # real eigenvalues (not reached for 0 < zeta < 1): the plain two-state recursion
     out = np.empty(shape)
     st = x0
@@ -212,6 +209,19 @@ def _modal_drive(eta: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
     for part, w in ((out.real, v.real), (out.imag, v.imag)):
         np.multiply(eta[..., 0], w[0], out=part)
         part += eta[..., 1] * w[1]
+
+
+def _complex_ar1(z: np.ndarray, mu: complex) -> np.ndarray:
+    """s[0] = z[0], s[i] = mu s[i-1] + z[i] along the last axis of complex128 ``z``, in place where it can: the
+    compiled kernel (``imupipe._kernels.car1`` on z's float64 pairs, no scipy.signal import in the job) or
+    ``scipy.signal.lfilter([1], [1, -mu], z, axis=-1)``, the same operations in the same order (tested
+    bit-identical)."""
+    if _kernels is not None and hasattr(_kernels, "car1") and z.flags.c_contiguous and z.dtype == np.complex128:
+        _kernels.car1(z.view(np.float64), mu.real, mu.imag, z.shape[-1])
+        return z
+    from scipy.signal import lfilter
+
+    return lfilter([1.0], [1.0, -mu], z, axis=-1)
 
 
 def _psd_sqrt(Q: np.ndarray) -> np.ndarray:
