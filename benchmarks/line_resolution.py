@@ -9,8 +9,8 @@ mean P/MSE, the narrowband terms exported, bounded runs.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_resolution.py low 4 20 21 22 23 24 25 [--rows default low_band]
 
-Cases: ``low`` a line of sd 1e-3 rad/s at 0.03 Hz, damping 1e-3; ``mid`` 1e-3 at 0.05 Hz, 5e-4; ``hf`` 3e-4 at 7.3
-Hz, 2e-4; ``none`` no line. Arguments: case, hours, rate (Hz), seeds.
+Cases: ``low`` a line of sd 1e-3 rad/s at 0.03 Hz, damping 1e-3; ``mid`` 1e-3 at 0.05 Hz, 5e-4; ``damped`` 1e-3 at
+0.04 Hz, 5e-3 (an outside evaluation's); ``hf`` 3e-4 at 7.3 Hz, 2e-4; ``none`` no line. Arguments: case, hours, rate (Hz), seeds.
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ from line_integrity import BROADBAND, exported_against_truth  # noqa: E402
 from imupipe.models import NoiseModel  # noqa: E402
 
 #: The cases' lines (sigma rad/s, f0 Hz, damping).
-CASES = {"low": ((1e-3, 0.03, 1e-3),), "mid": ((1e-3, 0.05, 5e-4),), "hf": ((3e-4, 7.3, 2e-4),), "none": ()}
+CASES = {"low": ((1e-3, 0.03, 1e-3),), "mid": ((1e-3, 0.05, 5e-4),), "hf": ((3e-4, 7.3, 2e-4),), "none": (),
+         "damped": ((1e-3, 0.04, 5e-3),)}
 
 
 def run(case: str, hours: float, rate: float, seeds, resolution_hz: float, low_band_resolution_hz=None) -> list:

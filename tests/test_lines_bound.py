@@ -220,7 +220,8 @@ def test_three_axes_with_a_low_band_line_on_one_are_bounded_with_the_line_at_its
     record at 20 Hz, the low band searched at 1/window_s, auto with the joint envelope. The line's power limit from
     four segments' looks is about 2x its estimate; every candidate carried the estimate and failed its verification
     against the envelope in the fixes (MSE/P 1.17: NOT BOUNDED) while bounding the truth. Now each candidate's line
-    is the envelope's: BOUNDED, and against the truth of the line's axis the exported filter's worst MSE/P <= 1."""
+    is at least the envelope's (at it where the sample spectra ask for less): BOUNDED, and against the truth of the
+    line's axis the exported filter's worst MSE/P <= 1."""
     import sys
     from pathlib import Path
 
@@ -243,8 +244,8 @@ def test_three_axes_with_a_low_band_line_on_one_are_bounded_with_the_line_at_its
                       lines_low_band_resolution_hz=1.0 / window, outage_s=3600.0, fix_s=600.0)
     assert res.bounded, res.contract.get("failed_checks")
     (line,) = res.records["identify"]["upper_envelope_model"]["narrowband"]
-    assert abs(line["f0_hz"] - 0.03) < 1e-3 and any(abs(s - line["sigma"]) <= 1e-12 * s
-                                                      for s, _, _ in res.bound.model.narrowband)
+    assert abs(line["f0_hz"] - 0.03) < 1e-3 and any(s >= line["sigma"] * (1 - 1e-12) and abs(f - line["f0_hz"]) < 1e-9
+                                                      for s, f, _ in res.bound.model.narrowband)
     assert kf_against_truth(res.kf, lined, "gyro", 600.0, 3600.0)["worst"] <= 1.0
 
 

@@ -265,6 +265,25 @@ def _known_of(curves, lines) -> list | None:
     return known if any(np.any(k > 0) for k in known) else None
 
 
+def _calibrated_known(curves, known, lines, components, n_gm, T_grid, confidence) -> tuple:
+    """Each curve's known line AV at the scale the Allan domain calibrates within its lines' power interval
+    (:func:`imupipe.identify.known.calibrated_known`), and the record per curve label of the curves with lines
+    ({} and `known` as it is without lines)."""
+    from imupipe.identify.known import calibrated_known
+
+    if known is None:
+        return known, {}
+    dofs = [[getattr(ln, "dof", None) for ln in lines.get(c.label, ())] for c in curves]
+    scaled, records = calibrated_known([c.tau for c in curves], [c.avar for c in curves], [c.edf for c in curves],
+                                       known, dofs, components=components, n_gm=n_gm, T_grid=T_grid,
+                                       confidence=confidence)
+    for c, r in zip(curves, records):
+        if r and r["calibrated"]:
+            logging.info("%s: the lines' Allan variance calibrated at %.3g x their PSD estimate (chi2 %.4g -> %.4g)",
+                         c.label, r["scale"], r["chi2_unscaled"], r["chi2_scaled"])
+    return scaled, {c.label: r for c, r in zip(curves, records) if r is not None}
+
+
 def _adequacy_entry(fit) -> dict:
     """The adequacy numbers of a fit for the before/after table (chi2 and p dimensionless)."""
     a = fit.adequacy
@@ -505,6 +524,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
     if T_grid is None and "gauss_markov" in components:
         components = [c for c in components if c != "gauss_markov"]
         logging.info("no GM time constant resolvable (%s): the fit has no GM", T_range["statement"])
+    known, known_scales = _calibrated_known(curves, known, lines, components, n_gm, T_grid, confidence)
     fit_kw = dict(n_boot=n_boot, confidence=confidence, dt=1.0 / rates[0], record_rate_hz=rates, n_samples=ns,
                   adequacy_level=adequacy_level, T_grid=T_grid, known_avar=known)
     fit = fit_allan(taus, avars, edfs, components=components, n_gm=n_gm, rng=seed, **fit_kw)
@@ -555,7 +575,7 @@ def identify_sensor(curves, *, sensor: str, components, n_gm: int, n_boot: int, 
         "slope_line": {},
     }
     if known is not None:
-        out["lines_known"] = _lines_record(curves, lines, known)
+        out["lines_known"] = _lines_record(curves, lines, known, known_scales)
     out["adequacy_lines"] = (_adequacy_with_lines(curves, fit, components, n_gm, fit_kw, seed)
                              if known is not None else None)
     # what the envelope's level rests on: the bootstrap's model describing the data (the contract's confidence)
@@ -670,10 +690,11 @@ def _with_lines(env: dict, lines, below_hz: float | None = None, confidence: flo
                                    "f0_hz": float(ln.frequency_hz), "zeta": float(ln.zeta)} for ln in merged]}
 
 
-def _lines_record(curves, lines, known) -> dict:
+def _lines_record(curves, lines, known, scales=None) -> dict:
     """Per curve: the lines known to the fit (f0 Hz, amplitude and sigma u of the model's continuous oscillator,
-    :attr:`imupipe.lines.Line.narrowband`, zeta 1) and the largest share of the curve's Allan variance they carry
-    (1)."""
+    :attr:`imupipe.lines.Line.narrowband`, zeta 1; their PSD estimates), the largest share of the curve's Allan
+    variance they carry (1, at the fit's scale) and ``av_scale``: the scale of their Allan variance in the fit
+    (:func:`_calibrated_known`; 1 unless the Allan domain calibrates it)."""
     from imupipe.lines import Line
 
     out = {}
@@ -685,6 +706,12 @@ def _lines_record(curves, lines, known) -> dict:
         out[c.label] = {"lines": [{"f0_hz": float(f0), "amplitude": float(math.sqrt(2.0) * s), "sigma": float(s),
                                    "zeta": float(z)} for s, f0, z in terms],
                         "max_avar_share": float(np.max(k / np.asarray(c.avar, dtype=np.float64)))}
+        if (scales or {}).get(c.label):
+            out[c.label]["av_scale"] = {
+                **scales[c.label],
+                "statement": "the lines' Allan variance in every fit is their PSD estimate's times `scale`: the scale "
+                             "within the lines' power interval that minimises the curve's own fit statistic, kept "
+                             "at 1 unless the fit improves by more than `threshold` (chi2 with 1 dof at level 0.01)"}
     return out
 
 
