@@ -17,7 +17,9 @@ Units: rates in Hz, durations in s, as in the config.
 
 from __future__ import annotations
 
+
 import csv
+import math
 import os
 from fnmatch import fnmatch
 from pathlib import Path
@@ -248,6 +250,30 @@ def _probe(row: dict, simulation: dict | None):
     return meta.rate_hz, meta.duration_s, meta
 
 
+def _stamps_contradict(name: str, meta, row: dict) -> str | None:
+    """The problem of a record whose sheet ``rate_hz`` its timestamps' span contradicts, else None: its N rows over
+    the span T between its first and last stamp give (N - 1) / T, which a gap can only lower. Above rate_hz by more
+    than :data:`imupipe.readers.RATE_RTOL`, or below it by more than that plus what the row's gap policy lets the
+    ingest fill (``fill``: fill_max_fraction of the record; ``fail``: nothing; a split keeps any gap), rows /
+    rate_hz, which the length checks read, is not the record's duration, and the ingest (which compares rate_hz with
+    the gap-free mean interval, or stops on the gaps) would stop on it."""
+    from imupipe.readers import DEFAULT_FILL_MAX_FRACTION, RATE_RTOL
+
+    span, n = getattr(meta, "span_s", None), getattr(meta, "n_samples", 0)
+    if getattr(meta, "rate_from", "") != "sheet" or not span or span <= 0 or n < 2:
+        return None
+    rate, stamps_rate = float(meta.rate_hz), (n - 1) / span
+    policies = {str(row.get("gap_policy") or "fail"), str(row.get("long_gap_policy") or "fail")}
+    filled = float(row.get("fill_max_fraction") or DEFAULT_FILL_MAX_FRACTION) if "fill" in policies else 0.0
+    low = math.inf if "split" in policies else (RATE_RTOL + filled) * rate
+    if -low <= stamps_rate - rate <= RATE_RTOL * rate:
+        return None
+    return (f"{name}: rate_hz = {rate:g} Hz, but its {n} rows span {span:.6g} s of timestamps, (rows - 1) / span = "
+            f"{stamps_rate:.6g} Hz (a gap lowers it; the ingest compares rate_hz with the gap-free mean interval); "
+            f"rows / rate_hz = {n / rate:.6g} s is then not the record's duration: check rate_hz and time_unit in "
+            "the dataset sheet, or leave rate_hz empty to take the rate from the timestamps")
+
+
 def check_records(cfg: dict, datasets: dict) -> None:
     """Start-up check of every record against the config, once, naming the key: long enough for ``psd.window_s``
     (and the longest for ``verify.fix_s + application.outage_s``, the replay's run),
@@ -265,6 +291,10 @@ def check_records(cfg: dict, datasets: dict) -> None:
         if probed is None:
             continue
         rate, duration, meta = probed
+        stamps = _stamps_contradict(name, meta, row)
+        if stamps:  # rows / rate_hz is not the record's duration: its length checks would name the wrong key
+            problems.append(stamps)
+            continue
         if duration is not None:
             lasts[name] = float(duration)
         try:  # a rate only the timestamps give (no rate_hz cell) is checked by the decimate job

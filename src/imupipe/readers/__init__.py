@@ -45,6 +45,8 @@ __all__ = [
     "FROM_FILE",
     "FilledGap",
     "Probe",
+    "RATE_RTOL",
+    "DEFAULT_FILL_MAX_FRACTION",
     "GapWarning",
     "Recording",
     "Segment",
@@ -76,6 +78,6 @@ from imupipe.readers.checks import (  # noqa: F401
     check_unchanged, check_values, gravity_removed, validate_dataset_name,
 )
 from imupipe.readers.core import (  # noqa: F401
-    FROM_FILE, FilledGap, format_of, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
+    DEFAULT_FILL_MAX_FRACTION, FROM_FILE, RATE_RTOL, FilledGap, format_of, missing_channel_columns, read_channel, read_dataset, read_dataset_row, sheet_row_to_kwargs, snap_rate,
 )
 from imupipe.readers.probe import Probe, probe, probe_row  # noqa: F401

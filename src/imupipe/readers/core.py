@@ -36,6 +36,8 @@ DEFAULT_FILL_MAX_SAMPLES = 10
 #: samples) when ``fill_max_fraction`` is not given: 1 %. By the estimate in docs/inputs.md (relative
 #: change of the Allan variance of order 2 n_filled / N) this bounds the filling's effect to a few % at worst.
 DEFAULT_FILL_MAX_FRACTION = 0.01
+#: relative agreement the sheet's rate_hz must have with the timestamps' mean rate (read_dataset's rate_rtol)
+RATE_RTOL = 0.01
 
 
 def sheet_row_to_kwargs(row: Mapping[str, Any], base_dir: str | Path | None = None) -> dict[str, Any]:
@@ -136,7 +138,7 @@ def read_dataset(
     units: Mapping[Any, Any] | None = None, *, time_column: str | int | None = None, time_unit: str | None = None,
     delimiter: str | None = None, variable: str | None = None, topic: str | None = None,
     axis_map: str | Mapping[str, str] | None = None, gap_policy: str = "fail", min_duration_s: float | None = None,
-    rate_rtol: float = 0.01, gap_factor: float = 1.5, fill_max_samples: int | None = None,
+    rate_rtol: float = RATE_RTOL, gap_factor: float = 1.5, fill_max_samples: int | None = None,
     fill_max_s: float | None = None, long_gap_policy: str = "fail",
     fill_max_fraction: float = DEFAULT_FILL_MAX_FRACTION, min_duration_key: str = "min_duration_s",
 ) -> Recording:

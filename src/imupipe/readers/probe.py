@@ -47,6 +47,9 @@ class Probe:
         Of the file (a bag directory: of the directory entry).
     dataset : str or None
         Dataset name, when probed from a sheet row.
+    span_s : float or None
+        Last minus first timestamp (s) where the record has a time column, else None: with ``rate_hz`` from the
+        sheet, (n_samples - 1) / span_s is the rate the stamps give (lowered by any gap).
     """
 
     path: str
@@ -59,6 +62,16 @@ class Probe:
     size_bytes: int
     mtime_ns: int
     dataset: str | None = None
+    span_s: float | None = None
+
+
+def _known_time_unit(unit) -> bool:
+    """Whether :func:`_time_factor` reads `unit` (a bad one is the ingest's to report, naming the sheet's key)."""
+    try:
+        _time_factor(unit, "")
+    except DataError:
+        return False
+    return True
 
 
 def _mean_rate(t0: float, t1: float, n: int) -> float | None:
@@ -169,13 +182,16 @@ def probe(
         return Probe(str(path), fmt, rec.rate_hz, "sheet" if rate_hz else "file", rec.n_samples, rec.duration_s,
                      tuple(f"{k[0]}_{k[1]}" for k in rec), st.st_size, st.st_mtime_ns, dataset)
     rate, rate_from = (float(rate_hz), "sheet") if rate_hz is not None else (file_rate, "file" if file_rate else "")
-    if rate is None and t_span is not None:
+    span = None
+    if t_span is not None and (rate is None or fmt == "rosbag" or _known_time_unit(time_unit)):
         factor = 1.0 if fmt == "rosbag" else _time_factor(time_unit, where)
+        span = (t_span[1] - t_span[0]) * factor
         measured = _mean_rate(t_span[0] * factor, t_span[1] * factor, n)
-        if measured is not None:
+        if rate is None and measured is not None:
             rate, rate_from = snap_rate(measured), "timestamps"
     duration = n / rate if rate else None
-    return Probe(str(path), fmt, rate, rate_from, n, duration, tuple(names), st.st_size, st.st_mtime_ns, dataset)
+    return Probe(str(path), fmt, rate, rate_from, n, duration, tuple(names), st.st_size, st.st_mtime_ns, dataset,
+                 span)
 
 
 def head_rate(path, time_column, time_unit: str = "s", rows: int = 20000, delimiter=None) -> float | None:
