@@ -105,6 +105,25 @@ class TestKnockAndTilt:
         assert b["size"] == pytest.approx(KNOCK, rel=0.1)  # the knock's peak over the local median
         assert b["display"]["unit"] == "g"
 
+    def test_an_events_p_value_is_the_level_at_which_the_scan_would_stop_finding_it(self):
+        """p_value inverts the thresholds' rule (Bonferroni over the scan's positions and scales, alpha split between
+        the burst and step scans): the scan finds the event at every alpha above its p_value and none below it, so
+        an event with p_value < alpha / n is beyond the scan's level over n axes (the summary's chance verdict)."""
+        rate = 100.0
+        x = simulate(TRUTH, 400_000, rate, rng=21)
+        y, _ = _with_events(x, rate, t_step_s=2345.67, t_knock_s=2344.0)
+        ev = detect_events(y, rate, alpha=0.01, sensor="accel")["events"]
+        assert {e["kind"] for e in ev} == {"step", "burst"}
+        assert all(0.0 <= e["p_value"] < 1e-20 for e in ev), ev  # a 0.5 g knock and a 3.4 mg step: far beyond
+        # a step near the threshold: the scan at alpha just above its p_value finds it, just below does not (the
+        # thresholds' quantiles are exact down to p ~ 1e-12, where 1 - p still holds p's digits)
+        z = x + np.where(np.arange(x.size) >= 200_000, 0.6e-3 * G, 0.0)
+        (weak,) = detect_events(z, rate, alpha=0.01)["events"]
+        assert weak["kind"] == "step" and 1e-8 < weak["p_value"] < 0.01, weak
+        kinds = [[f["kind"] for f in detect_events(z, rate, alpha=a)["events"]]
+                 for a in (1.05 * weak["p_value"], 0.95 * weak["p_value"])]
+        assert kinds == [["step"], []], (weak, kinds)
+
     def test_location_and_interval_over_records(self):
         # 20 records (1000 s at 100 Hz), a step alone at a random time: every one found within 1 s; its 95 %
         # size interval misses the truth on at most binom.ppf(0.999, 20, 0.05) = 4 records

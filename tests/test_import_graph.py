@@ -31,7 +31,8 @@ SHARED_PRIVATE = {"_kernels"}
 LAYERS = [
     {"__init__", "_kernels", "backend", "units", "io", "labelled", "search", "defaults", "markdown"},
     {"models", "inband", "covariance", "allan", "spectra", "simulate", "merge", "readers", "lines", "outliers",
-     "events", "segments", "stretches", "summary", "shown", "verdict", "linewords", "paste", "flagtext"},
+     "events", "segments", "stretches", "summary", "shown", "verdict", "linewords", "eventwords", "paste",
+     "flagtext"},
     {"avcov", "specsheet", "init", "runconfig"},
     {"identify", "stationarity"},
     {"bound", "kf", "kalibr", "biasinit"},

@@ -79,6 +79,16 @@ def test_an_event_flag_says_how_many_events_chance_gives():
     assert "P(>= 1) = 0.14: consistent with chance" in f.detail
     (g,) = [f for f in flags_of("gyro", bound={"events": [ev]}) if f.check == "event"]  # no scan record: no clause
     assert "by chance" not in g.detail
+    # the event's own p_value (the scan's false-alarm rate at its z): the default run's step, p 0.006, is not beyond
+    # alpha / 15; an outside evaluation's 1 mg step at z 45.9 (threshold 6.06), p 1e-29, is, whatever the count says
+    weak = {**ev, "z": 6.2, "threshold_z": 6.06, "p_value": 0.006}
+    (f,) = [f for f in flags_of("gyro", bound={"events": [weak], "events_scanned": [0.01] * 15}) if f.check == "event"]
+    assert f.detail.endswith(": consistent with chance") and "the strongest" not in f.detail
+    strong = {**ev, "z": 45.9, "threshold_z": 6.06, "p_value": 1e-29}
+    (f,) = [f for f in flags_of("gyro", bound={"events": [strong], "events_scanned": [0.01] * 3}) if f.check == "event"]
+    assert ("1 of 3 axes show an event at level 0.01 each; with no event in any record 0.03 show one by chance on "
+            "average and P(>= 1) = 0.03; the strongest, a step on sim03/gyro/x at z 45.9 (threshold 6.06), has p = "
+            "1e-29 per record, below alpha / 3 = 0.0033: more than chance gives") in f.detail
 
 
 def test_a_line_flag_says_how_many_lines_chance_gives():

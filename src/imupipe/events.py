@@ -163,6 +163,16 @@ def _t_isf(p: float, nu: float) -> float:
     return float(stdtrit(max(nu, 1.0), 1.0 - p))
 
 
+def _t_sf(z: float, nu: float) -> float:
+    """Upper tail P(T > z) of Student's t with nu degrees of freedom (normal for nu = inf): :func:`_t_isf`'s
+    inverse."""
+    from scipy.special import ndtr, stdtr
+
+    if not math.isfinite(nu):
+        return float(ndtr(-z))
+    return float(stdtr(max(nu, 1.0), -z))
+
+
 def _robust_center_scale(y: np.ndarray) -> tuple[float, float]:
     med = float(np.median(y))
     return med, MAD_TO_SIGMA * float(np.median(np.abs(y - med)))
@@ -216,8 +226,9 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
     -------
     dict
         ``bursts``: list of ``{start, stop}`` (sample indices, stop exclusive), ``peak`` (largest
-        :math:`|x - \\mathrm{median}|`, u), ``z`` (largest block z); ``threshold_z``, ``n_blocks``, ``window``
-        (samples).
+        :math:`|x - \\mathrm{median}|`, u), ``z`` (largest block z), ``family_p`` (K P(t > z): the scan's
+        false-alarm probability with its threshold at this z, Bonferroni over the K blocks); ``threshold_z``,
+        ``n_blocks``, ``window`` (samples).
     """
     x = np.asarray(x, dtype=np.float64).ravel()
     n = x.size
@@ -252,8 +263,9 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
             dev = np.abs(x[b0:b1] - c)
             far = np.flatnonzero(dev > burst_k * s1) if s1 > 0 else np.zeros(0, dtype=np.int64)
             start, stop = (b0 + int(far[0]), b0 + int(far[-1]) + 1) if far.size else (b0, b1)
-            bursts.append({"start": start, "stop": stop, "peak": float(dev.max()), "center": c,
-                           "z": float(z[g].max())})
+            zg = float(z[g].max())
+            bursts.append({"start": start, "stop": stop, "peak": float(dev.max()), "center": c, "z": zg,
+                           "family_p": min(1.0, K * _t_sf(zg, MAD_EFFICIENCY * K))})
     return {"bursts": bursts, "threshold_z": zb, "n_blocks": int(K), "window": w, "power": h}
 
 
@@ -386,10 +398,14 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
     Returns
     -------
     dict
-        ``steps``: list of ``{index, stop, kind, size, size_low, size_high, sigma_d, z, scale, size_scale}``
-        (index: the first sample after the step; stop: a transient's end at the latest, else the index; kind
-        ``step`` or ``transient``; size and interval u; sigma_D at the size scale, u; z = |D|/sigma_D at the
-        detecting scale; scales in samples); ``scales``: per scale ``{m, sigma_d, threshold_z, positions}``.
+        ``steps``: list of ``{index, stop, kind, size, size_low, size_high, sigma_d, z, scale, size_scale,
+        family_p}`` (index: the first sample after the step; stop: a transient's end at the latest, else the index;
+        kind ``step`` or ``transient``; size and interval u; sigma_D at the size scale, u; z = |D|/sigma_D at the
+        detecting scale; scales in samples; family_p: the smallest 2 S K_m P(t_nu_m > z'_m) over the scales m that
+        detect the step, z' = z over the local scale where that exceeds 1 (the detection's test): the scan's
+        false-alarm probability with its thresholds at the step's strongest detection, as the thresholds' own rule);
+        ``scales``: per scale
+        ``{m, sigma_d, threshold_z, positions, nu}``.
     """
     x = np.asarray(x, dtype=np.float64).ravel()
     n = x.size
@@ -433,20 +449,21 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
                 j = int(g[np.argmax(z[g])])
                 # the local scale over the record's: MAD_TO_SIGMA x the median of z = |D| / sd nearby
                 local = MAD_TO_SIGMA * float(np.median(z[max(0, j - reach) : j + reach + 1]))
-                if z[j] / max(1.0, local) > zt:
-                    cands.append((float(z[j]), m + j * h, m))
+                if z[j] / max(1.0, local) > zt:  # with the scan's false-alarm probability at the test's z
+                    cands.append((float(z[j]), m + j * h, m, 2.0 * S * K * _t_sf(float(z[j] / max(1.0, local)), nu)))
         del z
     cands.sort(key=lambda c: -c[0])
     taken = []
-    for zc, tc, m in cands:
-        if all(abs(tc - t2) >= max(m, m2) for _, t2, m2 in taken):
-            taken.append((zc, tc, m))
-        if len(taken) >= max_steps:
-            break
+    for zc, tc, m, pc in cands:
+        near = [c for c in taken if abs(tc - c[1]) < max(m, c[2])]
+        if not near and len(taken) < max_steps:
+            taken.append([zc, tc, m, pc])
+        for c in near:  # the same step at another scale: its probability the smallest of its detections
+            c[3] = min(c[3], pc)
     sd_of = {row["m"]: row for row in table}
     steps = []
-    times = sorted(tc for _, tc, _ in taken)
-    for zc, tc, m in taken:
+    times = sorted(tc for _, tc, _, _ in taken)
+    for zc, tc, m, pc in taken:
         t0 = tc
         delta = _d_at(cs, t0, m)
         half = m
@@ -481,7 +498,8 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
             q = _t_isf((1.0 - confidence) / 2.0, row["nu"])
         steps.append({"index": int(t0), "size": size, "size_low": size - q * row["sigma_d"],
                       "size_high": size + q * row["sigma_d"], "sigma_d": float(row["sigma_d"]), "z": zc,
-                      "scale": int(m), "size_scale": int(ms), "kind": kind, "stop": int(stop)})
+                      "scale": int(m), "size_scale": int(ms), "kind": kind, "stop": int(stop),
+                      "family_p": min(1.0, pc)})
     steps.sort(key=lambda s: s["index"])
     return {"steps": steps, "scales": table}
 
@@ -515,7 +533,10 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
         z, ...}`` (kind ``burst``, ``step`` or ``transient``: a mean excursion ended by ``stop_s``; times s
         from the record's start, sizes u: a step's mean shift after - before with its interval at
         ``confidence``, a burst's peak deviation from the local median) and ``display`` (the size in the
-        display unit); ``false_alarm_rate`` (per record), ``burst_scan``, ``step_scan`` (thresholds per scale).
+        display unit), ``p_value`` (twice its scan's ``family_p``: the false-alarm rate per record that both scans
+        would have with their thresholds at this event's z, alpha split between them as here, so the event exceeds
+        the scan's level alpha exactly where p_value < alpha); ``false_alarm_rate`` (per record), ``burst_scan``,
+        ``step_scan`` (thresholds per scale).
     """
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"events alpha must be in (0, 1), got {alpha!r}")
@@ -530,14 +551,16 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     for e in b["bursts"]:
         events.append({"kind": "burst", "time_s": e["start"] / rate_hz, "start_s": e["start"] / rate_hz,
                        "stop_s": e["stop"] / rate_hz, "index": int(e["start"]), "stop_index": int(e["stop"]),
-                       "size": e["peak"], "z": e["z"], "threshold_z": b["threshold_z"]})
+                       "size": e["peak"], "z": e["z"], "threshold_z": b["threshold_z"],
+                       "p_value": min(1.0, 2.0 * e["family_p"])})
     thr = {r["m"]: r["threshold_z"] for r in s["scales"]}
     for e in s["steps"]:
         events.append({"kind": e["kind"], "time_s": e["index"] / rate_hz, "start_s": e["index"] / rate_hz,
                        "stop_s": e["stop"] / rate_hz, "index": int(e["index"]), "stop_index": int(e["stop"]),
                        "size": e["size"], "size_low": e["size_low"], "size_high": e["size_high"],
                        "confidence": float(confidence), "z": e["z"], "threshold_z": thr[e["scale"]],
-                       "scale_s": e["scale"] / rate_hz, "size_scale_s": e["size_scale"] / rate_hz})
+                       "scale_s": e["scale"] / rate_hz, "size_scale_s": e["size_scale"] / rate_hz,
+                       "p_value": min(1.0, 2.0 * e["family_p"])})
     events.sort(key=lambda e: (e["index"], e["kind"]))
     for e in events:
         du = display_unit(sensor, e["kind"])

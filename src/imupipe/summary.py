@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from imupipe.flagtext import Flag, clauses, flag_line, short_form
+from imupipe.eventwords import event_chance, level_change_note
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
@@ -146,33 +147,6 @@ def bias_assumption_flags(sensor: str, bound: Mapping) -> list[Flag]:
     return [Flag(sensor, "initial bias", "KF file P0", text)] if text else []
 
 
-def event_chance(bound: Mapping) -> str:
-    """``"; k of n axes show an event ..."``: the run's event count against what the scan's false-alarm rate gives
-    (:func:`imupipe.verdict.chance_failures`; the outliers files' ``events_scan``, merged as ``events_scanned``, one
-    rate per axis scanned); empty without them."""
-    rates, events = bound.get("events_scanned") or [], bound.get("events") or []
-    axes = {(it.get("dataset"), it.get("axis")) for it in events if isinstance(it, Mapping)}
-    text = chance_failures(len(axes), len(rates), max(rates), "show an event", "show one",
-                           "no event in any record") if rates and axes else None
-    return f"; {text}" if text else ""
-
-
-def _level_change_note(where: str, stationarity: Mapping) -> str:
-    """An event FLAG's note where the record's axis (``dataset/sensor/axis``) or, for a record's group of events
-    (``dataset/sensor``), any of its axes fails the stationarity test or is bounded at its noisiest stretch: a level
-    change also reads as mean steps (white noise 3x over half a record gave 7 "mean steps"). Empty otherwise."""
-    parts = where.split("/")
-    failed = [c for c in _items(stationarity.get("curves")) if isinstance(c, Mapping)
-              and (c.get("stationary") is False or c.get("noisiest_stretch"))
-              and str(c.get("dataset")) == parts[0] and (len(parts) < 3 or str(c.get("axis")) == parts[2])]
-    if not failed:
-        return ""
-    axes = sorted({str(c.get("axis")) for c in failed})
-    which = f"axis {axes[0]} also fails" if len(axes) == 1 else f"axes {', '.join(axes)} also fail"
-    return (f"; the record's {which} the stationarity test or its stretch test: a change of the noise level, not of "
-            "the mean, reads as mean steps too (look at the record's spread over time)")
-
-
 def _level_flags(sensor: str, c, stationarity: Mapping) -> list:
     """The FLAG of a curve `c` of the stationarity summary whose noise level changes along the record by its stretch
     test while the stationarity test passes (its ``noisiest_stretch`` taken in: :mod:`imupipe.stretches`)."""
@@ -233,7 +207,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     chance = event_chance(bound)
     for items in (src.get("events") for src in (bound, identify, stationarity)):
         for (w, d), (_, s) in zip(event_flags(items), event_flags(items, short=True)):
-            note = _level_change_note(w, stationarity)
+            note = level_change_note(w, stationarity, items)
             out.append(Flag(sensor, "event", w, d + chance + note,
                             short=short_form(s, chance, keep=None) + note if s != d else ""))
     if bound and bound.get("bounded") is False:

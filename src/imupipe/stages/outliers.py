@@ -103,7 +103,7 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                 f"(samples {seg[0]}-{seg[1]}) between {len(det['events'])} event(s), shorter than the "
                 f"{min_segment_s:g} s the analysis needs (psd.window_s); use events.policy = 'warn'")
     keep = {"kind", "time_s", "start_s", "stop_s", "size", "size_low", "size_high", "confidence", "z",
-            "threshold_z", "scale_s", "size_scale_s", "display"}
+            "threshold_z", "scale_s", "size_scale_s", "display", "p_value"}
     if ev_policy == "split":
         kept = int(segments.lengths.sum())
         action = (f"cut: the record is analysed as {len(segments.bounds)} segment(s) ({segments.describe()}, "
@@ -136,7 +136,9 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                     "stuck_spans": {"start_s": "s from the record's start", "stop_s": "s from the record's start",
                                     "value": units, "n_samples": "samples", "fraction": "of the record's samples"},
                     "events": {"time_s": "s from the record's start", "size": units, "z": "robust sds of the scan",
-                               "display": "spec-like unit (deg/h, mg for steps; deg/s, g for bursts)"},
+                               "display": "spec-like unit (deg/h, mg for steps; deg/s, g for bursts)",
+                               "p_value": "probability per record: the scan's false-alarm rate with its threshold "
+                                          "at this z (imupipe.events.detect_events)"},
                     "events_segment": "s from the record's start"}
     x_seg = None
     if ev_policy == "exclude" or policy == "remove":
