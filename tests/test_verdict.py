@@ -220,3 +220,39 @@ def test_an_inadequate_fit_is_named_beside_the_level():
     assert "does not describe the records' Allan variances" in bad["statement"]
     good = confidence_statement({"identification_intervals": {"confidence": 0.95, "model_adequate": True}})
     assert "does not describe" not in good["statement"]
+
+
+def test_the_details_say_the_least_step_the_event_scan_reports():
+    """An outside evaluation's 10 deg/h gyro step in a 3 h record went unnamed: the step scan's least reportable
+    step there was 12.6 deg/h (threshold 6.06 x sigma_D 1.0e-5 rad/s at 64 s). The details now say the range of
+    that floor over the axes and where it is largest; the floor itself is the scan's threshold times its sigma_D,
+    the size a step at a window's centre needs to reach the threshold. On a record: a step of the floor plus 4 sigma_D
+    (of the floor's window) is reported (missed with probability P(N(0, 1) < -4) = 3e-5) and one of half the floor
+    is not (z about half the threshold, ~2.8: beyond it with probability ~3e-3 at one position)."""
+    import numpy as np
+
+    from imupipe.eventwords import step_scan_text
+    from imupipe.events import detect_events
+    from imupipe.models import NoiseModel
+    from imupipe.simulate import simulate
+
+    d = np.pi / 180 / 3600
+    floors = [{"dataset": "step", "axis": a, "smallest_step": v * d, "smallest_step_tau_s": 64.0,
+               "smallest_step_display": {"unit": "deg/h", "size": v}} for a, v in (("x", 12.6), ("y", 11.9))]
+    text = step_scan_text(floors, [0.01, 0.01])
+    assert text == ("- event scan (outliers stage, each full-rate record) at a false-alarm rate of 0.01 per record and "
+                    "axis: the least mean step it reports is 11.9 to 12.6 deg/h over the axes (threshold x sigma_D at "
+                    "the best window; largest on step/x, window 64 s): a smaller step stays in the record as "
+                    "low-frequency noise, which the bound covers, without a FLAG that names it")
+    assert step_scan_text([], [0.01]) is None
+    rate, n = 50.0, 200_000
+    x = simulate(NoiseModel(white=0.2 * np.pi / 180 / 60), n, rate, rng=5)
+    scan = detect_events(x, rate, alpha=0.01, sensor="gyro")
+    floor = scan["step_scan"]["smallest_step"]
+    (best,) = [r for r in scan["step_scan"]["scales"]
+               if r["tau_s"] == scan["step_scan"]["smallest_step_tau_s"]]
+    assert scan["events"] == [] and scan["step_scan"]["smallest_step_display"]["unit"] == "deg/h"
+    assert floor == best["threshold_z"] * best["sigma_d"]
+    for size, found in ((floor + 4.0 * best["sigma_d"], True), (0.5 * floor, False)):
+        y = x + np.where(np.arange(n) >= n // 2, size, 0.0)
+        assert any(e["kind"] == "step" for e in detect_events(y, rate, alpha=0.01)["events"]) is found, size

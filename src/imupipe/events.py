@@ -576,8 +576,24 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
                        "alpha": alpha / 2.0, **({"note": b["note"]} if "note" in b else {})},
         "step_scan": {"alpha": alpha / 2.0, "scales": [
             {"tau_s": r["m"] / rate_hz, "sigma_d": r["sigma_d"], "threshold_z": r["threshold_z"],
-             "positions": r["positions"]} for r in s["scales"]], **({"note": s["note"]} if "note" in s else {})},
+             "positions": r["positions"]} for r in s["scales"]], **({"note": s["note"]} if "note" in s else {}),
+            **_smallest_step(s["scales"], rate_hz, sensor)},
     }
+
+
+def _smallest_step(scales, rate_hz: float, sensor: str | None) -> dict:
+    """``smallest_step`` (u): the least mean step the step scan can report, min over its scales of threshold_z x
+    sigma_D (a step of that size at a window's centre reaches the threshold), with its scale ``smallest_step_tau_s``
+    (s) and display; {} without a scale of positive sigma_D."""
+    rows = [r for r in scales if r["sigma_d"] > 0 and math.isfinite(r["threshold_z"])]
+    if not rows:
+        return {}
+    r = min(rows, key=lambda r: r["threshold_z"] * r["sigma_d"])
+    out = {"smallest_step": float(r["threshold_z"] * r["sigma_d"]), "smallest_step_tau_s": r["m"] / rate_hz}
+    du = display_unit(sensor, "step")
+    if du is not None:
+        out["smallest_step_display"] = {"unit": du[0], "size": out["smallest_step"] / du[1]}
+    return out
 
 
 def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from imupipe.shown import num
 from imupipe.verdict import chance_failures
 
-__all__ = ["event_chance", "level_change_note", "strongest_event_beyond"]
+__all__ = ["event_chance", "level_change_note", "step_scan_text", "strongest_event_beyond"]
 
 
 def event_chance(bound: Mapping) -> str:
@@ -63,3 +63,28 @@ def level_change_note(where: str, stationarity: Mapping, items=()) -> str:
     which = f"axis {axes[0]} also fails" if len(axes) == 1 else f"axes {', '.join(axes)} also fail"
     return (f"; the record's {which} the stationarity test or its stretch test: a change of the noise level, not of "
             "the mean, reads as mean steps too (look at the record's spread over time)")
+
+
+def step_scan_text(floors: list, rates: list) -> str | None:
+    """The details' line on what the event scan can see: its false-alarm rate per record and axis (`rates`, the
+    outliers files' ``events_scan``) and the least mean step its step scan reports on each axis (`floors`: the
+    outliers files' ``step_scan.smallest_step`` with its window and display, tagged with dataset and axis), their
+    range over the axes and the axis where it is largest. A smaller step stays in the records as low-frequency
+    noise, which the bound covers, without a FLAG that names it (an outside evaluation's 10 deg/h step in a 3 h
+    record whose scan reported steps above 12.6 deg/h). None without floors."""
+    floors = [f for f in floors or [] if isinstance(f, Mapping) and f.get("smallest_step") is not None]
+    if not floors:
+        return None
+    disp = [f.get("smallest_step_display") if isinstance(f.get("smallest_step_display"), Mapping) else None
+            for f in floors]
+    unit = disp[0]["unit"] if all(disp) and len({d["unit"] for d in disp}) == 1 else None
+    size = [(d["size"] if unit else f["smallest_step"]) for f, d in zip(floors, disp)]
+    worst = max(range(len(floors)), key=lambda i: size[i])
+    w = floors[worst]
+    rate = f" at a false-alarm rate of {num(max(rates))} per record and axis" if rates else ""
+    span = num(min(size), "{:.3g}") + ("" if num(min(size), "{:.3g}") == num(size[worst], "{:.3g}") else
+                                        f" to {num(size[worst], '{:.3g}')}")
+    return (f"- event scan (outliers stage, each full-rate record){rate}: the least mean step it reports is {span} "
+            f"{unit or '(SI units)'} over the axes (threshold x sigma_D at the best window; largest on "
+            f"{w.get('dataset')}/{w.get('axis')}, window {num(w.get('smallest_step_tau_s'))} s): a smaller step stays "
+            "in the record as low-frequency noise, which the bound covers, without a FLAG that names it")

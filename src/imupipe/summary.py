@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from imupipe.flagtext import Flag, clauses, flag_line, short_form
-from imupipe.eventwords import event_chance, level_change_note
+from imupipe.eventwords import event_chance, level_change_note, step_scan_text
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
@@ -1221,6 +1221,9 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         search = search_band_text(bound.get("line_search"))
         if search:
             lines.append(search)
+        steps = step_scan_text(bound.get("step_floor"), bound.get("events_scanned"))
+        if steps:
+            lines.append(steps)
         lines += _per_axis_lines(bound)
         lines += auto_selection_lines(bound)
         sel = identify.get("selection") or {}

@@ -40,6 +40,11 @@ def merge_checks(target: dict, data: dict) -> None:
     scan = data.get("events_scan")
     if isinstance(scan, dict) and scan.get("false_alarm_rate_per_record") is not None:  # an outliers file: one axis
         target.setdefault("events_scanned", []).append(float(scan["false_alarm_rate_per_record"]))
+        step = scan.get("step_scan") if isinstance(scan.get("step_scan"), dict) else {}
+        if step.get("smallest_step") is not None:  # the least step the scan reports on this axis
+            target.setdefault("step_floor", []).append(
+                {**{k: data.get(k) for k in ("dataset", "axis")},
+                 **{k: step[k] for k in ("smallest_step", "smallest_step_tau_s", "smallest_step_display") if k in step}})
     if data.get("n_tested") is not None and data.get("f_min_hz") is not None:  # a lines file: the band it searched
         target.setdefault("line_search", []).append(
             {**{k: data.get(k) for k in ("dataset", "axis", "f_min_hz", "f_max_hz", "resolution_hz", "alpha",
