@@ -65,6 +65,26 @@ def test_init_writes_a_sheet_and_a_config_that_validate(record, tmp_path, capsys
         assert text.lstrip().startswith("#")
 
 
+def test_an_outage_shorter_than_the_default_is_said_and_a_longer_one_can_be_asked_for(record, tmp_path, capsys):
+    """An outside evaluation: init wrote application.outage_s 600 s for a 40 min record and only the config's
+    comment said so. The 2 h record: the rule's 1800 s is said on stdout; --outage-s 3600 is taken (one fix period of
+    600 s plus 3600 s fit in 7200 s: the comment says it was asked); --outage-s 7000 is refused naming the longest
+    outage the record holds (7200 - 600 = 6600 s), and nothing is written."""
+    assert _init(tmp_path, record, "--spec", SPEC) == 0
+    out = capsys.readouterr().out
+    assert ("note: application.outage_s = 1800 s, shorter than the default 3600 s (the shortest record, 7200 s, and "
+            "the PSD window, 1800 s, allow no longer)") in out and "imupipe init --outage-s" in out
+    assert main(["init", str(record), "--spec", str(SPEC), "--out", str(tmp_path / "o2"), "--outage-s", "3600"]) == 0
+    assert "note: application.outage_s" not in capsys.readouterr().out
+    text = (tmp_path / "o2" / "config.yaml").read_text()
+    assert yaml.safe_load(text)["application"]["outage_s"] == 3600.0 and "as asked (imupipe init --outage-s)" in text
+    assert check_config(tmp_path / "o2" / "config.yaml")  # the start-up checks take it
+    assert main(["init", str(record), "--spec", str(SPEC), "--out", str(tmp_path / "o3"), "--outage-s", "7000"]) == 1
+    err = capsys.readouterr().err
+    assert "--outage-s 7000: the shortest record" in err and "an outage of at most 6600 s" in err
+    assert not (tmp_path / "o3" / "config.yaml").exists()
+
+
 def test_imupipe_check_with_a_dry_run_accepts_the_config(record, tmp_path):
     """The workflow's own start-up checks (schema, records against the config) and DAG, as a user runs them."""
     assert _init(tmp_path, record, "--spec", SPEC) == 0

@@ -489,12 +489,15 @@ def _call(cmd: Sequence[str], env: dict) -> int:
 
 
 def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = ".", *, rate_hz: float | None = None,
-               time_unit: str | None = None, force: bool = False) -> tuple[Path, Path, list[str]]:
+               time_unit: str | None = None, force: bool = False,
+               outage_s: float | None = None) -> tuple[Path, Path, list[str]]:
     """Write ``OUT/datasets.tsv`` and ``OUT/config.yaml`` for the records `data` and the spec sheet `spec`.
 
     Every record is probed (:func:`imupipe.init.inspect_record`), the settings derived
     (:func:`imupipe.init.derive_settings`: decimation, PSD window / step leaving at most 10 % of the shortest
-    record unused, filter rate and outage; the rules in :mod:`imupipe.init`), then both files are written.
+    record unused, filter rate and outage, or the asked `outage_s` where the records hold it; the rules in
+    :mod:`imupipe.init`), then both files are written. An outage shorter than the default 3600 s is said on
+    stdout (what the run then verifies, and how to ask for more).
     Paths in the files are absolute (the workflow reads them relative to the checkout). Nothing is written when a
     check fails.
 
@@ -546,7 +549,7 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
     missing = [s for s in sensors if s not in model.models]
     if missing:
         raise ValueError(f"--spec {spec}: no section for {', '.join(missing)} (the records have {', '.join(sensors)})")
-    settings = derive_settings(records)
+    settings = derive_settings(records, outage_s=outage_s)
     run_name = re.sub(r"[^A-Za-z0-9_.-]+", "_", out.resolve().name).strip("._") or "mydata"
     spec_abs = spec.resolve()
     text = config_text(run_name, str(sheet.resolve()), str(spec_abs.parent), spec_abs.stem, sensors, settings)
@@ -554,12 +557,20 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
     write_text_atomic(text, cfg)
     for note in (t for r in records for t in r.notes):
         print(f"note: {note}")
+    from imupipe.defaults import DEFAULTS
+
+    default_outage = float(DEFAULTS["application.outage_s"])
+    if outage_s is None and settings.outage_s < default_outage:
+        print(f"note: application.outage_s = {settings.outage_s:g} s, shorter than the default {default_outage:g} s "
+              f"(the shortest record, {settings.shortest_s:.6g} s, and the PSD window, {settings.window_s:g} s, "
+              "allow no longer): the run verifies the model over that outage only; a filter that must bridge a "
+              "longer one needs longer records (imupipe init --outage-s asks for it and says how long they must be)")
     return sheet, cfg, [t for r in records for t in r.todo]
 
 
 def _cmd_init(args) -> int:
     sheet, cfg, todo = init_files(args.data, args.spec, args.out, rate_hz=args.rate_hz, time_unit=args.time_unit,
-                                 force=args.force)
+                                 force=args.force, outage_s=args.outage_s)
     print(f"wrote {sheet}\nwrote {cfg}")
     if todo:
         print(f"fill in {len(todo)} cell(s) marked FILL_ME in {sheet} first:")
@@ -623,6 +634,9 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--rate-hz", type=float, help="sample rate, Hz, of records without timestamps or a stored rate")
     i.add_argument("--time-unit", help="unit of the records' time column: s, ms, us, ns (default: from its name, the "
                    "file, or the stamps' spacing)")
+    i.add_argument("--outage-s", type=float, help="the outage (s) your filter must bridge without fixes "
+                   "(application.outage_s; default: min(3600 s, psd.window_s, shortest record - verify.fix_s)); "
+                   "refused, with the longest the records hold, where one fix period plus it does not fit")
     i.add_argument("--force", action="store_true", help="overwrite existing datasets.tsv / config.yaml")
     i.set_defaults(func=_cmd_init)
 

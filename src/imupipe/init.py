@@ -21,7 +21,9 @@ derived, each by a stated rule (:func:`derive_settings`):
 - ``application.outage_s`` :math:`H = \min(H_0, W, T_{min} - F)` (``H_0`` = 3600 s the default, ``F`` =
   ``verify.fix_s``), down to a whole decimated sample: the band bottom ``1/H`` is not below the lowest PSD
   frequency ``1/W`` the records measure, and one fix period plus one outage fits in the shortest record (the
-  replay of :func:`imupipe.verify` needs records of at least ``fix_s + outage_s``).
+  replay of :func:`imupipe.verify` needs records of at least ``fix_s + outage_s``). ``imupipe init --outage-s H``
+  takes the user's H instead where :math:`H \le T_{min} - F` (the band below ``1/W`` is then covered by the
+  identified envelope, as for every run), and refuses it naming :math:`T_{min} - F` otherwise.
 - ``lines.scales`` = [1, 8, 64]: the line search also at 8 and 64 times its resolution, so that a resonance wider
   than the running-median floor resolves is found (the default run keeps [1], the paper's).
 - ``lines.low_band_resolution_hz`` = :math:`1/W`: the band below the search's lowest tested bin (0.052 Hz at the
@@ -269,6 +271,7 @@ class Settings:
     outage_s: float
     shortest_s: float
     unused: dict[str, float]
+    outage_asked: bool = False  #: outage_s as the user asked for it (imupipe init --outage-s), not the rule's
 
 
 def _rate_gcd(rates) -> Fraction:
@@ -278,10 +281,13 @@ def _rate_gcd(rates) -> Fraction:
     return Fraction(num, den)
 
 
-def derive_settings(records: list[RecordInfo]) -> Settings:
+def derive_settings(records: list[RecordInfo], outage_s: float | None = None) -> Settings:
     """decimate.rate_hz, psd.window_s / step_s and application.outage_s that fit `records` (module docstring).
+    `outage_s` (s): the outage the user's filter must bridge (``imupipe init --outage-s``), taken as it is (down to a
+    whole decimated sample) where one fix period plus it fits in the shortest record, instead of the rule's.
 
-    Raises ValueError when the shortest record cannot hold one fix period (verify.fix_s) plus an outage.
+    Raises ValueError when the shortest record cannot hold one fix period (verify.fix_s) plus an outage, or plus the
+    asked `outage_s` (naming the longest outage the records support).
     """
     from imupipe.readers import check_against_config
 
@@ -298,6 +304,17 @@ def derive_settings(records: list[RecordInfo]) -> Settings:
         step = ns / fd
     h0 = float(DEFAULTS["application.outage_s"])
     outage = math.floor(min(h0, window, n_min / fd - _FIX_S) * fd) / fd
+    if outage_s is not None:
+        if not (math.isfinite(float(outage_s)) and float(outage_s) > 0):
+            raise ValueError(f"--outage-s must be a positive number of seconds, got {outage_s!r}")
+        most = math.floor((n_min / fd - _FIX_S) * fd) / fd
+        if float(outage_s) > most:
+            raise ValueError(
+                f"--outage-s {float(outage_s):g}: the shortest record ({shortest.path}, {shortest.duration_s:.6g} s) "
+                f"holds one fix period (verify.fix_s = {_FIX_S:g} s) and an outage of at most {max(most, 0.0):g} s; "
+                "the verification replays the records over one fix period and one outage: record longer, or ask "
+                "for a shorter outage")
+        outage = math.floor(float(outage_s) * fd) / fd
     if outage * fd < 2:
         raise ValueError(f"{shortest.path}: {shortest.duration_s:g} s is too short for the verification: one fix "
                          f"period (verify.fix_s = {_FIX_S:g} s) and an outage of at least 2 samples must fit")
@@ -307,7 +324,7 @@ def derive_settings(records: list[RecordInfo]) -> Settings:
         check_against_config({"rate_hz": r.rate_hz, "n_samples": r.n_samples, "duration_s": r.duration_s},
                              window_s=window, decimate_rate_hz=fd, n_segments=2, dataset=r.dataset)
         unused[r.dataset] = welch_unused(n, nw, ns) / n
-    return Settings(fd, float(window), float(step), float(outage), shortest.duration_s, unused)
+    return Settings(fd, float(window), float(step), float(outage), shortest.duration_s, unused, outage_s is not None)
 
 
 _SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", "gyro_x", "gyro_y", "gyro_z",
@@ -344,6 +361,11 @@ def _low_band(window_s: float) -> str:
 def config_text(name: str, sheet: str, spec_dir: str, spec: str, sensors: list[str], s: Settings) -> str:
     """The partial config (merged over config/config.yaml by the workflow), every derived value with its rule."""
     worst = max(s.unused.values())
+    outage_rule = ("  # as asked (imupipe init --outage-s): one fix period plus one outage fits in the shortest record "
+                   "(the\n  # verification's replay)" if s.outage_asked else
+                   "  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/outage not below the "
+                   "lowest PSD\n  # frequency, and one fix period plus one outage fits in the shortest record (the "
+                   "verification's replay)")
     return f"""\
 # Written by 'imupipe init': a partial config, merged over config/config.yaml (every other key keeps its
 # default there). Each value below is derived from the records by the rule in its comment (imupipe.init).
@@ -365,8 +387,7 @@ application:
   # = decimate.rate_hz: the band [1/outage_s, filter_rate_hz/2] inside the decimated spectra's [1/W, f/2]; the
   # verification's reference filter runs at it too (the exported model is the verified one)
   filter_rate_hz: {s.decimate_rate_hz!r}
-  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/outage not below the lowest PSD
-  # frequency, and one fix period plus one outage fits in the shortest record (the verification's replay)
+{outage_rule}
   outage_s: {s.outage_s!r}
 lines:
   # the line search at resolution_hz and 8 and 64 times coarser: a resonance wider than about a tenth of the floor
