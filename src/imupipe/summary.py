@@ -1218,12 +1218,9 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         if band:
             lines.append(f"- Allan total check over the application band: tau from {num(band[0])} to "
                          f"{num(band[1])} s")
-        search = search_band_text(bound.get("line_search"))
-        if search:
-            lines.append(search)
-        steps = step_scan_text(bound.get("step_floor"), bound.get("events_scanned"))
-        if steps:
-            lines.append(steps)
+        # what the line search and the event scan could see
+        lines += [t for t in (search_band_text(bound.get("line_search")),
+                              step_scan_text(bound.get("step_floor"), bound.get("events_scanned"))) if t]
         lines += _per_axis_lines(bound)
         lines += auto_selection_lines(bound)
         sel = identify.get("selection") or {}
