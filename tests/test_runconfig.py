@@ -251,37 +251,48 @@ def test_records_shorter_than_one_fix_period_and_outage_refused_at_start_up(tmp_
     rc.check_records(cfg, {"short": row})
 
 
-def test_a_rate_the_timestamps_contradict_is_named_before_the_length_checks(tmp_path):
+def test_a_rate_the_timestamps_contradict_skips_the_length_checks_that_read_rows_over_rate(tmp_path, capsys):
     """An outside evaluation declared rate_hz 100 for a 50 Hz record with timestamps: the start-up check read
     rows / rate_hz as its duration (half the truth) and asked to shorten application.outage_s. The stamps' span
-    gives the rate: the problem names rate_hz and both rates, and no length check runs on that record. A record
-    whose stamps agree passes; under long_gap_policy split a span rate below rate_hz (long gaps) is left to the
-    ingest."""
-    n, rate = 2400, 1.0
-    t = np.arange(n) / rate
+    contradicts the rate, so the record's length checks are left out at start-up and its ingest (here `imupipe check
+    --read`, as the run's ingest job) names rate_hz and both rates, the other datasets going on. A record whose
+    stamps agree is length-checked as before, also with a gap the policy fills (gap_policy fill) or splits at."""
+    from imupipe.cli import main
+
+    n = 2400
+    t = np.arange(n) / 1.0
     path = tmp_path / "stamped.csv"
-    np.savetxt(path, np.column_stack([t, np.zeros((n, 6))]), delimiter=",",
-               header="t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z", comments="")
+    data = np.column_stack([t, np.zeros((n, 5)), np.full(n, 9.80665)])
+
+    def save(x):
+        np.savetxt(path, x, delimiter=",", header="t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z", comments="")
+
+    save(data)
     row = {"dataset": "stamped", "path": str(path), "format": "csv", "rate_hz": 2.0, "gyro_unit": "rad/s",
            "accel_unit": "m/s^2", "time_column": "t"}
     cfg = rc.load_config({**tiny(simulation=None, psd={"window_s": 300.0, "step_s": 150.0},
                                  application={"outage_s": 1300.0, "filter_rate_hz": 1.0}), "datasets": "s.tsv"}, ROOT)
-    with pytest.raises(ValueError, match=r"stamped: rate_hz = 2 Hz, but its 2400 rows span 2399 s of timestamps, "
-                                         r"\(rows - 1\) / span = 1 Hz") as err:
-        rc.check_records(cfg, {"stamped": row})
-    assert "outage_s" not in str(err.value)  # the length check did not run on a duration it cannot know
-    rc.check_records(cfg, {"stamped": {**row, "rate_hz": 1.0}})
-    half = np.delete(np.column_stack([t, np.zeros((n, 6))]), np.s_[600:1200], axis=0)  # a 600 s gap
-    np.savetxt(path, half, delimiter=",", header="t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z", comments="")
-    with pytest.raises(ValueError, match="rows span"):
-        rc.check_records(cfg, {"stamped": {**row, "rate_hz": 1.0}})
+    rc.check_records(cfg, {"stamped": row})  # 1200 s by rows / rate_hz: no length problem named for a wrong rate
+    with pytest.raises(ValueError, match=r"longest record \('stamped', 1200 s\) is shorter"):  # without the stamps
+        rc.check_records(cfg, {"stamped": {**row, "time_column": ""}})
+    save(np.delete(data, np.s_[600:1200], axis=0))  # a 600 s gap: 1800 rows over 2399 s of stamps
+    rc.check_records(cfg, {"stamped": {**row, "rate_hz": 1.0}})  # left to the ingest (gap_policy fail)
     for policy in ({"long_gap_policy": "split"}, {"gap_policy": "split"}):  # 1800 rows < 600 + 1300 s
         with pytest.raises(ValueError, match="is shorter than config keys"):
             rc.check_records(cfg, {"stamped": {**row, "rate_hz": 1.0, **policy}})
-    # gap_policy fill: up to fill_max_fraction (1 %) of the record filled, the span rate that much lower
-    few = np.delete(np.column_stack([t, np.zeros((n, 6))]), np.s_[600:620], axis=0)  # 20 of 2400 rows (0.8 %)
-    np.savetxt(path, few, delimiter=",", header="t,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z", comments="")
-    rc.check_records(cfg, {"stamped": {**row, "rate_hz": 1.0, "gap_policy": "fill"}})
+    save(np.delete(data, np.s_[600:620], axis=0))  # 20 of 2400 rows dropped (0.8 %): what gap_policy fill fills
+    assert rc._stamps_contradict(rc._probe({**row, "rate_hz": 1.0, "gap_policy": "fill"}, None)[2],
+                                 {"gap_policy": "fill"}) is False
+    # the evaluator's case through the command line: the ingest's message, naming rate_hz and both rates
+    save(data)
+    sheet, cfg_file = tmp_path / "s.tsv", tmp_path / "c.yaml"
+    sheet.write_text("\t".join(row) + "\n" + "\t".join(str(v) for v in row.values()) + "\n")
+    cfg_file.write_text(yaml.safe_dump({**tiny(simulation=None, psd={"window_s": 300.0, "step_s": 150.0},
+                                              application={"outage_s": 1300.0, "filter_rate_hz": 1.0}),
+                                        "datasets": str(sheet)}))
+    assert main(["check", str(cfg_file), "--no-dry-run", "--read"]) == 1
+    err = capsys.readouterr().err
+    assert "rate_hz = 2 Hz but the timestamps ('t') give a mean rate of 1 Hz" in err and "outage_s" not in err
 
 
 def test_unreadable_record_left_to_its_ingest_job(tmp_path):

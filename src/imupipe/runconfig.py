@@ -250,28 +250,24 @@ def _probe(row: dict, simulation: dict | None):
     return meta.rate_hz, meta.duration_s, meta
 
 
-def _stamps_contradict(name: str, meta, row: dict) -> str | None:
-    """The problem of a record whose sheet ``rate_hz`` its timestamps' span contradicts, else None: its N rows over
-    the span T between its first and last stamp give (N - 1) / T, which a gap can only lower. Above rate_hz by more
-    than :data:`imupipe.readers.RATE_RTOL`, or below it by more than that plus what the row's gap policy lets the
-    ingest fill (``fill``: fill_max_fraction of the record; ``fail``: nothing; a split keeps any gap), rows /
-    rate_hz, which the length checks read, is not the record's duration, and the ingest (which compares rate_hz with
-    the gap-free mean interval, or stops on the gaps) would stop on it."""
+def _stamps_contradict(meta, row: dict) -> bool:
+    """Whether the sheet ``rate_hz`` of a record is contradicted by its timestamps' span: its N rows over the span T
+    between its first and last stamp give (N - 1) / T, which a gap can only lower. Above rate_hz by more than
+    :data:`imupipe.readers.RATE_RTOL`, or below it by more than that plus what the row's gap policy lets the ingest
+    fill (``fill``: fill_max_fraction of the record; ``fail``: nothing; a split keeps any gap), rows / rate_hz is not
+    the record's duration: the start-up check then leaves the record's length checks out (they would name
+    application.outage_s or psd.window_s for a wrong rate: an outside evaluation's 100 Hz sheet for a 50 Hz record),
+    and its ingest job stops naming the rate or the gap, the other datasets going on."""
     from imupipe.readers import DEFAULT_FILL_MAX_FRACTION, RATE_RTOL
 
     span, n = getattr(meta, "span_s", None), getattr(meta, "n_samples", 0)
     if getattr(meta, "rate_from", "") != "sheet" or not span or span <= 0 or n < 2:
-        return None
+        return False
     rate, stamps_rate = float(meta.rate_hz), (n - 1) / span
     policies = {str(row.get("gap_policy") or "fail"), str(row.get("long_gap_policy") or "fail")}
     filled = float(row.get("fill_max_fraction") or DEFAULT_FILL_MAX_FRACTION) if "fill" in policies else 0.0
     low = math.inf if "split" in policies else (RATE_RTOL + filled) * rate
-    if -low <= stamps_rate - rate <= RATE_RTOL * rate:
-        return None
-    return (f"{name}: rate_hz = {rate:g} Hz, but its {n} rows span {span:.6g} s of timestamps, (rows - 1) / span = "
-            f"{stamps_rate:.6g} Hz (a gap lowers it; the ingest compares rate_hz with the gap-free mean interval); "
-            f"rows / rate_hz = {n / rate:.6g} s is then not the record's duration: check rate_hz and time_unit in "
-            "the dataset sheet, or leave rate_hz empty to take the rate from the timestamps")
+    return not -low <= stamps_rate - rate <= RATE_RTOL * rate
 
 
 def check_records(cfg: dict, datasets: dict) -> None:
@@ -291,9 +287,7 @@ def check_records(cfg: dict, datasets: dict) -> None:
         if probed is None:
             continue
         rate, duration, meta = probed
-        stamps = _stamps_contradict(name, meta, row)
-        if stamps:  # rows / rate_hz is not the record's duration: its length checks would name the wrong key
-            problems.append(stamps)
+        if _stamps_contradict(meta, row):  # rows / rate_hz is not its duration: its ingest job names the rate or gap
             continue
         if duration is not None:
             lasts[name] = float(duration)
