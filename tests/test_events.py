@@ -202,6 +202,24 @@ class TestReportHelpers:
                         "kept in the analysis")
         assert display_unit("gyro", "step")[0] == "deg/h" and display_unit("gyro", "burst")[0] == "deg/s"
 
+    def test_the_first_screen_form_keeps_the_effect_as_its_number(self):
+        """An outside evaluation: the first screen's event FLAG left its effect on the model to the details, and a
+        user saw the bound inflated without the reason. The short form keeps the number: the random walk K a step
+        acts as (display unit), N's factor at the shortest tau for a burst; the full form keeps the sentence."""
+        step = {"dataset": "rec", "sensor": "accel", "axis": "z", "kind": "step", "time_s": 5400.0, "size": 0.0097,
+                "units": "m/s^2", "display": {"unit": "mg", "size": 0.989}, "action": "kept in the analysis",
+                "effect": {"kind": "step", "random_walk_equivalent": 9.33e-5, "record_s": 10800.0,
+                           "display": {"unit": "mg/sqrt(s)", "random_walk_equivalent": 0.00952}}}
+        burst = {"dataset": "rec", "sensor": "accel", "axis": "x", "kind": "burst", "start_s": 10.0, "stop_s": 10.2,
+                 "size": 4.9, "units": "m/s^2", "action": "kept in the analysis",
+                 "effect": {"tau_s": 0.01, "white_noise_ratio": 1.37}}
+        (_, short), (_, short_b) = event_flags([step, burst], short=True)
+        assert short.endswith("kept in the analysis: acts as a random walk K = 0.00952 mg/sqrt(s), which can inflate "
+                              "the bound")
+        assert short_b.endswith("kept in the analysis: its samples raise N 1.37x at the shortest tau")
+        (_, full), _ = event_flags([step, burst])
+        assert "acts as a random walk K = 9.33e-05 m/s^2/sqrt(s) (0.00952 mg/sqrt(s)) (d^2 tau / (3 T))" in full
+
     def test_transient_flag_says_when_it_was_over(self):
         item = {"dataset": "rec", "sensor": "accel", "axis": "y", "kind": "transient", "time_s": 7846.9,
                 "start_s": 7846.9, "stop_s": 7878.9, "size": 0.0188, "size_low": 0.0127, "size_high": 0.0249,

@@ -698,13 +698,30 @@ def _effect_text(it: Mapping) -> str:
     return ""
 
 
+def _effect_short(it: Mapping) -> str:
+    """The first screen's form of :func:`_effect_text`: the number the event can inflate (N's factor at the shortest
+    tau, the random walk K a step acts as, in the display unit where there is one)."""
+    eff = it.get("effect") if isinstance(it.get("effect"), Mapping) else None
+    if not eff:
+        return ""
+    if eff.get("white_noise_ratio") is not None:
+        return f": its samples raise N {float(eff['white_noise_ratio']):.3g}x at the shortest tau"
+    if eff.get("random_walk_equivalent") is not None:
+        disp = eff.get("display") if isinstance(eff.get("display"), Mapping) else None
+        k = (f"{float(disp['random_walk_equivalent']):.3g} {disp['unit']}" if disp else
+             f"{float(eff['random_walk_equivalent']):.3g} {it.get('units') or 'SI'}/sqrt(s)")
+        return f": acts as a random walk K = {k}, which can inflate the bound"
+    return ""
+
+
 #: more events than this on one record and sensor are summarised in one FLAG line (each stays in the report)
 MAX_EVENT_FLAGS = 3
 
 
 def _event_text(it: Mapping, short: bool = False) -> str:
     """The FLAG text of one event (kind, size in SI with its interval and display unit, time from the start, the
-    policy's action and its effect on the model); `short`: without the effect (the summary's first screen)."""
+    policy's action and its effect on the model); `short`: the effect as its number only (the summary's first
+    screen: :func:`_effect_short`)."""
     unit = it.get("units") or "SI"
     disp = it.get("display") if isinstance(it.get("display"), Mapping) else None
 
@@ -725,7 +742,7 @@ def _event_text(it: Mapping, short: bool = False) -> str:
         when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"
     text = f"{size} {when} from the record's start"
     if it.get("action"):
-        text += f"; {it['action']}" + ("" if short else _effect_text(it))
+        text += f"; {it['action']}" + (_effect_short(it) if short else _effect_text(it))
     return text
 
 
@@ -746,7 +763,8 @@ def event_flags(items, short: bool = False) -> list[tuple[str, str]]:
     """(where, text) of the summary FLAGs of the events of outliers reports (``events``: dicts with ``dataset``,
     ``sensor``, ``axis``, ``kind``, ``time_s``, ``size`` and ``units``, ``display``, ``policy``, ``action``): one
     FLAG per event, or one per record and sensor where that record has more than :data:`MAX_EVENT_FLAGS`. `short`:
-    each text without the event's effect on the model (the summary's first screen), in the same order."""
+    each text with the event's effect on the model as its number only (the summary's first screen), in the same
+    order."""
     groups: dict = {}
     for it in items or []:
         if isinstance(it, Mapping):
