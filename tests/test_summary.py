@@ -809,6 +809,13 @@ def test_the_fit_adequacy_flag_names_auto_only_under_auto():
     assert "for a line below the line search's band, lines.low_band_resolution_hz" in raw.detail
     assert "a resonance wider than about a tenth of the search's floor window lifts its own floor" in raw.detail
     assert "auto then builds no envelope candidate" in auto.detail
+    # a p from the covariance statistic shows that statistic beside Pearson's (an outside evaluation read "chi2/dof =
+    # 1.19, p = 2.33e-122"): here 620.5 / 10
+    cov = {"adequacy": {"adequate": False, "chi2_per_dof": 1.19, "p_value": 2.33e-122, "dof": 10,
+                        "chi2_covariance": 620.5, "method": "bootstrap (...); beyond every replicate, tail p from the "
+                                                            "covariance statistic"}}
+    (f,) = [f for f in flags_of("gyro", bound=_bound(), identify=cov) if f.check == "fit adequacy"]
+    assert f.detail.startswith("chi2/dof = 1.19 (with the AV points' correlation: 62), p = 2.33e-122: ")
 
 
 def test_a_failed_component_check_reads_in_words_and_the_verdict_line_names_it():

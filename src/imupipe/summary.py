@@ -271,7 +271,12 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     out += _stationarity_flags(sensor, stationarity, stuck_where, {line_text(it)[0] for it in line_items})
     adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
     if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
-        fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}, p = {num(adequacy.get('p_value'))}"
+        cov, dof = adequacy.get("chi2_covariance"), adequacy.get("dof")
+        # a p from the generalised statistic (the AV points' correlation) says so beside it: Pearson's 1.19 read
+        # against p = 2e-122 (an outside evaluation)
+        with_cov = (f" (with the AV points' correlation: {num(float(cov) / float(dof))})"
+                    if "covariance" in str(adequacy.get("method") or "") and cov is not None and dof else "")
+        fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}{with_cov}, p = {num(adequacy.get('p_value'))}"
         low = any(isinstance(s, Mapping) and s.get("low_band") for s in bound.get("line_search") or [])
         out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
                         "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
