@@ -178,6 +178,28 @@ def _stationarity_flags(sensor: str, stationarity: Mapping, stuck_where, line_wh
     return out
 
 
+def _adequacy_flags(sensor: str, identify: Mapping, bound: Mapping) -> list[Flag]:
+    """The FLAG of a pooled Allan fit the adequacy test rejects (its statistic, p and what may help), else []."""
+    adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
+    if not (isinstance(adequacy, Mapping) and adequacy.get("adequate") is False):
+        return []
+    cov, dof = adequacy.get("chi2_covariance"), adequacy.get("dof")
+    # a p from the generalised statistic (the AV points' correlation) says so beside it: Pearson's 1.19 read
+    # against p = 2e-122 (an outside evaluation)
+    with_cov = (f" (with the AV points' correlation: {num(float(cov) / float(dof))})"
+                if "covariance" in str(adequacy.get("method") or "") and cov is not None and dof else "")
+    fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}{with_cov}, p = {num(adequacy.get('p_value'))}"
+    low = any(isinstance(s, Mapping) and s.get("low_band") for s in bound.get("line_search") or [])
+    return [Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
+                 "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
+                 f"line search's band, {'a finer ' if low else ''}lines.low_band_resolution_hz may; a resonance "
+                 "wider than about a tenth of the search's floor window lifts its own floor and is found too "
+                 "weak or not at all: a bump of the Allan deviation near tau = 1/(2 f) shows it"
+                 + ("; auto then builds no envelope candidate on a rejected selected model)"
+                    if str(bound.get("mode") or "").startswith("auto") else ")"),
+                 short=f"{fit}: the model does not describe the Allan variance within its confidence")]
+
+
 def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None = None,
              stationarity: Mapping | None = None) -> list[Flag]:
     """Every failed or flagged check of one sensor type, from its run files (plain dicts).
@@ -269,23 +291,7 @@ def flags_of(sensor: str, bound: Mapping | None = None, identify: Mapping | None
     line_items = [it for key in ("lines", "narrowband") for src in (identify, stationarity, bound)
                   for it in _items(src.get(key)) if isinstance(it, Mapping)]
     out += _stationarity_flags(sensor, stationarity, stuck_where, {line_text(it)[0] for it in line_items})
-    adequacy = _g(identify, "fit", "adequacy") or identify.get("adequacy")
-    if isinstance(adequacy, Mapping) and adequacy.get("adequate") is False:
-        cov, dof = adequacy.get("chi2_covariance"), adequacy.get("dof")
-        # a p from the generalised statistic (the AV points' correlation) says so beside it: Pearson's 1.19 read
-        # against p = 2e-122 (an outside evaluation)
-        with_cov = (f" (with the AV points' correlation: {num(float(cov) / float(dof))})"
-                    if "covariance" in str(adequacy.get("method") or "") and cov is not None and dof else "")
-        fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}{with_cov}, p = {num(adequacy.get('p_value'))}"
-        low = any(isinstance(s, Mapping) and s.get("low_band") for s in bound.get("line_search") or [])
-        out.append(Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
-                        "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
-                        f"line search's band, {'a finer ' if low else ''}lines.low_band_resolution_hz may; a resonance "
-                        "wider than about a tenth of the search's floor window lifts its own floor and is found too "
-                        "weak or not at all: a bump of the Allan deviation near tau = 1/(2 f) shows it"
-                        + ("; auto then builds no envelope candidate on a rejected selected model)"
-                           if str(bound.get("mode") or "").startswith("auto") else ")"),
-                        short=f"{fit}: the model does not describe the Allan variance within its confidence"))
+    out += _adequacy_flags(sensor, identify, bound)
     out += consistency_flags(sensor, identify)
     on_b = _g(identify, "fit", "on_boundary") or identify.get("on_boundary")
     moved = [r for r in _items(identify.get("gm_reassigned")) if isinstance(r, Mapping)]
