@@ -152,8 +152,9 @@ def check_config(config: str | Path) -> list[str]:
                                    "the checks across keys (the schema needs jsonschema, installed with Snakemake)"))
     # the workflow's start-up probe of every record against the config (length, rates), as common.smk runs it
     datasets = rc.datasets_of(cfg, root, f"results/{cfg.get('name', 'run')}")
-    rc.check_records(cfg, datasets)
+    warned = rc.check_records(cfg, datasets)
     done.append(f"records against the config: {len(datasets)} probed (length for psd.window_s, rates)")
+    done += [f"warning: {w}" for w in warned]
     return done
 
 
@@ -376,7 +377,7 @@ def _sheet_paths(config: Path) -> dict[str, str]:
 def _cmd_check(args) -> int:
     lines = check_config(args.config)
     for line in lines:
-        print(f"ok  {line}")
+        print(f"warn {line[len('warning: '):]}" if line.startswith("warning: ") else f"ok  {line}")
     if args.read:
         if any(ln == "datasets: simulated" for ln in lines):
             print("ok  records: simulated by the run, nothing to read")

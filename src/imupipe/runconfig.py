@@ -270,17 +270,19 @@ def _stamps_contradict(meta, row: dict) -> bool:
     return not -low <= stamps_rate - rate <= RATE_RTOL * rate
 
 
-def check_records(cfg: dict, datasets: dict) -> None:
+def check_records(cfg: dict, datasets: dict) -> list[str]:
     """Start-up check of every record against the config, once, naming the key: long enough for ``psd.window_s``
     (and the longest for ``verify.fix_s + application.outage_s``, the replay's run),
     its rate a whole multiple of ``decimate.rate_hz`` and of ``application.filter_rate_hz`` (the verification
     replays each record block-averaged to the filter's rate), enough decimated samples for
     ``stationarity.n_segments`` (:func:`imupipe.readers.check_against_config`). Every dataset's problem in one
     ValueError. An unset ``psd.window_s`` / ``psd.step_s`` is set here (in `cfg`) by
-    :func:`imupipe.defaults.psd_window_step` on the shortest record: one frequency grid for every record."""
+    :func:`imupipe.defaults.psd_window_step` on the shortest record: one frequency grid for every record. Returns
+    the warnings: a record whose timestamps contradict its ``rate_hz`` (:func:`_stamps_contradict`) is not
+    length-checked, and its ingest job stops on it."""
     from imupipe.readers import ConfigError, check_against_config
 
-    problems, lasts = [], {}  # dataset -> duration, s
+    problems, lasts, warnings = [], {}, []  # dataset -> duration, s
     filter_rate = float(cfg["application"]["filter_rate_hz"])
     for name, row in datasets.items():
         probed = _probe(row, cfg.get("simulation"))
@@ -288,6 +290,11 @@ def check_records(cfg: dict, datasets: dict) -> None:
             continue
         rate, duration, meta = probed
         if _stamps_contradict(meta, row):  # rows / rate_hz is not its duration: its ingest job names the rate or gap
+            span_rate = (meta.n_samples - 1) / meta.span_s
+            warnings.append(f"{name}: rate_hz = {float(meta.rate_hz):g} Hz, but its {meta.n_samples} rows span "
+                            f"{meta.span_s:.6g} s of timestamps ((rows - 1) / span = {span_rate:.6g} Hz; a gap lowers "
+                            "it): its length is not checked here; its ingest (imupipe check --read, or the run) "
+                            "compares rate_hz with the timestamps and stops if they disagree")
             continue
         if duration is not None:
             lasts[name] = float(duration)
@@ -324,6 +331,7 @@ def check_records(cfg: dict, datasets: dict) -> None:
             psd["window_s"] = w
         if psd["step_s"] is None:
             psd["step_s"] = st if psd["window_s"] == w else psd["window_s"] / 2.0
+    return warnings
 
 
 def spec_path(cfg: dict, root, name: str) -> Path:

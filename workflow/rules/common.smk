@@ -29,7 +29,10 @@ SIMULATION = config.get("simulation")
 DATASETS = rc.datasets_of(config, ROOT, RESULTS)
 SIM_SEEDS = rc.simulation_seeds(SIMULATION)
 AXES_OF = rc.axes_of(DATASETS, SENSORS)  # {dataset: {sensor: [axis, ...]}}: every per-axis file name uses these
-rc.check_records(config, DATASETS)  # once, before any job; sets psd.window_s / step_s when unset
+for _warning in rc.check_records(config, DATASETS):  # once, before any job; sets psd.window_s / step_s when unset
+    from snakemake.logging import logger as _logger
+
+    _logger.warning(f"imupipe warning: {_warning}")
 rc.check_specs(config, ROOT)
 
 SPAN_S = rc.span_s(config)  # verify.fix_s + application.outage_s: the bound holds down to 0.01 / SPAN_S
