@@ -78,6 +78,9 @@ def test_an_outage_shorter_than_the_default_is_said_and_a_longer_one_can_be_aske
     assert "note: application.outage_s" not in capsys.readouterr().out
     text = (tmp_path / "o2" / "config.yaml").read_text()
     assert yaml.safe_load(text)["application"]["outage_s"] == 3600.0 and "as asked (imupipe init --outage-s)" in text
+    # 1/3600 Hz lies below the PSD's 1/1800 Hz: the comment says where the band's bottom is covered from (an outside
+    # evaluation read "inside the decimated spectra's [1/W, f/2]" there)
+    assert "1/outage_s lies below the lowest PSD" in text and "inside the decimated spectra's" not in text
     assert check_config(tmp_path / "o2" / "config.yaml")  # the start-up checks take it
     assert main(["init", str(record), "--spec", str(SPEC), "--out", str(tmp_path / "o3"), "--outage-s", "7000"]) == 1
     err = capsys.readouterr().err

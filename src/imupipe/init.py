@@ -366,6 +366,12 @@ def config_text(name: str, sheet: str, spec_dir: str, spec: str, sensors: list[s
                    "  # min(3600 s default, psd.window_s, shortest record - verify.fix_s): 1/outage not below the "
                    "lowest PSD\n  # frequency, and one fix period plus one outage fits in the shortest record (the "
                    "verification's replay)")
+    band_rule = ("  # = decimate.rate_hz: the band [1/outage_s, filter_rate_hz/2] inside the decimated spectra's [1/W, f/2]; "
+                 "the\n  # verification's reference filter runs at it too (the exported model is the verified one)"
+                 if s.outage_s <= s.window_s else
+                 "  # = decimate.rate_hz (the verification's reference filter runs at it too); 1/outage_s lies below the "
+                 "lowest PSD\n  # frequency 1/W: there the bound covers the identified envelope (it holds over all "
+                 "frequencies)")
     return f"""\
 # Written by 'imupipe init': a partial config, merged over config/config.yaml (every other key keeps its
 # default there). Each value below is derived from the records by the rule in its comment (imupipe.init).
@@ -384,8 +390,7 @@ psd:
   # S = W / 2 (shortened to tile the record when that left more than 10 % unused); unused: {worst:.2%} at most
   step_s: {s.step_s!r}
 application:
-  # = decimate.rate_hz: the band [1/outage_s, filter_rate_hz/2] inside the decimated spectra's [1/W, f/2]; the
-  # verification's reference filter runs at it too (the exported model is the verified one)
+{band_rule}
   filter_rate_hz: {s.decimate_rate_hz!r}
 {outage_rule}
   outage_s: {s.outage_s!r}
