@@ -294,12 +294,16 @@ def test_a_known_term_below_the_lines_allan_variance_is_calibrated_and_a_weak_on
               confidence=0.95)
     y, edf, known = _exact_curve(tau, 1e-3, 0.7)
     (scaled,), (rec,) = calibrated_known([tau], [y], [edf], [known], [[11.0]], **kw)
-    assert rec["calibrated"] and rec["scale"] == pytest.approx(1.0 / 0.7, rel=1e-3)
+    assert rec["calibrated"] and rec["scale"] == pytest.approx(1.0 / 0.7, rel=1e-3) and not rec["at_interval_end"]
     assert rec["chi2_scaled"] < 1e-3 * rec["chi2_unscaled"]
     assert np.allclose(scaled, known / 0.7, rtol=1e-3)
     y, edf, known = _exact_curve(tau, 1e-7, 0.7)
     (scaled,), (rec,) = calibrated_known([tau], [y], [edf], [known], [[11.0]], **kw)
     assert not rec["calibrated"] and rec["scale"] == 1.0 and np.array_equal(scaled, known)
+    # a known term at a tenth of the line: the scale stops at its interval's end (nu = 11: 2.87) and says so
+    y, edf, known = _exact_curve(tau, 1e-3, 0.1)
+    (_,), (rec,) = calibrated_known([tau], [y], [edf], [known], [[11.0]], **kw)
+    assert rec["calibrated"] and rec["at_interval_end"] and rec["scale"] == pytest.approx(rec["interval"][1])
     # a curve without a line has no record and its zeros pass through
     (z,), (none,) = calibrated_known([tau], [y], [edf], [np.zeros_like(tau)], [[]], **kw)
     assert none is None and not np.any(z)

@@ -75,7 +75,9 @@ def calibrated_known(tau, avar, edf, known, dofs, *, components, n_gm: int, T_gr
     records : list of dict
         Per curve: ``scale`` (1), ``interval`` [s_lo, s_hi] (1), ``chi2_unscaled``, ``chi2_scaled`` (the free
         fit's Pearson statistic at s = 1 and at the best s), ``threshold`` (the chi2_1 quantile), ``calibrated``
-        (bool); None for a curve without known AV.
+        (bool), ``at_interval_end`` (the applied scale at an end of its interval: the Allan variance asks for more
+        than the lines' power allows, the fit's residual is then another process's); None for a curve without
+        known AV.
     """
     from scipy.special import chdtri
 
@@ -103,8 +105,10 @@ def calibrated_known(tau, avar, edf, known, dofs, *, components, n_gm: int, T_gr
         calibrated = c1 - c_best > threshold
         s = s_best if calibrated else 1.0
         out.append(s * k_c)
+        edge = calibrated and (s <= lo * (1.0 + 1e-3) or s >= hi * (1.0 - 1e-3))
         records.append({"scale": float(s), "interval": [float(lo), float(hi)], "chi2_unscaled": c1,
-                        "chi2_scaled": float(c_best), "threshold": threshold, "calibrated": bool(calibrated)})
+                        "chi2_scaled": float(c_best), "threshold": threshold, "calibrated": bool(calibrated),
+                        "at_interval_end": bool(edge)})
     return out, records
 
 

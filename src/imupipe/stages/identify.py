@@ -711,7 +711,10 @@ def _lines_record(curves, lines, known, scales=None) -> dict:
                 **scales[c.label],
                 "statement": "the lines' Allan variance in every fit is their PSD estimate's times `scale`: the scale "
                              "within the lines' power interval that minimises the curve's own fit statistic, kept "
-                             "at 1 unless the fit improves by more than `threshold` (chi2 with 1 dof at level 0.01)"}
+                             "at 1 unless the fit improves by more than `threshold` (chi2 with 1 dof at level 0.01)"
+                             + ("; at an end of its interval: the Allan variance asks for more than the lines' "
+                                "power allows, and chi2_scaled says how far the fit stays from the data"
+                                if scales[c.label].get("at_interval_end") else "")}
     return out
 
 
