@@ -708,7 +708,8 @@ def _lines_record(curves, lines, known, scales=None) -> dict:
                         "max_avar_share": float(np.max(k / np.asarray(c.avar, dtype=np.float64)))}
         if (scales or {}).get(c.label):
             out[c.label]["av_scale"] = {
-                **scales[c.label],
+                **scales[c.label], "units": {"scale": "1", "interval": "1", "chi2_unscaled": "1", "chi2_scaled": "1",
+                                             "threshold": "1"},
                 "statement": "the lines' Allan variance in every fit is their PSD estimate's times `scale`: the scale "
                              "within the lines' power interval that minimises the curve's own fit statistic, kept "
                              "at 1 unless the fit improves by more than `threshold` (chi2 with 1 dof at level 0.01)"

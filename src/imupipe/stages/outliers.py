@@ -139,6 +139,9 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                                "display": "spec-like unit (deg/h, mg for steps; deg/s, g for bursts)",
                                "p_value": "probability per record: the scan's false-alarm rate with its threshold "
                                           "at this z (imupipe.events.detect_events)"},
+                    "events_scan": {"step_scan": {"tau_s": "s", "sigma_d": units, "threshold_z": "robust sds",
+                                                  "smallest_step": units, "smallest_step_tau_s": "s"},
+                                    "burst_scan": {"window_s": "s", "threshold_z": "robust sds"}},
                     "events_segment": "s from the record's start"}
     x_seg = None
     if ev_policy == "exclude" or policy == "remove":
