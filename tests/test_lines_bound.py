@@ -270,8 +270,9 @@ def test_replay_of_simulated_records_with_a_line_matches_the_exact_mse():
 def test_process_looks_is_one_draw_only_for_an_unresolved_line_whose_amplitude_does_not_wander():
     from imupipe.lines import process_looks
 
-    assert process_looks(4.0, 4, 2.78e-4, 2.78e-4) == 1.0  # no bin wider, no wander: one draw
-    assert process_looks(2.35, 4, 2.78e-4, 2.78e-4) == 2.35  # wanders: its measured looks
+    assert process_looks(14.0, 14, 0.002, 0.002) == 1.0  # no bin wider, no wander: one draw
+    assert process_looks(5.0, 14, 0.002, 0.002) == 5.0  # wanders over 14 segments: its measured looks
+    assert process_looks(2.35, 4, 2.78e-4, 2.78e-4) == 1.0  # 4 segments (the low band's): their looks say little
     assert process_looks(14.0, 14, 0.01, 0.002) == 14.0  # resolved: coherence 1/(pi Gamma) under a segment
 
 
