@@ -123,6 +123,7 @@ __all__ = [
     "POLICIES",
     "line_avar",
     "line_looks",
+    "line_power_lower",
     "process_looks",
     "line_power_upper",
     "lines_by_curve",
@@ -339,6 +340,17 @@ def line_power_upper(power: float, dof, confidence: float) -> float:
 
     nu = float(dof)
     return float(power) * nu / (2.0 * float(gammaincinv(nu / 2.0, 1.0 - float(confidence))))
+
+
+def line_power_lower(power: float, dof, confidence: float) -> float:
+    r"""Lower confidence limit of a line's power P1 (u^2) at `confidence` c, :math:`P_1 \nu / \chi^2_\nu(c)`, the
+    counterpart of :func:`line_power_upper`; `power` itself where `dof` is None or not positive."""
+    if dof is None or not float(dof) > 0:
+        return float(power)
+    from scipy.special import gammaincinv
+
+    nu = float(dof)
+    return float(power) * nu / (2.0 * float(gammaincinv(nu / 2.0, float(confidence))))
 
 
 def _gamma_median(K: int) -> float:

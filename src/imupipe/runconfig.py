@@ -250,9 +250,9 @@ def _probe(row: dict, simulation: dict | None):
     return meta.rate_hz, meta.duration_s, meta
 
 
-def _stamps_contradict(meta, row: dict) -> bool:
-    """Whether the sheet ``rate_hz`` of a record is contradicted by its timestamps' span: its N rows over the span T
-    between its first and last stamp give (N - 1) / T, which a gap can only lower. Above rate_hz by more than
+def _stamps_contradict(meta, row: dict) -> float | None:
+    """The rate (N - 1) / T (Hz) of a record's N rows over the span T between its first and last stamp where it
+    contradicts the sheet's ``rate_hz``, else None (a gap can only lower it). Above rate_hz by more than
     :data:`imupipe.readers.RATE_RTOL`, or below it by more than that plus what the row's gap policy lets the ingest
     fill (``fill``: fill_max_fraction of the record; ``fail``: nothing; a split keeps any gap), rows / rate_hz is not
     the record's duration: the start-up check then leaves the record's length checks out (they would name
@@ -262,12 +262,12 @@ def _stamps_contradict(meta, row: dict) -> bool:
 
     span, n = getattr(meta, "span_s", None), getattr(meta, "n_samples", 0)
     if getattr(meta, "rate_from", "") != "sheet" or not span or span <= 0 or n < 2:
-        return False
+        return None
     rate, stamps_rate = float(meta.rate_hz), (n - 1) / span
     policies = {str(row.get("gap_policy") or "fail"), str(row.get("long_gap_policy") or "fail")}
     filled = float(row.get("fill_max_fraction") or DEFAULT_FILL_MAX_FRACTION) if "fill" in policies else 0.0
     low = math.inf if "split" in policies else (RATE_RTOL + filled) * rate
-    return not -low <= stamps_rate - rate <= RATE_RTOL * rate
+    return None if -low <= stamps_rate - rate <= RATE_RTOL * rate else stamps_rate
 
 
 def check_records(cfg: dict, datasets: dict) -> list[str]:
@@ -289,8 +289,8 @@ def check_records(cfg: dict, datasets: dict) -> list[str]:
         if probed is None:
             continue
         rate, duration, meta = probed
-        if _stamps_contradict(meta, row):  # rows / rate_hz is not its duration: its ingest job names the rate or gap
-            span_rate = (meta.n_samples - 1) / meta.span_s
+        span_rate = _stamps_contradict(meta, row)
+        if span_rate is not None:  # rows / rate_hz is not its duration: its ingest job names the rate or gap
             warnings.append(f"{name}: rate_hz = {float(meta.rate_hz):g} Hz, but its {meta.n_samples} rows span "
                             f"{meta.span_s:.6g} s of timestamps ((rows - 1) / span = {span_rate:.6g} Hz; a gap lowers "
                             "it): its length is not checked here; its ingest (imupipe check --read, or the run) "

@@ -34,18 +34,19 @@ SCALE_GRID_POINTS = 25
 
 
 def scale_interval(dofs, confidence: float) -> tuple[float, float]:
-    r"""[s_lo, s_hi] of a curve's lines (module docstring): the common scale of their powers that every line's
-    one-sided `confidence` limits allow, from each line's degrees of freedom (:attr:`imupipe.lines.Line.dof`);
-    (1, 1) where a line has no degrees of freedom (its power is not a chi-square estimate)."""
-    from scipy.special import gammaincinv
+    """[s_lo, s_hi] of a curve's lines (module docstring): the common scale of their powers that every line's
+    one-sided `confidence` limits allow (:func:`imupipe.lines.line_power_lower` and
+    :func:`~imupipe.lines.line_power_upper` of a unit power), from each line's degrees of freedom
+    (:attr:`imupipe.lines.Line.dof`); (1, 1) where a line has no degrees of freedom (its power is not a chi-square
+    estimate)."""
+    from imupipe.lines import line_power_lower, line_power_upper
 
     lo, hi = 0.0, math.inf
     for nu in dofs:
         if nu is None or not float(nu) > 0:
             return 1.0, 1.0
-        nu = float(nu)
-        lo = max(lo, nu / (2.0 * float(gammaincinv(nu / 2.0, float(confidence)))))
-        hi = min(hi, nu / (2.0 * float(gammaincinv(nu / 2.0, 1.0 - float(confidence)))))
+        lo = max(lo, line_power_lower(1.0, nu, confidence))
+        hi = min(hi, line_power_upper(1.0, nu, confidence))
     return (lo, hi) if np.isfinite(hi) else (1.0, 1.0)
 
 
