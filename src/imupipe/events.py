@@ -404,8 +404,7 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         detecting scale; scales in samples; family_p: the smallest 2 S K_m P(t_nu_m > z'_m) over the scales m that
         detect the step, z' = z over the local scale where that exceeds 1 (the detection's test): the scan's
         false-alarm probability with its thresholds at the step's strongest detection, as the thresholds' own rule);
-        ``scales``: per scale
-        ``{m, sigma_d, threshold_z, positions, nu}``.
+        ``scales``: per scale ``{m, sigma_d, threshold_z, positions, nu}``.
     """
     x = np.asarray(x, dtype=np.float64).ravel()
     n = x.size
@@ -449,8 +448,9 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
                 j = int(g[np.argmax(z[g])])
                 # the local scale over the record's: MAD_TO_SIGMA x the median of z = |D| / sd nearby
                 local = MAD_TO_SIGMA * float(np.median(z[max(0, j - reach) : j + reach + 1]))
-                if z[j] / max(1.0, local) > zt:  # with the scan's false-alarm probability at the test's z
-                    cands.append((float(z[j]), m + j * h, m, 2.0 * S * K * _t_sf(float(z[j] / max(1.0, local)), nu)))
+                z_test = float(z[j] / max(1.0, local))
+                if z_test > zt:  # with the scan's false-alarm probability at the test's z
+                    cands.append((float(z[j]), m + j * h, m, 2.0 * S * K * _t_sf(z_test, nu)))
         del z
     cands.sort(key=lambda c: -c[0])
     taken = []

@@ -26,6 +26,7 @@ def event_chance(bound: Mapping) -> str:
                            ) if rates and axes else None
     return f"; {text}" if text else ""
 
+
 def strongest_event_beyond(events, alpha: float, n: int) -> str | None:
     """The clause of the strongest event whose ``p_value`` (the scan's false-alarm rate per record with its
     threshold at the event's z: :func:`imupipe.events.detect_events`) is below alpha / n over the n axes scanned:
