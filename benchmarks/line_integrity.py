@@ -16,6 +16,11 @@ wandering 0.3 Hz line).
         --hours 4 --rate 20 --seeds $(seq 71 84)
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband line --f0 7.3 --sd 3e-4 --zeta 2e-3 \
         --hours 4 --rate 20 --seeds 201 202 203 204 --scales 1 8 64
+    OPENBLAS_NUM_THREADS=1 python benchmarks/line_integrity.py --broadband stim --f0 0.008 --sd 1.744e-4 \
+        --zeta 1e-3 --hours 2 --rate 20 --seeds $(seq 7001 7010) --scales 1 8 64 --low-band
+
+``stim``: white 0.15 deg/sqrt(h), GM 1.5 deg/h at 1500 s, K 0.02 (deg/h)/sqrt(s) (a STIM-300-like gyro, an outside
+evaluation's broadband part). ``--low-band``: the low band's search at 1 / psd.window_s, as `imupipe init` writes.
 """
 
 from __future__ import annotations
@@ -38,7 +43,9 @@ from imupipe.models import NoiseModel  # noqa: E402
 _D = math.pi / 180.0
 #: The broadband parts (SI, the units of a gyro in rad/s; module docstring).
 BROADBAND = {"slow": dict(white=2e-4, gauss_markov=((3e-5, 30.0),), random_walk=5e-8),
-             "line": dict(white=0.3 / 60 * _D, gauss_markov=((3 / 3600 * _D, 600.0),), random_walk=0.04 / 3600 * _D)}
+             "line": dict(white=0.3 / 60 * _D, gauss_markov=((3 / 3600 * _D, 600.0),), random_walk=0.04 / 3600 * _D),
+             "stim": dict(white=0.15 / 60 * _D, gauss_markov=((1.5 / 3600 * _D, 1500.0),),
+                          random_walk=0.02 / 3600 * _D)}
 
 
 def exported_against_truth(truth, base: str, seed: int, hours: float, records: int, sensor: str, rate_hz: float,
@@ -68,11 +75,16 @@ def exported_against_truth(truth, base: str, seed: int, hours: float, records: i
 
 
 def run_case(seed: int, f0_hz: float, sd: float, zeta: float, hours: float, records: int, sensor: str,
-             rate_hz: float = 10.0, broadband: str = "slow", scales=(1,)) -> dict:
+             rate_hz: float = 10.0, broadband: str = "slow", scales=(1,), low_band: bool = False) -> dict:
     """One seed of the broadband part `broadband` plus the oscillator (sd, f0_hz, zeta):
-    :func:`exported_against_truth` with the case beside it."""
+    :func:`exported_against_truth` with the case beside it; `low_band`: the low band's search at 1 / psd.window_s
+    (:func:`imupipe.defaults.psd_window_step` of the record's length)."""
+    from imupipe.defaults import psd_window_step
+
     truth = NoiseModel(**BROADBAND[broadband], narrowband=((sd, f0_hz, zeta),))
-    out = exported_against_truth(truth, broadband, seed, hours, records, sensor, rate_hz, lines_scales=scales)
+    low = 1.0 / psd_window_step(hours * 3600.0)[0] if low_band else None
+    out = exported_against_truth(truth, broadband, seed, hours, records, sensor, rate_hz, lines_scales=scales,
+                                 lines_low_band_resolution_hz=low)
     return {"seed": seed, "f0_hz": f0_hz, "sd": sd, "zeta": zeta, "hours": hours, "records": records,
             **{k: out[k] for k in ("bounded", "worst", "mean_p_over_mse", "exported", "chi2_dof_full",
                                    "chi2_dof_selected")}}
@@ -90,10 +102,12 @@ def main(argv=None) -> int:
     ap.add_argument("--rate", type=float, default=10.0, help="record rate, Hz")
     ap.add_argument("--broadband", choices=sorted(BROADBAND), default="slow")
     ap.add_argument("--scales", type=int, nargs="+", default=[1], help="lines.scales of the line search")
+    ap.add_argument("--low-band", action="store_true", help="search the low band at 1 / psd.window_s")
     a = ap.parse_args(argv)
     above, pm = 0, []
     for s in a.seeds:
-        r = run_case(s, a.f0, a.sd, a.zeta, a.hours, a.records, a.sensor, a.rate, a.broadband, tuple(a.scales))
+        r = run_case(s, a.f0, a.sd, a.zeta, a.hours, a.records, a.sensor, a.rate, a.broadband, tuple(a.scales),
+                     a.low_band)
         above += r["bounded"] and r["worst"] > 1 + 1e-6
         pm.append(r["mean_p_over_mse"])
         print(json.dumps(r), flush=True)

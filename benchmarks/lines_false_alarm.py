@@ -9,6 +9,13 @@ Truths: the default run's (config/truth/stim300_like.yaml, gyro and accel: white
 and rate of an outside evaluation's records (few Welch segments: a higher threshold, each detection 3-4x its floor),
 also with its white noise 2x and 3x its sd over the second half (a level change: segments of unequal level).
 Records drawn as the workflow draws them (imupipe.simulate.simulate_chunks), the search at the default settings.
+
+With ``--low-band`` the search runs as `imupipe init` writes it (scales 1, 8, 64 and the low band at 1 / psd.window_s,
+each at alpha / 4) on 2 h records at 20 Hz of five truths (the STIM-300-like gyro and accel of an outside evaluation,
+the MEMS GM, a steep random walk, flicker), and the table counts the records with a line in the low band, whose share
+of the level is alpha / 4 (its floor window narrows toward 0 Hz: docs/method.md, "Narrowband lines and outliers"):
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/lines_false_alarm.py --low-band --records 200 --alpha 0.2
 """
 
 from __future__ import annotations
@@ -40,13 +47,28 @@ def cases() -> dict:
             "mems, white 3x over the second half": (mems, 2.0, 20.0, 3.0)}
 
 
+def low_band_cases() -> dict:
+    """name -> (truth, hours, rate Hz, 1.0) of the ``--low-band`` table (SI, module docstring)."""
+    d = math.pi / 180.0
+    return {"STIM-300-like gyro": (NoiseModel(white=0.15 / 60 * d, gauss_markov=((1.5 / 3600 * d, 1500.0),),
+                                              random_walk=0.02 / 3600 * d), 2.0, 20.0, 1.0),
+            "STIM-300-like accel": (NoiseModel(white=0.05 / 60, gauss_markov=((0.05e-3 * 9.80665, 800.0),),
+                                               random_walk=1.25e-6), 2.0, 20.0, 1.0),
+            "mems": (NoiseModel(white=1e-3, gauss_markov=((2e-4, 200.0),)), 2.0, 20.0, 1.0),
+            "steep random walk": (NoiseModel(white=1e-3, random_walk=2e-5), 2.0, 20.0, 1.0),
+            "flicker": (NoiseModel(white=1e-4, flicker=3e-5), 2.0, 20.0, 1.0)}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--records", type=int, default=100)
     ap.add_argument("--alpha", type=float, default=0.01)
     ap.add_argument("--resolution-hz", type=float, default=0.002)
     ap.add_argument("--seed", type=int, default=555)
+    ap.add_argument("--low-band", action="store_true", help="init's search; count the low band's lines")
     a = ap.parse_args(argv)
+    if a.low_band:
+        return _low_band_table(a)
     lo, hi = binom.ppf(0.025, a.records, a.alpha), binom.ppf(0.975, a.records, a.alpha)
     print(f"| truth | records | segments | records with a line | expected at alpha {a.alpha:g} (95 % range) | "
           "peak/floor of the detections |")
@@ -67,6 +89,35 @@ def main(argv=None) -> int:
             ratios += [round(ln.peak_ratio, 2) for ln in res.lines]
         print(f"| {name} | {a.records} | {segments} | {hits} | {a.records * a.alpha:g} ({lo:g} to {hi:g}) | "
               f"{', '.join(map(str, ratios)) or '-'} |", flush=True)
+    return 0
+
+
+def _low_band_table(a) -> int:
+    """The ``--low-band`` table (module docstring)."""
+    from imupipe.defaults import psd_window_step
+
+    share = a.alpha / 4
+    lo, hi = binom.ppf(0.025, a.records, share), binom.ppf(0.975, a.records, share)
+    print(f"| truth | records | low band tested (Hz) | records with a low-band line | expected at alpha / 4 = "
+          f"{share:g} (95 % range) | their frequencies (Hz) |")
+    print("|---|---|---|---|---|---|")
+    for i, (name, (truth, hours, rate, _)) in enumerate(low_band_cases().items()):
+        n = int(hours * 3600 * rate)
+        hits, freqs, band = 0, [], ""
+        for r in range(a.records):
+            rng = np.random.default_rng([a.seed, 100 + i, r])
+            x = np.empty(n)
+            for start, c in simulate_chunks(truth, n, rate, rng):
+                x[start:start + c.size] = c
+            res = find_lines(x, rate, resolution_hz=a.resolution_hz, alpha=a.alpha, scales=(1, 8, 64),
+                             low_band_resolution_hz=1.0 / psd_window_step(hours * 3600.0)[0])
+            low = res.low_band
+            band = f"{low['f_min_hz']:.4f}-{low['f_max_hz']:.4f}"
+            mine = [ln.frequency_hz for ln in res.lines if ln.frequency_hz <= low["f_max_hz"] + low["resolution_hz"]]
+            hits += bool(mine)
+            freqs += [round(v, 4) for v in mine]
+        print(f"| {name} | {a.records} | {band} | {hits} | {a.records * share:g} ({lo:g} to {hi:g}) | "
+              f"{', '.join(map(str, freqs)) or '-'} |", flush=True)
     return 0
 
 

@@ -13,6 +13,7 @@ from imupipe.lines import (
     decimated_line,
     detection_threshold,
     find_lines,
+    floor_windows,
     line_looks,
     line_policy,
     merge_lines,
@@ -472,9 +473,10 @@ class TestLowBand:
         assert ln.power == pytest.approx(AMP**2 / 2, rel=0.02)
         low = res.low_band
         assert low["alpha"] == pytest.approx(0.005) and res.alpha == 0.01 and res.scales == ()
-        # the low band ends one of its bins below the first search's lowest tested bin and starts half its own floor
-        # window above 0; the first search's own statement (resolution, segments, threshold) is kept
-        assert low["f_max_hz"] == pytest.approx(26 * 0.002 - 1 / 3600) and low["f_min_hz"] == pytest.approx(26 / 3600)
+        # the low band ends one of its bins below the first search's lowest tested bin and starts half its narrowest
+        # floor window (11 bins) above 0; the first search's own statement (resolution, segments, threshold) is kept
+        assert low["f_max_hz"] == pytest.approx(26 * 0.002 - 1 / 3600) and low["f_min_hz"] == pytest.approx(6 / 3600)
+        assert low["floor_window_min_bins"] == 11 and low["threshold_narrowest"] > low["threshold"]
         assert res.f_min_hz == low["f_min_hz"] and res.resolution_hz == pytest.approx(0.002)
         assert low["n_segments"] == 4 and res.n_segments == plain.n_segments
         assert res.to_dict()["low_band"]["n_lines"] == 1
@@ -490,6 +492,50 @@ class TestLowBand:
         assert [s["alpha"] for s in res.scales] == pytest.approx([0.01 / 3] * 2)
         assert res.low_band["alpha"] == pytest.approx(0.01 / 3)
 
+    def test_the_narrowing_floor_window_is_two_sided_and_keeps_a_monotone_floors_level(self):
+        # a noise-free 1/f^2 floor: the median of a centred window of a monotone sequence is its centre, so each
+        # narrowed bin k (6 .. 25 for 51 / 11 bins) reads its own level from bins 1 .. 2k - 1; the others keep the
+        # full window (mirrored below bin 6, where nothing is tested)
+        p = 1.0 / np.arange(1, 400, dtype=float) ** 2
+        p = np.concatenate([[0.0], p])
+        median, widths = floor_windows(p, 51, 11)
+        k = np.arange(6, 26)
+        assert np.array_equal(widths[k], 2 * k - 1) and np.array_equal(median[k], p[k])
+        assert set(widths[:6]) == {51} and set(widths[26:]) == {51}
+        full, _ = floor_windows(p, 51)
+        assert np.array_equal(median[:6], full[:6]) and np.array_equal(median[26:], full[26:])
+        assert np.all(full[k] < p[k])  # the full window there mirrors bins above k: the floor read too low
+
+    def test_a_line_below_the_full_windows_band_is_found_where_the_window_narrows(self):
+        # an outside evaluation's case: a 0.01 Hz line in 2 h records lay below the low band's first tested bin
+        # (0.0144 Hz at 1/1800 Hz with 51 bins). Over a random-walk floor (1/f^2): a sinusoid at 0.008 Hz, bin 14.4;
+        # its peak is ~1e4x the floor, whose share of the line's 9 bins is < 0.1 % of A^2/2: power within 1 %
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+
+        rate, n, amp = 20.0, 144_000, 2e-2
+        x = simulate(NoiseModel(white=1e-3, random_walk=2e-5), n, rate, rng=np.random.default_rng(5))
+        x += amp * np.cos(2 * np.pi * 0.008 * np.arange(n) / rate + 1.0)
+        full = find_lines(x, rate, resolution_hz=0.002, low_band_resolution_hz=1 / 1800, floor_window_min_bins=51)
+        assert full.lines == () and full.low_band["f_min_hz"] == pytest.approx(26 / 1800)
+        res = find_lines(x, rate, resolution_hz=0.002, low_band_resolution_hz=1 / 1800)
+        (ln,) = res.lines
+        assert abs(ln.frequency_hz - 0.008) < 1 / 1800 and ln.power == pytest.approx(amp**2 / 2, rel=0.01)
+        assert res.f_min_hz == pytest.approx(6 / 1800) and ln.dof == 2.0  # 4 segments: one draw (process_looks)
+
+    def test_the_level_holds_where_the_window_narrows_over_a_steep_floor(self):
+        # line-free records over a random-walk floor, only the narrowed bins (6 .. 25 of 1/1800 Hz) tested at a family-
+        # wise alpha of 0.3 per record: records with a false line at most the binomial 99.9 % point of 100 at 0.3
+        # (Bonferroni over correlated bins is conservative: measured 8 of 100)
+        from imupipe.models import NoiseModel
+        from imupipe.simulate import simulate
+
+        rate, n, alpha, R = 20.0, 144_000, 0.3, 100
+        m = NoiseModel(white=1e-3, random_walk=2e-5)
+        hits = sum(bool(find_lines(simulate(m, n, rate, rng=np.random.default_rng([9, r])), rate, resolution_hz=1 / 1800,
+                                   f_max_hz=0.0144, floor_window_min_bins=11, alpha=alpha).lines) for r in range(R))
+        assert hits <= binom.ppf(0.999, R, alpha)
+
     def test_a_record_shorter_than_one_low_band_segment_searches_as_before(self, rng):
         x = _record(rng, self.N, [(3.21, AMP)], rate=self.RATE)
         plain = find_lines(x, self.RATE, resolution_hz=0.002)
@@ -500,3 +546,6 @@ class TestLowBand:
         assert given.low_band is None and given.f_min_hz == 0.1
         with pytest.raises(ValueError, match="low_band_resolution_hz must lie in"):
             find_lines(x, self.RATE, resolution_hz=0.002, low_band_resolution_hz=0.004)
+        for bad in (9, 12, 53):
+            with pytest.raises(ValueError, match=r"floor_window_min_bins must be odd, >= 11 and <= floor_window_bins"):
+                find_lines(x, self.RATE, resolution_hz=0.002, floor_window_min_bins=bad)
