@@ -976,6 +976,7 @@ def test_first_screen_gives_a_flag_s_finding_and_its_details_give_it_in_full():
         "dataset": "d", "sensor": "gyro", "axis": "x", "n_tested": 25_000, "f_min_hz": 0.0072, "f_max_hz": 9.95,
         "resolution_hz": 0.002, "alpha": 0.01,
         "low_band": {"resolution_hz": 1 / 3600, "f_max_hz": 0.0517, "n_segments": 4, "alpha": 0.005},
+        "low_band_finer": {"resolution_hz": 1 / 7200, "f_max_hz": 0.0518, "n_segments": 2, "alpha": 0.005},
         "lines": [{"frequency_hz": 0.03, "power": 5e-7, "amplitude": 1e-3, "sigma": 7.07e-4, "peak_ratio": 900.0,
                    "f_lo_hz": 0.029, "f_hi_hz": 0.031}],
         "units": {"frequency_hz": "Hz", "amplitude": "rad/s", "sigma": "rad/s", "peak_ratio": "1"}})
@@ -988,8 +989,11 @@ def test_first_screen_gives_a_flag_s_finding_and_its_details_give_it_in_full():
     assert full.startswith(short.partition("; ")[0] + "; 1 of 1 axes show a line at level 0.01 each")
     assert "P(>= 1)" in full
     assert "Checks: on the first screen (above); in full:" in details
-    assert ("bins tested 0.0072 to 9.95 Hz at 0.002 Hz resolution (below 0.0517 Hz at 0.0002778 Hz: "
-            "lines.low_band_resolution_hz)") in details
+    assert ("bins tested 0.0072 to 9.95 Hz at 0.002 Hz resolution (below 0.0517 Hz at 0.0001389-0.0002778 Hz: "
+            "lines.low_band_resolution_hz and half of it)") in details
+    # below the searched band the bound covers a line as the records hold it: one draw where it is coherent
+    assert ("which the bound covers as the records hold it, not as a line term (a line coherent beyond a record is "
+            "one draw of its amplitude there") in details
 
 
 def test_a_flag_s_clauses_split_outside_parentheses_only():

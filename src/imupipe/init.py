@@ -28,7 +28,9 @@ derived, each by a stated rule (:func:`derive_settings`):
   than the running-median floor resolves is found (the default run keeps [1], the paper's).
 - ``lines.low_band_resolution_hz`` = :math:`1/W`: the band below the search's lowest tested bin (0.052 Hz at the
   default 0.002 Hz) is searched too, at the PSD window's bin spacing (the default run searches none, the paper's).
-  Each of the four searches runs at alpha / 4. Where :math:`1/W` is not finer than ``lines.resolution_hz`` (a window
+  It is searched at half that spacing too, where a record holds two such segments (the first bins' narrowed floor
+  windows hold a line's own main lobe: :func:`imupipe.lines.find_lines`). Each of the five searches runs at
+  alpha / 5. Where :math:`1/W` is not finer than ``lines.resolution_hz`` (a window
   under 500 s: records under about 33 min), null: no band below the search's is resolved finer than it.
 
 A record with timestamps (a time column, or a ROS bag's message headers) gets ``gap_policy: fill``: a few dropped
@@ -398,8 +400,8 @@ lines:
   # the line search at resolution_hz and 8 and 64 times coarser: a resonance wider than about a tenth of the floor
   # window is found at a coarser one (imupipe.lines.find_lines, scales)
   scales: [1, 8, 64]
-  # 1 / psd.window_s: the band below the first search's (0.052 Hz) searched at the PSD window's bin spacing; each of
-  # the four searches at alpha / 4 (null where that spacing is not finer than the search's resolution_hz)
+  # 1 / psd.window_s: the band below the first search's (0.052 Hz) searched at the PSD window's bin spacing and at
+  # half of it; each of the five searches at alpha / 5 (null where that spacing is not finer than resolution_hz)
   low_band_resolution_hz: {_low_band(s.window_s)}
 bound:
   # auto: every mode's bound (raw, smoothed, confidence, pooled, and with the joint envelope the envelope

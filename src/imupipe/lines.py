@@ -279,6 +279,7 @@ class LineSearch:
     effective_segments: float | None = None
     scales: tuple = ()
     low_band: dict | None = None
+    low_band_finer: dict | None = None
     floor_window_min_bins: int | None = None
     threshold_narrowest: float | None = None
     frequency: np.ndarray = field(default=None, repr=False, compare=False)
@@ -311,6 +312,7 @@ class LineSearch:
             "n_lines": len(self.lines),
             **({"scales": [dict(sc) for sc in self.scales]} if self.scales else {}),
             **({"low_band": dict(self.low_band)} if self.low_band else {}),
+            **({"low_band_finer": dict(self.low_band_finer)} if self.low_band_finer else {}),
             "lines": [{k: float(v) for k, v in asdict(line).items()} for line in self.lines],
             "units": {k: _unit(v, u) for k, v in _LINE_UNITS.items()},
         }
@@ -326,11 +328,13 @@ class LineSearch:
             unit = _unit(_LINE_UNITS[name], self.units)
             data[name] = xr.Variable(("line",), vals, attrs={"units": unit, "long_name": name.replace("_", " ")})
         attrs = {k: v for k, v in self.to_dict().items()
-                 if k not in ("lines", "units", "label", "method", "scales", "low_band")}
+                 if k not in ("lines", "units", "label", "method", "scales", "low_band", "low_band_finer")}
         if self.scales:  # netCDF attributes hold flat lists, not the scales' mappings
             attrs.update({f"scales_{k}": [sc[k] for sc in self.scales] for k in self.scales[0]})
         if self.low_band:
             attrs.update({f"low_band_{k}": v for k, v in self.low_band.items()})
+        if self.low_band_finer:
+            attrs.update({f"low_band_finer_{k}": v for k, v in self.low_band_finer.items()})
         attrs["method"] = self.to_dict()["method"]
         if self.label is not None:
             attrs["label"] = self.label
@@ -623,9 +627,11 @@ def find_lines(
     low_band_resolution_hz : float, optional
         Bin spacing (Hz, finer than `resolution_hz`) of one more search, of the band below the first search's lowest
         tested bin only (half a floor window of `resolution_hz`: 0.052 Hz at 0.002 Hz and 51 bins), where a line
-        is otherwise not searched for (:func:`_search_scales`). None: no such search.
+        is otherwise not searched for, and once more at half this spacing where the record holds two of its
+        segments (:func:`_search_scales`). None: no such search.
     floor_window_min_bins : int, optional
-        Narrowest floor window, bins (odd, 11 <= it <= `floor_window_bins`): below half a full window above 0 Hz the
+        Narrowest floor window, bins (odd, 7 <= it <= `floor_window_bins`; in 5 a line's 3-bin main lobe would be
+        the median): below half a full window above 0 Hz the
         window narrows so that it stays two-sided within the bins above 0 (bin k: the 2k - 1 bins 1 .. 2k - 1), each
         bin tested against the threshold of its own window (:func:`floor_windows`); the default lowest tested bin
         moves down to half this window above 0. None: one window for every bin. The low band's search uses it
@@ -654,8 +660,8 @@ def find_lines(
         raise ValueError(f"floor_window_bins must be >= 11, got {floor_window_bins!r}")
     W += 1 - W % 2
     W_min = W if floor_window_min_bins is None else int(floor_window_min_bins)
-    if not 11 <= W_min <= W or W_min % 2 == 0:
-        raise ValueError(f"floor_window_min_bins must be odd, >= 11 and <= floor_window_bins = {W}, got "
+    if not 7 <= W_min <= W or W_min % 2 == 0:
+        raise ValueError(f"floor_window_min_bins must be odd, >= 7 and <= floor_window_bins = {W}, got "
                          f"{floor_window_min_bins!r}")
     f, p, K_segments, levels = _spectrum(x, rate, nperseg)
     K_eff = effective_segments(levels)
@@ -774,9 +780,10 @@ def _tested_band(df: float, f_top: float, W: int, f_min_hz=None, f_max_hz=None, 
     return lo, hi
 
 
-#: Narrowest floor window of the low band's search, bins (:func:`floor_windows`): it tests down to 6 of its bins above
-#: 0 Hz (0.0033 Hz at 1/1800 Hz, where a 51-bin window stopped at 0.0144 Hz).
-LOW_BAND_FLOOR_WINDOW_MIN_BINS = 11
+#: Narrowest floor window of the low band's search, bins (:func:`floor_windows`): it tests down to 4 of its bins above
+#: 0 Hz (0.0022 Hz at 1/1800 Hz, where a 51-bin window stopped at 0.0144 Hz). Narrower, a line's main lobe (3 bins)
+#: would be the window's median.
+LOW_BAND_FLOOR_WINDOW_MIN_BINS = 7
 
 #: How much more power a coarser search's line must carry than the finer lines inside its interval to replace them
 #: (a resonance the finer search saw only in part, its floor lifted by the resonance itself).
@@ -808,10 +815,16 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     :data:`LOW_BAND_FLOOR_WINDOW_MIN_BINS`: the window narrows toward 0 Hz, :func:`floor_windows`; with the full
     window the search stopped at 0.0144 Hz in 2 h records, and a 0.01 Hz line there went unsearched: one outside
     evaluation's run at MSE/P 1.41, the others' white noise 90-530x the truth's); skipped like a scale (too few
-    samples, no bin), and not run where ``f_min_hz`` is given. Returns the first scale's :class:`LineSearch` with the combined lines, the level alpha,
+    samples, no bin), and not run where ``f_min_hz`` is given. The same band is searched once more at half that bin
+    spacing where the record holds two of its segments (``low_band_finer``): in the narrowed windows of the first few
+    bins a line's own 3-bin main lobe lifts the median (bin 4's 7-bin window then reads the steep floor's bin 1), and
+    a 0.0022 Hz line over a MEMS floor holding a third of a 20 deg/h line's power went unfound (an outside
+    evaluation: 2 of 15 runs at MSE/P 1.14 and 1.36); at half the spacing it is bin 8 of a 15-bin window. The low
+    band's line is kept where both find one (it comes first in the merge), the finer one's where only it does.
+    Returns the first scale's :class:`LineSearch` with the combined lines, the level alpha,
     ``scales`` (each searched scale's resolution, segments, tested bins, threshold, level and lines found, where
-    more than one scale is given), ``low_band`` (the same of the low band's search, where it ran) and ``f_min_hz``
-    the lowest bin tested."""
+    more than one scale is given), ``low_band`` and ``low_band_finer`` (the same of the low band's searches, where
+    they ran) and ``f_min_hz`` the lowest bin tested."""
     from dataclasses import replace
 
     x = np.asarray(x, dtype=np.float64).ravel()
@@ -835,23 +848,23 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     found = [v for v in scales if usable(resolution_hz * v)]
     if not found or found[0] != scales[0]:  # the finest must run: its own error names what is wrong
         return find_lines(x, rate, resolution_hz=resolution_hz * scales[0], alpha=alpha, **kw)
-    low = None
+    lows = []  # (resolution, top of the tested band), Hz: the low band's search and the one at half its bin spacing
     if low_band_resolution_hz is not None and kw.get("f_min_hz") is None:
         if not 0 < float(low_band_resolution_hz) < float(resolution_hz):
             raise ValueError(f"low_band_resolution_hz must lie in (0, resolution_hz = {resolution_hz!r}) Hz, got "
                              f"{low_band_resolution_hz!r}")
         edge = band(resolution_hz * scales[0])[2]
-        df_low = band(low_band_resolution_hz)[1]
-        if usable(low_band_resolution_hz, edge - df_low, w_low):
-            low = (float(low_band_resolution_hz), edge - df_low)
-    n = len(found) + (low is not None)
+        for res in (float(low_band_resolution_hz), float(low_band_resolution_hz) / 2.0):
+            nper, df_low = band(res)[:2]
+            if usable(res, edge - df_low, w_low) and (not lows or 2 * nper <= x.size):
+                lows.append((res, edge - df_low))
+    n = len(found) + len(lows)
     searches = [find_lines(x, rate, resolution_hz=resolution_hz * v, alpha=alpha / n, **kw) for v in found]
-    low_search = None
-    if low is not None:
-        low_search = find_lines(x, rate, resolution_hz=low[0], alpha=alpha / n,
-                                **{**kw, "f_max_hz": low[1], "floor_window_min_bins": w_low})
+    low_searches = [find_lines(x, rate, resolution_hz=res, alpha=alpha / n,
+                               **{**kw, "f_max_hz": top, "floor_window_min_bins": w_low}) for res, top in lows]
+    low_search = low_searches[0] if low_searches else None
     kept: list = []
-    for search in ([low_search] if low_search else []) + searches:
+    for search in low_searches + searches:
         for ln in search.lines:
             inside = [k for k in kept if ln.f_lo_hz <= k.frequency_hz <= ln.f_hi_hz
                       or k.f_lo_hz <= ln.frequency_hz <= k.f_hi_hz]
@@ -871,13 +884,15 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
                 "n_lines": len(sr.lines)}
 
     summary = tuple({"scale": int(v), **described(sr)} for v, sr in zip(found, searches)) if scales != (1,) else ()
-    low_band = None if low_search is None else {
-        **described(low_search), "f_min_hz": float(low_search.f_min_hz), "f_max_hz": float(low_search.f_max_hz),
-        **({"floor_window_min_bins": int(low_search.floor_window_min_bins),
-            "threshold_narrowest": float(low_search.threshold_narrowest)} if low_search.floor_window_min_bins else {})}
+    def low_described(sr):
+        return {**described(sr), "f_min_hz": float(sr.f_min_hz), "f_max_hz": float(sr.f_max_hz),
+                **({"floor_window_min_bins": int(sr.floor_window_min_bins),
+                    "threshold_narrowest": float(sr.threshold_narrowest)} if sr.floor_window_min_bins else {})}
+
+    low_band, finer = (low_described(sr) if sr else None for sr in (low_searches + [None, None])[:2])
     return replace(searches[0], lines=tuple(sorted(kept, key=lambda ln: ln.frequency_hz)), alpha=float(alpha),
-                   scales=summary, low_band=low_band,
-                   f_min_hz=float(low_search.f_min_hz if low_search else searches[0].f_min_hz))
+                   scales=summary, low_band=low_band, low_band_finer=finer,
+                   f_min_hz=float(min([sr.f_min_hz for sr in low_searches] or [searches[0].f_min_hz])))
 
 
 def alias_frequency(f0_hz, dt: float):
