@@ -107,6 +107,20 @@ def test_a_reassigned_random_walk_says_it_holds_for_taus_below_T():
     assert "at taus well below T" not in reassigned_text("gyro", r)
 
 
+def test_a_gm_reassigned_as_white_noise_names_its_t_interval_not_the_filter_rate():
+    # an outside evaluation: a GM of T 56 s in 20 Hz records, its T interval down to 0.027 s, read "to resolve it: a
+    # higher sample rate (at the filter's rate it is white noise)" under a 1 Hz filter, for which a 56 s GM is not
+    # white: what narrows the interval is more data
+    from imupipe.summary import reassigned_text
+
+    r = {"sigma": 2e-5, "T_s": 56.1, "T_interval_s": [0.027, 640.0], "acts_as": "white", "value": 2e-4,
+         "why": "its T interval's lower end (0.027 s) below twice the shortest T the records resolve (0.05 s)"}
+    text, short = reassigned_text("gyro", r), reassigned_text("gyro", r, short=True)
+    assert "at the filter's rate it is white noise" not in text
+    assert "To resolve it: more or longer records, which narrow its T interval (now down to 0.027 s)" in text
+    assert short.endswith("to resolve it: more or longer records (its T interval reaches down to 0.027 s)")
+
+
 def test_the_tolerance_pass_says_when_its_worst_ratio_is_in_the_fixes():
     from imupipe.verdict import within_tolerance
 

@@ -14,6 +14,7 @@ Nothing here prints: :func:`render_summary` returns the text.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -404,12 +405,18 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
             "it acts as (identify file, gm_reassigned)" + ("." if white else
                                 " at taus well below T (beyond T its Allan variance falls below that random "
                                 "walk's, so a model under it there can still hold the records)."))
+    iv = r.get("T_interval_s")
+    lo = (num(iv[0]) if isinstance(iv, (list, tuple)) and iv and iv[0] is not None and math.isfinite(float(iv[0]))
+          else None)
     if short:
         return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
                 f"{num(r.get('T_s'))} s) is not resolved by the records: reported as the {acts}{value} it acts as; to "
-                f"resolve it: {'a higher sample rate' if white else 'longer records'}")
+                f"resolve it: {'more or longer records' if white else 'longer records'}"
+                + (f" (its T interval reaches down to {lo} s)" if white and lo else ""))
     instead = exported_instead(sensor, bound, as_key)
-    action = (" To resolve it: a higher sample rate (at the filter's rate it is white noise)." if white else
+    now = f" (now down to {lo} s)" if lo else ""
+    action = (f" To resolve it: more or longer records, which narrow its T interval{now}: the records cannot tell it "
+              "from white noise (a higher sample rate lowers the shortest T they resolve)." if white else
               " To resolve it: longer records (the longest T resolved is about 0.23 of the longest tau; identify "
               "file, fit.T_search_s).")
     return text + (f" In the KF file: {instead}." if instead else "") + action
