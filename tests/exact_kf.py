@@ -31,6 +31,11 @@ def truth_discrete(truth, sensor: str, dt: float):
     w0 = 2 pi f0, q = 4 zeta w0^3 sigma^2 (its stationary variance is sigma^2; started at its stationary covariance
     diag(sigma^2, w0^2 sigma^2)); Qd by Van Loan (C. F. Van Loan, "Computing integrals involving the matrix
     exponential", IEEE TAC 23(3), 1978)."""
+    left_out = [k for k in ("flicker", "quantization", "ramp") if float(getattr(truth, k, 0.0) or 0.0) > 0]
+    if left_out:  # no finite state model here: leaving them out would judge a filter against a smaller truth
+        raise ValueError(f"truth_discrete: the truth's {', '.join(left_out)} has no state model in this analysis "
+                         "(expected white, gauss_markov, random_walk, narrowband; a flicker floor can be carried as "
+                         "GM terms, one per decade of T, as benchmarks/bound_modes.py's flicker_like)")
     n_kin = 2 if sensor == "accel" else 1
     gms = list(truth.gauss_markov)
     has_rw = truth.random_walk > 0

@@ -1034,8 +1034,8 @@ def test_a_line_beyond_the_level_over_every_series_is_not_called_chance():
 
     assert "1 of 3 axes show a line, consistent with chance" in run(0.9 * strict)
     strong = run(805.0)
-    assert (f"1 of 3 axes show a line, the strongest, 805x its floor, above the threshold at alpha / 3 "
-            f"({strict:.3g}x), more than chance gives: look at the records named") in strong, strong
+    assert (f"1 of 3 axes show a line, the most significant, 805x its floor, above its search's threshold at "
+            f"alpha / 3 ({strict:.3g}x), more than chance gives: look at the records named") in strong, strong
 
 
 def test_a_line_flag_gives_its_sd_with_the_upper_limit_the_envelope_holds():

@@ -67,3 +67,14 @@ if __name__ == "__main__":
                 fe = "" if r["first_exceed_s"] is None else f" ({r['first_exceed_s']:.0f})"
                 print(f"| {name} | {sensor} | {seed} | {r['bounded']} | {r['worst']:.3f}{fe} | "
                       f"{r['worst_outage']:.3f} | {r['mean_p_over_mse_outage']:.2f} |", flush=True)
+
+
+def test_the_exact_analysis_refuses_a_truth_it_cannot_carry():
+    # an outside evaluation: a flicker truth was judged with its flicker silently left out (a smaller truth: an
+    # optimistic judge); the analysis carries white, GM, random walk and narrowband terms only
+    from exact_kf import truth_discrete
+
+    truth_discrete(NoiseModel(white=1e-4, gauss_markov=((1e-5, 100.0),), random_walk=1e-7), "gyro", 1.0)
+    for extra in ({"flicker": 3e-6}, {"quantization": 2e-6}):
+        with pytest.raises(ValueError, match=f"the truth's {next(iter(extra))} has no state model"):
+            truth_discrete(NoiseModel(white=1e-4, **extra), "gyro", 1.0)

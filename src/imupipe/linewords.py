@@ -109,10 +109,10 @@ def line_chance(merged: Mapping) -> str:
 
 
 def _strongest_beyond(merged: Mapping) -> str | None:
-    r"""The clause of the strongest line whose peak-to-floor ratio r exceeds the detection threshold of its own
-    search at the level alpha / n over all n series searched (:func:`imupipe.lines.detection_threshold` with that
-    search's tested bins M, segments K and floor window W; the search at the line's resolution: the first, a scale or
-    the low band): a line chance gives with probability below alpha / n on its series, so below alpha over all of
+    r"""The clause of the most significant line (the largest r / t) whose peak-to-floor ratio r exceeds the detection
+    threshold t of its own search at the level alpha / n over all n series searched
+    (:func:`imupipe.lines.detection_threshold` with that search's tested bins M, segments K and floor window W, the
+    narrowest of a low band's; the search at the line's resolution: the first, a scale or a low band): a line chance gives with probability below alpha / n on its series, so below alpha over all of
     them, whatever the count of series with a line says (a 30 deg/h line 805x its floor read "1 of 3 axes show a
     line, consistent with chance": an outside evaluation). None where no line is that strong or the lines files
     lack the search's statement."""
@@ -140,8 +140,8 @@ def _strongest_beyond(merged: Mapping) -> str | None:
             best = (r, t)
     if best is None:
         return None
-    return (f"the strongest, {num(best[0], '{:.3g}')}x its floor, above the threshold at alpha / {len(searches)} "
-            f"({num(best[1], '{:.3g}')}x)")
+    return (f"the most significant, {num(best[0], '{:.3g}')}x its floor, above its search's threshold at alpha / "
+            f"{len(searches)} ({num(best[1], '{:.3g}')}x)")
 
 
 def _frequencies(items: list, g: list) -> str:
