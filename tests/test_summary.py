@@ -538,6 +538,10 @@ def test_the_first_screen_gives_the_values_to_paste_in_spec_units_and_si_in_sepa
     refused = render_summary({"gyro": {"bound": contract}}, kalibr={"refused": True, "reason": "a line state"})
     assert "- FLAG kalibr export: refused: a line state" in first_screen(refused)
     assert "0 failed, 1 flagged" in refused and "gyroscope_random_walk" not in refused
+    # under a heading of its own, not read as the last sensor's (an outside evaluation read it as an accel FLAG)
+    screen = first_screen(refused).splitlines()
+    at = next(i for i, ln in enumerate(screen) if ln.startswith("- FLAG kalibr export"))
+    assert screen[at - 1] == "export (Kalibr): 0 failed, 1 flagged"
     # axes with their own model in the KF file: the first screen says the KF rows are the global model and which
     # model each axis exports
     per = {**contract, "per_axis_models": {"x": {"exported_in_kf": True}, "y": {"exported_in_kf": False}}}

@@ -1280,6 +1280,7 @@ def summary_sections(runs: Mapping[str, Mapping[str, Any]], *, title: str = "imu
         where = f" [{kalibr_path}]" if kalibr_path else ""
         if kalibr.get("refused"):
             holders = kalibr_line_holders(runs)
+            checks.append("export (Kalibr): 0 failed, 1 flagged")  # its own heading, not the last sensor's
             checks.append(f"- FLAG kalibr export{where}: refused: {kalibr.get('reason', '-')}"
                           + (f"; the exported line states: {'; '.join(holders)}" if holders else "")
                           + " (no Kalibr fields written; use the Kalman-filter export)")
