@@ -113,12 +113,17 @@ def test_a_gm_reassigned_as_white_noise_names_its_t_interval_not_the_filter_rate
     # white: what narrows the interval is more data
     from imupipe.summary import reassigned_text
 
-    r = {"sigma": 2e-5, "T_s": 56.1, "T_interval_s": [0.027, 640.0], "acts_as": "white", "value": 2e-4,
-         "why": "its T interval's lower end (0.027 s) below twice the shortest T the records resolve (0.05 s)"}
+    r = {"sigma": 2e-5, "T_s": 56.1, "T_interval_s": [0.027, 640.0], "T_resolved_s": [0.027, 9000.0],
+         "acts_as": "white", "value": 2e-4,
+         "why": "its T interval's lower end (0.027 s) below twice the shortest T the records resolve (0.027 s)"}
     text, short = reassigned_text("gyro", r), reassigned_text("gyro", r, short=True)
-    assert "at the filter's rate it is white noise" not in text
+    assert "white noise)." not in text and "a higher sample rate" not in text
     assert "To resolve it: more or longer records, which narrow its T interval (now down to 0.027 s)" in text
     assert short.endswith("to resolve it: more or longer records (its T interval reaches down to 0.027 s)")
+    # the real ADIS16405 gyro's GM, T 0.0106 s at the shortest T its 100 Hz records resolve: a higher sample rate
+    adis = {**r, "T_s": 0.0106, "T_interval_s": [0.0, 345.0], "T_resolved_s": [0.0106, 345.0]}
+    assert reassigned_text("gyro", adis, short=True).endswith("to resolve it: a higher sample rate")
+    assert "To resolve it: a higher sample rate (its T lies near the shortest" in reassigned_text("gyro", adis)
 
 
 def test_the_tolerance_pass_says_when_its_worst_ratio_is_in_the_fixes():

@@ -405,18 +405,25 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
             "it acts as (identify file, gm_reassigned)" + ("." if white else
                                 " at taus well below T (beyond T its Allan variance falls below that random "
                                 "walk's, so a model under it there can still hold the records)."))
-    iv = r.get("T_interval_s")
+    iv, rng = r.get("T_interval_s"), r.get("T_resolved_s")
     lo = (num(iv[0]) if isinstance(iv, (list, tuple)) and iv and iv[0] is not None and math.isfinite(float(iv[0]))
           else None)
+    # a T near the shortest the records resolve (e.g. a sample interval): a higher sample rate resolves it; a T they
+    # resolve whose interval reaches down there (a 56 s GM in 20 Hz records): more data narrow the interval
+    fast = not (isinstance(rng, (list, tuple)) and rng and r.get("T_s") is not None
+                and float(r["T_s"]) >= 2.0 * float(rng[0]))
     if short:
+        cure = ("a higher sample rate" if fast else f"more or longer records (its T interval reaches down to {lo} s)"
+                if lo else "more or longer records") if white else "longer records"
         return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
                 f"{num(r.get('T_s'))} s) is not resolved by the records: reported as the {acts}{value} it acts as; to "
-                f"resolve it: {'more or longer records' if white else 'longer records'}"
-                + (f" (its T interval reaches down to {lo} s)" if white and lo else ""))
+                f"resolve it: {cure}")
     instead = exported_instead(sensor, bound, as_key)
     now = f" (now down to {lo} s)" if lo else ""
-    action = (f" To resolve it: more or longer records, which narrow its T interval{now}: the records cannot tell it "
-              "from white noise (a higher sample rate lowers the shortest T they resolve)." if white else
+    action = (" To resolve it: a higher sample rate (its T lies near the shortest the records resolve; at a filter "
+              "step well above T it acts as white noise)." if white and fast else
+              f" To resolve it: more or longer records, which narrow its T interval{now}: the records cannot tell it "
+              "from white noise at its short end." if white else
               " To resolve it: longer records (the longest T resolved is about 0.23 of the longest tau; identify "
               "file, fit.T_search_s).")
     return text + (f" In the KF file: {instead}." if instead else "") + action

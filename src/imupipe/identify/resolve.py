@@ -277,6 +277,7 @@ def reassign_unresolved_gm(fit, kept, T_range: dict):
             kind[k] = "re-assigned (not a GM the data resolve)"
         T_iv = intervals.get(f"gm_T_{i}") or fit.intervals.get(f"gm_T_{i}")
         rec = {"term": i, "sigma": s, "T_s": T, "T_interval_s": [float(v) for v in T_iv] if T_iv else None,
+               "T_resolved_s": [T_lo_range, T_hi_range],
                "acts_as": target, "why": why, "T_open_above": bool(open_above), "value": value, "interval": [float(v) for v in intervals[target]]}
         records.append(rec)
         unit = "u/sqrt(Hz)" if fast else "u/sqrt(s)"
