@@ -862,7 +862,6 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
     searches = [find_lines(x, rate, resolution_hz=resolution_hz * v, alpha=alpha / n, **kw) for v in found]
     low_searches = [find_lines(x, rate, resolution_hz=res, alpha=alpha / n,
                                **{**kw, "f_max_hz": top, "floor_window_min_bins": w_low}) for res, top in lows]
-    low_search = low_searches[0] if low_searches else None
     kept: list = []
     for search in low_searches + searches:
         for ln in search.lines:
@@ -889,7 +888,7 @@ def _search_scales(x, rate: float, scales, *, resolution_hz: float, alpha: float
                 **({"floor_window_min_bins": int(sr.floor_window_min_bins),
                     "threshold_narrowest": float(sr.threshold_narrowest)} if sr.floor_window_min_bins else {})}
 
-    low_band, finer = (low_described(sr) if sr else None for sr in (low_searches + [None, None])[:2])
+    low_band, finer = ([low_described(sr) for sr in low_searches] + [None, None])[:2]
     return replace(searches[0], lines=tuple(sorted(kept, key=lambda ln: ln.frequency_hz)), alpha=float(alpha),
                    scales=summary, low_band=low_band, low_band_finer=finer,
                    f_min_hz=float(min([sr.f_min_hz for sr in low_searches] or [searches[0].f_min_hz])))

@@ -112,10 +112,10 @@ def _strongest_beyond(merged: Mapping) -> str | None:
     r"""The clause of the most significant line (the largest r / t) whose peak-to-floor ratio r exceeds the detection
     threshold t of its own search at the level alpha / n over all n series searched
     (:func:`imupipe.lines.detection_threshold` with that search's tested bins M, segments K and floor window W, the
-    narrowest of a low band's; the search at the line's resolution: the first, a scale or a low band): a line chance gives with probability below alpha / n on its series, so below alpha over all of
-    them, whatever the count of series with a line says (a 30 deg/h line 805x its floor read "1 of 3 axes show a
-    line, consistent with chance": an outside evaluation). None where no line is that strong or the lines files
-    lack the search's statement."""
+    narrowest of a low band's; the search at the line's resolution: the first, a scale or a low band): a line chance
+    gives with probability below alpha / n on its series, so below alpha over all of them, whatever the count of
+    series with a line says (a 30 deg/h line 805x its floor read "1 of 3 axes show a line, consistent with chance":
+    an outside evaluation). None where no line is that strong or the lines files lack the search's statement."""
     from imupipe.lines import detection_threshold
 
     searches = [s for s in merged.get("line_search") or [] if isinstance(s, Mapping) and s.get("alpha")]
