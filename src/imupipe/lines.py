@@ -675,8 +675,10 @@ def find_lines(
     if M == 0:
         raise ValueError(f"find_lines: no bin between f_min_hz={lo} and f_max_hz={hi} Hz at resolution {df} Hz")
     thresholds = {int(w): detection_threshold(alpha, M, K, int(w)) for w in np.unique(widths[tested])}
-    t = thresholds.get(W, detection_threshold(alpha, M, K, W))
-    t_bin = np.array([thresholds.get(int(w), t) for w in widths])
+    t = thresholds[W] if W in thresholds else detection_threshold(alpha, M, K, W)
+    t_bin = np.full(widths.shape, t)  # each tested bin against its own window's threshold
+    for w, tw in thresholds.items():
+        t_bin[widths == w] = tw
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(floor > 0, p / floor, 0.0)
     sig = np.flatnonzero(tested & (ratio > t_bin))

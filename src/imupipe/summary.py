@@ -413,8 +413,8 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
     fast = not (isinstance(rng, (list, tuple)) and rng and r.get("T_s") is not None
                 and float(r["T_s"]) >= 2.0 * float(rng[0]))
     if short:
-        cure = ("a higher sample rate" if fast else f"more or longer records (its T interval reaches down to {lo} s)"
-                if lo else "more or longer records") if white else "longer records"
+        more = "more or longer records" + (f" (its T interval reaches down to {lo} s)" if lo else "")
+        cure = ("a higher sample rate" if fast else more) if white else "longer records"
         return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
                 f"{num(r.get('T_s'))} s) is not resolved by the records: reported as the {acts}{value} it acts as; to "
                 f"resolve it: {cure}")
