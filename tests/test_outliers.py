@@ -310,12 +310,14 @@ class TestEventsInTheWorkflow:
         assert all("mean step 0.033" in f and " mg) at 123" in f for f in flags), flags
 
     def test_events_section_reruns_the_reports_alone_under_warn(self, tiny_run):
-        # warn: the events are a report, which the run summary reads (and the run verdict, the last job); nor does
-        # psd.window_s (the shortest segment `exclude` accepts) reach the outliers jobs under warn
+        # warn: the events are a report, which the run summary reads (and the run verdict, the last job), but for the
+        # bursts the line search fills (its own scan, with events.alpha, burst_window_s and burst_k as params:
+        # tests/test_workflow_stages.py); nor does psd.window_s (the shortest segment `exclude` accepts) reach the
+        # outliers jobs under warn
         from workflow_helpers import dry_run_jobs
 
         work, config = tiny_run
-        jobs = dry_run_jobs(work, config=self._changed(work, config, "ev_alpha", events={"alpha": 0.02}))
+        jobs = dry_run_jobs(work, config=self._changed(work, config, "ev_scale", events={"min_scale_s": 2.0}))
         assert jobs == {"outliers": 12, "summary": 1, "integrity": 1, "all": 1}
         jobs = dry_run_jobs(work, config=self._changed(work, config, "ev_psd", psd={"window_s": 1200.0}))
         assert "outliers" not in jobs and "psd" in jobs

@@ -91,6 +91,13 @@ class TestDag:
         jobs = dry_run_jobs(work, config=_changed(work, config, "k", outliers={"k": 6.0}))
         assert jobs == {"outliers": 12, "summary": 1, "integrity": 1, "all": 1}  # the run's verdict is the last job: after every output
 
+    def test_a_burst_scan_setting_reruns_the_line_search_under_warn(self, tiny_run):
+        # the lines job fills the bursts its own scan finds (imupipe.stages.outliers.line_search_series), with the
+        # events settings as params: a burst setting re-runs it (and what reads the lines), outliers.k above does not
+        work, config = tiny_run
+        jobs = dry_run_jobs(work, config=_changed(work, config, "burst_k", events={"burst_k": 8.0}))
+        assert jobs["outliers"] == 12 and jobs["lines"] == 12
+
     def test_remove_policy_feeds_the_cleaned_series(self, tiny_run):
         # with `remove` the full-rate stages read results/<name>/cleaned/ (the outliers job's second output)
         work, config = tiny_run

@@ -15,8 +15,9 @@ by integrity); the contract (:func:`imupipe.stages.contract.contract_stage`); an
 of the exported model at the filter step (:func:`imupipe.stages.kf.kf_stage`). The events (bursts, steps) of every
 full-rate curve are found as the workflow's outliers stage finds them (:func:`imupipe.stages.outliers.outliers_stage`,
 events policy ``warn``): reported in :attr:`NoiseModelResult.events`, ``flags`` and ``to_dict()``, the records
-analysed as they are. Stationarity tests, outlier removal, per-axis bounds, figures and tables are left to the
-workflow (the API takes the records as they are, every one included).
+analysed as they are (the line search reads the bursts' stretches filled, as the workflow's). Stationarity tests,
+outlier removal, per-axis bounds, figures and tables are left to the workflow (the API takes the records as they
+are, every one included).
 tests/test_orchestration_parity.py runs the workflow and this function on the same records.
 
 Nothing is printed on stdout (HiGHS is run silent by :mod:`imupipe.bound`).
@@ -268,10 +269,9 @@ def noise_model(
     curves : mapping of str to array_like
         Curve label (e.g. ``"lab1/x"``) -> 1-D static record of one axis, in SI (rad/s for a gyro,
         m/s^2 for an accelerometer; a constant offset such as gravity is harmless), sampled at `record_rate_hz`.
-    record_rate_hz, sensor :
-        Sample rate of every record, Hz; the sensor type, ``"gyro"`` or ``"accel"`` (the spec sheet's section).
-    spec : str, pathlib.Path or imupipe.specsheet.SpecSheet
-        The manufacturer's spec sheet (YAML file or parsed).
+    record_rate_hz, sensor, spec :
+        Sample rate of every record, Hz; the sensor type, ``"gyro"`` or ``"accel"``; the spec sheet (a YAML file's
+        path, or a :class:`imupipe.specsheet.SpecSheet`).
     decimate_hz : float, optional
         Block-average rate for the PSD and stationarity stages, Hz (default 1.0, the paper's).
     window_s, step_s, taper, detrend, psd_confidence :
@@ -318,7 +318,7 @@ def noise_model(
         derived thresholds, a false-alarm rate of ``alpha`` per record and axis). True (default): the workflow's
         ``events`` settings (:data:`imupipe.stages.outliers.EVENT_DEFAULTS`); a mapping: those settings over them
         (its ``policy``, if given, must be ``warn``: the API analyses the records as given); False: no search.
-        Found events are in the result's ``events``, ``flags`` and ``to_dict()``.
+        Found events are in the result's ``events``, ``flags`` and ``to_dict()``; the line search fills the bursts.
     stationarity : bool or mapping, optional
         The workflow's stationarity stage on every curve, all kept (:func:`_stationarity_of`): a curve it marks is
         bounded over its noisiest stretch. True (default), settings over the defaults, or False (no test).
@@ -352,7 +352,8 @@ def noise_model(
     # identification (rule identify): the curves as the stacked Allan file gives them, NaN entries removed
     true_model = _truth_of(truth, sensor)
     lines = {} if lines_policy is None else _lines_of(curves, rate, sensor, lines_resolution_hz, lines_alpha,
-                                                      lines_floor_window_bins, lines_scales, lines_low_band_resolution_hz)
+                                                      lines_floor_window_bins, lines_scales, lines_low_band_resolution_hz,
+                                                      _event_settings(events))
     ident = identify_sensor(_identification_curves(curves, allan, rate), sensor=sensor, components=list(components),
                             n_gm=n_gm, n_boot=n_boot, confidence=fit_confidence, significance=significance,
                             relevance=relevance, filter_rate_hz=filter_rate_hz, outage_s=outage_s,
@@ -521,15 +522,13 @@ def _stacked_allan(allan):
     return tau, allan_curves
 
 
-def _events_of(curves, rate: float, sensor: str, events) -> list:
-    """The events of every full-rate curve as the workflow's outliers files list them (rule outliers:
-    :func:`imupipe.stages.outliers.outliers_stage` with the events policy ``warn``), in the curves' order; [] when
-    `events` is False. A curve label ``"<dataset>/<axis>"`` gives the event's dataset and axis (else the whole
-    label is the dataset)."""
+def _event_settings(events) -> dict | None:
+    """The ``events`` settings of :func:`noise_model`'s `events` argument over
+    :data:`imupipe.stages.outliers.EVENT_DEFAULTS`; None when `events` is False (no search). TypeError or
+    ValueError naming what is wrong (an unknown key, a policy other than ``warn``)."""
     if events is False or events is None:
-        return []
-    from imupipe.stages.outliers import EVENT_DEFAULTS, outliers_stage
-    from imupipe.units import SI_UNITS
+        return None
+    from imupipe.stages.outliers import EVENT_DEFAULTS
 
     if events is True:
         settings = dict(EVENT_DEFAULTS)
@@ -543,6 +542,20 @@ def _events_of(curves, rate: float, sensor: str, events) -> list:
     if settings["policy"] != "warn":
         raise ValueError(f"events: policy {settings['policy']!r}: the API analyses the records as given; only "
                          "'warn' (report the events) is available here (the workflow's events.policy has the others)")
+    return settings
+
+
+def _events_of(curves, rate: float, sensor: str, events) -> list:
+    """The events of every full-rate curve as the workflow's outliers files list them (rule outliers:
+    :func:`imupipe.stages.outliers.outliers_stage` with the events policy ``warn``), in the curves' order; [] when
+    `events` is False. A curve label ``"<dataset>/<axis>"`` gives the event's dataset and axis (else the whole
+    label is the dataset)."""
+    settings = _event_settings(events)
+    if settings is None:
+        return []
+    from imupipe.stages.outliers import outliers_stage
+    from imupipe.units import SI_UNITS
+
     out = []
     for label, x in curves.items():
         dataset, _, axis = str(label).rpartition("/")
@@ -554,15 +567,25 @@ def _events_of(curves, rate: float, sensor: str, events) -> list:
 
 
 def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_window_bins, scales=(1,),
-              low_band_resolution_hz=None) -> dict:
-    """The lines file of every full-rate curve (rule lines: :func:`imupipe.lines.find_lines`), by label."""
+              low_band_resolution_hz=None, events=None) -> dict:
+    """The lines file of every full-rate curve (rule lines: :func:`imupipe.lines.find_lines` on the curve, with its
+    bursts filled under the `events` settings, :func:`imupipe.stages.outliers.line_search_series`; None: no burst
+    search), by label."""
+    from dataclasses import replace
+
     from imupipe.lines import find_lines
+    from imupipe.stages.outliers import line_search_series
     from imupipe.units import SI_UNITS
 
-    return {label: find_lines(np.asarray(x, dtype=np.float64), rate, resolution_hz=resolution_hz, alpha=alpha,
-                              floor_window_bins=floor_window_bins, units=SI_UNITS[sensor], label=label,
-                              scales=scales, low_band_resolution_hz=low_band_resolution_hz).to_dict()
-            for label, x in curves.items()}
+    out = {}
+    for label, x in curves.items():
+        y, filled = ((np.asarray(x, dtype=np.float64), ()) if events is None else
+                     line_search_series(np.asarray(x, dtype=np.float64), rate, events))
+        search = find_lines(y, rate, resolution_hz=resolution_hz, alpha=alpha, floor_window_bins=floor_window_bins,
+                            units=SI_UNITS[sensor], label=label, scales=scales,
+                            low_band_resolution_hz=low_band_resolution_hz)
+        out[label] = replace(search, bursts_filled_s=filled).to_dict()
+    return out
 
 
 def _verified_kf(bound, sensor, spec_sheet, decimated, dt, true_model, fix_s, outage_s, sigma_fix, filter_rate_hz,

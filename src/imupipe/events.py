@@ -127,8 +127,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "event_effects", "find_bursts", "find_steps", "event_free_segment", "event_flags",
-           "display_unit", "MAD_EFFICIENCY"]
+__all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "event_effects", "find_bursts", "find_steps",
+           "event_free_segment", "event_flags", "fill_bursts", "display_unit", "MAD_EFFICIENCY"]
 
 #: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
 POLICIES = ("warn", "exclude", "split")
@@ -609,6 +609,37 @@ def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:
     if n - pos > best[1] - best[0]:
         best = (pos, n)
     return best
+
+
+def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float = 1.0,
+                burst_k: float = 7.0) -> tuple[np.ndarray, tuple]:
+    """`x` (u at `rate_hz` Hz) with the span of every burst :func:`detect_events` reports with these settings
+    filled (its burst scan, :func:`find_bursts` at its share alpha / 2), and the filled stretches as
+    ((start_s, stop_s), ...) (s from the record's start).
+
+    Each burst span is widened by one burst window on both sides (the cut of events.policy split and exclude) and
+    replaced, its first half by the median of a window of samples before it and its second half by that of the
+    samples after it (:func:`_span_fills`, as the step scan reads a burst). What reads it: the line search under
+    events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a knock's ringing (4.7, 12.3
+    and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported as filter states. A filled
+    stretch of s seconds takes s / L of a segment of length L's noise, and as much of a line's coherent power there.
+    A copy of x where a burst is filled, x itself (as a float64 array, no copy) where none is."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    rate_hz = float(rate_hz)
+    b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
+    if not b["bursts"]:
+        return x, ()
+    w = int(b["window"])
+    out = x.copy()
+    for a, c, v in _span_fills(x, [(e["start"], e["stop"]) for e in b["bursts"]], w):
+        out[a:c] = v
+    merged: list = []
+    for a, c in ((max(0, e["start"] - w), min(x.size, e["stop"] + w)) for e in b["bursts"]):
+        if merged and a <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], c))
+        else:
+            merged.append((a, c))
+    return out, tuple((a / rate_hz, c / rate_hz) for a, c in merged)
 
 
 def _sum_sq_diff(x, a: int, b: int) -> float:

@@ -282,6 +282,7 @@ class LineSearch:
     low_band_finer: dict | None = None
     floor_window_min_bins: int | None = None
     threshold_narrowest: float | None = None
+    bursts_filled_s: tuple = ()
     frequency: np.ndarray = field(default=None, repr=False, compare=False)
     psd: np.ndarray = field(default=None, repr=False, compare=False)
     floor: np.ndarray = field(default=None, repr=False, compare=False)
@@ -313,8 +314,11 @@ class LineSearch:
             **({"scales": [dict(sc) for sc in self.scales]} if self.scales else {}),
             **({"low_band": dict(self.low_band)} if self.low_band else {}),
             **({"low_band_finer": dict(self.low_band_finer)} if self.low_band_finer else {}),
+            **({"bursts_filled": [{"start_s": float(a), "stop_s": float(b)} for a, b in self.bursts_filled_s]}
+               if self.bursts_filled_s else {}),
             "lines": [{k: float(v) for k, v in asdict(line).items()} for line in self.lines],
-            "units": {k: _unit(v, u) for k, v in _LINE_UNITS.items()},
+            "units": {**{k: _unit(v, u) for k, v in _LINE_UNITS.items()},
+                      **({"bursts_filled": "s from the record's start"} if self.bursts_filled_s else {})},
         }
 
     def to_dataset(self):

@@ -172,7 +172,9 @@ def _places(texts: list, g: list) -> str:
 def search_band_text(searches: list) -> str | None:
     """The band the line search covered on the sensor's full-rate records, from the lines files' ``f_min_hz``,
     ``f_max_hz`` (Hz), ``resolution_hz`` (Hz), ``alpha`` and, where it ran, ``low_band`` (the search below the
-    first one's band: its ``f_max_hz`` and ``resolution_hz``) (each a list over the files; None: no lines file).
+    first one's band: its ``f_max_hz`` and ``resolution_hz``) and ``bursts_filled`` (the stretches, s, the search
+    read filled: :func:`imupipe.stages.outliers.line_search_series`) (each a list over the files; None: no lines
+    file).
 
     The lowest searched frequency is half a running-median window above 0 (:func:`imupipe.lines.find_lines`:
     ``(floor_window_bins // 2 + 1) * resolution_hz``, of the low band's resolution where it ran), where the floor
@@ -196,7 +198,11 @@ def search_band_text(searches: list) -> str | None:
     part = f"in {len(lows)} of {len(searches)} records, " if len(lows) < len(searches) else ""
     low = (f" ({part}below {span('f_max_hz', rows=lows)} Hz at {span('resolution_hz', rows=lows + finer)} Hz: "
            "lines.low_band_resolution_hz" + (" and half of it" if finer else "") + ")") if lows else ""
-    return (f"- line search (lines stage, each full-rate record): bins tested {span('f_min_hz')} to "
+    filled = [st for s in searches for st in (s.get("bursts_filled") or []) if isinstance(st, Mapping)]
+    seconds = sum(float(st["stop_s"]) - float(st["start_s"]) for st in filled)
+    burst = (f"; {len(filled)} burst stretch(es), {num(seconds, '{:.3g}')} s in all, read filled: a knock's "
+             "ringing is no line" if filled else "")
+    return (f"- line search (lines stage, each full-rate record{burst}): bins tested {span('f_min_hz')} to "
             f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution{low} (a found line's centre may lie up "
             f"to 2 bins outside: its main lobe), family-wise level {span('alpha')} per record and axis; a line below "
             f"{span('f_min_hz')} Hz is not searched for: it stays in the spectra as broadband power, which the bound "

@@ -1,7 +1,9 @@
 # Spectral lines of one full-rate axis (before decimation, on the cleaned series when outliers.policy is
 # `remove`): imupipe.lines.find_lines at lines.resolution_hz (and lines.scales, lines.low_band_resolution_hz),
 # family-wise level lines.alpha. The bound reads these files with lines.policy (per sensor) and
-# lines.application_band_hz.
+# lines.application_band_hz. Under events.policy warn the search reads each burst's stretch filled (the outliers
+# job's burst scan run again with the same settings: imupipe.stages.outliers.line_search_series): a knock's ringing
+# is no line.
 
 
 # memory: the axis and one batch of its segments' spectra (imupipe.lines.SPECTRUM_BATCH); measured at 125 Hz:
@@ -21,6 +23,10 @@ rule lines:
         floor_window_bins=config["lines"]["floor_window_bins"],
         scales=config["lines"].get("scales", [1]),
         low_band_resolution_hz=config["lines"].get("low_band_resolution_hz"),
+        # the burst scan's settings under events.policy warn (the others cut bursts out): an outliers or step-scan
+        # setting re-runs no line search
+        events={k: EVENTS[k] for k in ("alpha", "burst_window_s", "burst_k") if k in EVENTS}
+        if EVENT_POLICY == "warn" else None,
     group:
         "per_axis"
     threads: 1

@@ -49,7 +49,8 @@ def merge_checks(target: dict, data: dict) -> None:
         target.setdefault("line_search", []).append(
             {**{k: data.get(k) for k in ("dataset", "axis", "f_min_hz", "f_max_hz", "resolution_hz", "alpha",
                                          "n_tested", "n_segments", "effective_segments", "floor_window_bins")},
-             **{k: data[k] for k in ("low_band", "low_band_finer", "scales") if isinstance(data.get(k), (dict, list))}})
+             **{k: data[k] for k in ("low_band", "low_band_finer", "scales", "bursts_filled")
+                if isinstance(data.get(k), (dict, list))}})
     for key in CHECK_KEYS:
         if key not in data or data[key] in (None, [], {}):
             continue
