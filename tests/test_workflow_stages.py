@@ -567,3 +567,8 @@ def test_tables_stage_of_the_spec_sheet_itself_gives_ratio_one():
     bounds["accel"] = {**bounds["accel"], "mode": "smoothed"}
     assert tables_stage(spec, bounds)["markdown"].startswith(
         f"# {spec.name}: spec sheet vs bound (mode: gyro raw, accel smoothed)")
+    # a line the lines policy made a filter state is a row of the table (an outside evaluation found inflation.md
+    # silent on the KF's line states): its sigma in the GM sigma's unit, 1e-4 rad/s = 20.63 deg/h, no spec value
+    bounds["gyro"]["bound"]["narrowband"] = [{"sigma": 1e-4, "f0_hz": 12.0, "zeta": 0.002}]
+    md = tables_stage(spec, bounds)["markdown"]
+    assert "| gyro | line 1 sigma (12 Hz, damping 0.002) | deg/h | - | 20.63 | - |" in md

@@ -285,7 +285,9 @@ def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> lis
 
     Units from :func:`display_units`. A parameter absent from the spec has spec value None and ratio
     None (the bound added it); a spec flicker B is listed with no bound value (no filter state: the
-    bound's GM terms cover it).
+    bound's GM terms cover it). Each narrowband term of the bound (a spectral line the lines policy ``model``
+    made a filter state: two states each) is a row of its sigma in the GM sigma's unit, named with its frequency
+    and damping (a spec sheet lists none).
     """
     units = display_units(spec, sensor)
     specm = spec.models.get(sensor, NoiseModel())
@@ -305,6 +307,8 @@ def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> lis
     if specm.flicker:  # not a filter state: the bound covers it with its GM terms, or its random walk without any
         by = "GM" if bound_model.gauss_markov else "random walk" if bound_model.random_walk > 0 else "white noise"
         rows.append((f"flicker B (covered by {by})", "flicker", specm.flicker, 0.0))
+    for i, (sg, f0, zeta) in enumerate(getattr(bound_model, "narrowband", ()) or (), start=1):
+        rows.append((f"line {i} sigma ({f0:.4g} Hz, damping {zeta:.3g})", "gm_sigma", 0.0, sg))
     out = []
     for label, q, sv, bv in rows:
         a, b = conv(sv, q), conv(bv, q)

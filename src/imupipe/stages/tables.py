@@ -37,7 +37,8 @@ def tables_stage(spec, bounds: dict, contracts: dict | None = None) -> dict:
     for sensor, bound in bounds.items():
         b = bound["bound"]
         model = NoiseModel(white=b["white"] or 0.0, random_walk=b["random_walk"] or 0.0,
-                           gauss_markov=tuple((g["sigma"], g["T"]) for g in b["gauss_markov"]))
+                           gauss_markov=tuple((g["sigma"], g["T"]) for g in b["gauss_markov"]),
+                           narrowband=tuple((t["sigma"], t["f0_hz"], t["zeta"]) for t in b.get("narrowband") or ()))
         for r in inflation_rows(spec, sensor, model):
             rows.append({"sensor": sensor, **r, "mode": bound["mode"],
                          "bounded": bound.get("psd_bounded", bound.get("bounded")), "margin": bound["margin"]})
