@@ -870,8 +870,8 @@ def test_the_line_search_band_is_stated_with_its_lower_limit():
                              "f_min_hz": 0.052, "f_max_hz": 49.95, "resolution_hz": 0.002, "alpha": 0.01,
                              "bursts_filled": [{"start_s": 699.31, "stop_s": 702.76}, {"start_s": 10.0, "stop_s": 12.0}]})
     text = render_summary({"gyro": {"bound": {**_bound(), **entry}}})
-    assert ("- line search (lines stage, each full-rate record; 2 burst stretch(es), 5.45 s in all, read filled: a "
-            "knock's ringing is no line): bins tested") in text
+    assert ("- line search (lines stage, each full-rate record; 2 burst stretch(es), 5.45 s in all, read filled so "
+            "that a knock's ringing is not taken for a line): bins tested") in text
 
 
 def test_a_margin_at_one_within_round_off_is_not_called_a_failed_margin():

@@ -98,9 +98,15 @@ ends (chosen from the noise alone, not from D, so there is no selection bias), w
 while the detecting scale m saw a shift, the mean moved for less than :math:`m^*` only: the event is a
 ``transient`` (an excursion), sized at m with m's interval.
 
-Before the step scan, each burst span (widened by a tenth of a burst window each side) is replaced, its first half
-by the median of the samples before it and its second half by that of the samples after it: a 17 deg/s knock of
-0.1 s moves a 100 s mean by 0.017 deg/s, and a step inside a knock is then placed at the knock's middle.
+Before the step scan, each burst's stretch (:func:`burst_spans`: its span, or its energetic blocks and their tail
+where these reach farther, widened by a tenth of a burst window each side) is replaced by the straight line from the
+median of the burst window of samples before it to that of the window after it: a 17 deg/s knock of 0.1 s moves a
+100 s mean by 0.017 deg/s, and a step inside a knock is then placed at the knock's middle. (The stretch was the span
+alone and its fill two flat halves, each the median of a tenth of a window beside it: a 7.3 Hz ringing decaying over
+5 s, still 4-5 sds beyond the span, set the two levels apart and was reported as a mean step of 129 deg/h, acting as
+a random walk 76x the spec sheet's, in an outside evaluation; in 3 of 3 records of each decay time 0.4-8 s some
+step or transient was reported at the knock. Over a tail of tens of seconds, flat halves turn the record's own drift
+into a jump: the straight line keeps it a drift. ``tests/test_events.py``.)
 
 Total false-alarm rate per record and axis: :math:`\alpha = \alpha_b + \alpha_s`, split equally
 (``alpha``, default 0.01: one false event in 100 event-free axes). The step scan's share is a bound (measured
@@ -194,10 +200,10 @@ def _white_sd(x: np.ndarray, fills=()) -> float:
 
 
 def _patched(x: np.ndarray, fills, lo: int, hi: int) -> np.ndarray:
-    """x[lo:hi] with the fills (a, b, value: x[a:b] = value, applied in order) that reach it; a view of x when
+    """x[lo:hi] with the fills (a, b, values: x[a:b] = values, applied in order) that reach it; a view of x when
     none does, else a copy of the slice."""
     seg = x[lo:hi]
-    hit = [(max(a, lo), min(b, hi), v) for a, b, v in fills if max(a, lo) < min(b, hi)]
+    hit = [(max(a, lo), min(b, hi), v[max(a, lo) - a:min(b, hi) - a]) for a, b, v in fills if max(a, lo) < min(b, hi)]
     if hit:
         seg = seg.copy()
         for a, b, v in hit:
@@ -225,7 +231,10 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
     Returns
     -------
     dict
-        ``bursts``: list of ``{start, stop}`` (sample indices, stop exclusive), ``peak`` (largest
+        ``bursts``: list of ``{start, stop}`` (sample indices, stop exclusive), ``block_start``, ``block_stop``
+        (those of its energetic blocks: a burst's far samples may lie in part of them), ``tail_start``,
+        ``tail_stop`` (those blocks and the adjacent ones above :data:`BURST_TAIL_Z`: a ringing's decay), ``peak``
+        (largest
         :math:`|x - \\mathrm{median}|`, u), ``z`` (largest block z), ``family_p`` (K P(t > z): the scan's
         false-alarm probability with its threshold at this z, Bonferroni over the K blocks); ``threshold_z``,
         ``n_blocks``, ``window`` (samples).
@@ -257,6 +266,11 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
         s1 = _white_sd(x)
         for g in groups:
             b0, b1 = int(g[0]) * w, min(n, (int(g[-1]) + 1) * w)
+            j0, j1 = int(g[0]), int(g[-1]) + 1  # the burst's tail: adjacent blocks above BURST_TAIL_Z
+            while j0 > 0 and z[j0 - 1] > BURST_TAIL_Z:
+                j0 -= 1
+            while j1 < K and z[j1] > BURST_TAIL_Z:
+                j1 += 1
             lo, hi = max(0, b0 - w), min(n, b1 + w)
             ref = np.concatenate([x[lo:b0], x[b1:hi]])
             c = float(np.median(ref)) if ref.size else xmed
@@ -264,11 +278,18 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
             far = np.flatnonzero(dev > burst_k * s1) if s1 > 0 else np.zeros(0, dtype=np.int64)
             start, stop = (b0 + int(far[0]), b0 + int(far[-1]) + 1) if far.size else (b0, b1)
             zg = float(z[g].max())
-            bursts.append({"start": start, "stop": stop, "peak": float(dev.max()), "center": c, "z": zg,
-                           "family_p": min(1.0, K * _t_sf(zg, MAD_EFFICIENCY * K))})
+            bursts.append({"start": start, "stop": stop, "block_start": b0, "block_stop": b1,
+                           "tail_start": j0 * w, "tail_stop": min(n, j1 * w), "peak": float(dev.max()), "center": c,
+                           "z": zg, "family_p": min(1.0, K * _t_sf(zg, MAD_EFFICIENCY * K))})
     return {"bursts": bursts, "threshold_z": zb, "n_blocks": int(K), "window": w, "power": h}
 
 
+#: Robust z above which a block adjacent to a burst's energetic blocks is its tail (:func:`find_bursts`): a knock's
+#: ringing decays over seconds below the scan's threshold (a 7.3 Hz ringing of decay time 5 s still held 4-5 sds
+#: at the end of its span, an outside evaluation); one robust sd keeps a chance block of a quiet record in about 1 of
+#: 6, and a ringing stops there where its mean square falls to about 0.14 sigma^2 (1 s blocks of 100 samples of
+#: white noise of per-sample sd sigma: the block energy's relative sd is sqrt(2 / 100)).
+BURST_TAIL_Z = 1.0
 #: Blocks whose lag products estimate the within-block covariance of the burst scan (evenly spaced).
 ACOV_BLOCKS = 2000
 #: Samples per pass of the burst scan's block energies (whole blocks, at least one): its work arrays are a few
@@ -348,25 +369,27 @@ def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> lis
     return out
 
 
-def _span_fills(x: np.ndarray, spans, pad: int) -> list:
-    """Each span [start - pad, stop + pad) replaced, its first half by the median of the pad samples before it
-    and its second half by the median of the pad samples after it (a step inside a burst is then placed at the
-    burst's middle, within half its span): the list of (a, b, value), x[a:b] = value applied in order. The
-    step scan reads x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the record."""
+def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None) -> list:
+    """Each span [start - pad, stop + pad) replaced by the straight line from the median of the `ref` samples
+    before it to the median of the `ref` samples after it (`ref` = `pad` when None; a step inside a burst is then
+    placed at the burst's middle, and a drift across a long span stays a drift: two flat halves made 40 s of a GM's
+    drift under a ringing's tail a jump, reported as a step): the list of (a, b, values), x[a:b] = values applied
+    in order. The step scan reads x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the
+    record."""
     if not spans:
         return []
+    ref = pad if ref is None else int(ref)
     fills = []
     n = x.size
     whole = None
     for s0, s1 in spans:
         a, b = max(0, s0 - pad), min(n, s1 + pad)
-        before, after = x[max(0, a - pad):a], x[b:min(n, b + pad)]
-        mid = (a + b) // 2
+        before, after = x[max(0, a - ref):a], x[b:min(n, b + ref)]
         if not before.size and not after.size and whole is None:
             whole = float(np.median(x))
         first = np.median(before) if before.size else (np.median(after) if after.size else whole)
         second = np.median(after) if after.size else (np.median(before) if before.size else whole)
-        fills += [(a, mid, first), (mid, b, second)]
+        fills.append((a, b, np.linspace(first, second, b - a)))
     return fills
 
 
@@ -390,10 +413,10 @@ def find_steps(x, rate_hz: float, *, alpha: float = 0.005, min_scale_s: float = 
         Level of the size intervals.
     max_steps : int
         Most steps reported (the strongest).
-    fills : sequence of (int, int, float)
-        Spans replaced by a constant before the scan, (a, b, value): the series scanned is x with
-        ``x[a:b] = value`` (applied in order) without a copy of x (:func:`detect_events` cleans the bursts
-        so).
+    fills : sequence of (int, int, array)
+        Spans replaced before the scan, (a, b, values of length b - a): the series scanned is x with
+        ``x[a:b] = values`` (applied in order) without a copy of x (:func:`detect_events` cleans the bursts
+        so: :func:`_span_fills`).
 
     Returns
     -------
@@ -543,8 +566,7 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     x = np.asarray(x, dtype=np.float64).ravel()
     rate_hz = float(rate_hz)
     b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
-    pad = max(5, b["window"] // 10)  # ringing just below burst_k around the span
-    fills = _span_fills(x, [(e["start"], e["stop"]) for e in b["bursts"]], pad)
+    fills = _span_fills(x, burst_spans(b), max(5, b["window"] // 10), b["window"])  # the tail, a window's medians
     s = find_steps(x, rate_hz, alpha=alpha / 2.0, min_scale_s=min_scale_s, min_windows=min_windows,
                    confidence=confidence, fills=fills)
     events = []
@@ -611,15 +633,24 @@ def event_free_segment(n: int, events, guard: int = 0) -> tuple[int, int]:
     return best
 
 
+def burst_spans(scan: Mapping) -> list:
+    """The stretch of each burst of a :func:`find_bursts` result that the step scan and the line search read filled,
+    [(start, stop), ...] (samples, stop exclusive): its span, or its energetic blocks and their tail where these reach
+    farther (a ringing decays below the scan's threshold over seconds: :data:`BURST_TAIL_Z`)."""
+    return [(min(e["start"], e["tail_start"]), max(e["stop"], e["tail_stop"])) for e in scan["bursts"]]
+
+
 def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float = 1.0,
                 burst_k: float = 7.0) -> tuple[np.ndarray, tuple]:
     """`x` (u at `rate_hz` Hz) with the span of every burst :func:`detect_events` reports with these settings
     filled (its burst scan, :func:`find_bursts` at its share alpha / 2), and the filled stretches as
     ((start_s, stop_s), ...) (s from the record's start).
 
-    Each burst span is widened by one burst window on both sides (the cut of events.policy split and exclude) and
-    replaced, its first half by the median of a window of samples before it and its second half by that of the
-    samples after it (:func:`_span_fills`, as the step scan reads a burst). What reads it: the line search under
+    Each burst's span, or its energetic blocks and its tail where they reach farther (a 20 s vibration of 5 sds has
+    its samples beyond burst_k sds over about 12 s of them; a ringing decays below the scan's threshold over seconds:
+    :data:`BURST_TAIL_Z`), is widened by one burst window on both sides (the cut of events.policy split and exclude)
+    and replaced by the straight line from the median of a window of samples before it to that of the window after
+    it (:func:`_span_fills`, as the step scan reads a burst). What reads it: the line search under
     events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a knock's ringing (4.7, 12.3
     and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported as filter states. A filled
     stretch of s seconds takes s / L of a segment of length L's noise, and as much of a line's coherent power there.
@@ -630,11 +661,12 @@ def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float
     if not b["bursts"]:
         return x, ()
     w = int(b["window"])
+    spans = burst_spans(b)
     out = x.copy()
-    for a, c, v in _span_fills(x, [(e["start"], e["stop"]) for e in b["bursts"]], w):
+    for a, c, v in _span_fills(x, spans, w):
         out[a:c] = v
     merged: list = []
-    for a, c in ((max(0, e["start"] - w), min(x.size, e["stop"] + w)) for e in b["bursts"]):
+    for a, c in ((max(0, s0 - w), min(x.size, s1 + w)) for s0, s1 in spans):
         if merged and a <= merged[-1][1]:
             merged[-1] = (merged[-1][0], max(merged[-1][1], c))
         else:

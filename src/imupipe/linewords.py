@@ -200,8 +200,8 @@ def search_band_text(searches: list) -> str | None:
            "lines.low_band_resolution_hz" + (" and half of it" if finer else "") + ")") if lows else ""
     filled = [st for s in searches for st in (s.get("bursts_filled") or []) if isinstance(st, Mapping)]
     seconds = sum(float(st["stop_s"]) - float(st["start_s"]) for st in filled)
-    burst = (f"; {len(filled)} burst stretch(es), {num(seconds, '{:.3g}')} s in all, read filled: a knock's "
-             "ringing is no line" if filled else "")
+    burst = (f"; {len(filled)} burst stretch(es), {num(seconds, '{:.3g}')} s in all, read filled so that a "
+             "knock's ringing is not taken for a line" if filled else "")
     return (f"- line search (lines stage, each full-rate record{burst}): bins tested {span('f_min_hz')} to "
             f"{span('f_max_hz')} Hz at {span('resolution_hz')} Hz resolution{low} (a found line's centre may lie up "
             f"to 2 bins outside: its main lobe), family-wise level {span('alpha')} per record and axis; a line below "

@@ -415,9 +415,9 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
     if short:
         more = "more or longer records" + (f" (its T interval reaches down to {lo} s)" if lo else "")
         cure = ("a higher sample rate" if fast else more) if white else "longer records"
-        return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
-                f"{num(r.get('T_s'))} s) is not resolved by the records: reported as the {acts}{value} it acts as; to "
-                f"resolve it: {cure}")
+        return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {num(r.get('T_s'))} "
+                f"s) is not resolved by the records: the identification reports the {acts}{value} it acts as (the KF "
+                f"file holds the bound's own terms); to resolve it: {cure}")
     instead = exported_instead(sensor, bound, as_key)
     now = f" (now down to {lo} s)" if lo else ""
     action = (" To resolve it: a higher sample rate (its T lies near the shortest the records resolve; at a filter "
