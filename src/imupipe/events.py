@@ -99,14 +99,17 @@ while the detecting scale m saw a shift, the mean moved for less than :math:`m^*
 ``transient`` (an excursion), sized at m with m's interval.
 
 Before the step scan, each burst's stretch (:func:`burst_spans`: its span, or its energetic blocks and their tail
-where these reach farther, widened by a tenth of a burst window each side) is replaced by the straight line from the
-median of the burst window of samples before it to that of the window after it: a 17 deg/s knock of 0.1 s moves a
-100 s mean by 0.017 deg/s, and a step inside a knock is then placed at the knock's middle. (The stretch was the span
-alone and its fill two flat halves, each the median of a tenth of a window beside it: a 7.3 Hz ringing decaying over
-5 s, still 4-5 sds beyond the span, set the two levels apart and was reported as a mean step of 129 deg/h, acting as
-a random walk 76x the spec sheet's, in an outside evaluation; in 3 of 3 records of each decay time 0.4-8 s some
-step or transient was reported at the knock. Over a tail of tens of seconds, flat halves turn the record's own drift
-into a jump: the straight line keeps it a drift. ``tests/test_events.py``.)
+where these reach farther, widened by a tenth of a burst window each side) is replaced, its first half by the median
+of the samples before it and its second half by that of the samples after it, each over a burst window or half the
+stretch, whichever is longer (:func:`_span_fills`): a 17 deg/s knock of 0.1 s moves a 100 s mean by 0.017 deg/s, and
+a step inside a knock is then placed at the stretch's middle, its size from the data either side (the event's
+``within_burst_s``: the stretch with the samples its levels are read from, where the step's time lies). (The stretch was the span alone and its
+medians over a tenth of a window: a 7.3 Hz ringing decaying over 5 s, still 4-5 sds beyond the span, set the two
+levels apart and was reported as a mean step of 129 deg/h, acting as a random walk 76x the spec sheet's, in an
+outside evaluation; some step or transient at the knock in 16 of 16 records at decays 0.5-8 s, now 0 of 16. A
+straight line between the levels made a step inside the stretch a ramp, sized 0.83x; medians over one window only
+held a 16-300 s fill 0.1-0.24 sds off the local mean, a step at its ends in 6-11 of 50 records, an outside
+evaluation: over half the stretch, 1 of 30 each. ``docs/performance.md``, ``tests/test_events.py``.)
 
 Total false-alarm rate per record and axis: :math:`\alpha = \alpha_b + \alpha_s`, split equally
 (``alpha``, default 0.01: one false event in 100 event-free axes). The step scan's share is a bound (measured
@@ -369,13 +372,14 @@ def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> lis
     return out
 
 
-def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None) -> list:
-    """Each span [start - pad, stop + pad) replaced by the straight line from the median of the `ref` samples
-    before it to the median of the `ref` samples after it (`ref` = `pad` when None; a step inside a burst is then
-    placed at the burst's middle, and a drift across a long span stays a drift: two flat halves made 40 s of a GM's
-    drift under a ringing's tail a jump, reported as a step): the list of (a, b, values), x[a:b] = values applied
-    in order. The step scan reads x through it (:func:`find_steps`, ``fills``) instead of a cleaned copy of the
-    record."""
+def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None, ramp: bool = True) -> list:
+    """Each span [start - pad, stop + pad) of L samples replaced from the median of the max(`ref`, L / 2) samples
+    before it (`ref` = `pad` when None) and that of those after it (a level held over L samples, read over fewer,
+    is off the local mean by more than a step of its length may be): with `ramp` the straight line from the first
+    to the second (the line search: no jump), else its first half at the first and its second half at the second (the
+    step scan: a step inside a burst is placed at the span's middle, its size the levels' difference). The list of
+    (a, b, values), x[a:b] = values applied in order; the step scan reads x through it (:func:`find_steps`,
+    ``fills``) instead of a cleaned copy of the record."""
     if not spans:
         return []
     ref = pad if ref is None else int(ref)
@@ -384,12 +388,17 @@ def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None) -> list:
     whole = None
     for s0, s1 in spans:
         a, b = max(0, s0 - pad), min(n, s1 + pad)
-        before, after = x[max(0, a - ref):a], x[b:min(n, b + ref)]
+        r = max(ref, (b - a) // 2)  # a level held over L samples is read over at least L / 2 beside it
+        before, after = x[max(0, a - r):a], x[b:min(n, b + r)]
         if not before.size and not after.size and whole is None:
             whole = float(np.median(x))
         first = np.median(before) if before.size else (np.median(after) if after.size else whole)
         second = np.median(after) if after.size else (np.median(before) if before.size else whole)
-        fills.append((a, b, np.linspace(first, second, b - a)))
+        if ramp:
+            fills.append((a, b, np.linspace(first, second, b - a)))
+        else:
+            mid = (a + b) // 2
+            fills += [(a, mid, np.full(mid - a, first)), (mid, b, np.full(b - mid, second))]
     return fills
 
 
@@ -566,7 +575,13 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     x = np.asarray(x, dtype=np.float64).ravel()
     rate_hz = float(rate_hz)
     b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
-    fills = _span_fills(x, burst_spans(b), max(5, b["window"] // 10), b["window"])  # the tail, a window's medians
+    pad = max(5, b["window"] // 10)
+    fills = _span_fills(x, burst_spans(b), pad, b["window"], ramp=False)
+    filled = []  # each stretch the scan reads filled, with the samples its levels are read from (the step's range)
+    for s0, s1 in burst_spans(b):
+        a, c = max(0, s0 - pad), min(x.size, s1 + pad)
+        r = max(b["window"], (c - a) // 2)
+        filled.append((a, c, max(0, a - r), min(x.size, c + r)))
     s = find_steps(x, rate_hz, alpha=alpha / 2.0, min_scale_s=min_scale_s, min_windows=min_windows,
                    confidence=confidence, fills=fills)
     events = []
@@ -583,6 +598,9 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
                        "confidence": float(confidence), "z": e["z"], "threshold_z": thr[e["scale"]],
                        "scale_s": e["scale"] / rate_hz, "size_scale_s": e["size_scale"] / rate_hz,
                        "p_value": min(1.0, 2.0 * e["family_p"])})
+        inside = [(lo, hi) for a, c, lo, hi in filled if a <= e["index"] < c]  # a step seen through a burst's fill
+        if inside:
+            events[-1]["within_burst_s"] = [inside[0][0] / rate_hz, inside[0][1] / rate_hz]
     events.sort(key=lambda e: (e["index"], e["kind"]))
     for e in events:
         du = display_unit(sensor, e["kind"])
@@ -649,8 +667,8 @@ def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float
     Each burst's span, or its energetic blocks and its tail where they reach farther (a 20 s vibration of 5 sds has
     its samples beyond burst_k sds over about 12 s of them; a ringing decays below the scan's threshold over seconds:
     :data:`BURST_TAIL_Z`), is widened by one burst window on both sides (the cut of events.policy split and exclude)
-    and replaced by the straight line from the median of a window of samples before it to that of the window after
-    it (:func:`_span_fills`, as the step scan reads a burst). What reads it: the line search under
+    and replaced by the straight line from the median of the samples before it to that of the samples after it, each
+    over a window or half the stretch (:func:`_span_fills`; the step scan reads a burst in two flat halves). What reads it: the line search under
     events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a knock's ringing (4.7, 12.3
     and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported as filter states. A filled
     stretch of s seconds takes s / L of a segment of length L's noise, and as much of a line's coherent power there.
@@ -800,6 +818,9 @@ def _event_text(it: Mapping, short: bool = False) -> str:
         when = f"at {float(it['time_s']):.1f} s"
         if it["kind"] == "transient" and it.get("stop_s") is not None:
             when += f" (back by {float(it['stop_s']):.1f} s)"
+        if isinstance(it.get("within_burst_s"), (list, tuple)) and len(it["within_burst_s"]) == 2:
+            a, c = (float(v) for v in it["within_burst_s"])
+            when = f"between {a:.1f} and {c:.1f} s (at a burst the scan reads filled)"
     else:
         size = f"burst, peak {fmt(it['size'])} {unit}" + (f" ({fmt(disp['size'])} {disp['unit']})" if disp else "")
         when = f"from {float(it['start_s']):.2f} s to {float(it['stop_s']):.2f} s"

@@ -104,7 +104,7 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                 f"(samples {seg[0]}-{seg[1]}) between {len(det['events'])} event(s), shorter than the "
                 f"{min_segment_s:g} s the analysis needs (psd.window_s); use events.policy = 'warn'")
     keep = {"kind", "time_s", "start_s", "stop_s", "size", "size_low", "size_high", "confidence", "z",
-            "threshold_z", "scale_s", "size_scale_s", "display", "p_value"}
+            "threshold_z", "scale_s", "size_scale_s", "display", "p_value", "within_burst_s"}
     if ev_policy == "split":
         kept = int(segments.lengths.sum())
         action = (f"cut: the record is analysed as {len(segments.bounds)} segment(s) ({segments.describe()}, "
@@ -139,7 +139,9 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
                     "events": {"time_s": "s from the record's start", "size": units, "z": "robust sds of the scan",
                                "display": "spec-like unit (deg/h, mg for steps; deg/s, g for bursts)",
                                "p_value": "probability per record: the scan's false-alarm rate with its threshold "
-                                          "at this z (imupipe.events.detect_events)"},
+                                          "at this z (imupipe.events.detect_events)",
+                               "within_burst_s": "s from the record's start: where the step lies, a burst stretch "
+                                                 "the step scan read filled with the samples its levels came from"},
                     "events_scan": {"step_scan": {"tau_s": "s", "sigma_d": units, "threshold_z": "robust sds",
                                                   "smallest_step": units, "smallest_step_tau_s": "s"},
                                     "burst_scan": {"window_s": "s", "threshold_z": "robust sds"}},
