@@ -204,14 +204,9 @@ def test_dataset_rates_take_the_timestamps_rate_where_the_sheet_gives_none():
 
 
 def _kalibr_script():
-    import importlib.util
-    from pathlib import Path
+    from workflow_helpers import stage_script
 
-    path = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "kalibr.py"
-    spec = importlib.util.spec_from_file_location("stage_kalibr", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return stage_script("kalibr")
 
 
 def _stage_files(tmp_path, accel_bound: NoiseModel, accel_kf: NoiseModel, accel_dropped: list):

@@ -4,9 +4,6 @@ line, and a stationary line through the knock keeps its power."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 import yaml
@@ -135,22 +132,16 @@ class TestLineSearch:
         assert line_power_lower(ln.power, ln.dof, 0.999) <= amp**2 / 2 <= line_power_upper(ln.power, ln.dof, 0.999)
 
 
-def _lines_script():
-    path = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "lines.py"
-    spec = importlib.util.spec_from_file_location("stage_lines_bursts", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_the_lines_job_and_the_api_fill_the_same_stretches_and_find_the_same_lines(tmp_path):
     pytest.importorskip("snakemake", reason="the stage scripts import what the workflow installs")
+    from workflow_helpers import stage_script
+
     from imupipe.api import _lines_of
 
     x = _record(31, line_amplitude=0.05 * SD)
     series, out = tmp_path / "series.nc", tmp_path / "lines.yaml"
     write_series(series, x, rate_hz=RATE, units="rad/s", attrs={"dataset": "rec", "sensor": "gyro", "axis": "x"})
-    _lines_script().main(path_series=str(series), path_lines=str(out), events={}, **{
+    stage_script("lines").main(path_series=str(series), path_lines=str(out), events={}, **{
         k: v for k, v in SEARCH.items()})
     job = yaml.safe_load(out.read_text())
     api = _lines_of({"rec/x": x}, RATE, "gyro", events=dict(EVENT_DEFAULTS), **SEARCH)["rec/x"]

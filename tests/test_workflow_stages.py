@@ -4,7 +4,6 @@ dry runs and on the stage scripts run on records with a known truth (injected sp
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
@@ -16,19 +15,10 @@ pytest.importorskip("snakemake", reason="the workflow tests need snakemake (pip 
 from imupipe.io import read_series, write_series  # noqa: E402
 from imupipe.lines import Line  # noqa: E402
 
-from workflow_helpers import RES, ROOT, dry_run_jobs, snakemake  # noqa: E402
+from workflow_helpers import RES, ROOT, dry_run_jobs, snakemake, stage_script as _script  # noqa: E402
 
-SCRIPTS = ROOT / "workflow" / "scripts"
 DATASETS, SENSORS, AXES = ("sim01", "sim02"), ("gyro", "accel"), ("x", "y", "z")
 SI = {"gyro": "rad/s", "accel": "m/s^2"}
-
-
-def _script(name):
-    """A stage script as a module (its `main`; the Snakemake entry point runs only as __main__)."""
-    spec = importlib.util.spec_from_file_location(f"stage_{name}", SCRIPTS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _changed(work, config, name, **sections):

@@ -2,22 +2,10 @@
 the run summary (file, HTML, report front page, terminal), the Kalibr file read back with Kalibr's field names
 and units against the bound it comes from, the figures, and the Kalibr rule's refusal of a bound with a line."""
 
-import importlib.util
-
 import pytest
 import yaml
 
-from workflow_helpers import RES, ROOT, dry_run_jobs, snakemake
-
-SCRIPTS = ROOT / "workflow" / "scripts"
-
-
-def _script(name):
-    """A workflow script as a module (its Snakemake entry point runs only as __main__)."""
-    spec = importlib.util.spec_from_file_location(f"wf_{name}", SCRIPTS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from workflow_helpers import RES, dry_run_jobs, snakemake, stage_script as _script
 
 
 def _read(work, rel):

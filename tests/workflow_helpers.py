@@ -79,3 +79,14 @@ def copy_checkout(dest):
     for name in CHECKOUT:
         (shutil.copytree if (ROOT / name).is_dir() else shutil.copy2)(ROOT / name, dest / name)
     return dest
+
+
+def stage_script(name: str):
+    """The workflow script workflow/scripts/<name>.py as a module, to call its `main` (its Snakemake entry point runs
+    only as __main__)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"stage_{name}", ROOT / "workflow" / "scripts" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

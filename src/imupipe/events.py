@@ -101,10 +101,11 @@ while the detecting scale m saw a shift, the mean moved for less than :math:`m^*
 Before the step scan, each burst's stretch (:func:`burst_spans`: its span, or its energetic blocks and their tail
 where these reach farther, widened by a tenth of a burst window each side) is replaced, its first half by the median
 of the samples before it and its second half by that of the samples after it, each over a burst window or half the
-stretch, whichever is longer (:func:`_span_fills`): a 17 deg/s knock of 0.1 s moves a 100 s mean by 0.017 deg/s, and
-a step inside a knock is then placed at the stretch's middle, its size from the data either side (the event's
-``within_burst_s``: the stretch with the samples its levels are read from, where the step's time lies). (The stretch was the span alone and its
-medians over a tenth of a window: a 7.3 Hz ringing decaying over 5 s, still 4-5 sds beyond the span, set the two
+stretch, whichever is longer (:func:`_span_fills`; a median, not a mean: a step just before the stretch moves a mean
+by its share of those samples, and sized a tilt 1 s before a knock 5 % low): a 17 deg/s knock of 0.1 s moves a 100 s mean by 0.017 deg/s, and a
+step inside a knock is then placed at the stretch's middle, its size from the data either side (the event's
+``within_burst_s``: the stretch with the samples its levels are read from, where the step's time lies). (The
+stretch was the span alone, its levels medians over a tenth of a window: a 7.3 Hz ringing decaying over 5 s, still 4-5 sds beyond the span, set the two
 levels apart and was reported as a mean step of 129 deg/h, acting as a random walk 76x the spec sheet's, in an
 outside evaluation; some step or transient at the knock in 16 of 16 records at decays 0.5-8 s, now 0 of 16. A
 straight line between the levels made a step inside the stretch a ramp, sized 0.83x; medians over one window only
