@@ -8,8 +8,10 @@ Records: 1 h at 100 Hz of an accelerometer axis (white 6e-4 m/s^2/sqrt(Hz), a GM
 time, 4 records per decay (seeds 5200 + decay x 100 + r). Tilts: a 3 mg step at a random time in [900, 2700] s and an
 8.1 + 19.7 Hz knock (60 and 25 sds, decay 4 s) starting -2, 0.5, 5 or 20 s before it, 6 records per offset (seeds
 9100-9105): a step found within 30 s, its size over the truth, how often its 95 % interval covers the truth, and
-how often its reported range (``within_burst_s``, or its time +- 2 s) holds the truth. Run on an earlier tree (its
-src on PYTHONPATH) to compare; docs/performance.md, 2026-12-07.
+how often its reported range (``within_burst_s``, or its time +- 2 s) holds the truth. Lone steps: the same 3 mg
+step at a random time without a knock, 40 records (seeds 600-639): found, and how its size falls within its 95 %
+interval (z = (size - truth) / (half-width / 1.96): covered where |z| < 1.96). Run on an earlier tree (its src on
+PYTHONPATH) to compare; docs/performance.md, 2026-12-07.
 """
 
 from __future__ import annotations
@@ -75,6 +77,22 @@ def tilts() -> dict:
     return out
 
 
+def lone_steps(records: int = 40) -> tuple:
+    """(found, covered, sd of z, mean of z) of a lone 3 mg step in `records` records (module docstring)."""
+    z = []
+    for r in range(records):
+        rng = np.random.default_rng(600 + r)
+        x = simulate(ACC, N, RATE, rng)
+        ts = rng.uniform(900, 2700)
+        x[int(ts * RATE):] += STEP
+        near = [e for e in _steps(x) if e["kind"] == "step" and abs(e["time_s"] - ts) < 30]
+        if near:
+            e = near[0]
+            z.append((e["size"] - STEP) / ((e["size_high"] - e["size_low"]) / 2 / 1.96))
+    z = np.array(z)
+    return z.size, int(np.sum(np.abs(z) < 1.96)), float(z.std()), float(z.mean())
+
+
 def main() -> int:
     fs = false_steps()
     print("| knock decay (s) | records with a step at a lone knock |")
@@ -86,6 +104,9 @@ def main() -> int:
     print("|---|---|---|---|---|")
     for off, (f, sz, cov, held) in tilts().items():
         print(f"| {off:g} | {f} of 6 | {sz:.3f} | {cov} of {f} | {held} of {f} |")
+    found, covered, sd, mean = lone_steps()
+    print(f"\nlone 3 mg steps: found {found} of 40, 95 % interval covers {covered} of {found}; z sd {sd:.2f}, mean "
+          f"{mean:.2f}")
     return 0
 
 
