@@ -99,8 +99,8 @@ def main() -> int:
     print("|---|---|")
     for tau, k in fs.items():
         print(f"| {tau:g} | {k} of 4 |")
-    print("\n| tilt after the knock's start (s) | found | size / true, median | 95 % interval covers | reported range holds "
-          "its time |")
+    print("\n| tilt after the knock's start (s) | found | size / true, median | 95 % interval covers | "
+          "reported range holds its time |")
     print("|---|---|---|---|---|")
     for off, (f, sz, cov, held) in tilts().items():
         print(f"| {off:g} | {f} of 6 | {sz:.3f} | {cov} of {f} | {held} of {f} |")

@@ -4,13 +4,14 @@ genuine stationary line through the burst.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/line_bursts.py --records 10
 
-Records: 2 h at 100 Hz of a MEMS-like gyro axis (white 2e-4 rad/s/sqrt(Hz), a 100 s GM of 5e-5 rad/s, random walk
-2e-6 rad/s/sqrt(s)), one burst at a random time in [600, 6600] s of each kind below (amplitudes in per-sample white
-sds): a knock ringing at three tones decaying over 0.5 s for 2 s; the same knock ringing at other tones and decaying
-over 1.5 s; a knock ringing at one tone of 80 sds decaying over 6 s (a mount resonance of Q 100); a white-noise burst of 30 sds for 2 s; and a vibration of 20 s (a 22 Hz tone of 5 sds with a 0.3 s rise
-and fall). The search as `imupipe init` writes it (0.002 Hz, alpha 0.01, 51-bin floor, scales 1, 8, 64, the low band at
-1 / 1800 Hz). A genuine 17 Hz line of 0.05 sds (power A^2 / 2) is added in the second half of the table: the table
-gives how often it is found and its estimated power over the true one (median, range).
+Records: 2 h at 100 Hz of a MEMS-like gyro axis (white 2e-4 rad/s/sqrt(Hz), a 100 s GM of 5e-5 rad/s, random walk 2e-6
+rad/s/sqrt(s)), one burst at a random time in [600, 6600] s of each kind below (amplitudes in per-sample white sds): a
+knock ringing at three tones decaying over 0.5 s for 2 s; the same knock ringing at other tones and decaying over 1.5
+s; a knock ringing at one tone of 80 sds decaying over 6 s (a mount resonance of Q 100); a white-noise burst of 30 sds
+for 2 s; and a vibration of 20 s (a 22 Hz tone of 5 sds with a 0.3 s rise and fall). The search as `imupipe init`
+writes it (0.002 Hz, alpha 0.01, 51-bin floor, scales 1, 8, 64, the low band at 1 / 1800 Hz). A genuine 17 Hz line of
+0.05 sds (power A^2 / 2) is added in the second half of the table: the table gives how often it is found and its
+estimated power over the true one (median, range).
 """
 
 from __future__ import annotations

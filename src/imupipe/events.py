@@ -102,15 +102,16 @@ Before the step scan, each burst's stretch (:func:`burst_spans`: its span, or it
 where these reach farther, widened by a tenth of a burst window each side) is replaced, its first half by the median
 of the samples before it and its second half by that of the samples after it, each over a burst window or half the
 stretch, whichever is longer (:func:`_span_fills`; a median, not a mean: a step just before the stretch moves a mean
-by its share of those samples, and sized a tilt 1 s before a knock 5 % low): a 17 deg/s knock of 0.1 s moves a 100 s mean by 0.017 deg/s, and a
-step inside a knock is then placed at the stretch's middle, its size from the data either side (the event's
-``within_burst_s``: the stretch with the samples its levels are read from, where the step's time lies). (The
-stretch was the span alone, its levels medians over a tenth of a window: a 7.3 Hz ringing decaying over 5 s, still 4-5 sds beyond the span, set the two
-levels apart and was reported as a mean step of 129 deg/h, acting as a random walk 76x the spec sheet's, in an
-outside evaluation; some step or transient at the knock in 16 of 16 records at decays 0.5-8 s, now 0 of 16. A
-straight line between the levels made a step inside the stretch a ramp, sized 0.83x; medians over one window only
-held a 16-300 s fill 0.1-0.24 sds off the local mean, a step at its ends in 6-11 of 50 records, an outside
-evaluation: over half the stretch, 1 of 30 each. ``docs/performance.md``, ``tests/test_events.py``.)
+by its share of those samples, and sized a tilt 1 s before a knock 5 % low): a 17 deg/s knock of 0.1 s moves a 100 s
+mean by 0.017 deg/s, and a step inside a knock is then placed at the stretch's middle, its size from the data either
+side (the event's ``within_burst_s``: the stretch with the samples its levels are read from, where the step's time
+lies). (The stretch was the span alone, its levels medians over a tenth of a window: a 7.3 Hz ringing decaying over
+5 s, still 4-5 sds beyond the span, set the two levels apart and was reported as a mean step of 129 deg/h, acting as
+a random walk 76x the spec sheet's, in an outside evaluation; some step or transient at the knock in 16 of 16
+records at decays 0.5-8 s, now 0 of 16. A straight line between the levels made a step inside the stretch a ramp,
+sized 0.83x; medians over one window only held a 16-300 s fill 0.1-0.24 sds off the local mean, a step at its ends
+in 6-11 of 50 records, an outside evaluation: over half the stretch, 1 of 30 each. ``docs/performance.md``,
+``tests/test_events.py``.)
 
 Total false-alarm rate per record and axis: :math:`\alpha = \alpha_b + \alpha_s`, split equally
 (``alpha``, default 0.01: one false event in 100 event-free axes). The step scan's share is a bound (measured
@@ -138,7 +139,8 @@ from collections.abc import Mapping
 import numpy as np
 
 __all__ = ["POLICIES", "MAX_EVENT_FLAGS", "detect_events", "event_effect", "event_effects", "find_bursts", "find_steps",
-           "event_free_segment", "event_flags", "fill_bursts", "display_unit", "MAD_EFFICIENCY"]
+           "event_free_segment", "event_flags", "burst_spans", "fill_bursts", "display_unit", "MAD_EFFICIENCY",
+           "BURST_TAIL_Z"]
 
 #: What a found event does (config ``events.policy``; ``split``: imupipe.segments, config/README.md).
 POLICIES = ("warn", "exclude", "split")
@@ -207,7 +209,8 @@ def _patched(x: np.ndarray, fills, lo: int, hi: int) -> np.ndarray:
     """x[lo:hi] with the fills (a, b, values: x[a:b] = values, applied in order) that reach it; a view of x when
     none does, else a copy of the slice."""
     seg = x[lo:hi]
-    hit = [(max(a, lo), min(b, hi), v[max(a, lo) - a:min(b, hi) - a]) for a, b, v in fills if max(a, lo) < min(b, hi)]
+    hit = [(max(a, lo), min(b, hi), v[max(a, lo) - a:min(b, hi) - a]) for a, b, v in fills
+           if max(a, lo) < min(b, hi)]
     if hit:
         seg = seg.copy()
         for a, b, v in hit:
@@ -238,8 +241,7 @@ def find_bursts(x, rate_hz: float, *, alpha: float = 0.005, window_s: float = 1.
         ``bursts``: list of ``{start, stop}`` (sample indices, stop exclusive), ``block_start``, ``block_stop``
         (those of its energetic blocks: a burst's far samples may lie in part of them), ``tail_start``,
         ``tail_stop`` (those blocks and the adjacent ones above :data:`BURST_TAIL_Z`: a ringing's decay), ``peak``
-        (largest
-        :math:`|x - \\mathrm{median}|`, u), ``z`` (largest block z), ``family_p`` (K P(t > z): the scan's
+        (largest :math:`|x - \\mathrm{median}|`, u), ``z`` (largest block z), ``family_p`` (K P(t > z): the scan's
         false-alarm probability with its threshold at this z, Bonferroni over the K blocks); ``threshold_z``,
         ``n_blocks``, ``window`` (samples).
     """
@@ -669,9 +671,10 @@ def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float
     its samples beyond burst_k sds over about 12 s of them; a ringing decays below the scan's threshold over seconds:
     :data:`BURST_TAIL_Z`), is widened by one burst window on both sides (the cut of events.policy split and exclude)
     and replaced by the straight line from the median of the samples before it to that of the samples after it, each
-    over a window or half the stretch (:func:`_span_fills`; the step scan reads a burst in two flat halves). What reads it: the line search under
-    events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a knock's ringing (4.7, 12.3
-    and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported as filter states. A filled
+    over a window or half the stretch (:func:`_span_fills`; the step scan reads a burst in two flat halves). What
+    reads it: the line search under events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a
+    knock's ringing (4.7, 12.3 and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported
+    as filter states. A filled
     stretch of s seconds takes s / L of a segment of length L's noise, and as much of a line's coherent power there.
     A copy of x where a burst is filled, x itself (as a float64 array, no copy) where none is."""
     x = np.asarray(x, dtype=np.float64).ravel()
