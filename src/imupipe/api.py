@@ -579,8 +579,7 @@ def _lines_of(curves, rate: float, sensor: str, resolution_hz, alpha, floor_wind
 
     out = {}
     for label, x in curves.items():
-        y, filled = ((np.asarray(x, dtype=np.float64), ()) if events is None else
-                     line_search_series(np.asarray(x, dtype=np.float64), rate, events))
+        y, filled = line_search_series(np.asarray(x, dtype=np.float64), rate, events)
         search = find_lines(y, rate, resolution_hz=resolution_hz, alpha=alpha, floor_window_bins=floor_window_bins,
                             units=SI_UNITS[sensor], label=label, scales=scales,
                             low_band_resolution_hz=low_band_resolution_hz)

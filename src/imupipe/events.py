@@ -375,6 +375,19 @@ def _scales(n: int, rate_hz: float, min_scale_s: float, min_windows: int) -> lis
     return out
 
 
+def _fill_extents(spans, n: int, pad: int, ref: int | None = None) -> list:
+    """Where :func:`_span_fills` replaces each span of an `n`-sample record and what it reads: [(a, b, lo, hi), ...],
+    the span widened by `pad` samples each side, [a, b) of L samples, and the samples its levels are read from,
+    [lo, a) and [b, hi), each max(`ref`, L / 2) long (`ref` = `pad` when None; clipped to the record)."""
+    ref = pad if ref is None else int(ref)
+    out = []
+    for s0, s1 in spans:
+        a, b = max(0, s0 - pad), min(n, s1 + pad)
+        r = max(ref, (b - a) // 2)  # a level held over L samples is read over at least L / 2 beside it
+        out.append((a, b, max(0, a - r), min(n, b + r)))
+    return out
+
+
 def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None, ramp: bool = True) -> list:
     """Each span [start - pad, stop + pad) of L samples replaced from the median of the max(`ref`, L / 2) samples
     before it (`ref` = `pad` when None) and that of those after it (a level held over L samples, read over fewer,
@@ -383,16 +396,10 @@ def _span_fills(x: np.ndarray, spans, pad: int, ref: int | None = None, ramp: bo
     step scan: a step inside a burst is placed at the span's middle, its size the levels' difference). The list of
     (a, b, values), x[a:b] = values applied in order; the step scan reads x through it (:func:`find_steps`,
     ``fills``) instead of a cleaned copy of the record."""
-    if not spans:
-        return []
-    ref = pad if ref is None else int(ref)
     fills = []
-    n = x.size
     whole = None
-    for s0, s1 in spans:
-        a, b = max(0, s0 - pad), min(n, s1 + pad)
-        r = max(ref, (b - a) // 2)  # a level held over L samples is read over at least L / 2 beside it
-        before, after = x[max(0, a - r):a], x[b:min(n, b + r)]
+    for a, b, lo, hi in _fill_extents(spans, x.size, pad, ref):
+        before, after = x[lo:a], x[b:hi]
         if not before.size and not after.size and whole is None:
             whole = float(np.median(x))
         first = np.median(before) if before.size else (np.median(after) if after.size else whole)
@@ -578,13 +585,9 @@ def detect_events(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: flo
     x = np.asarray(x, dtype=np.float64).ravel()
     rate_hz = float(rate_hz)
     b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
-    pad = max(5, b["window"] // 10)
-    fills = _span_fills(x, burst_spans(b), pad, b["window"], ramp=False)
-    filled = []  # each stretch the scan reads filled, with the samples its levels are read from (the step's range)
-    for s0, s1 in burst_spans(b):
-        a, c = max(0, s0 - pad), min(x.size, s1 + pad)
-        r = max(b["window"], (c - a) // 2)
-        filled.append((a, c, max(0, a - r), min(x.size, c + r)))
+    spans, pad = burst_spans(b), max(5, b["window"] // 10)
+    fills = _span_fills(x, spans, pad, b["window"], ramp=False)
+    filled = _fill_extents(spans, x.size, pad, b["window"])  # a step seen through a fill lies in its [lo, hi)
     s = find_steps(x, rate_hz, alpha=alpha / 2.0, min_scale_s=min_scale_s, min_windows=min_windows,
                    confidence=confidence, fills=fills)
     events = []
@@ -674,9 +677,9 @@ def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float
     over a window or half the stretch (:func:`_span_fills`; the step scan reads a burst in two flat halves). What
     reads it: the line search under events.policy warn (:func:`imupipe.stages.outliers.line_search_series`), where a
     knock's ringing (4.7, 12.3 and 31 Hz decaying over 0.5 s) was found as three lines of a 2 h record and exported
-    as filter states. A filled
-    stretch of s seconds takes s / L of a segment of length L's noise, and as much of a line's coherent power there.
-    A copy of x where a burst is filled, x itself (as a float64 array, no copy) where none is."""
+    as filter states. A filled stretch of s seconds takes s / L of a segment of length L's noise, and as much of a
+    line's coherent power there. A copy of x where a burst is filled, x itself (as a float64 array, no copy) where
+    none is."""
     x = np.asarray(x, dtype=np.float64).ravel()
     rate_hz = float(rate_hz)
     b = find_bursts(x, rate_hz, alpha=alpha / 2.0, window_s=burst_window_s, burst_k=burst_k)
@@ -688,7 +691,7 @@ def fill_bursts(x, rate_hz: float, *, alpha: float = 0.01, burst_window_s: float
     for a, c, v in _span_fills(x, spans, w):
         out[a:c] = v
     merged: list = []
-    for a, c in ((max(0, s0 - w), min(x.size, s1 + w)) for s0, s1 in spans):
+    for a, c, _, _ in _fill_extents(spans, x.size, w):
         if merged and a <= merged[-1][1]:
             merged[-1] = (merged[-1][0], max(merged[-1][1], c))
         else:

@@ -400,8 +400,9 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
     as_key = "white" if white else "random_walk"
     acts = f"{'white noise N' if white else 'random walk K'}"
     value = f" {both_units(sensor, bound, as_key, r.get('value'))}" if r.get("value") is not None else ""
-    text = (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T "
-            f"{num(r.get('T_s'))} s) is not resolved by the records ({r.get('why')}). Reported as the {acts}{value} "
+    gm = (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {num(r.get('T_s'))} s) "
+          "is not resolved by the records")
+    text = (f"{gm} ({r.get('why')}). Reported as the {acts}{value} "
             "it acts as (identify file, gm_reassigned)" + ("." if white else
                                 " at taus well below T (beyond T its Allan variance falls below that random "
                                 "walk's, so a model under it there can still hold the records)."))
@@ -415,9 +416,8 @@ def reassigned_text(sensor: str, r: Mapping, bound: Mapping | None = None, short
     if short:
         more = "more or longer records" + (f" (its T interval reaches down to {lo} s)" if lo else "")
         cure = ("a higher sample rate" if fast else more) if white else "longer records"
-        return (f"the identified GM (sigma {both_units(sensor, bound, 'gm_sigma', r.get('sigma'))}, T {num(r.get('T_s'))} "
-                f"s) is not resolved by the records: the identification reports the {acts}{value} it acts as (the KF "
-                f"file holds the bound's own terms); to resolve it: {cure}")
+        return (f"{gm}: the identification reports the {acts}{value} it acts as (the KF file holds the bound's own "
+                f"terms); to resolve it: {cure}")
     instead = exported_instead(sensor, bound, as_key)
     now = f" (now down to {lo} s)" if lo else ""
     action = (" To resolve it: a higher sample rate (its T lies near the shortest the records resolve; at a filter "

@@ -15,7 +15,7 @@ def main(path_series: str, resolution_hz: float, alpha: float, floor_window_bins
          path_segments: str | None = None, scales=(1,), low_band_resolution_hz=None,
          events: dict | None = None) -> None:
     x, rate, attrs = read_series(path_series)
-    x, filled = (x, ()) if events is None else line_search_series(x, rate, events)
+    x, filled = line_search_series(x, rate, events)
     units = attrs.pop("units")
     label = "/".join(str(attrs[key]) for key in ("dataset", "sensor", "axis") if key in attrs) or path_series
     seg = read_segments(path_segments, x.size, rate, path_series)

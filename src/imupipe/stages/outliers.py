@@ -157,11 +157,12 @@ def outliers_stage(x, rate: float, *, units: str, dataset=None, sensor=None, axi
     return out, x_seg
 
 
-def line_search_series(x, rate: float, events: dict | None = None) -> tuple:
+def line_search_series(x, rate: float, events: dict | None) -> tuple:
     """The series the line search reads (rule lines) and the stretches filled in it, ((start_s, stop_s), ...) s:
     under events.policy warn `x` (u at `rate` Hz) with its bursts filled (:func:`imupipe.events.fill_bursts` with
     the burst settings of `events`, :data:`EVENT_DEFAULTS` filling what it lacks: the bursts the outliers report
-    lists for the same series); under the other policies `x` and () (split and exclude cut the bursts out).
+    lists for the same series); under the other policies `x` and () (split and exclude cut the bursts out), and
+    with `events` None (no burst search) `x` and ().
 
     Under warn a burst stays in the data every other stage reads (the bound covers its power as broadband power),
     but its ringing is no stationary line: left in the line search, a knock ringing at 4.7, 12.3 and 31 Hz for 2 s
@@ -170,7 +171,7 @@ def line_search_series(x, rate: float, events: dict | None = None) -> tuple:
     from imupipe.events import fill_bursts
 
     cfg = {**EVENT_DEFAULTS, **(events or {})}
-    if cfg["policy"] != "warn":
+    if events is None or cfg["policy"] != "warn":
         return x, ()
     return fill_bursts(x, rate, alpha=float(cfg["alpha"]), burst_window_s=float(cfg["burst_window_s"]),
                        burst_k=float(cfg["burst_k"]))
