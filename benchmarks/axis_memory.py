@@ -8,7 +8,7 @@ config/config.yaml otherwise), Snakemake (one core) builds the per-axis files of
 scratch working directory (``--directory``): ingest (all six channels of the dataset), allan, decimate, psd,
 stationarity, lines, outliers. Per rule: the benchmark file's ``max_rss`` and the peak resident set
 (``VmHWM``) a 50 ms sampler saw in the job's process (benchmarks/dag.py, ``MemorySampler``), in MB, and the
-larger of the two over one axis's samples (8 bytes x n). The budget (README "Performance"): at most 2 x one
+larger of the two over one axis's samples (8 bytes x n). The budget (docs/performance.md): at most 2 x one
 axis plus a fixed overhead, i.e. the excess over the 10 h peak at 40 h at most 2 x the 108 MB the axis grows.
 Prints a markdown table; the simulate job is listed for reference (it draws all six channels).
 

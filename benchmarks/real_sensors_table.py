@@ -1,4 +1,4 @@
-"""The real-sensor table of the README from finished runs: per run and sensor the white noise's bound/spec, the
+"""The real-sensor table of docs/results.md from finished runs: per run and sensor the white noise's bound/spec, the
 exported model's effective in-band inflation (median and max of sqrt(S_model / S_spec) over the application band),
 chi2/dof of the pooled Allan fit and per axis before/after the line terms, the components kept (flicker, random
 walk), Kalibr's two densities (SI), the worst MSE/P in the outage against the identified upper envelope and the

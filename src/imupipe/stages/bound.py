@@ -37,7 +37,7 @@ AXIS_T_PER_DECADE = 4
 
 
 #: Header of the bound file (what its fields mean, units).
-HEADER = """global bound of one sensor type (README "Output contract"); the verdict is in contract/{spec}/{sensor}.yaml.
+HEADER = """global bound of one sensor type (docs/outputs.md); the verdict is in contract/{spec}/{sensor}.yaml.
 SI: white N in u/sqrt(Hz), gauss_markov sigma in u and T in s, random_walk K in u/sqrt(s); u = rad/s (gyro), m/s^2 (accel).
 PSDs two-sided; the model is compared as the PSD of its dt-block-averaged samples (NoiseModel.psd_sampled).
 bound_spec_units: the same in the spec sheet's units. inflation: bound/spec per parameter.
