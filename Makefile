@@ -49,7 +49,7 @@ bench: env  ## speed against error, with allantools in the same run
 
 report: env  ## the HTML report of a finished run (results/<name>/report.html; the summary on its first page)
 	$(BYTECODE)
-	$(SNAKEMAKE) $(QUIET) --report results/$$($(VENV)/bin/python -c "import yaml; print(yaml.safe_load(open('$(CONFIG)')).get('name', 'paper'))")/report.html
+	$(SNAKEMAKE) $(QUIET) --report results/$$($(VENV)/bin/python -c "import functools, sys, yaml; print(functools.reduce(lambda n, f: (yaml.safe_load(open(f)) or {}).get('name', n), sys.argv[1:], 'paper'))" $(CONFIG))/report.html
 
 rulegraph: env  ## docs/figures/rulegraph.svg (needs graphviz's dot)
 	$(SNAKEMAKE) --rulegraph | dot -Tsvg > docs/figures/rulegraph.svg

@@ -91,9 +91,10 @@ class TestDiscretize:
             Qd, N**2 * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]]), rtol=1e-12, atol=0
         )
 
-    def test_white_measurement_noise_per_sample(self):
+    def test_white_measurement_noise_per_step(self):
         d = export_kf(NoiseModel(white=2e-3), dt=0.01)
-        assert d["discrete_noise"]["white_std_per_sample"] == pytest.approx(2e-3 / math.sqrt(0.01), rel=1e-15)
+        assert d["discrete_noise"]["white_std_per_step"] == pytest.approx(2e-3 / math.sqrt(0.01), rel=1e-15)
+        assert d["discrete_noise"]["step_s"] == 0.01 and "not per IMU sample" in d["discrete_noise"]["note"]
 
     def test_full_model_blocks(self, accel):
         dt = 0.2

@@ -87,6 +87,19 @@ class TestCsv:
         assert rec.sensors == ("gyro", "accel")
         assert "imu.csv" in rec.source
 
+    def test_a_name_without_its_bracketed_unit_finds_the_column(self, tmp_path, signals):
+        # a header that states each column's unit ("wx [deg/s]", as imupipe init and the README suggest) read by the
+        # bare names; a bare name that two columns share is refused naming both
+        cols = {"t [s]": signals[1]} | {f"{NAMES[k]} [{UNITS[k[0]]}]": signals[0][k] for k in ALL_KEYS}
+        path = write_csv(tmp_path / "imu.csv", cols)
+        rec = read_dataset(path, "csv", RATE, NAMES, UNITS, time_column="t")
+        assert_si(rec, signals[0])
+        assert rec.columns[("gyro", "x")] == "'wx [deg/s]'"
+        twice = write_csv(tmp_path / "twice.csv", cols | {"wx [rad/s]": signals[0][("gyro", "x")]})
+        with pytest.raises(DataError, match=r"twice\.csv: gyro_x column 'wx' names 2 columns .*'wx \[deg/s\]', "
+                                            r"'wx \[rad/s\]'\): give the full name"):
+            read_dataset(twice, "csv", RATE, NAMES, UNITS, time_column="t")
+
     def test_no_header_whitespace_and_indices(self, tmp_path, signals):
         data, _ = signals
         path = write_csv(

@@ -173,7 +173,8 @@ def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
     assert "summary.md is written only by a complete run" in partial
     md.write_text("# summary\n")
     ok = end_of_run_text(str(tmp_path), "logs/t", md)
-    assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report" in ok
+    assert ok.startswith("\n# summary\n\nSummary with the details: ") and "make report CONFIG=<this run's config>" in ok
+    assert f"imupipe run <this run's config> -- --report {tmp_path.resolve()}/report.html" in ok
     # a job failed after the summary was written (an outside evaluation read "written only by a complete run"
     # beside the file): the line says what the file is
     late = end_of_run_text(str(res), "logs/t", md, failed=True)

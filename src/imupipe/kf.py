@@ -354,7 +354,8 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
     dict
         ``states``, ``state_units``, ``noises``, ``noise_units``, ``F``, ``G``, ``Qc`` (continuous),
         ``Phi``, ``Qd`` (discrete at `dt`), ``P0``, ``parameters`` (SI), ``discrete_noise``
-        (per-step standard deviations: white :math:`N/\sqrt{\Delta t}`, random walk
+        (standard deviations per filter step :math:`\Delta t` = ``step_s``, not per IMU sample: white
+        ``white_std_per_step`` :math:`N/\sqrt{\Delta t}`, random walk
         :math:`K\sqrt{\Delta t}`, GM :math:`\phi` and :math:`\sigma\sqrt{1-\phi^2}`), ``equation``,
         ``notes``.
     """
@@ -418,13 +419,17 @@ def export_kf(model, dt: float, reduced: bool | None = None, q_m: float = 0.0, s
         "P0": _mat(P0),
         "parameters": params,
         "discrete_noise": {
-            "white_std_per_sample": float(model.white / math.sqrt(dt)),
+            # per filter step dt_s, not per IMU sample: a sensor sample at rate r has N sqrt(r) of white noise
+            "step_s": float(dt),
+            "white_std_per_step": float(model.white / math.sqrt(dt)),
             "random_walk_driving_std": float(model.random_walk * math.sqrt(dt)),
             "gauss_markov": [
                 {"phi": float(math.exp(-dt / T)), "driving_std": float(s * math.sqrt(-math.expm1(-2 * dt / T)))}
                 for s, T in gm
             ],
             "unit": u,
+            "note": (f"standard deviations per filter step of {float(dt):g} s (the KF file's dt_s), not per IMU "
+                     f"sample: white noise per sample of an IMU at rate r is N sqrt(r), N = parameters.white"),
         },
         "notes": notes,
     }

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from imupipe.units import SI_UNITS, UnitError, rate_factor
+from imupipe.units import SI_UNITS, UnitError, rate_factor, split_unit_suffix
 
 __all__ = [
     "AXES",
@@ -390,7 +390,9 @@ def _normalise_units(units: Mapping[Any, Any] | None) -> dict[Key, str | None]:
 
 
 def _resolve(spec: Any, names: list[str] | None, ncols: int, what: str, where: str) -> int:
-    """Index of column ``spec`` (a name, or a 0-based index) among ``names`` (None: no names)."""
+    """Index of column ``spec`` among ``names`` (None: no names): a name, a 0-based index, or a name without its
+    bracketed unit (``gx`` for the header ``gx [deg/s]``, :func:`imupipe.units.split_unit_suffix`) where exactly one
+    column has that name."""
     if names is not None and isinstance(spec, str) and spec in names:
         return names.index(spec)
     is_int = isinstance(spec, (int, np.integer)) and not isinstance(spec, bool)
@@ -398,6 +400,13 @@ def _resolve(spec: Any, names: list[str] | None, ncols: int, what: str, where: s
     index = int(spec) if is_int or is_digits else None
     if index is not None and 0 <= index < ncols:
         return index
+    if names is not None and isinstance(spec, str):
+        bare = [i for i, n in enumerate(names) if split_unit_suffix(str(n))[0] == spec.strip()]
+        if len(bare) == 1:
+            return bare[0]
+        if bare:
+            raise DataError(f"{where}: {what} column {spec!r} names {len(bare)} columns once their units are left "
+                            f"out ({', '.join(repr(names[i]) for i in bare)}): give the full name")
     available = ", ".join(repr(n) for n in names) if names is not None else f"indices 0..{ncols - 1}"
     raise DataError(f"{where}: {what} column {spec!r} not found; available: {available}")
 

@@ -220,8 +220,8 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
                      (f"{md_at} was written before the failure and does not cover the failed job." if md.is_file()
                       else "summary.md is written only by a complete run."))
     elif md.is_file():
-        parts.append(f"Summary with the details: {md_at}; report: snakemake --report "
-                     f"{Path(results).resolve()}/report.html (make report)")
+        parts.append(f"Summary with the details: {md_at}; the HTML report: imupipe run <this run's config> -- --report "
+                     f"{Path(results).resolve()}/report.html (or make report CONFIG=<this run's config>)")
     return "".join(f"\n{p}\n" for p in parts).rstrip("\n")
 
 
