@@ -562,3 +562,8 @@ def test_tables_stage_of_the_spec_sheet_itself_gives_ratio_one():
     bounds["gyro"]["bound"]["narrowband"] = [{"sigma": 1e-4, "f0_hz": 12.0, "zeta": 0.002}]
     md = tables_stage(spec, bounds)["markdown"]
     assert "| gyro | line 1 sigma (12 Hz, damping 0.002) | deg/h | - | 20.63 | - |" in md
+    # a line the bound gave no power (the default run's 16.9 Hz lines: sigma 0) is no state and no row
+    bounds["gyro"]["bound"]["narrowband"] = [{"sigma": 0.0, "f0_hz": 16.9, "zeta": 6e-5},
+                                             {"sigma": 1e-4, "f0_hz": 12.0, "zeta": 0.002}]
+    md = tables_stage(spec, bounds)["markdown"]
+    assert "16.9 Hz" not in md and "| gyro | line 1 sigma (12 Hz, damping 0.002) | deg/h | - | 20.63 | - |" in md

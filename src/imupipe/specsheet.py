@@ -307,7 +307,9 @@ def inflation_rows(spec: SpecSheet, sensor: str, bound_model: NoiseModel) -> lis
     if specm.flicker:  # not a filter state: the bound covers it with its GM terms, or its random walk without any
         by = "GM" if bound_model.gauss_markov else "random walk" if bound_model.random_walk > 0 else "white noise"
         rows.append((f"flicker B (covered by {by})", "flicker", specm.flicker, 0.0))
-    for i, (sg, f0, zeta) in enumerate(getattr(bound_model, "narrowband", ()) or (), start=1):
+    # a line the bound gave no power (sigma 0: its bins covered by the broadband terms) is no filter state
+    states = [ln for ln in getattr(bound_model, "narrowband", ()) or () if ln[0] > 0]
+    for i, (sg, f0, zeta) in enumerate(states, start=1):
         rows.append((f"line {i} sigma ({f0:.4g} Hz, damping {zeta:.3g})", "gm_sigma", 0.0, sg))
     out = []
     for label, q, sv, bv in rows:
