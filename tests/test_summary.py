@@ -152,6 +152,24 @@ def test_summarise_results_finds_the_files_of_a_results_folder(tmp_path):
     assert summarise_results(tmp_path / "empty") == ""
 
 
+def test_end_of_run_text_gives_the_runs_paths_from_anywhere(tmp_path, monkeypatch):
+    """The run works in the checkout or --directory, the user types from elsewhere (an outside evaluation followed
+    `results/mydata/kf/...` from its own folder): on the terminal the summary's paths are absolute, summary.md keeps
+    its own."""
+    from imupipe.stages.summary import end_of_run_text
+
+    monkeypatch.chdir(tmp_path)
+    md = tmp_path / "results" / "r1" / "summary.md"
+    md.parent.mkdir(parents=True)
+    md.write_text("# summary\n\n| gyro | BOUNDED | `results/r1/kf/s/gyro.yaml` |\n\nKalibr [results/r1/kf/s/k.yaml]; "
+                  "/elsewhere/results/r1/x and results/r10/y stay\n")
+    text = end_of_run_text("results/r1", "logs/r1", "results/r1/summary.md")
+    where = (tmp_path / "results" / "r1").resolve().as_posix()
+    assert f"`{where}/kf/s/gyro.yaml`" in text and f"[{where}/kf/s/k.yaml]" in text
+    assert "/elsewhere/results/r1/x and results/r10/y stay" in text
+    assert "`results/r1/kf/s/gyro.yaml`" in md.read_text()
+
+
 def test_end_of_run_text_after_a_failure_a_partial_run_and_a_success(tmp_path):
     from imupipe.io import write_yaml_atomic
     from imupipe.stages.summary import end_of_run_text
@@ -799,6 +817,9 @@ def test_an_initial_bias_resting_on_the_spec_sheets_gm_time_constant_is_flagged(
     (f,) = [f for f in flags_of("gyro", bound=contract()) if f.check == "initial bias"]
     assert "T_max = 7.2e+03 s (spec sheet: longest GM time constant" in f.detail
     assert "identify.max_bias_time_s" in f.detail
+    # and the sheet's key for a turn-on bias, which mean-removed records cannot show (an outside evaluation: a 2 mg
+    # turn-on bias under the exported 0.6 mg, MSE/P 2.7 in the fixes; the first screen named max_bias_time_s alone)
+    assert "the spec sheet's turn_on_bias" in f.detail
     assert not [f for f in flags_of("gyro", bound=contract(max_bias_time_s=1e5)) if f.check == "initial bias"]
 
 
@@ -821,6 +842,15 @@ def test_the_fit_adequacy_flag_names_auto_only_under_auto():
                                                             "covariance statistic"}}
     (f,) = [f for f in flags_of("gyro", bound=_bound(), identify=cov) if f.check == "fit adequacy"]
     assert f.detail.startswith("chi2/dof = 1.19 (with the AV points' correlation: 62), p = 2.33e-122: ")
+    # a p at the bootstrap's floor (no replicate reached the statistic: 1 / (1 + 100)) is an upper limit, not a p (an
+    # outside evaluation read "p = 0.0099" twice, before and after a change of the model); a tail p below the floor
+    # (above) is shown as computed
+    floor = {"adequacy": {"adequate": False, "chi2_per_dof": 5.0, "p_value": 1 / 101, "p_value_resolution": 1 / 101}}
+    (f,) = [f for f in flags_of("gyro", bound=_bound(), identify=floor) if f.check == "fit adequacy"]
+    assert f.detail.startswith("chi2/dof = 5, p <= 0.0099: ")
+    cov["adequacy"]["p_value_resolution"] = 1 / 101
+    (f,) = [f for f in flags_of("gyro", bound=_bound(), identify=cov) if f.check == "fit adequacy"]
+    assert ", p = 2.33e-122: " in f.detail
 
 
 def test_a_failed_component_check_reads_in_words_and_the_verdict_line_names_it():

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "ratio_text",
-           "spec_unit"]
+__all__ = ["KALIBR_SI", "SI_SPELLING", "SPEC_LIKE_UNITS", "both_units", "in_spec_units", "num", "p_text",
+           "ratio_text", "spec_unit"]
 
 
 def num(v, fmt="{:.3g}") -> str:
@@ -17,6 +17,18 @@ def num(v, fmt="{:.3g}") -> str:
         return fmt.format(float(v))
     except (TypeError, ValueError):
         return "-" if v is None else str(v)
+
+
+def p_text(test: Mapping) -> str:
+    """``"p = 0.031"`` of a test's record (its ``p_value``), or ``"p <= 0.0099"`` where the p-value is the smallest
+    its bootstrap can give (``p_value_resolution``, 1 / (1 + replicates)): no replicate reached the statistic, and
+    the true p may be far smaller (a p below that floor is a tail p computed otherwise, shown as it is)."""
+    p, res = test.get("p_value"), test.get("p_value_resolution")
+    try:
+        floor = res is not None and abs(float(p) - float(res)) <= 1e-9 * float(res)
+    except (TypeError, ValueError):
+        floor = False
+    return f"p <= {num(res)}" if floor else f"p = {num(p)}"
 
 
 def ratio_text(v) -> str:

@@ -24,7 +24,7 @@ from imupipe.eventwords import event_chance, level_change_note, step_scan_text
 from imupipe.linewords import line_chance, line_reports, line_text, search_band_text
 from imupipe.markdown import markdown_to_html  # the summary's HTML page; kept importable from here
 from imupipe.paste import paste_rows  # the first screen's values to paste; kept importable from here
-from imupipe.shown import SI_SPELLING, both_units, in_spec_units, num, ratio_text, spec_unit
+from imupipe.shown import SI_SPELLING, both_units, in_spec_units, num, p_text, ratio_text, spec_unit
 from imupipe.verdict import (BOUNDED_TOLERANCE, chance_failures, confidence_lines, nonstationary_qualifier,
                              stretch_note, taken_in_why, unstated_t_max, within_tolerance)
 
@@ -189,7 +189,7 @@ def _adequacy_flags(sensor: str, identify: Mapping, bound: Mapping) -> list[Flag
     # against p = 2e-122 (an outside evaluation)
     with_cov = (f" (with the AV points' correlation: {num(float(cov) / float(dof))})"
                 if "covariance" in str(adequacy.get("method") or "") and cov is not None and dof else "")
-    fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}{with_cov}, p = {num(adequacy.get('p_value'))}"
+    fit = f"chi2/dof = {num(adequacy.get('chi2_per_dof'))}{with_cov}, {p_text(adequacy)}"
     low = any(isinstance(s, Mapping) and s.get("low_band") for s in bound.get("line_search") or [])
     return [Flag(sensor, "fit adequacy", "pooled Allan-variance fit", f"{fit}: the model does not describe the "
                  "Allan variance within its confidence (identify.n_gm: 2, longer records or, for a line below the "
@@ -499,8 +499,8 @@ def _adequacy_table(identify: Mapping) -> list[str]:
     inadequate = []
     for name, v in rows:
         b, a = (v.get("before") or {}), (v.get("after") or {})
-        out.append(f"| {name} | {num(b.get('chi2_per_dof'))} | {num(b.get('p_value'))} | "
-                   f"{num(a.get('chi2_per_dof'))} | {num(a.get('p_value'))} |")
+        out.append(f"| {name} | {num(b.get('chi2_per_dof'))} | {p_text(b)[2:].lstrip('= ')} | "
+                   f"{num(a.get('chi2_per_dof'))} | {p_text(a)[2:].lstrip('= ')} |")
         if a.get("adequate") is False:
             inadequate.append(name)
     if inadequate:

@@ -97,7 +97,8 @@ def unstated_t_max(bias, std_text: str | None = None) -> str | None:
     return (f"the exported initial bias (std {std}: every bias state together, the p state's initial sd and any GM's "
             f"sigma, which the values to paste give apart) rests on {what} extrapolated "
             f"to T_max = {num(bias.get('T_max_s'))} s ({src}{rec}): state the longest time a bias persists "
-            "(identify.max_bias_time_s, s) if it is known")
+            "(identify.max_bias_time_s, s) if it is known, and the spec sheet's turn_on_bias (the spread of the bias "
+            "from one switch-on to the next, which records with their mean removed cannot show)")
 
 
 def failure_tail(n_failed: int, n_tests: int, alpha) -> float | None:

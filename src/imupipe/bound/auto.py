@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 from imupipe.bound.axes import curves_by_axis
-from imupipe.shown import num
+from imupipe.shown import num, p_text
 
 __all__ = ["AUTO_MODES", "CRITERION", "ENVELOPE_MODE", "candidate_modes", "candidate_row", "select"]
 
@@ -117,8 +117,8 @@ def candidate_modes(identified: dict, lines=None, stretched=()) -> tuple[tuple[s
         why = (f"not built: {_lines_counted(found)} found, which the broadband envelope does not carry")
     elif rejected is not None:
         who, a = rejected
-        why = (f"not built: the data reject the {who} (adequacy: chi2/dof {num(a.get('chi2_per_dof'))}, p "
-               f"{num(a.get('p_value'))}), so the joint band, the spread of that model's refits, does not cover what "
+        why = (f"not built: the data reject the {who} (adequacy: chi2/dof {num(a.get('chi2_per_dof'))}, "
+               f"{p_text(a)}), so the joint band, the spread of that model's refits, does not cover what "
                "the model cannot represent; the candidates built from the sample PSDs bound the records' own spectra")
     elif pooled and not axes:
         return AUTO_MODES + (ENVELOPE_MODE,), (

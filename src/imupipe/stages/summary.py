@@ -209,8 +209,13 @@ def end_of_run_text(results, logs, summary_md, failed: bool = False) -> str:
             text = text.replace("**Verdict:**", "**Verdict (run FAILED; partial, not a verdict):**", 1)
         why = "; a job failed, so no check count below says the run passed" if failed else ""
         text = f"(partial: from the files this run has written so far{why})\n{text}" if text else ""
-    parts = [first_screen(text).rstrip()] if text else []  # the details stay in summary.md
-    # paths absolute: `imupipe run` runs in the checkout, not where the user typed it
+    # paths absolute: `imupipe run` runs in the checkout (or --directory), not where the user typed it; the
+    # summary's own paths (`results/<name>/kf/...`) are relative to that working directory
+    first = first_screen(text).rstrip() if text else ""
+    if first and not Path(results).is_absolute():
+        rel = Path(results).as_posix().rstrip("/")
+        first = re.sub(rf"(?<![\w./-]){re.escape(rel)}/", Path(results).resolve().as_posix() + "/", first)
+    parts = [first] if first else []  # the details stay in summary.md
     md_at, logs_at = md.resolve(), Path(logs).resolve()
     if not_bounded:
         parts.append(f"NOT BOUNDED: the integrity job failed the run on purpose (verify.on_failure: fail; warn makes "
