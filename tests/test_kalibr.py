@@ -160,6 +160,13 @@ def test_update_rate_refuses_datasets_of_different_rates():
         imu_rate({"a": 125.0, "b": 200.0})
     with pytest.raises(ValueError, match="positive number"):
         imu_rate({"a": 0.0})
+    # the config names the rate Kalibr's IMU runs at (kalibr.update_rate_hz): one of the datasets' rates
+    assert imu_rate({"a": 125.0, "b": 200.0}, named=200.0) == 200.0
+    assert imu_rate({"a": 125.0}, named=125.0) == 125.0
+    with pytest.raises(ValueError, match=r"kalibr.update_rate_hz 400: not the rate of any dataset \(a: 125 Hz, b: 200"):
+        imu_rate({"a": 125.0, "b": 200.0}, named=400.0)
+    with pytest.raises(ValueError, match="set kalibr.update_rate_hz"):
+        imu_rate({"a": 125.0, "b": 200.0})
 
 
 def test_narrowband_lines_are_refused():

@@ -144,7 +144,24 @@ def test_kalibr_refuses_datasets_of_different_rates(tiny_run, tmp_path):
                 path_kf_accel=str(work / RES / "kf/stim300/accel.yaml"))
     data = yaml.safe_load((tmp_path / "k.yaml").read_text())
     assert data["refused"] is True and "differ in sample rate (a: 20 Hz, b: 100 Hz)" in data["reason"]
-    assert "accelerometer_noise_density" not in data
+    assert "accelerometer_noise_density" not in data and "set kalibr.update_rate_hz" in data["reason"]
+    # the config names the rate to export at (an outside evaluation: records at 100 / 50 Hz got no Kalibr file, and
+    # "one configuration per rate" gives two models of one IMU): written at that rate, the comment saying so; a rate
+    # no dataset has is refused naming the key
+    for named, written in ((20.0, True), (50.0, False)):
+        kalibr.main(*(str(work / RES / p) for p in ("bound/stim300/gyro.yaml", "bound/stim300/accel.yaml",
+                                                     "identify/gyro.yaml", "identify/accel.yaml")),
+                    {"a": 20.0, "b": 100.0}, {}, str(tmp_path / "k.yaml"), "stim300",
+                    path_kf_gyro=str(work / RES / "kf/stim300/gyro.yaml"),
+                    path_kf_accel=str(work / RES / "kf/stim300/accel.yaml"), update_rate_hz=named)
+        text = (tmp_path / "k.yaml").read_text()
+        data = yaml.safe_load(text)
+        if written:
+            assert data["update_rate"] == 20.0 and data["accelerometer_noise_density"] > 0
+            assert ("update_rate 20 Hz as the config names it (kalibr.update_rate_hz), of datasets at a 20 Hz, "
+                    "b 100 Hz") in text
+        else:
+            assert data["refused"] is True and "kalibr.update_rate_hz 50: not the rate of any dataset" in data["reason"]
 
 
 def test_summary_is_printed_on_the_terminal_after_a_run(tiny_copy):

@@ -338,7 +338,7 @@ def dataset_rates(sheet_rates: Mapping[str, float | None], curve_rates: Mapping[
     return out
 
 
-def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:
+def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9, named: float | None = None) -> float:
     """The one IMU sample rate of a run's datasets, Hz.
 
     Parameters
@@ -347,12 +347,17 @@ def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:
         Dataset name -> sample rate (Hz) from the dataset sheet, or one rate.
     rtol : float, optional
         Relative tolerance for "the same rate" (default 1e-9).
+    named : float, optional
+        The rate the config names (``kalibr.update_rate_hz``, Hz): the update_rate where the datasets differ in rate
+        (the densities are continuous-time; the rate sets the band [1/horizon, rate / 2] the pair must bound, which
+        the records at that rate cover). It must be one of the datasets' rates: above every record's, no record
+        shows the noise up to its Nyquist frequency.
 
     Raises
     ------
     ValueError
-        When the datasets differ in rate (Kalibr's ``update_rate`` is one number: write one file per rate)
-        or a rate is not a positive number.
+        When the datasets differ in rate and no rate is named (Kalibr's ``update_rate`` is one number), `named` is
+        not one of the datasets' rates, or a rate is not a positive number.
     """
     if not isinstance(rates, Mapping):
         rates = {"rate": rates}
@@ -368,10 +373,15 @@ def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9) -> float:
             raise ValueError(f"update_rate: dataset {k!r} has rate_hz {v!r}, expected a positive number (Hz)")
         vals[k] = v
     first = next(iter(vals.values()))
+    listing = ", ".join(f"{k}: {v:g} Hz" for k, v in vals.items())
+    if named is not None:
+        if not any(abs(v - float(named)) <= rtol * v for v in vals.values()):
+            raise ValueError(f"kalibr.update_rate_hz {float(named):g}: not the rate of any dataset ({listing}); "
+                             "name the rate of the records taken at the rate Kalibr's IMU runs at")
+        return float(named)
     if any(abs(v - first) > rtol * first for v in vals.values()):
-        listing = ", ".join(f"{k}: {v:g} Hz" for k, v in vals.items())
         raise ValueError(f"update_rate: the datasets differ in sample rate ({listing}); Kalibr's update_rate is "
-                         "the IMU's one sample rate: export one Kalibr file per rate")
+                         "the IMU's one sample rate: set kalibr.update_rate_hz to the one Kalibr's IMU runs at")
     return first
 
 

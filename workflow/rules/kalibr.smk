@@ -1,6 +1,7 @@
 # Kalibr imu.yaml of both sensor types of one spec sheet: the smallest white noise and random walk whose PSD bounds
 # the exported model's over the application band (an LP per exported axis model, the largest of each), the IMU's
-# sample rate as update_rate (one rate for every dataset, else the job refuses, naming each) and the topic of the
+# sample rate as update_rate (one rate for every dataset, or the one kalibr.update_rate_hz names among theirs; else
+# the job refuses, naming each) and the topic of the
 # dataset sheet. The values follow the exported KF model (kf rule: the bound after the verified reduction). An
 # exported model with a narrowband line state is refused (no Kalibr fields written, the reason in the file and in
 # the run summary): Kalibr's two terms cannot carry the line, and values without it would not bound.
@@ -26,6 +27,7 @@ rule kalibr:
     params:
         rates=KALIBR_RATES,
         topics=KALIBR_TOPICS,
+        update_rate_hz=config["kalibr"]["update_rate_hz"],
     threads: 1
     resources:
         mem_mb=MEM_MB["kalibr"],

@@ -1,9 +1,10 @@
 """The Kalibr export of one spec sheet (rule ``kalibr``): ``imu.yaml`` from the gyro and accel bounds, the exported KF
 models, the identify files and the contracts (:mod:`imupipe.kalibr`).
 
-update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, else refused with each
-dataset's rate; a dataset whose sheet leaves rate_hz empty has the rate its timestamps gave, from the identify
-files: imupipe.kalibr.dataset_rates), rostopic the dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities
+update_rate is the IMU's sample rate (imupipe.kalibr.imu_rate: one rate for every dataset, or the one of theirs the
+config's kalibr.update_rate_hz names, else refused with each dataset's rate; a dataset whose sheet leaves rate_hz
+empty has the rate its timestamps gave, from the identify files: imupipe.kalibr.dataset_rates), rostopic the
+dataset sheet's topic (imupipe.kalibr.rostopic_of), the densities
 the smallest Kalibr pair (white noise, random walk) whose PSD bounds the exported model's over the application band
 [1/horizon_s, update_rate/2] (imupipe.kalibr.kalibr_pair: an LP; per axis when the KF file has per-axis models, the
 largest of each, the comment naming the axis), and the comment block the rule, the exported model's effective
@@ -142,10 +143,12 @@ def inband_notes(contracts: dict) -> list:
 
 
 def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rates: dict, topics: dict, *, spec: str,
-                 kf_paths: dict) -> str:
+                 kf_paths: dict, update_rate_hz: float | None = None) -> str:
     """The text of ``kf/{spec}/kalibr_imu.yaml``. `bounds`, `kfs`, `identified`, `contracts`: {"gyro": dict, "accel":
     dict} of the bound, KF, identify and contract files (contracts may be empty); `rates` {dataset: Hz or None} and
-    `topics` {dataset: topic or None} from the dataset sheet; `kf_paths` the KF files' paths (named in messages).
+    `topics` {dataset: topic or None} from the dataset sheet; `kf_paths` the KF files' paths (named in messages);
+    `update_rate_hz` the config's ``kalibr.update_rate_hz`` (Hz, or None): the rate to export at where the datasets
+    differ in rate, one of theirs (:func:`imupipe.kalibr.imu_rate`).
     A refused export (rates that differ, no bias drift, a line state) is a file with ``refused: true`` and the
     reason, logged as a warning; the run goes on."""
     from imupipe.kalibr import (
@@ -159,18 +162,25 @@ def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rat
     for doc in identified.values():
         curve_rates.update(doc.get("rate_hz") or {})
     try:
-        rate = imu_rate(dataset_rates(rates, curve_rates))
+        per_dataset = dataset_rates(rates, curve_rates)
+        rate = imu_rate(per_dataset, named=update_rate_hz)
     except ValueError as exc:  # one Kalibr file holds one IMU rate: refused, and said so, without failing the run
         logging.warning("Kalibr export refused: %s", exc)
         return ("# Kalibr IMU noise model NOT WRITTEN by imupipe: the datasets differ in sample rate, and\n"
-                "# Kalibr's update_rate is the IMU's one sample rate. Use the Kalman-filter export\n"
-                f"# kf/{spec}/<sensor>.yaml, or run one configuration per rate.\n"
+                "# Kalibr's update_rate is the IMU's one sample rate. Set kalibr.update_rate_hz in the config to\n"
+                "# the rate Kalibr's IMU runs at (one of the datasets'), or use the Kalman-filter export\n"
+                f"# kf/{spec}/<sensor>.yaml.\n"
                 f"{REFUSED}: true\nreason: {str(exc)!r}\n")
     topic = rostopic_of(topics)
     source = (f"spec sheet {bounds['gyro'].get('spec_name', spec)} ({spec}), {bounds['gyro'].get('mode', '-')}-mode "
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
     lines = {s: lines_of(k) for s, k in kfs.items() if lines_of(k)}
     notes = export_notes(kfs, rate)
+    if len({float(v) for v in per_dataset.values()}) > 1:  # the named rate of datasets that differ
+        notes.append(f"update_rate {rate:g} Hz as the config names it (kalibr.update_rate_hz), of datasets at "
+                     + ", ".join(f"{k} {float(v):g} Hz" for k, v in per_dataset.items())
+                     + f": the pair bounds the exported model up to {rate / 2:g} Hz, which the records at that rate "
+                     "cover")
     # the two-term model of each exported KF model (white, GM folded into the random walk); a line cannot be folded
     # in, so the two-term values are computed without it and, where the KF model has one, only written as comments
     models = {s: axis_models(k, kf_paths[s]) for s, k in kfs.items()}
