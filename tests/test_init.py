@@ -75,7 +75,7 @@ def test_an_outage_shorter_than_the_default_is_said_and_a_longer_one_can_be_aske
     # the note says what set the default and the longest outage --outage-s takes (a second evaluation: "allow no
     # longer" read as a limit that --outage-s 3600 then passed)
     assert ("note: application.outage_s = 1800 s, shorter than the default 3600 s: by default the outage is at most "
-            "the PSD window (1800 s)") in out and "imupipe init --outage-s asks for it, up to about 6600 s" in out
+            "the PSD window (1800 s)") in out and "imupipe init --outage-s asks for it, up to 6600 s" in out
     assert main(["init", str(record), "--spec", str(SPEC), "--out", str(tmp_path / "o2"), "--outage-s", "3600"]) == 0
     assert "note: application.outage_s" not in capsys.readouterr().out
     text = (tmp_path / "o2" / "config.yaml").read_text()

@@ -562,14 +562,13 @@ def init_files(data: Sequence[str | Path], spec: str | Path, out: str | Path = "
 
     default_outage = float(DEFAULTS["application.outage_s"])
     if outage_s is None and settings.outage_s < default_outage:
-        most = settings.shortest_s - float(DEFAULTS["verify.fix_s"])
         print(f"note: application.outage_s = {settings.outage_s:g} s, shorter than the default {default_outage:g} s: "
               f"by default the outage is at most the PSD window ({settings.window_s:g} s), so that the band the bound "
               "is checked over lies inside the spectra, and one fix period plus the outage fits in the shortest "
               f"record ({settings.shortest_s:.6g} s). The run verifies the model over that outage only. A filter "
-              "that must bridge a longer one: imupipe init --outage-s asks for it, up to about "
-              f"{max(most, 0.0):.6g} s on these records (below 1/outage the bound then covers the identified "
-              "envelope), and says how long the records must be beyond that")
+              "that must bridge a longer one: imupipe init --outage-s asks for it, up to "
+              f"{settings.longest_outage_s:.6g} s on these records (below 1/outage the bound then covers the "
+              "identified envelope), and says how long the records must be beyond that")
     return sheet, cfg, [t for r in records for t in r.todo]
 
 

@@ -274,6 +274,8 @@ class Settings:
     shortest_s: float
     unused: dict[str, float]
     outage_asked: bool = False  #: outage_s as the user asked for it (imupipe init --outage-s), not the rule's
+    #: the longest outage --outage-s takes: one fix period plus it fit in the shortest record
+    longest_outage_s: float | None = None
 
 
 def _rate_gcd(rates) -> Fraction:
@@ -306,10 +308,10 @@ def derive_settings(records: list[RecordInfo], outage_s: float | None = None) ->
         step = ns / fd
     h0 = float(DEFAULTS["application.outage_s"])
     outage = math.floor(min(h0, window, n_min / fd - _FIX_S) * fd) / fd
+    most = math.floor((n_min / fd - _FIX_S) * fd) / fd  # one fix period plus the outage in the shortest record
     if outage_s is not None:
         if not (math.isfinite(float(outage_s)) and float(outage_s) > 0):
             raise ValueError(f"--outage-s must be a positive number of seconds, got {outage_s!r}")
-        most = math.floor((n_min / fd - _FIX_S) * fd) / fd
         if float(outage_s) > most:
             raise ValueError(
                 f"--outage-s {float(outage_s):g}: the shortest record ({shortest.path}, {shortest.duration_s:.6g} s) "
@@ -326,7 +328,8 @@ def derive_settings(records: list[RecordInfo], outage_s: float | None = None) ->
         check_against_config({"rate_hz": r.rate_hz, "n_samples": r.n_samples, "duration_s": r.duration_s},
                              window_s=window, decimate_rate_hz=fd, n_segments=2, dataset=r.dataset)
         unused[r.dataset] = welch_unused(n, nw, ns) / n
-    return Settings(fd, float(window), float(step), float(outage), shortest.duration_s, unused, outage_s is not None)
+    return Settings(fd, float(window), float(step), float(outage), shortest.duration_s, unused, outage_s is not None,
+                    max(most, 0.0))
 
 
 _SHEET_COLUMNS = ["dataset", "path", "format", "rate_hz", "gyro_unit", "accel_unit", "gyro_x", "gyro_y", "gyro_z",

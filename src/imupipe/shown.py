@@ -19,16 +19,18 @@ def num(v, fmt="{:.3g}") -> str:
         return "-" if v is None else str(v)
 
 
-def p_text(test: Mapping) -> str:
+def p_text(test: Mapping, label: bool = True) -> str:
     """``"p = 0.031"`` of a test's record (its ``p_value``), or ``"p <= 0.0099"`` where the p-value is the smallest
     its bootstrap can give (``p_value_resolution``, 1 / (1 + replicates)): no replicate reached the statistic, and
-    the true p may be far smaller (a p below that floor is a tail p computed otherwise, shown as it is)."""
+    the true p may be far smaller (a p below that floor is a tail p computed otherwise, shown as it is). Without
+    `label` (a table's p column): ``"0.031"`` or ``"<= 0.0099"``."""
     p, res = test.get("p_value"), test.get("p_value_resolution")
     try:
         floor = res is not None and abs(float(p) - float(res)) <= 1e-9 * float(res)
     except (TypeError, ValueError):
         floor = False
-    return f"p <= {num(res)}" if floor else f"p = {num(p)}"
+    text = f"<= {num(res)}" if floor else num(p)
+    return (f"p {text}" if floor else f"p = {text}") if label else text
 
 
 def ratio_text(v) -> str:

@@ -499,8 +499,8 @@ def _adequacy_table(identify: Mapping) -> list[str]:
     inadequate = []
     for name, v in rows:
         b, a = (v.get("before") or {}), (v.get("after") or {})
-        out.append(f"| {name} | {num(b.get('chi2_per_dof'))} | {p_text(b)[2:].lstrip('= ')} | "
-                   f"{num(a.get('chi2_per_dof'))} | {p_text(a)[2:].lstrip('= ')} |")
+        out.append(f"| {name} | {num(b.get('chi2_per_dof'))} | {p_text(b, label=False)} | "
+                   f"{num(a.get('chi2_per_dof'))} | {p_text(a, label=False)} |")
         if a.get("adequate") is False:
             inadequate.append(name)
     if inadequate:
