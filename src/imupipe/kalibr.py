@@ -59,7 +59,8 @@ import numpy as np
 from imupipe.inband import PER_DECADE, band_grid, corner_frequencies
 from imupipe.models import NoiseModel
 
-__all__ = ["KALIBR_UNITS", "KalibrIMU", "KalibrPair", "LP_FEASIBILITY_TOL", "dataset_rates", "imu_rate", "kalibr_imu",
+__all__ = ["KALIBR_UNITS", "KalibrIMU", "KalibrPair", "LP_FEASIBILITY_TOL", "RATE_RTOL", "dataset_rates", "imu_rate",
+           "kalibr_imu",
            "kalibr_pair", "kalibr_text", "model_of_bound", "model_of_kf", "read_kalibr", "rostopic_of",
            "with_bias_drift", "write_kalibr"]
 
@@ -338,7 +339,12 @@ def dataset_rates(sheet_rates: Mapping[str, float | None], curve_rates: Mapping[
     return out
 
 
-def imu_rate(rates: Mapping[str, float] | float, rtol: float = 1e-9, named: float | None = None) -> float:
+#: Relative tolerance of "the same sample rate" (:func:`imupipe.kalibr.imu_rate`).
+RATE_RTOL = 1e-9
+
+
+def imu_rate(rates: Mapping[str, float] | float, rtol: float = RATE_RTOL,
+             named: float | None = None) -> float:
     """The one IMU sample rate of a run's datasets, Hz.
 
     Parameters

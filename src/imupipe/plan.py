@@ -414,12 +414,12 @@ def format_table(rows: list, units: dict, sensor: str) -> str:
     if rows and "auto" in rows[0]:
         lines.append("\nauto columns: the pooled joint envelope of the run's identification (every component it tries) "
                      "of the expected data, once per row, so they can step between rows where its regime changes (a GM "
-                     "the records do not resolve re-assigned); not a record-to-record median, and a first-order guide only: "
-                     "a run exports the tightest candidate that passes every check, which also lies above the spec "
-                     "sheet and, on several axes, each axis's own envelope, or above every sample PSD. On three-axis "
-                     "records of 2-2.5 h at 100 Hz the runs' median mean P/MSE was 0.8-2.4x the column and their "
-                     "inflation 1.0-1.4x (benchmarks/plan_auto_axes.py). The half-widths are of a fit of the model's "
-                     "own terms: a run that also keeps a flicker or a quantization reports wider ones")
+                     "the records do not resolve re-assigned); not a record-to-record median, and a first-order "
+                     "guide only: a run exports the tightest candidate that passes every check, which also lies "
+                     "above the spec sheet and, on several axes, each axis's own envelope, or above every sample "
+                     "PSD. On three-axis records of 2-2.5 h at 100 Hz the runs' median mean P/MSE was 0.8-2.4x the "
+                     "column and their inflation 1.0-1.4x (benchmarks/plan_auto_axes.py). The half-widths are of a fit "
+                     "of the model's own terms: a run that also keeps a flicker or a quantization reports wider ones")
     return "\n".join(lines)
 
 

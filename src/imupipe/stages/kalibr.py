@@ -152,7 +152,7 @@ def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rat
     A refused export (rates that differ, no bias drift, a line state) is a file with ``refused: true`` and the
     reason, logged as a warning; the run goes on."""
     from imupipe.kalibr import (
-        dataset_rates, imu_rate, kalibr_imu, kalibr_text, model_of_bound, rostopic_of, with_bias_drift,
+        RATE_RTOL, dataset_rates, imu_rate, kalibr_imu, kalibr_text, model_of_bound, rostopic_of, with_bias_drift,
     )
     from imupipe.stages.identify import selected_model
 
@@ -176,7 +176,8 @@ def kalibr_stage(bounds: dict, kfs: dict, identified: dict, contracts: dict, rat
               f"bound of {len(rates)} dataset(s) at {rate:g} Hz")
     lines = {s: lines_of(k) for s, k in kfs.items() if lines_of(k)}
     notes = export_notes(kfs, rate)
-    if len({float(v) for v in per_dataset.values()}) > 1:  # the named rate of datasets that differ
+    # the named rate of datasets that differ in rate (imu_rate's own tolerance decides what differs)
+    if update_rate_hz is not None and any(abs(float(v) - rate) > RATE_RTOL * rate for v in per_dataset.values()):
         notes.append(f"update_rate {rate:g} Hz as the config names it (kalibr.update_rate_hz), of datasets at "
                      + ", ".join(f"{k} {float(v):g} Hz" for k, v in per_dataset.items())
                      + f": the pair bounds the exported model up to {rate / 2:g} Hz, which the records at that rate "
